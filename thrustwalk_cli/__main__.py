@@ -1,0 +1,5 @@
+"""``python -m thrustwalk_cli``."""
+
+from .cli import main
+
+main()

@@ -1,0 +1,82 @@
+"""Disk cache of compiled models, keyed by content hash. Never imports SymPy.
+
+An entry is one generated Python file whose first line records the key and the SHA-256 of
+the rest. Entries are written to a unique temporary file and renamed into place, so readers
+never see a partial file; an entry whose key or checksum does not match (stale, corrupted,
+truncated) is reported as a miss and rebuilt by the caller.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import tempfile
+from pathlib import Path
+from types import ModuleType
+
+MAGIC = "# thrustwalk-model"
+
+
+def cache_dir() -> Path:
+    """``$THRUSTWALK_CACHE_DIR``, else ``$XDG_CACHE_HOME/thrustwalk``, else
+    ``~/.cache/thrustwalk``."""
+    env = os.environ.get("THRUSTWALK_CACHE_DIR")
+    if env:
+        return Path(env)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".cache") / "thrustwalk"
+
+
+def entry_path(name: str, key: str) -> Path:
+    safe = "".join(ch if ch.isalnum() or ch in "_-" else "_" for ch in name)[:40]
+    return cache_dir() / f"{safe}-{key[:20]}.py"
+
+
+def _digest(body: str) -> str:
+    return hashlib.sha256(body.encode()).hexdigest()
+
+
+def write_entry(path: Path, key: str, body: str) -> None:
+    """Atomically write ``body`` with a header holding ``key`` and its checksum."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    text = f"{MAGIC} key={key} sha256={_digest(body)}\n{body}"
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def verify_entry(path: Path, key: str) -> str | None:
+    """Return why the entry cannot be trusted, or None if it is valid."""
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        return "missing"
+    except (OSError, UnicodeDecodeError) as exc:
+        return f"unreadable ({exc.__class__.__name__})"
+    head, sep, body = text.partition("\n")
+    if not sep or not head.startswith(MAGIC + " "):
+        return "no header"
+    fields = dict(kv.split("=", 1) for kv in head[len(MAGIC) + 1:].split() if "=" in kv)
+    if fields.get("key") != key:
+        return "stale key"
+    if fields.get("sha256") != _digest(body):
+        return "checksum mismatch"
+    return None
+
+
+def import_entry(path: Path, key: str) -> ModuleType:
+    """Import a verified entry as a private module (not registered in ``sys.modules``)."""
+    spec = importlib.util.spec_from_file_location(f"thrustwalk_model_{key[:20]}", path)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"cannot import {path}")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -1,0 +1,90 @@
+"""``thrustwalk limit-cycle``: fixed points and orbits of the zero dynamics over a thrust sweep."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from .common import GaitArg, OutOpt, QuietOpt, RobotArg, cli_errors, console, parse_values
+
+HELP = """Limit cycles of the hybrid zero dynamics for constant thrust values (SPEC 3-4).
+
+For every thrust value: Poincare fixed point zeta* [kg^2 m^4/s^2], stability (delta_zero^2),
+step time [s], step length [m], speed [m/s], sigma_N^+/- [kg m^2/s], alpha'^+/- [rad/s] and
+the point of minimum |alpha'|. Thrust is in newtons; with the bundled robots negative thrust
+pushes forward (the paper's convention).
+
+Writes DIR/limit_cycles.json, DIR/limit_cycles.csv, DIR/limit_cycles.png and .pdf.
+"""
+
+EPILOG = ("Example: thrustwalk limit-cycle three_link three_link_walk --thrust 0:-50:-10 "
+          "--out out/lc")
+
+
+def run_limit_cycle(robot: str, gait: str, thrust: list[float], thruster: str | None,
+                    out: Path, quiet: bool) -> dict:
+    """Plain function behind the command; returns the JSON document it wrote."""
+    from .. import output, plots
+    from ..model import load_model
+    from ..robot_io import load_gait_for
+    from ..zero_dynamics import sweep_records, zero_dynamics
+
+    rob, g = load_gait_for(robot, gait)
+    model = load_model(rob)
+    zd = zero_dynamics(model, g)
+    doc, csv_rows, fig_data = sweep_records(zd, thrust, thruster)
+    doc = {"provenance": output.provenance(rob, g), **doc}
+    out.mkdir(parents=True, exist_ok=True)
+    output.write_json(out / "limit_cycles.json", doc)
+    output.write_csv(out / "limit_cycles.csv", csv_rows["header"], csv_rows["rows"],
+                     comments=csv_rows["comments"])
+    fig = plots.phase_portrait(
+        fig_data["values"], fig_data["orbits"], fig_data["jumps"],
+        value_label=f"thrust {doc['thruster']} [N]", black_every=10.0,
+        title=f"{rob.name} / {g.name}: zero-dynamics limit cycles")
+    output.save_figure(fig, out / "limit_cycles")
+    if not quiet:
+        _table(doc)
+    return doc
+
+
+def _fmt(v: float | None, spec: str = ".4g") -> str:
+    return "—" if v is None else format(v, spec)
+
+
+def _table(doc: dict) -> None:
+    from rich.table import Table
+
+    zd = doc["zero_dynamics"]
+    t = Table(title=f"limit cycles: {doc['robot']['name']} / {doc['gait']['name']} "
+                    f"(delta_zero^2 = {zd['delta_zero_sq']:.4f})")
+    for col in ("thrust [N]", "zeta*", "stable", "T [s]", "speed [m/s]", "min|α'| [rad/s]",
+                "reason"):
+        t.add_column(col, overflow="fold")
+    for c in doc["cycles"]:
+        t.add_row(_fmt(c["thrust"]), _fmt(c["zeta_star"]),
+                  "yes" if c["stable"] else ("no" if c["exists"] else "no orbit"),
+                  _fmt(c["step_time"]), _fmt(c["speed"]), _fmt(c["min_abs_alpha_dot"]),
+                  "" if c["stable"] else c["reason"])
+    console().print(t)
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("limit-cycle", help=HELP, epilog=EPILOG)
+    def limit_cycle_cli(
+        robot: RobotArg = "three_link",
+        gait: GaitArg = "three_link_walk",
+        thrust: Annotated[str, typer.Option(
+            "--thrust", help="Thrust values [N]: start:stop:step or a comma list.")] = "0:-50:-10",
+        thruster: Annotated[str | None, typer.Option(
+            "--thruster", help="Thruster that the sweep drives (default: the first).")] = None,
+        out: OutOpt = Path("out/limit_cycle"),
+        quiet: QuietOpt = False,
+    ) -> None:
+        with cli_errors():
+            values = parse_values(thrust, "--thrust", "N")
+            run_limit_cycle(robot, gait, values, thruster, out, quiet)
+            if not quiet:
+                console().print(f"wrote {out}/limit_cycles.json, .csv, .png, .pdf")

@@ -1,0 +1,81 @@
+"""Figures rendered from result objects (shared style: ``thrustwalk.mplstyle``)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+STYLE = Path(__file__).with_name("thrustwalk.mplstyle")
+
+
+def style():
+    """Context manager applying the package style."""
+    return plt.style.context(str(STYLE))
+
+
+def _is_multiple(value: float, every: float) -> bool:
+    return every > 0 and abs(value / every - round(value / every)) < 1e-9
+
+
+def phase_portrait(
+    values: Sequence[float],
+    orbits: Sequence[dict | None],
+    jumps: Sequence[tuple[float, float, float, float] | None],
+    *,
+    value_label: str,
+    y: str = "alpha_dot",
+    black_every: float | None = 10.0,
+    title: str = "",
+    note: str = "",
+):
+    """Orbits in the (alpha, alpha') or (alpha, sigma_N) plane, coloured by a swept value.
+
+    ``orbits[i]``: dict with arrays ``alpha`` and ``y`` (None when no orbit exists).
+    ``jumps[i]``: (alpha_f, y^-, alpha_i, y^+), drawn dashed (the impact).
+    Values that are multiples of ``black_every`` are drawn in black (the paper's style).
+    """
+    ylabel = {"alpha_dot": r"$\dot\alpha$ [rad/s]",
+              "sigma": r"$\sigma_N$ [kg m$^2$/s]"}[y]
+    with style():
+        fig, ax = plt.subplots(figsize=(3.5, 2.7))
+        vals = np.asarray(values, float)
+        lo, hi = (vals.min(), vals.max()) if vals.size else (0.0, 1.0)
+        norm = matplotlib.colors.Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1)
+        cmap = matplotlib.colormaps["viridis"]
+        missing = []
+        for v, orb, jump in zip(vals, orbits, jumps):
+            if orb is None:
+                missing.append(v)
+                continue
+            black = black_every is not None and _is_multiple(v, black_every)
+            color = "k" if black else cmap(norm(v))
+            ax.plot(orb["alpha"], orb[y], color=color, lw=0.9 if black else 0.6,
+                    zorder=3 if black else 2)
+            if jump is not None:
+                ax.plot([jump[0], jump[2]], [jump[1], jump[3]], color=color, ls="--",
+                        lw=0.5, zorder=1)
+        sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
+        cb = fig.colorbar(sm, ax=ax, pad=0.02)
+        cb.set_label(value_label)
+        ax.set_xlabel(r"$\alpha$ [rad]")
+        ax.set_ylabel(ylabel)
+        handles = [matplotlib.lines.Line2D([], [], color="k", lw=0.9),
+                   matplotlib.lines.Line2D([], [], color="gray", ls="--", lw=0.5)]
+        labels = [f"every {black_every:g}" if black_every else "orbit", "impact"]
+        ax.legend(handles, labels, loc="best")
+        if title:
+            ax.set_title(title)
+        text = note
+        if missing:
+            text += ("\n" if text else "") + "no orbit for " + ", ".join(f"{m:g}" for m in missing)
+        if text:
+            ax.text(0.01, 0.01, text, transform=ax.transAxes, fontsize=6, va="bottom",
+                    color="firebrick")
+        fig.tight_layout()
+    return fig

@@ -1,0 +1,437 @@
+"""Robot and gait files: one schema table per YAML kind, loading, and bundled names.
+
+Every problem is reported as ``file:line: key.path: message`` (all of them, not only the
+first); the README's key tables are generated from ``ROBOT_SCHEMA`` and ``GAIT_SCHEMA``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError, Problem
+from .gait import Gait, ThrustSchedule
+from .robot import Coordinate, Link, PointRef, Robot, Thruster, coordinate_map, symmetry_relabel
+from .schema import (
+    boolean,
+    check,
+    choice,
+    dict_of,
+    field,
+    list_of,
+    mapping,
+    matrix,
+    null_or,
+    number,
+    parameters,
+    string,
+    vector,
+)
+from .yamlio import load_yaml
+
+# ----------------------------------------------------------------------------- robot schema
+_POINT_MASS = mapping(
+    field("mass", number("kg", gt=0), "point mass"),
+    field("at", vector(2, "m"), "position in the link frame"),
+)
+_LINK = mapping(
+    field("name", string(), "unique link name"),
+    field("parent", null_or(string()), "parent link; null for the root (pinned at the stance "
+          "foot)"),
+    field("joint", vector(2, "m"), "origin of this link's frame (its joint) in the parent's "
+          "frame; ignored for the root", default=[0.0, 0.0]),
+    field("mass", number("kg", ge=0), "distributed mass of the link", default=0.0),
+    field("com", vector(2, "m"), "centre of mass of `mass`, link frame", default=[0.0, 0.0]),
+    field("inertia", number("kg m^2", ge=0), "rotational inertia of `mass` about its centre "
+          "of mass", default=0.0),
+    field("point_masses", list_of(_POINT_MASS), "extra point masses on the link (combined "
+          "with `mass` by the parallel-axis theorem)", default=[]),
+    field("end", vector(2, "m"), "far end of the link, for drawing", default=[0.0, 0.0]),
+    field("rotor", null_or(mapping(
+        field("inertia", number("kg m^2", ge=0), "rotor inertia J"),
+        field("gear_ratio", number("1", gt=0), "gear ratio G"),
+    )), "motor on the joint to the parent: adds the reflected inertia J G^2 on the joint "
+        "angle", default=None),
+)
+_POINT = mapping(
+    field("link", string(), "link name"),
+    field("point", vector(2, "m"), "point in the link frame"),
+)
+_COORD_ACT = mapping(
+    field("name", string(), "coordinate name"),
+    field("joint", string(), "child link of the joint: angle = theta_child - theta_parent"),
+)
+_COORD_UNACT = mapping(
+    field("name", string(), "coordinate name"),
+    field("link", string(), "link whose absolute angle (counter-clockwise from the world "
+          "frame) is q_N"),
+)
+_THRUSTER = mapping(
+    field("name", string(), "thruster name"),
+    field("link", string(), "link carrying the thruster"),
+    field("point", vector(2, "m"), "application point in the link frame"),
+    field("direction", vector(2), "direction of positive thrust (normalised on load)"),
+    field("frame", choice("world", "link"), "direction fixed in the world or in the link",
+          default="world"),
+    field("limits", vector(2, "N"), "minimum and maximum thrust", default=[-1e3, 1e3]),
+)
+ROBOT_SCHEMA = mapping(
+    field("name", string(), "robot name (used for caches and outputs)"),
+    field("description", string(nonempty=False), "free text", default=""),
+    field("parameters", parameters(), "named numbers usable in any numeric field, e.g. "
+          "`r/2`; arithmetic + - * / ** ( ), sin, cos, sqrt, pi", default={}),
+    field("gravity", number("m/s^2", gt=0), "gravitational acceleration (along -y)",
+          default=9.81),
+    field("links", list_of(_LINK, min_len=2), "rigid links forming a tree rooted at the stance "
+          "foot"),
+    field("coordinates", mapping(
+        field("actuated", list_of(_COORD_ACT, min_len=1), "q_b: one relative angle per joint, "
+              "in order [rad]"),
+        field("unactuated", _COORD_UNACT, "q_N: one absolute angle [rad]"),
+    ), "generalised coordinates q = [q_b; q_N]"),
+    field("feet", mapping(
+        field("stance", _POINT, "stance foot: a point of the root link, pinned"),
+        field("swing", _POINT, "swing foot: strikes the ground at impact"),
+    ), "foot points"),
+    field("relabel", mapping(
+        field("swap", null_or(list_of(list_of(string(), min_len=2))),
+              "link pairs that exchange roles at impact; R follows (R = T^-1 P T)",
+              default=None),
+        field("R", null_or(matrix()), "explicit N x N relabelling matrix (instead of swap)",
+              default=None),
+        field("b", null_or(vector(unit="rad")), "offset in q+ = R q- + b", default=None),
+    ), "leg relabelling at impact: q+ = R q- + b, q'+ = R q'-"),
+    field("thrusters", list_of(_THRUSTER), "thrusters (may be empty)", default=[]),
+)
+
+# ------------------------------------------------------------------------------ gait schema
+GAIT_SCHEMA = mapping(
+    field("name", string(), "gait name"),
+    field("description", string(nonempty=False), "free text (how the gait was made)",
+          default=""),
+    field("robot", string(), "bundled robot name or path relative to this file"),
+    field("parameters", parameters(), "named numbers usable in numeric fields", default={}),
+    field("alpha", mapping(
+        field("c", dict_of(number("1"), key_name="coordinate"), "alpha = c q: coefficient "
+              "per coordinate name (missing = 0); must involve q_N"),
+        field("final", number("rad"), "alpha_f, the value of alpha just before impact"),
+    ), "gait-timing variable; alpha_i follows from the relabelling: c (R q- + b)"),
+    field("bezier", mapping(
+        field("invariance", choice("auto", "given"), "auto: columns 0 and 1 are computed for "
+              "hybrid invariance (write them as ~); given: all columns as written",
+              default="auto"),
+        field("coefficients", dict_of(list_of(null_or(number("rad")), min_len=4),
+                                      key_name="coordinate"),
+              "one row of M+1 values per actuated coordinate: column 0 at s = 0 (after "
+              "impact) ... column M at s = 1 (before impact)"),
+    ), "Bezier virtual constraints h_d(s), s = (alpha - alpha_i)/(alpha_f - alpha_i)"),
+    field("controller", mapping(
+        field("kp", number("1/s^2", gt=0), "output PD gain Kp", default=400.0),
+        field("kd", number("1/s", gt=0), "output PD gain Kd", default=40.0),
+    ), "y'' = -Kp y - Kd y' (full-order simulation)", default={}),
+    field("mu", number("1", gt=0), "friction coefficient for feasibility checks", default=0.7),
+    field("thrust", null_or(mapping(
+        field("mode", choice("force", "generalized"), "force: newtons per thruster; "
+              "generalized: T_j on q_N in N m", default="force"),
+        field("knots", vector(min_len=2), "knots as fractions of the step (0 ... 1) or alpha "
+              "values (see `fractions`)"),
+        field("fractions", boolean(), "knots are fractions of the step", default=True),
+        field("values", dict_of(vector(unit="N or N m"), key_name="thruster"),
+              "per thruster (force mode) or `T` (generalized mode): one value per interval"),
+    )), "optional piecewise-constant thrust schedule (SPEC 4)", default=None),
+)
+
+
+# ---------------------------------------------------------------------------- references
+def _bundled_dirs(kind: str) -> list[Path]:
+    here = Path(__file__).resolve().parent
+    return [here / kind, here.parent / kind]
+
+
+def bundled_names(kind: str) -> list[str]:
+    """Names of the bundled ``robots`` or ``gaits``."""
+    names: set[str] = set()
+    for d in _bundled_dirs(kind):
+        if d.is_dir():
+            names |= {p.stem for p in d.glob("*.yaml")}
+    return sorted(names)
+
+
+def resolve(ref: str, kind: str, base: Path | None = None) -> Path:
+    """A path (absolute, relative to ``base`` or to the working folder) or a bundled name."""
+    candidates = []
+    p = Path(ref)
+    if base is not None and not p.is_absolute():
+        candidates.append(base / p)
+    candidates.append(p)
+    for c in candidates:
+        if c.is_file():
+            return c
+    if "/" not in ref and not ref.endswith((".yaml", ".yml")):
+        for d in _bundled_dirs(kind):
+            f = d / f"{ref}.yaml"
+            if f.is_file():
+                return f
+    raise InputError(f"{ref}: no such file and no bundled {kind[:-1]} of that name "
+                     f"(bundled: {', '.join(bundled_names(kind))})")
+
+
+# ----------------------------------------------------------------------------- robots
+def _combine(mass: float, com: list[float], inertia: float, points: list[dict]
+             ) -> tuple[float, tuple[float, float], float]:
+    """Total mass, centre of mass and inertia about it (parallel-axis theorem)."""
+    items = [(mass, np.array(com), inertia)] + [(p["mass"], np.array(p["at"]), 0.0)
+                                                 for p in points]
+    M = sum(m for m, _, _ in items)
+    if M <= 0:
+        return 0.0, (0.0, 0.0), 0.0
+    c = sum(m * x for m, x, _ in items) / M
+    I = sum(i + m * float((x - c) @ (x - c)) for m, x, i in items)
+    return float(M), (float(c[0]), float(c[1])), float(I)
+
+
+def load_robot(ref: str) -> Robot:
+    """Read, validate and build a :class:`Robot` from a YAML file or bundled name."""
+    path = resolve(ref, "robots")
+    doc = load_yaml(path)
+    res = check(doc, ROBOT_SCHEMA)
+    res.raise_if_problems()
+    d = res.data
+    problems: list[Problem] = []
+    names = [lk["name"] for lk in d["links"]]
+    for i, n in enumerate(names):
+        if names.index(n) != i:
+            problems.append(res.problem(("links", i, "name"), f"duplicate link name '{n}'"))
+    links = []
+    roots = []
+    for i, lk in enumerate(d["links"]):
+        if lk["parent"] is None:
+            roots.append(i)
+        elif lk["parent"] not in names:
+            problems.append(res.problem(("links", i, "parent"),
+                                        f"unknown link '{lk['parent']}'"))
+        m, c, I = _combine(lk["mass"], lk["com"], lk["inertia"], lk["point_masses"])
+        if m <= 0:
+            problems.append(res.problem(("links", i), "link has no mass: give `mass` > 0 or "
+                                        "`point_masses`"))
+        rotor = lk["rotor"]
+        links.append(Link(lk["name"], lk["parent"], tuple(lk["joint"]), m, c, I,
+                          tuple(lk["end"]),
+                          rotor["inertia"] * rotor["gear_ratio"] ** 2 if rotor else 0.0))
+    if len(roots) != 1:
+        problems.append(res.problem(("links",), f"exactly one link needs parent: null (the "
+                                    f"stance-side root), found {len(roots)}"))
+    else:
+        parent = {lk.name: lk.parent for lk in links}
+        for i, lk in enumerate(links):
+            seen, cur = set(), lk.name
+            while cur is not None and cur in parent and cur not in seen:
+                seen.add(cur)
+                cur = parent[cur]
+            if cur is not None and cur in seen:
+                problems.append(res.problem(("links", i, "parent"),
+                                            f"cycle in the link tree through '{lk.name}'"))
+                break
+    if roots and links[roots[0]].rotor_inertia:
+        problems.append(res.problem(("links", roots[0], "rotor"), "the root has no joint"))
+    if problems:
+        raise InputError(problems)
+
+    def need_link(name: str, path: tuple) -> None:
+        if name not in names:
+            problems.append(res.problem(path, f"unknown link '{name}' (links: "
+                                        f"{', '.join(names)})"))
+
+    co = d["coordinates"]
+    coords = []
+    for i, c in enumerate(co["actuated"]):
+        need_link(c["joint"], ("coordinates", "actuated", i, "joint"))
+        coords.append(Coordinate(c["name"], c["joint"], True))
+    need_link(co["unactuated"]["link"], ("coordinates", "unactuated", "link"))
+    coords.append(Coordinate(co["unactuated"]["name"], co["unactuated"]["link"], False))
+    cnames = [c.name for c in coords]
+    if len(set(cnames)) != len(cnames):
+        problems.append(res.problem(("coordinates",), "coordinate names must be unique"))
+    for key in ("stance", "swing"):
+        need_link(d["feet"][key]["link"], ("feet", key, "link"))
+    for i, t in enumerate(d["thrusters"]):
+        need_link(t["link"], ("thrusters", i, "link"))
+        if np.hypot(*t["direction"]) < 1e-12:
+            problems.append(res.problem(("thrusters", i, "direction"), "direction is zero"))
+        if t["limits"][0] > t["limits"][1]:
+            problems.append(res.problem(("thrusters", i, "limits"), "minimum > maximum"))
+    if problems:
+        raise InputError(problems)
+    links_t = tuple(links)
+    coords_t = tuple(coords)
+    root = links[roots[0]].name
+    if d["feet"]["stance"]["link"] != root:
+        problems.append(res.problem(("feet", "stance", "link"),
+                                    f"the stance foot must be on the root link '{root}'"))
+    try:
+        coordinate_map(links_t, coords_t)
+    except ValueError as exc:
+        problems.append(res.problem(("coordinates",), str(exc)))
+    if problems:
+        raise InputError(problems)
+
+    n = len(links)
+    rl = d["relabel"]
+    if (rl["swap"] is None) == (rl["R"] is None):
+        raise InputError(res.problem(("relabel",), "give exactly one of `swap` or `R`"))
+    if rl["swap"] is not None:
+        pairs = []
+        for i, pair in enumerate(rl["swap"]):
+            if len(pair) != 2:
+                problems.append(res.problem(("relabel", "swap", i), "expected a pair of links"))
+                continue
+            for nm in pair:
+                need_link(nm, ("relabel", "swap", i))
+            pairs.append((pair[0], pair[1]))
+        if problems:
+            raise InputError(problems)
+        R = symmetry_relabel(links_t, coords_t, pairs)
+    else:
+        R = np.array(rl["R"], float)
+        if R.shape != (n, n):
+            raise InputError(res.problem(("relabel", "R"), f"expected a {n}x{n} matrix"))
+    b = np.zeros(n) if rl["b"] is None else np.array(rl["b"], float)
+    if b.shape != (n,):
+        raise InputError(res.problem(("relabel", "b"), f"expected {n} values"))
+
+    thrusters = []
+    for t in d["thrusters"]:
+        dvec = np.array(t["direction"], float)
+        dvec = dvec / np.hypot(*dvec)
+        thrusters.append(Thruster(t["name"], t["link"], tuple(t["point"]),
+                                  (float(dvec[0]), float(dvec[1])), t["frame"],
+                                  tuple(t["limits"])))
+    lines = tuple((p, ln) for p, ln in _key_lines(doc))
+    return Robot(
+        name=d["name"], links=links_t, coordinates=coords_t,
+        stance_foot=PointRef(d["feet"]["stance"]["link"], tuple(d["feet"]["stance"]["point"])),
+        swing_foot=PointRef(d["feet"]["swing"]["link"], tuple(d["feet"]["swing"]["point"])),
+        relabel_R=tuple(map(tuple, R.tolist())), relabel_b=tuple(b.tolist()),
+        thrusters=tuple(thrusters), gravity=d["gravity"], description=d["description"],
+        source_file=str(path), source_sha256=doc.sha256,
+        parameters=tuple(sorted(res.params.items())), key_lines=lines,
+    )
+
+
+def _key_lines(doc) -> list[tuple[str, int]]:
+    """Lines of the top-level sections, for errors raised after loading (compile checks)."""
+    out = []
+    for key in ("links", "coordinates", "relabel", "feet", "thrusters"):
+        ln = doc.line_of((key,))
+        if ln is not None:
+            out.append((key, ln))
+    ln = doc.line_of(("coordinates", "unactuated"))
+    if ln is not None:
+        out.append(("coordinates.unactuated", ln))
+    return out
+
+
+# ------------------------------------------------------------------------------ gaits
+class _GaitDoc:
+    """Validated gait data kept for checks against the robot (line numbers included)."""
+
+    def __init__(self, res, rows: dict, c: dict):
+        self.res, self.rows, self.c = res, rows, c
+
+
+def load_gait(ref: str) -> tuple[Gait, _GaitDoc]:
+    """Read and validate a gait. Returns the gait (``A`` as written; columns 0 and 1 are None
+    with ``invariance: auto``; see :func:`load_gait_for`) and its validated data. The gait's
+    ``robot`` is resolved relative to the gait file.
+    """
+    path = resolve(ref, "gaits")
+    doc = load_yaml(path)
+    res = check(doc, GAIT_SCHEMA)
+    res.raise_if_problems()
+    d = res.data
+    robot_ref = d["robot"]
+    rp = Path(robot_ref)
+    if not rp.is_absolute() and (path.parent / rp).is_file():
+        robot_ref = str(path.parent / rp)
+    sched = None
+    if d["thrust"] is not None:
+        t = d["thrust"]
+        vals = t["values"]
+        sched = ThrustSchedule(tuple(t["knots"]), tuple((k, tuple(v)) for k, v in vals.items()),
+                               t["mode"], t["fractions"])
+    rows = d["bezier"]["coefficients"]
+    gait = Gait(
+        name=d["name"], robot=robot_ref, c=(), alpha_f=d["alpha"]["final"], A=(),
+        invariance=d["bezier"]["invariance"], kp=d["controller"]["kp"],
+        kd=d["controller"]["kd"], mu=d["mu"], thrust=sched, source_file=str(path),
+        source_sha256=doc.sha256,
+        given_A=tuple(tuple(r) for r in rows.values()),
+    )
+    return gait, _GaitDoc(res, rows, d["alpha"]["c"])
+
+
+def load_gait_for(robot_ref: str | None, gait_ref: str) -> tuple[Robot, Gait]:
+    """Load a gait and its robot (``robot_ref`` overrides the gait's own ``robot:``), check
+    them against each other and apply ``invariance: auto`` (SPEC 2)."""
+    from dataclasses import replace
+
+    from .gait import apply_invariance
+    from .model import load_model
+
+    gait, gd = load_gait(gait_ref)
+    res = gd.res
+    robot = load_robot(robot_ref if robot_ref else gait.robot)
+    if robot_ref:
+        try:
+            own = load_robot(gait.robot).name
+        except InputError:
+            own = robot.name  # the gait's own robot file is not reachable: trust the user
+        if own != robot.name:
+            raise InputError(res.problem(("robot",), f"gait '{gait.name}' is for robot "
+                                         f"'{own}', not '{robot.name}'"))
+    problems: list[Problem] = []
+    act = [c.name for c in robot.coordinates if c.actuated]
+    names = robot.coordinate_names
+    for k in gd.c:
+        if k not in names:
+            problems.append(res.problem(("alpha", "c", k), f"unknown coordinate '{k}' "
+                                        f"(robot {robot.name} has: {', '.join(names)})"))
+    c = np.array([gd.c.get(nm, 0.0) for nm in names], float)
+    if c[-1] == 0.0:
+        problems.append(res.problem(("alpha", "c"), f"alpha must depend on the unactuated "
+                                    f"coordinate '{names[-1]}' (H = [H_0; c] is singular)"))
+    for k in gd.rows:
+        if k not in act:
+            problems.append(res.problem(("bezier", "coefficients", k),
+                                        f"unknown actuated coordinate '{k}' (expected: "
+                                        f"{', '.join(act)})"))
+    for k in act:
+        if k not in gd.rows:
+            problems.append(res.problem(("bezier", "coefficients"),
+                                        f"missing row for actuated coordinate '{k}'"))
+    if problems:
+        raise InputError(problems)
+    rows = [gd.rows[k] for k in act]
+    lens = {len(r) for r in rows}
+    if len(lens) != 1:
+        raise InputError(res.problem(("bezier", "coefficients"),
+                                     "all rows need the same number of columns (M + 1)"))
+    auto = gait.invariance == "auto"
+    for k, r in zip(act, rows):
+        for j, v in enumerate(r):
+            if v is None and not (auto and j < 2):
+                problems.append(res.problem(("bezier", "coefficients", k, j),
+                                            "missing value (only columns 0 and 1 may be ~, "
+                                            "and only with invariance: auto)"))
+            if v is not None and auto and j < 2:
+                problems.append(res.problem(("bezier", "coefficients", k, j),
+                                            "with invariance: auto, columns 0 and 1 are "
+                                            "computed: write ~"))
+    if problems:
+        raise InputError(problems)
+    A = tuple(tuple(0.0 if v is None else float(v) for v in r) for r in rows)
+    gait = replace(gait, c=tuple(c.tolist()), A=A, robot=robot.name)
+    if auto:
+        gait = apply_invariance(load_model(robot), gait)
+    return robot, gait
