@@ -45,3 +45,15 @@ def _close_figures():
     import matplotlib.pyplot as plt
 
     plt.close("all")
+
+
+@pytest.fixture(scope="session")
+def walk3(_cache_dir):
+    """The bundled 3-link gait on its robot: (model, gait, zero dynamics)."""
+    from thrustwalk_cli.model import load_model
+    from thrustwalk_cli.robot_io import load_gait_for
+    from thrustwalk_cli.zero_dynamics import zero_dynamics
+
+    robot, gait = load_gait_for(None, "three_link_walk")
+    model = load_model(robot)
+    return model, gait, zero_dynamics(model, gait)

@@ -7,10 +7,14 @@ from __future__ import annotations
 
 import typer
 
-from . import __version__
-from .commands import compile as compile_cmd
-from .commands import inspect as inspect_cmd
-from .commands import limit_cycle as limit_cycle_cmd
+import importlib
+import pkgutil
+
+from . import __version__, commands
+
+# Help lists commands in this order; any other module in commands/ with ``register`` follows.
+ORDER = ["compile", "inspect", "limit_cycle", "shape", "feasibility", "optimize", "simulate",
+         "design_gait"]
 
 app = typer.Typer(
     name="thrustwalk",
@@ -21,7 +25,7 @@ app = typer.Typer(
     ),
     no_args_is_help=True,
     add_completion=False,
-    rich_markup_mode="rich",
+    rich_markup_mode=None,
     pretty_exceptions_enable=False,
 )
 
@@ -40,8 +44,15 @@ def _root(
     """Thruster-assisted bipedal walking with hybrid zero dynamics."""
 
 
-for module in (compile_cmd, inspect_cmd, limit_cycle_cmd):
-    module.register(app)
+def _command_modules() -> list[str]:
+    found = [m.name for m in pkgutil.iter_modules(commands.__path__) if m.name != "common"]
+    return sorted(found, key=lambda n: (ORDER.index(n) if n in ORDER else len(ORDER), n))
+
+
+for _name in _command_modules():
+    _module = importlib.import_module(f"{commands.__name__}.{_name}")
+    if hasattr(_module, "register"):
+        _module.register(app)
 
 
 def main() -> None:

@@ -378,8 +378,9 @@ class Expr:
             if isinstance(node, Num):
                 return np.asarray(node.value, dtype=float)
             if isinstance(node, Name):
+                value = self._lookup(node, env)
                 try:
-                    return np.asarray(self._lookup(node, env), dtype=float)
+                    return np.asarray(value, dtype=float)
                 except (TypeError, ValueError):
                     raise ExprError(f"name '{node.id}' is not numeric", node.pos) from None
             if isinstance(node, Unary):

@@ -1,0 +1,24 @@
+"""Tiny timing helpers shared by the benchmarks."""
+
+from __future__ import annotations
+
+import statistics
+import time
+from collections.abc import Callable
+
+
+def median_time(fn: Callable[[], object], repeat: int = 7, number: int = 1) -> float:
+    """Median wall time of ``number`` calls, in seconds per call."""
+    runs = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        for _ in range(number):
+            fn()
+        runs.append((time.perf_counter() - t0) / number)
+    return statistics.median(runs)
+
+
+def report(label: str, seconds: float, baseline: float | None = None, unit: str = "s") -> None:
+    scale = {"s": 1.0, "ms": 1e3, "us": 1e6}[unit]
+    ratio = f"  ratio {seconds / baseline:8.3f}" if baseline else ""
+    print(f"{label:<58s} {seconds * scale:12.4g} {unit}{ratio}", flush=True)
