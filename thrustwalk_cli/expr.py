@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import keyword
 import math
+import operator
 import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -38,10 +39,13 @@ DEFAULT_ARRAY_FUNCTIONS: Mapping[str, Function] = MappingProxyType(
 )
 DEFAULT_CONSTANTS: Mapping[str, float] = MappingProxyType({"pi": math.pi})
 
-_NUMBER = re.compile(r"[0-9]+\.?[0-9]*(?:[eE][+-]?[0-9]+)?|\.[0-9]+(?:[eE][+-]?[0-9]+)?")
-_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-_WORDISH = re.compile(r"[A-Za-z0-9_.]*")
-_SPACE = " \t\r\n"
+_TOKEN = re.compile(
+    r"(?P<space>[ \t\r\n]+)"
+    r"|(?P<num>[0-9]+\.?[0-9]*(?:[eE][+-]?[0-9]+)?|\.[0-9]+(?:[eE][+-]?[0-9]+)?)"
+    r"|(?P<name>[A-Za-z_][A-Za-z0-9_]*)|(?P<op>\*\*|[-+*/])|(?P<paren>[()])"
+)
+_WORDISH = re.compile(r"[A-Za-z0-9_.]*")  # what must not stick to a number, as in 2x or 1e
+_DESCRIBE = {"end": "end of expression", "num": "number '{}'", "name": "name '{}'"}
 
 
 class ExprError(ValueError):
@@ -54,6 +58,7 @@ class ExprError(ValueError):
 
 
 # ---------------------------------------------------------------------------- AST nodes
+# ``pos`` is the 0-based column of the node's token (for error messages).
 
 
 @dataclass(frozen=True)
@@ -76,11 +81,18 @@ class Unary:
 
 
 @dataclass(frozen=True)
-class Binary:
-    op: str
-    left: Node
-    right: Node
+class Power:
+    base: Node
+    exponent: Node
     pos: int
+
+
+@dataclass(frozen=True)
+class Chain:
+    """Left-associative ``first op x op x ...`` of ``+ -`` or ``* /`` (kept flat, not nested)."""
+
+    first: Node
+    rest: tuple[tuple[str, Node, int], ...]  # (operator, operand, column of the operator)
 
 
 @dataclass(frozen=True)
@@ -90,7 +102,7 @@ class Call:
     pos: int
 
 
-Node = Union[Num, Name, Unary, Binary, Call]  # noqa: UP007 (runtime alias on Python 3.10)
+Node = Union[Num, Name, Unary, Power, Chain, Call]  # noqa: UP007 (runtime alias on 3.10)
 
 # ---------------------------------------------------------------------------- tokenizer
 
@@ -102,13 +114,7 @@ class _Tok:
     pos: int
 
     def describe(self) -> str:
-        if self.kind == "end":
-            return "end of expression"
-        if self.kind == "num":
-            return f"number '{self.text}'"
-        if self.kind == "name":
-            return f"name '{self.text}'"
-        return f"'{self.text}'"
+        return _DESCRIBE.get(self.kind, "'{}'").format(self.text)
 
 
 def _char_error(ch: str, pos: int) -> ExprError:
@@ -123,44 +129,23 @@ def _char_error(ch: str, pos: int) -> ExprError:
 
 def _tokenize(text: str) -> list[_Tok]:
     toks: list[_Tok] = []
-    i, n = 0, len(text)
-    while i < n:
-        ch = text[i]
-        if ch in _SPACE:
-            i += 1
-            continue
-        m = _NUMBER.match(text, i)
-        if m:
-            end = m.end()
-            tail = _WORDISH.match(text, end)
-            if tail and tail.end() > end:
-                bad = text[i : tail.end()]
-                raise ExprError(f"invalid number '{bad}'", i)
-            toks.append(_Tok("num", m.group(), i))
-            i = end
-            continue
-        m = _NAME.match(text, i)
-        if m:
-            word = m.group()
-            if keyword.iskeyword(word) or keyword.issoftkeyword(word):
-                raise ExprError(f"keyword '{word}' is not allowed", i)
-            toks.append(_Tok("name", word, i))
-            i = m.end()
-            continue
-        if ch == "." and toks and toks[-1].kind in ("name", ")"):
-            raise ExprError("attribute access ('.') is not allowed", i)
-        if text.startswith("**", i):
-            toks.append(_Tok("op", "**", i))
-            i += 2
-            continue
-        if ch in "+-*/":
-            toks.append(_Tok("op", ch, i))
-        elif ch in "()":
-            toks.append(_Tok(ch, ch, i))
-        else:
-            raise _char_error(ch, i)
-        i += 1
-    toks.append(_Tok("end", "", n))
+    i = 0
+    while i < len(text):
+        m = _TOKEN.match(text, i)
+        if m is None:
+            if text[i] == "." and toks and toks[-1].kind in ("name", ")"):
+                raise ExprError("attribute access ('.') is not allowed", i)
+            raise _char_error(text[i], i)
+        kind, word, end = m.lastgroup or "", m.group(), m.end()
+        stuck = _WORDISH.match(text, end).end() if kind == "num" else end  # type: ignore[union-attr]
+        if stuck > end:
+            raise ExprError(f"invalid number '{text[i:stuck]}'", i)
+        if kind == "name" and keyword.iskeyword(word):
+            raise ExprError(f"keyword '{word}' is not allowed", i)
+        if kind != "space":
+            toks.append(_Tok(word if kind == "paren" else kind, word, i))
+        i = end
+    toks.append(_Tok("end", "", len(text)))
     return toks
 
 
@@ -198,18 +183,17 @@ class _Parser:
         return node
 
     def expr(self) -> Node:
-        node = self.term()
-        while self._is_op("+", "-"):
-            op = self._next()
-            node = Binary(op.text, node, self.term(), op.pos)
-        return node
+        return self._chain(self.term, ("+", "-"))
 
     def term(self) -> Node:
-        node = self.unary()
-        while self._is_op("*", "/"):
+        return self._chain(self.unary, ("*", "/"))
+
+    def _chain(self, operand: Callable[[], Node], ops: tuple[str, str]) -> Node:
+        first, rest = operand(), []
+        while self._is_op(*ops):
             op = self._next()
-            node = Binary(op.text, node, self.unary(), op.pos)
-        return node
+            rest.append((op.text, operand(), op.pos))
+        return Chain(first, tuple(rest)) if rest else first
 
     def unary(self) -> Node:
         if self._is_op("+", "-"):
@@ -225,7 +209,7 @@ class _Parser:
         if self._is_op("**"):
             op = self._next()
             self._enter(op.pos)
-            node = Binary("**", node, self.unary(), op.pos)
+            node = Power(node, self.unary(), op.pos)
             self.depth -= 1
         return node
 
@@ -267,18 +251,14 @@ class _Parser:
 # ---------------------------------------------------------------------------- evaluation
 
 
-def _scalar_binary(op: str, a: float, b: float, pos: int) -> float:
+_SCALAR_OPS: Mapping[str, Callable[[float, float], float]] = {
+    "+": operator.add, "-": operator.sub, "*": operator.mul, "/": operator.truediv, "**": math.pow
+}
+
+
+def _scalar_op(op: str, a: float, b: float, pos: int) -> float:
     try:
-        if op == "+":
-            r = a + b
-        elif op == "-":
-            r = a - b
-        elif op == "*":
-            r = a * b
-        elif op == "/":
-            r = a / b
-        else:
-            r = math.pow(a, b)
+        r = _SCALAR_OPS[op](a, b)
     except ZeroDivisionError:
         raise ExprError("division by zero", pos) from None
     except OverflowError:
@@ -293,12 +273,17 @@ def _scalar_binary(op: str, a: float, b: float, pos: int) -> float:
 
 
 _ARRAY_OPS: Mapping[str, Function] = {
-    "+": np.add,
-    "-": np.subtract,
-    "*": np.multiply,
-    "/": np.divide,
-    "**": np.power,
+    "+": np.add, "-": np.subtract, "*": np.multiply, "/": np.divide, "**": np.power
 }
+
+
+def _array_op(op: str, a: np.ndarray, b: np.ndarray, pos: int) -> np.ndarray:
+    try:
+        return np.asarray(_ARRAY_OPS[op](a, b), dtype=float)
+    except FloatingPointError as exc:
+        raise ExprError(f"{exc} (in '{op}')", pos) from None
+    except ValueError as exc:
+        raise ExprError(f"shape mismatch in '{op}': {exc}", pos) from None
 
 
 @dataclass(frozen=True, eq=False)
@@ -320,90 +305,89 @@ class Expr:
         stack: list[Node] = [self.root]
         while stack:
             node = stack.pop()
-            if isinstance(node, Name):
-                if node.id not in self.constants:
-                    out.add(node.id)
-            elif isinstance(node, Unary):
-                stack.append(node.operand)
-            elif isinstance(node, Binary):
-                stack.extend((node.left, node.right))
-            elif isinstance(node, Call):
-                stack.append(node.arg)
+            if isinstance(node, Name) and node.id not in self.constants:
+                out.add(node.id)
+            elif isinstance(node, (Unary, Call)):
+                stack.append(node.operand if isinstance(node, Unary) else node.arg)
+            elif isinstance(node, Power):
+                stack.extend((node.base, node.exponent))
+            elif isinstance(node, Chain):
+                stack.extend([node.first] + [x for _, x, _ in node.rest])
         return frozenset(out)
 
-    def _lookup(self, node: Name, env: Mapping[str, Any]) -> Any:
-        if node.id in self.constants:
-            return self.constants[node.id]
-        if node.id not in env:
-            raise ExprError(f"unknown name '{node.id}'", node.pos)
-        return env[node.id]
+    def _run(self, env: Mapping[str, Any] | None, leaf: Callable[[Any, Node], Any],
+             binop: Callable[[str, Any, Any, int], Any],
+             call: Callable[[str, Any, int], Any]) -> Any:
+        env = {} if env is None else env
+
+        def ev(node: Node) -> Any:
+            if isinstance(node, Num):
+                return leaf(node.value, node)
+            if isinstance(node, Name):
+                if node.id in self.constants:
+                    return leaf(self.constants[node.id], node)
+                if node.id not in env:
+                    raise ExprError(f"unknown name '{node.id}'", node.pos)
+                return leaf(env[node.id], node)
+            if isinstance(node, Unary):
+                v = ev(node.operand)
+                return -v if node.op == "-" else v
+            if isinstance(node, Call):
+                return call(node.func, ev(node.arg), node.pos)
+            if isinstance(node, Power):
+                return binop("**", ev(node.base), ev(node.exponent), node.pos)
+            acc = ev(node.first)
+            for op, operand, pos in node.rest:
+                acc = binop(op, acc, ev(operand), pos)
+            return acc
+
+        try:
+            return ev(self.root)
+        except RecursionError:
+            raise ExprError("expression too deeply nested", 0) from None
 
     def evaluate(self, env: Mapping[str, float] | None = None) -> float:
         """Evaluate with scalar values; the result is a finite float or ExprError is raised."""
-        env = {} if env is None else env
 
-        def ev(node: Node) -> float:
-            if isinstance(node, Num):
-                return node.value
-            if isinstance(node, Name):
-                value = self._lookup(node, env)
-                try:
-                    value = float(value)
-                except (TypeError, ValueError):
-                    raise ExprError(f"name '{node.id}' is not a number", node.pos) from None
-                if not math.isfinite(value):
-                    raise ExprError(f"name '{node.id}' is not finite ({value})", node.pos)
-                return value
-            if isinstance(node, Unary):
-                v = ev(node.operand)
-                return -v if node.op == "-" else v
-            if isinstance(node, Binary):
-                return _scalar_binary(node.op, ev(node.left), ev(node.right), node.pos)
-            arg = ev(node.arg)
+        def leaf(value: Any, node: Node) -> float:
             try:
-                r = float(self.functions[node.func](arg))
+                v = float(value)
+            except (TypeError, ValueError):
+                raise ExprError(f"name '{node.id}' is not a number", node.pos) from None
+            if not math.isfinite(v):
+                raise ExprError(f"name '{node.id}' is not finite ({v})", node.pos)
+            return v
+
+        def call(func: str, arg: float, pos: int) -> float:
+            try:
+                r = float(self.functions[func](arg))
             except (ValueError, OverflowError, ZeroDivisionError):
-                raise ExprError(f"math domain error in {node.func}({arg:g})", node.pos) from None
+                raise ExprError(f"math domain error in {func}({arg:g})", pos) from None
             if not math.isfinite(r):
-                raise ExprError(f"{node.func}({arg:g}) is not finite", node.pos)
+                raise ExprError(f"{func}({arg:g}) is not finite", pos)
             return r
 
-        return ev(self.root)
+        return self._run(env, leaf, _scalar_op, call)
 
     def evaluate_array(self, env: Mapping[str, Any] | None = None) -> np.ndarray:
         """Evaluate with NumPy broadcasting (env values may be arrays); returns a float array."""
-        env = {} if env is None else env
 
-        def ev(node: Node) -> np.ndarray:
-            if isinstance(node, Num):
-                return np.asarray(node.value, dtype=float)
-            if isinstance(node, Name):
-                value = self._lookup(node, env)
-                try:
-                    return np.asarray(value, dtype=float)
-                except (TypeError, ValueError):
-                    raise ExprError(f"name '{node.id}' is not numeric", node.pos) from None
-            if isinstance(node, Unary):
-                v = ev(node.operand)
-                return -v if node.op == "-" else v
-            if isinstance(node, Binary):
-                a, b = ev(node.left), ev(node.right)
-                try:
-                    return np.asarray(_ARRAY_OPS[node.op](a, b), dtype=float)
-                except FloatingPointError as exc:
-                    raise ExprError(f"{exc} (in '{node.op}')", node.pos) from None
-                except ValueError as exc:
-                    raise ExprError(f"shape mismatch in '{node.op}': {exc}", node.pos) from None
-            func = self.array_functions.get(node.func)
-            if func is None:
-                func = np.vectorize(self.functions[node.func], otypes=[float])
+        def leaf(value: Any, node: Node) -> np.ndarray:
             try:
-                return np.asarray(func(ev(node.arg)), dtype=float)
+                return np.asarray(value, dtype=float)
+            except (TypeError, ValueError):
+                raise ExprError(f"name '{node.id}' is not numeric", node.pos) from None
+
+        def call(func: str, arg: np.ndarray, pos: int) -> np.ndarray:
+            f = self.array_functions.get(func)
+            f = np.vectorize(self.functions[func], otypes=[float]) if f is None else f
+            try:
+                return np.asarray(f(arg), dtype=float)
             except (FloatingPointError, ValueError, OverflowError, ZeroDivisionError):
-                raise ExprError(f"math domain error in {node.func}()", node.pos) from None
+                raise ExprError(f"math domain error in {func}()", pos) from None
 
         with np.errstate(all="raise"):
-            result = ev(self.root)
+            result = self._run(env, leaf, _array_op, call)
         if not np.all(np.isfinite(result)):
             raise ExprError("result is not finite", 0)
         return result
@@ -423,24 +407,21 @@ def parse(
     if not isinstance(text, str):
         raise ExprError(f"expected a string expression, got {type(text).__name__}", 0)
     if len(text) > MAX_LENGTH:
-        raise ExprError(
-            f"expression too long ({len(text)} characters, limit {MAX_LENGTH})", MAX_LENGTH
-        )
+        msg = f"expression too long ({len(text)} characters, limit {MAX_LENGTH})"
+        raise ExprError(msg, MAX_LENGTH)
     funcs = DEFAULT_FUNCTIONS if functions is None else MappingProxyType(dict(functions))
     consts = DEFAULT_CONSTANTS if constants is None else MappingProxyType(dict(constants))
-    if array_functions is None:
-        arr = DEFAULT_ARRAY_FUNCTIONS if functions is None else MappingProxyType({})
-    else:
-        arr = MappingProxyType(dict(array_functions))
-    root = _Parser(text, funcs).parse()
+    arr = MappingProxyType(dict(array_functions or {}))  # missing ones: np.vectorize(scalar)
+    arr = DEFAULT_ARRAY_FUNCTIONS if functions is None and array_functions is None else arr
+    try:
+        root = _Parser(text, funcs).parse()
+    except RecursionError:  # only reachable when called from an already very deep stack
+        raise ExprError("expression too deeply nested", 0) from None
     return Expr(text, root, funcs, consts, arr)
 
 
-def evaluate(
-    text: str,
-    env: Mapping[str, float] | None = None,
-    functions: Mapping[str, Function] | None = None,
-    constants: Mapping[str, float] | None = None,
-) -> float:
+def evaluate(text: str, env: Mapping[str, float] | None = None,
+             functions: Mapping[str, Function] | None = None,
+             constants: Mapping[str, float] | None = None) -> float:
     """Parse and evaluate ``text`` with scalar ``env`` in one go."""
     return parse(text, functions, constants).evaluate(env)

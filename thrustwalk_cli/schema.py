@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import copy
 import difflib
+import json
 import keyword
 import math
 import re
@@ -145,10 +146,11 @@ def _check_number(value: Any, path: KeyPath, ctx: _Ctx, bounds: Bounds,
 
 # ---------------------------------------------------------------------------- kinds
 
-_EXPECT = {"string": (str, "a string"), "boolean": (bool, "true or false"),
-           "vector": (list, "a list of numbers"), "matrix": (list, "a list of rows of numbers"),
-           "list_of": (list, "a list"), "mapping": (dict, "a mapping"),
-           "dict_of": (dict, "a mapping")}
+_EXPECT = {
+    "string": (str, "a string"), "boolean": (bool, "true or false"),
+    "vector": (list, "a list of numbers"), "matrix": (list, "a list of rows (lists of numbers)"),
+    "list_of": (list, "a list"), "mapping": (dict, "a mapping"), "dict_of": (dict, "a mapping"),
+}
 
 
 @dataclass(frozen=True)
@@ -198,7 +200,8 @@ class Kind:
         if self.tag == "null_or" and self.item is not None:
             return self.item.limits()
         own = self.item.limits() if self.tag == "list_of" and self.item else str(self.bounds)
-        own = f"each {own}" if own and self.tag in ("vector", "matrix", "list_of") else own
+        each = own and not own.startswith("each") and self.tag in ("vector", "matrix", "list_of")
+        own = f"each {own}" if each else own
         size = f"length >= {self.min_len}" if self.min_len and self.tag != "string" else ""
         return "; ".join(p for p in (own, size) if p)
 
@@ -242,9 +245,11 @@ class Kind:
         return self._check_mapping(v, path, ctx)
 
     def _check_matrix(self, v: list[Any], path: KeyPath, ctx: _Ctx) -> Any:
+        if not all(isinstance(row, list) for row in v):
+            return ctx.report(path, "expected a list of rows (lists of numbers)")
         if self.n is not None and len(v) != self.n:
             return ctx.report(path, f"expected {self.n} rows, got {len(v)}")
-        width = self.m if self.m is not None else len(v[0]) if v and isinstance(v[0], list) else 0
+        width = self.m if self.m is not None else len(v[0]) if v else 0
         row_kind = Kind("vector", bounds=self.bounds, n=width)
         out = [row_kind.check(row, path + (i,), ctx) for i, row in enumerate(v)]
         return None if None in out else out
@@ -361,7 +366,8 @@ def resolve_parameters(
         p = path + (name,)
         deps[name] = set()
         if not _IDENT.fullmatch(name) or keyword.iskeyword(name):
-            ctx.report(p, f"invalid parameter name '{name}' (use letters, digits and '_')")
+            why = "a reserved word" if keyword.iskeyword(name) else "use letters, digits, '_'"
+            ctx.report(p, f"invalid parameter name '{name}' ({why})")
         elif name in DEFAULT_CONSTANTS or name in DEFAULT_FUNCTIONS:
             ctx.report(p, f"parameter name '{name}' shadows a built-in")
         elif not isinstance(value, str):
@@ -464,22 +470,10 @@ def check(
 # ---------------------------------------------------------------------------- docs
 
 
-def _show(value: Any) -> str:
-    if value is None or isinstance(value, bool):
-        return {None: "null", True: "true", False: "false"}[value]
-    if isinstance(value, (int, float)):
-        return _fmt(value)
-    if isinstance(value, list):
-        return "[" + ", ".join(_show(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{k}: {_show(v)}" for k, v in value.items()) + "}"
-    return str(value)
-
-
 def _rows(kind: Kind, prefix: str, out: list[str]) -> None:
     for f in kind.fields:
         key = f"{prefix}.{f.key}" if prefix else f.key
-        default = "required" if f.required else f"`{_show(f.default)}`"
+        default = "required" if f.required else f"`{json.dumps(f.default)}`"
         cells = [f"`{key}`", f.kind.label(), f.kind.unit, default, f.kind.limits(), f.doc]
         out.append("| " + " | ".join(c.replace("|", "\\|").replace("\n", " ") for c in cells)
                    + " |")

@@ -245,10 +245,15 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> li
     VZ = zd.V_Z(grid, schedule)  # (k, g)
     step_length = float(zd.model.p_swing(zd.maps.q_minus)[0])
     sgn = zd.sigma_sign
-    # per-interval Lobatto panels for the step time
-    n_p = 33
-    panels = [lobatto(kn[j], kn[j + 1], n_p) for j in range(len(kn) - 1)]
-    k1_panels = [zd.terms(p)["kappa1"] for p in panels]
+    # per-interval Lobatto panels for the step time; nodes double until the nested
+    # error estimate is below RTOL (kappa_1 on each panel is cached per node count)
+    k1_cache: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+
+    def panel(j: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+        if (j, n) not in k1_cache:
+            p = lobatto(kn[j], kn[j + 1], n)
+            k1_cache[(j, n)] = (p, zd.terms(p)["kappa1"])
+        return k1_cache[(j, n)]
     out = []
     with np.errstate(divide="ignore", invalid="ignore"):
         zstar = Vf / (1.0 - d2)
@@ -283,13 +288,20 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> li
         T, T_err = 0.0, 0.0
         sched_i = Schedule(kn, schedule.force[i:i + 1], schedule.generalized[i:i + 1])
         ok_panels = True
-        for p, k1p in zip(panels, k1_panels):
-            zpnl = zp + zd.V_Z(p, sched_i)[0]
-            if np.any(zpnl <= 0):
-                ok_panels = False
+        for j in range(len(kn) - 1):
+            n_p = 33
+            while True:
+                p, k1p = panel(j, n_p)
+                zpnl = zp + zd.V_Z(p, sched_i)[0]
+                if np.any(zpnl <= 0):
+                    ok_panels = False
+                    break
+                val, err = integrate(p[0], p[-1], 1.0 / (k1p * sgn * np.sqrt(2.0 * zpnl)))
+                if err <= 0.1 * RTOL * abs(val) or n_p >= MAX_NODES:
+                    break
+                n_p = 2 * n_p - 1
+            if not ok_panels:
                 break
-            f = 1.0 / (k1p * sgn * np.sqrt(2.0 * zpnl))
-            val, err = integrate(p[0], p[-1], f)
             T += float(val)
             T_err += float(err)
         if not ok_panels:

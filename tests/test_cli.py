@@ -1,0 +1,191 @@
+"""Command line: help texts, exit codes, error lines, outputs of compile/inspect/limit-cycle."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from thrustwalk_cli import __version__
+from thrustwalk_cli.cli import _command_modules, app
+
+REPO = Path(__file__).resolve().parents[1]
+runner = CliRunner()
+ROBOT = (REPO / "robots" / "three_link.yaml").read_text()
+
+
+def run(*args: str):
+    return runner.invoke(app, list(args), catch_exceptions=False)
+
+
+def commands() -> list[str]:
+    return [m.replace("_", "-") for m in _command_modules()]
+
+
+def test_version():
+    res = run("--version")
+    assert res.exit_code == 0 and __version__ in res.output
+
+
+@pytest.mark.parametrize("command", commands())
+def test_every_subcommand_help_has_example_and_units(command):
+    res = run(command, "--help")
+    assert res.exit_code == 0, res.output
+    assert "Example: thrustwalk " + command in res.output, command
+    assert re.search(r"\[(N|m|rad|s|kg m\^2|N m|m/s|rad/s)\]", res.output), command
+
+
+def test_python_dash_m_entry_point():
+    out = subprocess.run([sys.executable, "-m", "thrustwalk_cli", "--version"],
+                         capture_output=True, text=True, check=True)
+    assert __version__ in out.stdout
+
+
+def test_compile_summary():
+    res = run("compile", "three_link")
+    assert res.exit_code == 0, res.output
+    assert "total mass" in res.output and "35 kg" in res.output
+
+
+def test_inspect_json_keys(tmp_path):
+    out = tmp_path / "state.json"
+    res = run("inspect", "three_link", "--q", "0.1,0.2,-0.3", "--dq", "0,1,-1",
+              "--thrust", "-10,0", "--json", str(out), "-q")
+    assert res.exit_code == 0, res.output
+    doc = json.loads(out.read_text())
+    for key in ("q", "dq", "D", "C_dq", "G", "B_F", "swing_foot", "impact", "coordinates",
+                "provenance"):
+        assert key in doc, key
+    assert set(doc["impact"]) >= {"dq_plus", "impulse"}
+    assert doc["coordinates"] == ["q1", "q2", "q3"]
+    assert len(doc["D"]) == 3 and len(doc["impact"]["dq_plus"]) == 3
+
+
+def test_inspect_wrong_q_length_is_one_line_exit_2():
+    res = runner.invoke(app, ["inspect", "three_link", "--q", "0.1,0.2"])
+    assert res.exit_code == 2
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "--q" in lines[0] and "expected 3 values" in lines[0]
+
+
+def test_limit_cycle_outputs(tmp_path):
+    res = run("limit-cycle", "three_link", "three_link_walk", "--thrust", "0:-50:-10,",
+              "--out", str(tmp_path))
+    assert res.exit_code == 2  # malformed range
+    res = run("limit-cycle", "--thrust", "0,-10,-25,40", "--out", str(tmp_path), "-q")
+    assert res.exit_code == 0, res.output
+    for name in ("limit_cycles.json", "limit_cycles.csv", "limit_cycles.png",
+                 "limit_cycles.pdf"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    assert (tmp_path / "limit_cycles.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (tmp_path / "limit_cycles.pdf").read_bytes()[:5] == b"%PDF-"
+    text = (tmp_path / "limit_cycles.json").read_text()
+    assert "NaN" not in text and "Infinity" not in text
+    doc = json.loads(text)
+    assert set(doc) >= {"provenance", "robot", "gait", "cycles"}
+    assert len(doc["provenance"]["robot"]["sha256"]) == 64
+    keys = {"thrust", "delta_zero_sq", "zeta_star", "exists", "stable", "reason", "step_time",
+            "step_length", "speed", "sigma_minus", "sigma_plus", "alpha_dot_minus",
+            "alpha_dot_plus", "min_abs_alpha_dot", "alpha_at_min", "invariance_residual"}
+    by_thrust = {c["thrust"]: c for c in doc["cycles"]}
+    for c in doc["cycles"]:
+        assert keys <= set(c), keys - set(c)
+    assert by_thrust[0.0]["exists"] and by_thrust[0.0]["stable"]
+    assert by_thrust[-25.0]["speed"] > by_thrust[0.0]["speed"]  # negative thrust speeds up
+    assert not by_thrust[40.0]["exists"] and by_thrust[40.0]["speed"] is None
+    assert by_thrust[40.0]["reason"]
+    csv_text = (tmp_path / "limit_cycles.csv").read_text()
+    assert "40.0,false,none" in csv_text
+    # every numeric value in the JSON is finite
+    def walk(v):
+        if isinstance(v, float):
+            assert math.isfinite(v)
+        elif isinstance(v, dict):
+            for x in v.values():
+                walk(x)
+        elif isinstance(v, list):
+            for x in v:
+                walk(x)
+    walk(doc)
+
+
+# --------------------------------------------------------------------------- bad robot files
+def _robot(tmp_path: Path, text: str) -> str:
+    p = tmp_path / "bad.yaml"
+    p.write_text(text)
+    return str(p)
+
+
+BAD_ROBOTS = {
+    "missing key": (ROBOT.replace("gravity: 9.8  # [m/s^2]\n", "").replace(
+        "feet:\n  stance: {link: stance_leg, point: [0, 0]}\n  swing: {link: swing_leg, "
+        "point: [0, -r]}\n", ""), "feet: missing required key"),
+    "wrong type": (ROBOT.replace("gravity: 9.8", "gravity: [9.8]"), "gravity: expected"),
+    "unknown link": (ROBOT.replace("parent: torso ", "parent: torsoo "),
+                     "links[2].parent: unknown link 'torsoo'"),
+    "cycle": (ROBOT.replace("  - name: torso\n    parent: stance_leg",
+                            "  - name: torso\n    parent: swing_leg"), "cycle"),
+    "non-positive mass": (ROBOT.replace("{mass: MH, at: [0, 0]}", "{mass: -15, at: [0, 0]}"),
+                          "mass: must be > 0"),
+    "invalid coordinates": (ROBOT.replace("{name: q2, joint: swing_leg}",
+                                          "{name: q2, joint: torso}"), "coordinates"),
+    "bad expression": (ROBOT.replace("at: [0, r/2]", "at: [0, r/2 + x]"), "unknown name 'x'"),
+    "unknown key": (ROBOT.replace("gravity: 9.8", "gravity: 9.8\ncolour: red"),
+                    "unknown key 'colour'"),
+    "bad relabel": (ROBOT.replace("swap: [[stance_leg, swing_leg]]",
+                                  "R: [[1, 0, 0], [0, 1, 0], [0, 0, 1]]"),
+                    "relabelling does not swap the feet"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_ROBOTS))
+def test_bad_robot_file_one_line_with_location_exit_2(tmp_path, case):
+    text, needle = BAD_ROBOTS[case]
+    assert text != ROBOT, case
+    path = _robot(tmp_path, text)
+    res = runner.invoke(app, ["compile", path])
+    assert res.exit_code == 2, (case, res.output)
+    assert "Traceback" not in res.output
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert lines, case
+    for ln in lines:
+        assert re.match(rf"error: {re.escape(path)}(:\d+)?: ", ln), (case, ln)
+    assert any(needle in ln for ln in lines), (case, lines)
+    assert any(re.match(rf"error: {re.escape(path)}:\d+: ", ln) for ln in lines), (case, lines)
+
+
+def test_code_injection_rejected_without_execution(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    text = ROBOT.replace("  L: 0.5 ", "  L: \"__import__('os').system('touch x')\" ")
+    assert text != ROBOT
+    res = runner.invoke(app, ["compile", _robot(tmp_path, text)])
+    assert res.exit_code == 2
+    assert "parameters.L" in res.output
+    assert not (tmp_path / "x").exists()
+
+
+def test_missing_file_and_unknown_bundled_name():
+    res = runner.invoke(app, ["compile", "no_such_robot"])
+    assert res.exit_code == 2
+    assert "bundled: rabbit, three_link" in res.output
+
+
+def test_gait_robot_mismatch_and_bad_gait(tmp_path):
+    res = runner.invoke(app, ["limit-cycle", "rabbit", "three_link_walk", "--out",
+                              str(tmp_path)])
+    assert res.exit_code == 2 and "is for robot 'three_link'" in res.output
+    gait = (REPO / "gaits" / "three_link_walk.yaml").read_text()
+    bad = tmp_path / "g.yaml"
+    bad.write_text(gait.replace("robot: three_link", f"robot: {REPO}/robots/three_link.yaml")
+                   .replace("c: {q3: -1}", "c: {q1: 1}"))
+    res = runner.invoke(app, ["limit-cycle", "three_link", str(bad), "--out", str(tmp_path)])
+    assert res.exit_code == 2 and "alpha.c" in res.output and "unactuated" in res.output
+    bad.write_text(gait.replace("q1: [~, ~,", "q1: [0.1, ~,"))
+    res = runner.invoke(app, ["limit-cycle", "three_link", str(bad), "--out", str(tmp_path)])
+    assert res.exit_code == 2 and "bezier.coefficients.q1[0]" in res.output
