@@ -5,10 +5,10 @@ Start-up is kept light (no NumPy, SymPy or matplotlib until a command runs).
 
 from __future__ import annotations
 
-import typer
-
 import importlib
 import pkgutil
+
+import typer
 
 from . import __version__, commands
 
