@@ -224,6 +224,36 @@ def zero_dynamics(model: CompiledModel, gait: Gait, rtol: float = RTOL,
     return ZeroDynamics(model, gait, maps, n, V0, Gamma, B, err, scale, delta, ok, why)
 
 
+def _step_times(zd: ZeroDynamics, schedule: Schedule, zeta_plus: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``T = int dalpha / alpha'`` for a batch, per knot interval (spectral, nested estimate).
+
+    Nodes double on each interval until the estimate is below ``0.1 RTOL`` relative for the
+    whole batch. Returns (T, error estimate, ok) with ok false where zeta <= 0 on a node.
+    """
+    kn = schedule.knots
+    k = schedule.size
+    sgn = zd.sigma_sign
+    T, T_err, ok = np.zeros(k), np.zeros(k), np.ones(k, bool)
+    for j in range(len(kn) - 1):
+        n_p = 33
+        while True:
+            p = lobatto(kn[j], kn[j + 1], n_p)
+            k1p = zd.terms(p)["kappa1"]
+            zpnl = zeta_plus[:, None] + zd.V_Z(p, schedule)
+            bad = np.any(zpnl <= 0, axis=1)
+            f = 1.0 / (k1p * sgn * np.sqrt(2.0 * np.where(zpnl > 0, zpnl, 1.0)))
+            val, err = integrate(p[0], p[-1], f)
+            good = ~bad
+            if np.all(err[good] <= 0.1 * RTOL * np.abs(val[good])) or n_p >= MAX_NODES:
+                break
+            n_p = 2 * n_p - 1
+        T += val
+        T_err += err
+        ok &= good
+    return T, T_err, ok
+
+
 def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> list[LimitCycle]:
     """Fixed points, stability and orbits for a batch of thrust schedules (SPEC 3, 4).
 
@@ -231,105 +261,79 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> li
     delta_zero^2 zeta* + min V_Z > 0. Stable  <=>  exists and delta_zero^2 < 1.
     The step time ``T = int dalpha / alpha'`` is integrated per knot interval (spectral, with a
     nested error estimate); alpha' = kappa_1 sigma_N, sigma_N = sgn sqrt(2 zeta).
+    Everything is vectorised over the batch: a sweep costs little more than one orbit.
     """
     d2 = zd.delta_zero_sq
     a_i, a_f = zd.alpha_i, zd.alpha_f
     kn = schedule.knots
-    k = schedule.size
     Vf = zd.V_Z(np.array(a_f), schedule)  # (k,)
     # dense grid for min V_Z / min |alpha'| and the sampled orbit (includes the knots)
     grid = np.unique(np.concatenate([np.linspace(a_i, a_f, samples), kn]))
     if a_f < a_i:
         grid = grid[::-1]
-    terms = zd.terms(grid)
+    k1 = zd.terms(grid)["kappa1"]
     VZ = zd.V_Z(grid, schedule)  # (k, g)
     step_length = float(zd.model.p_swing(zd.maps.q_minus)[0])
     sgn = zd.sigma_sign
-    # per-interval Lobatto panels for the step time; nodes double until the nested
-    # error estimate is below RTOL (kappa_1 on each panel is cached per node count)
-    k1_cache: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
-
-    def panel(j: int, n: int) -> tuple[np.ndarray, np.ndarray]:
-        if (j, n) not in k1_cache:
-            p = lobatto(kn[j], kn[j + 1], n)
-            k1_cache[(j, n)] = (p, zd.terms(p)["kappa1"])
-        return k1_cache[(j, n)]
-    out = []
     with np.errstate(divide="ignore", invalid="ignore"):
         zstar = Vf / (1.0 - d2)
-    for i in range(k):
+    zp = d2 * zstar
+    zeta = zp[:, None] + VZ
+    jmin = np.argmin(zeta, axis=1)
+    zmin = zeta[np.arange(len(Vf)), jmin]
+    candidates = zd.kappa1_ok and 0.0 < d2 != 1.0
+    live = np.nonzero((zstar > 0) & (zmin > 0))[0] if candidates else np.array([], int)
+    T = np.full(len(Vf), np.nan)
+    T_err = np.full(len(Vf), np.nan)
+    T_ok = np.zeros(len(Vf), bool)
+    if live.size:
+        sub = Schedule(kn, schedule.force[live], schedule.generalized[live])
+        T[live], T_err[live], T_ok[live] = _step_times(zd, sub, zp[live])
+    out = []
+    for i in range(len(Vf)):
         base = dict(delta_zero_sq=d2, V_f=float(Vf[i]))
+        zs = float(zstar[i])
         if not zd.kappa1_ok:
             out.append(LimitCycle(False, False, zd.kappa1_reason, **base))
-            continue
-        if d2 == 1.0 or d2 <= 0.0:
+        elif d2 == 1.0 or d2 <= 0.0:
             out.append(LimitCycle(False, False,
                                   f"delta_zero^2 = {d2:.6g}: no isolated fixed point", **base))
-            continue
-        zs = float(zstar[i])
-        if zs <= 0.0:
+        elif zs <= 0.0:
             why = (f"no periodic orbit: zeta* = V_Z(alpha_f)/(1 - delta_zero^2) = {zs:.6g} <= 0"
                    if d2 < 1 else
                    f"no periodic orbit with zeta* > 0 (delta_zero^2 = {d2:.6g} >= 1, "
                    f"V_Z(alpha_f) = {Vf[i]:.6g})")
             out.append(LimitCycle(False, False, why, **base))
-            continue
-        zp = d2 * zs
-        zeta = zp + VZ[i]
-        jmin = int(np.argmin(zeta))
-        if zeta[jmin] <= 0.0:
+        elif zmin[i] <= 0.0:
             out.append(LimitCycle(
                 False, False,
                 f"the walker stops before the end of the step: zeta reaches 0 near alpha = "
-                f"{grid[jmin]:.6g} rad (delta_zero^2 zeta* + min V_Z = {zeta[jmin]:.6g} <= 0)",
+                f"{grid[jmin[i]]:.6g} rad (delta_zero^2 zeta* + min V_Z = {zmin[i]:.6g} <= 0)",
                 zeta_star=zs, **base))
-            continue
-        # step time per panel
-        T, T_err = 0.0, 0.0
-        sched_i = Schedule(kn, schedule.force[i:i + 1], schedule.generalized[i:i + 1])
-        ok_panels = True
-        for j in range(len(kn) - 1):
-            n_p = 33
-            while True:
-                p, k1p = panel(j, n_p)
-                zpnl = zp + zd.V_Z(p, sched_i)[0]
-                if np.any(zpnl <= 0):
-                    ok_panels = False
-                    break
-                val, err = integrate(p[0], p[-1], 1.0 / (k1p * sgn * np.sqrt(2.0 * zpnl)))
-                if err <= 0.1 * RTOL * abs(val) or n_p >= MAX_NODES:
-                    break
-                n_p = 2 * n_p - 1
-            if not ok_panels:
-                break
-            T += float(val)
-            T_err += float(err)
-        if not ok_panels:
-            out.append(LimitCycle(False, False,
-                                  "the walker stops inside the step (zeta <= 0 between grid "
-                                  "points)", zeta_star=zs, **base))
-            continue
-        sigma = sgn * np.sqrt(2.0 * zeta)
-        adot = terms["kappa1"] * sigma
-        jm = int(np.argmin(np.abs(adot)))
-        s_minus = sgn * np.sqrt(2.0 * zs)
-        s_plus = zd.delta_zero * s_minus
-        k1_i, k1_f = terms["kappa1"][0], terms["kappa1"][-1]
-        stable = d2 < 1.0
-        reason = "stable periodic orbit" if stable else (
-            f"periodic orbit exists but is unstable (delta_zero^2 = {d2:.6g} >= 1)")
-        if T <= 0 or not np.isfinite(T):
-            out.append(LimitCycle(False, False, f"step time integral failed (T = {T})", **base))
-            continue
-        out.append(LimitCycle(
-            exists=True, stable=stable, reason=reason, zeta_star=zs, zeta_plus=zp,
-            sigma_minus=float(s_minus), sigma_plus=float(s_plus),
-            alpha_dot_minus=float(k1_f * s_minus), alpha_dot_plus=float(k1_i * s_plus),
-            step_time=T, step_time_error=T_err, step_length=step_length,
-            speed=step_length / T, min_abs_alpha_dot=float(abs(adot[jm])),
-            alpha_at_min=float(grid[jm]),
-            orbit={"alpha": grid, "alpha_dot": adot, "sigma": sigma, "zeta": zeta},
-            **base))
+        elif not T_ok[i]:
+            out.append(LimitCycle(False, False, "the walker stops inside the step (zeta <= 0 "
+                                  "between grid points)", zeta_star=zs, **base))
+        elif not (np.isfinite(T[i]) and T[i] > 0):
+            out.append(LimitCycle(False, False, f"step time integral failed (T = {T[i]})",
+                                  zeta_star=zs, **base))
+        else:
+            sigma = sgn * np.sqrt(2.0 * zeta[i])
+            adot = k1 * sigma
+            jm = int(np.argmin(np.abs(adot)))
+            s_minus = sgn * np.sqrt(2.0 * zs)
+            s_plus = zd.delta_zero * s_minus
+            stable = d2 < 1.0
+            reason = "stable periodic orbit" if stable else (
+                f"periodic orbit exists but is unstable (delta_zero^2 = {d2:.6g} >= 1)")
+            out.append(LimitCycle(
+                exists=True, stable=stable, reason=reason, zeta_star=zs, zeta_plus=float(zp[i]),
+                sigma_minus=float(s_minus), sigma_plus=float(s_plus),
+                alpha_dot_minus=float(k1[-1] * s_minus), alpha_dot_plus=float(k1[0] * s_plus),
+                step_time=float(T[i]), step_time_error=float(T_err[i]),
+                step_length=step_length, speed=step_length / float(T[i]),
+                min_abs_alpha_dot=float(abs(adot[jm])), alpha_at_min=float(grid[jm]),
+                orbit={"alpha": grid, "alpha_dot": adot, "sigma": sigma, "zeta": zeta[i]},
+                **base))
     return out
 
 

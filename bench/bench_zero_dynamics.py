@@ -1,0 +1,28 @@
+"""Limit-cycle benchmark: 1,000 thrust values vs one orbit (zeta* is affine in thrust)."""
+
+from __future__ import annotations
+
+import numpy as np
+from timing import median_time, report
+
+
+def main() -> None:
+    from thrustwalk_cli.model import load_model
+    from thrustwalk_cli.robot_io import load_gait_for
+    from thrustwalk_cli.zero_dynamics import Schedule, limit_cycles, zero_dynamics
+
+    for gait in ("three_link_walk", "rabbit_walk"):
+        robot, g = load_gait_for(None, gait)
+        model = load_model(robot)
+        t_zd = median_time(lambda: zero_dynamics(model, g), repeat=5)
+        zd = zero_dynamics(model, g)
+        one = np.zeros((1, model.n_thrusters))
+        many = np.zeros((1000, model.n_thrusters))
+        many[:, 0] = np.linspace(0, -50, 1000)
+        t_one = median_time(lambda: limit_cycles(zd, Schedule.constant(zd, one)), repeat=7)
+        t_many = median_time(lambda: limit_cycles(zd, Schedule.constant(zd, many)), repeat=3)
+        report(f"{gait}: zero-dynamics precomputation", t_zd)
+        report(f"{gait}: one orbit (baseline)", t_one)
+        report(f"{gait}: 1,000 orbits (ratio to one orbit)", t_many, t_one)
+        report(f"{gait}: precomputation + 1,000 orbits vs precomputation + one",
+               t_zd + t_many, t_zd + t_one)
