@@ -6,7 +6,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench lint figures clean
+.PHONY: demo test bench lint docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/thrustwalk limit-cycle three_link three_link_walk --thrust 0:-50:-10 --out out/demo
+	$(BIN)/thrustwalk limit-cycle three_link three_link_walk --thrust 0:-50:-2 --out out/demo
 
 test: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python -m pytest -q
@@ -26,6 +26,9 @@ bench: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
+
+docs: $(STAMP)
+	$(BIN)/python -m thrustwalk_cli.docs README.md
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

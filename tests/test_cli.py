@@ -189,3 +189,12 @@ def test_gait_robot_mismatch_and_bad_gait(tmp_path):
     bad.write_text(gait.replace("q1: [~, ~,", "q1: [0.1, ~,"))
     res = runner.invoke(app, ["limit-cycle", "three_link", str(bad), "--out", str(tmp_path)])
     assert res.exit_code == 2 and "bezier.coefficients.q1[0]" in res.output
+
+
+def test_readme_key_tables_match_schema():
+    """The README's key tables are the schema tables (regenerate with `make docs`)."""
+    from thrustwalk_cli.docs import render
+
+    readme = (REPO / "README.md").read_text()
+    assert render(readme) == readme, "README key tables are stale: run `make docs`"
+    assert "make demo" in readme and "make test" in readme
