@@ -72,11 +72,15 @@ class Coordinate:
 
     Actuated: relative angle of joint ``link`` (``theta_link - theta_parent``) [rad].
     Unactuated: absolute angle of ``link`` (counter-clockwise from the world frame) [rad].
+    range: allowed (min, max) angle [rad]; torque_limit: max |u| [N m] (actuated only).
+    Limits constrain gait design and are reported by checks; they do not enter the dynamics.
     """
 
     name: str
     link: str
     actuated: bool
+    range: tuple[float, float] = (-np.inf, np.inf)
+    torque_limit: float = np.inf
 
 
 @dataclass(frozen=True)

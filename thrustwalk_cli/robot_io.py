@@ -61,6 +61,10 @@ _POINT = mapping(
 _COORD_ACT = mapping(
     field("name", string(), "coordinate name"),
     field("joint", string(), "child link of the joint: angle = theta_child - theta_parent"),
+    field("range", null_or(vector(2, "rad")), "allowed [min, max] joint angle (gait design "
+          "and checks; e.g. knees that must not hyperextend)", default=None),
+    field("torque_limit", null_or(number("N m", gt=0)), "maximum |torque| of the joint motor",
+          default=None),
 )
 _COORD_UNACT = mapping(
     field("name", string(), "coordinate name"),
@@ -247,7 +251,12 @@ def load_robot(ref: str) -> Robot:
     coords = []
     for i, c in enumerate(co["actuated"]):
         need_link(c["joint"], ("coordinates", "actuated", i, "joint"))
-        coords.append(Coordinate(c["name"], c["joint"], True))
+        rng = tuple(c["range"]) if c["range"] is not None else (-np.inf, np.inf)
+        if rng[0] >= rng[1]:
+            problems.append(res.problem(("coordinates", "actuated", i, "range"),
+                                        "minimum must be below maximum"))
+        tl = c["torque_limit"] if c["torque_limit"] is not None else np.inf
+        coords.append(Coordinate(c["name"], c["joint"], True, rng, tl))
     need_link(co["unactuated"]["link"], ("coordinates", "unactuated", "link"))
     coords.append(Coordinate(co["unactuated"]["name"], co["unactuated"]["link"], False))
     cnames = [c.name for c in coords]
