@@ -1,0 +1,124 @@
+"""Robot-file generality and the shipped gaits' walkability claims (SPEC 1, 2, 5, 9)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import independent as ind
+import numpy as np
+import pytest
+
+from thrustwalk_cli import derive
+from thrustwalk_cli import model as model_mod
+from thrustwalk_cli.errors import InputError
+from thrustwalk_cli.model import load_model
+from thrustwalk_cli.robot_io import load_gait_for, load_robot
+from thrustwalk_cli.zero_dynamics import Schedule, limit_cycles, zero_dynamics
+
+REPO = Path(__file__).resolve().parents[1]
+
+# A genuinely branched tree: torso and swing leg are both children of the stance leg, a
+# four-link walker with a tail hanging from the torso, offset joints, inertias, a rotor, and
+# q_N on a leaf link.
+BRANCHED = """
+name: branched
+parameters: {r: 0.9}
+gravity: 9.81
+links:
+  - {name: stance_leg, parent: null, mass: 4, com: [0.01, 0.45], inertia: 0.2, end: [0, r]}
+  - {name: swing_leg, parent: stance_leg, joint: [0, r], mass: 4, com: [0.01, -0.45],
+     inertia: 0.2, end: [0, -r], rotor: {inertia: 1e-4, gear_ratio: 40}}
+  - {name: torso, parent: stance_leg, joint: [0, r], mass: 12, com: [0.03, 0.3],
+     inertia: 0.9, end: [0, 0.6]}
+  - {name: tail, parent: torso, joint: [0, 0.1], mass: 1.5, com: [-0.2, -0.1], inertia: 0.05}
+coordinates:
+  actuated:
+    - {name: qs, joint: swing_leg}
+    - {name: qt, joint: torso}
+    - {name: qa, joint: tail}
+  unactuated: {name: qN, link: tail}
+feet:
+  stance: {link: stance_leg, point: [0, 0]}
+  swing: {link: swing_leg, point: [0, -r]}
+relabel:
+  swap: [[stance_leg, swing_leg]]
+thrusters:
+  - {name: tail_push, link: tail, point: [-0.3, 0], direction: [0.6, 0.8], frame: link}
+"""
+
+
+def test_branched_tree_matches_independent_model(tmp_path):
+    """Any planar tree works: D, G, swing foot and thruster map vs independent.py."""
+    path = tmp_path / "branched.yaml"
+    path.write_text(BRANCHED)
+    robot = load_robot(str(path))
+    m = load_model(robot)
+    rng = np.random.default_rng(3)
+    for q in rng.uniform(-1, 1, (10, robot.n)):
+        np.testing.assert_allclose(m.D(q), ind.mass_matrix(robot, q), atol=1e-10)
+        np.testing.assert_allclose(m.p_swing(q), ind.swing_foot(robot, q), atol=1e-12)
+        G_ind = ind.complex_step(lambda x: np.atleast_1d(ind.potential(robot, x)), q)[0]
+        np.testing.assert_allclose(m.G(q), G_ind, atol=1e-9)
+        dq = rng.uniform(-1, 1, robot.n)
+        F = np.array([7.0])
+        power = ind.thruster_power(robot, q, np.concatenate([dq, [0.0, 0.0]]), F)
+        assert dq @ m.B_F(q) @ F == pytest.approx(power, rel=1e-10, abs=1e-12)
+    # legs that are not mirror images cannot swap roles: the compile check says so
+    path.write_text(BRANCHED.replace("com: [0.01, -0.45]", "com: [-0.01, -0.45]"))
+    with pytest.raises(InputError, match="relabel: relabelling does not swap the feet"):
+        load_model(load_robot(str(path)))
+
+
+def test_inertia_depending_on_qN_is_rejected(monkeypatch):
+    """The dD/dq_N = 0 compile check names the file and key (exercised by forcing D(q_N))."""
+    robot = load_robot("three_link")
+    real = derive.derive
+
+    def fake(r):
+        der = real(r)
+        der.exprs["D"] = der.exprs["D"] + der.exprs["D"].applyfunc(lambda e: 0) + \
+            der.q[-1] * np.eye(r.n).tolist()[0][0] * der.exprs["D"].applyfunc(lambda e: 1)
+        return der
+
+    monkeypatch.setattr(derive, "derive", fake)
+    with pytest.raises(InputError) as exc:
+        model_mod.generate_source(robot, "k")
+    msg = str(exc.value)
+    assert "three_link.yaml:" in msg and "coordinates.unactuated" in msg
+    assert "dD/dq_N" in msg
+
+
+def test_shipped_three_link_gait_claims(walk3):
+    """Stable, hybrid-invariant, swing foot never below the ground (touching at mid-step)."""
+    model, gait, zd = walk3
+    lc = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, model.n_thrusters))))[0]
+    assert lc.stable and 0 < zd.delta_zero_sq < 1
+    assert zd.maps.position_residual < 1e-12 and zd.maps.velocity_residual < 1e-12
+    alpha = np.linspace(zd.alpha_i, zd.alpha_f, 4001)
+    h = model.p_swing(zd.maps.q_Z(alpha))[:, 1]
+    assert h.min() > -1e-9, f"swing foot {h.min():.3g} m below ground at alpha={alpha[h.argmin()]}"
+    # straight legs: the foot touches where the stance leg is vertical (alpha = 0), only there
+    away = np.abs(alpha) > 0.02
+    inner = (alpha > zd.alpha_i + 0.02) & (alpha < zd.alpha_f - 0.02) & away
+    assert h[inner].min() > 0
+    # the foot rises after lift-off and descends onto the ground at impact (guard crossing)
+    assert (h[1] - h[0]) > 0 and (h[-1] - h[-2]) < 0
+    assert lc.speed == pytest.approx(0.8, rel=1e-3)
+
+
+def test_shipped_rabbit_gait_claims():
+    """Stable, invariant, knees never hyperextend, clearance >= 3 cm at mid-step."""
+    robot, gait = load_gait_for(None, "rabbit_walk")
+    model = load_model(robot)
+    zd = zero_dynamics(model, gait)
+    lc = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, model.n_thrusters))))[0]
+    assert lc.stable, lc.reason
+    assert zd.maps.position_residual < 1e-12 and zd.maps.velocity_residual < 1e-12
+    s = np.linspace(0, 1, 2001)
+    q = zd.maps.q_Z(zd.alpha_i + s * (zd.alpha_f - zd.alpha_i))
+    for j, c in enumerate(robot.coordinates[:-1]):
+        lo, hi = c.range
+        assert q[:, j].min() >= lo - 1e-9 and q[:, j].max() <= hi + 1e-9, c.name
+    h = model.p_swing(q)[:, 1]
+    assert h[(s > 0.02) & (s < 0.98)].min() > 0
+    assert h[1000] >= 0.03
