@@ -81,7 +81,7 @@ def test_limit_cycle_outputs(tmp_path):
     res = run("limit-cycle", "--thrust", "0,-10,-25,40", "--out", str(tmp_path), "-q")
     assert res.exit_code == 0, res.output
     for name in ("limit_cycles.json", "limit_cycles.csv", "limit_cycles.png",
-                 "limit_cycles.pdf"):
+                 "limit_cycles.pdf", "fixed_point_shift.png", "fixed_point_shift.pdf"):
         assert (tmp_path / name).stat().st_size > 0, name
     assert (tmp_path / "limit_cycles.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (tmp_path / "limit_cycles.pdf").read_bytes()[:5] == b"%PDF-"
@@ -98,6 +98,11 @@ def test_limit_cycle_outputs(tmp_path):
         assert keys <= set(c), keys - set(c)
     assert by_thrust[0.0]["exists"] and by_thrust[0.0]["stable"]
     assert by_thrust[-25.0]["speed"] > by_thrust[0.0]["speed"]  # negative thrust speeds up
+    # the reported affine law reproduces the computed fixed points
+    zdd = doc["zero_dynamics"]
+    for F in (0.0, -10.0, -25.0):
+        law = zdd["zeta_star_at_zero_thrust"] + zdd["zeta_star_per_newton"] * F
+        assert by_thrust[F]["zeta_star"] == pytest.approx(law, rel=1e-12), F
     assert not by_thrust[40.0]["exists"] and by_thrust[40.0]["speed"] is None
     assert by_thrust[40.0]["reason"]
     csv_text = (tmp_path / "limit_cycles.csv").read_text()

@@ -79,3 +79,41 @@ def phase_portrait(
                     color="firebrick")
         fig.tight_layout()
     return fig
+
+
+def fixed_point_shift(values: Sequence[float], zeta_star: Sequence[float | None],
+                      speed: Sequence[float | None], slope: float, zeta0: float | None,
+                      *, thruster: str, title: str = ""):
+    """Fixed point zeta* [kg^2 m^4/s^2] and speed [m/s] versus constant thrust [N] (SPEC 4).
+
+    The line is the exact affine law ``zeta*(F) = zeta*(0) + Gamma(alpha_f) F / (1 - delta^2)``;
+    markers are the computed fixed points (missing where no orbit exists).
+    """
+    vals = np.asarray(values, float)
+    ok = np.array([z is not None for z in zeta_star])
+    with style():
+        fig, ax = plt.subplots(figsize=(3.5, 2.6))
+        if zeta0 is not None:
+            grid = np.linspace(vals.min(), vals.max(), 200)
+            ax.plot(grid, zeta0 + slope * grid, color="0.6", lw=0.8,
+                    label=r"affine law $\zeta^*_0 + \Gamma F/(1-\delta^2)$")
+        ax.plot(vals[ok], [z for z in zeta_star if z is not None], "o", ms=2.5, color="k",
+                label=r"computed $\zeta^*$")
+        if (~ok).any():
+            ax.plot(vals[~ok], np.zeros((~ok).sum()), "x", ms=3, color="firebrick",
+                    label="no periodic orbit")
+        ax.set_xlabel(f"thrust {thruster} [N]")
+        ax.set_ylabel(r"$\zeta^*$ [kg$^2$ m$^4$/s$^2$]")
+        ax2 = ax.twinx()
+        ax2.grid(False)
+        ax2.plot(vals[ok], [v for v in speed if v is not None], "--", color="tab:blue", lw=0.8,
+                 label="average speed (right axis)")
+        ax2.set_ylabel("average speed [m/s]", color="tab:blue")
+        ax2.tick_params(axis="y", colors="tab:blue")
+        h1, l1 = ax.get_legend_handles_labels()
+        h2, l2 = ax2.get_legend_handles_labels()
+        ax.legend(h1 + h2, l1 + l2, loc="best")
+        if title:
+            ax.set_title(title)
+        fig.tight_layout()
+    return fig

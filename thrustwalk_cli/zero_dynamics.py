@@ -449,6 +449,13 @@ def sweep_records(zd: ZeroDynamics, values: list[float], thruster: str | None
             "kappa1_ok": zd.kappa1_ok, "kappa1_reason": zd.kappa1_reason,
             "fixed_point_formula": "zeta* = V_Z(alpha_f) / (1 - delta_zero^2)",
             "Gamma_alpha_f": float(zd.Gamma(np.array(zd.alpha_f))[j]),
+            "V0_alpha_f": float(zd.V0(np.array(zd.alpha_f))),
+            "zeta_star_at_zero_thrust": (float(zd.V0(np.array(zd.alpha_f)))
+                                         / (1.0 - zd.delta_zero_sq)
+                                         if zd.delta_zero_sq != 1.0 else None),
+            "zeta_star_per_newton": (float(zd.Gamma(np.array(zd.alpha_f))[j])
+                                     / (1.0 - zd.delta_zero_sq)
+                                     if zd.delta_zero_sq != 1.0 else None),
         },
         "cycles": [cycle_record(lc, v, zd) for lc, v in zip(cycles, values)],
     }

@@ -16,7 +16,8 @@ step time [s], step length [m], speed [m/s], sigma_N^+/- [kg m^2/s], alpha'^+/- 
 the point of minimum |alpha'|. Thrust is in newtons; with the bundled robots negative thrust
 pushes forward (the paper's convention).
 
-Writes DIR/limit_cycles.json, DIR/limit_cycles.csv, DIR/limit_cycles.png and .pdf.
+Writes DIR/limit_cycles.json, DIR/limit_cycles.csv, DIR/limit_cycles.png and .pdf, and
+DIR/fixed_point_shift.png and .pdf (zeta* and speed versus thrust, with the affine law).
 """
 
 EPILOG = ("Example: thrustwalk limit-cycle three_link three_link_walk --thrust 0:-50:-10 "
@@ -45,6 +46,14 @@ def run_limit_cycle(robot: str, gait: str, thrust: list[float], thruster: str | 
         value_label=f"thrust {doc['thruster']} [N]", black_every=10.0,
         title=f"{rob.name} / {g.name}: zero-dynamics limit cycles")
     output.save_figure(fig, out / "limit_cycles")
+    zd_doc = doc["zero_dynamics"]
+    cycles = doc["cycles"]
+    fig = plots.fixed_point_shift(
+        [c["thrust"] for c in cycles], [c["zeta_star"] if c["exists"] else None for c in cycles],
+        [c["speed"] for c in cycles], zd_doc["zeta_star_per_newton"],
+        zd_doc["zeta_star_at_zero_thrust"], thruster=doc["thruster"],
+        title=f"{rob.name} / {g.name}: fixed-point shift")
+    output.save_figure(fig, out / "fixed_point_shift")
     if not quiet:
         _table(doc)
     return doc
@@ -87,4 +96,5 @@ def register(app: typer.Typer) -> None:
             values = parse_values(thrust, "--thrust", "N")
             run_limit_cycle(robot, gait, values, thruster, out, quiet)
             if not quiet:
-                console().print(f"wrote {out}/limit_cycles.json, .csv, .png, .pdf")
+                console().print(f"wrote {out}/limit_cycles.json, .csv, .png, .pdf and "
+                                f"{out}/fixed_point_shift.png, .pdf")
