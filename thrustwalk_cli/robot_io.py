@@ -342,14 +342,17 @@ def _key_lines(doc) -> list[tuple[str, int]]:
 
 
 # ------------------------------------------------------------------------------ gaits
-class _GaitDoc:
-    """Validated gait data kept for checks against the robot (line numbers included)."""
+class GaitSource:
+    """Validated gait data kept for checks against the robot (line numbers included).
+
+    ``res.problem(path, message)`` builds a ``file:line: key.path`` problem for later checks.
+    """
 
     def __init__(self, res, rows: dict, c: dict):
         self.res, self.rows, self.c = res, rows, c
 
 
-def load_gait(ref: str) -> tuple[Gait, _GaitDoc]:
+def load_gait(ref: str) -> tuple[Gait, GaitSource]:
     """Read and validate a gait. Returns the gait (``A`` as written; columns 0 and 1 are None
     with ``invariance: auto``; see :func:`load_gait_for`) and its validated data. The gait's
     ``robot`` is resolved relative to the gait file.
@@ -377,7 +380,13 @@ def load_gait(ref: str) -> tuple[Gait, _GaitDoc]:
         source_sha256=doc.sha256,
         given_A=tuple(tuple(r) for r in rows.values()),
     )
-    return gait, _GaitDoc(res, rows, d["alpha"]["c"])
+    return gait, GaitSource(res, rows, d["alpha"]["c"])
+
+
+def gait_locator(ref: str):
+    """``(path, message) -> Problem`` located in the gait file ``ref`` (file, line, key path),
+    for semantic checks done after loading (e.g. a thrust schedule against the robot)."""
+    return load_gait(ref)[1].res.problem
 
 
 def load_gait_for(robot_ref: str | None, gait_ref: str) -> tuple[Robot, Gait]:

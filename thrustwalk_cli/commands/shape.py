@@ -1,0 +1,246 @@
+"""``thrustwalk shape``: center-manifold shaping with piecewise-constant thrust (SPEC 4)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+
+from ..errors import InputError
+from .common import GaitArg, OutOpt, QuietOpt, RobotArg, cli_errors, console, parse_values
+
+if TYPE_CHECKING:
+    from ..shaping_study import ShapeRequest
+
+HELP = """Shape the limit cycle with thrust switched at knots alpha_j along the step (SPEC 4).
+
+Thrust is constant on each interval [alpha_j, alpha_{j+1}): in --mode generalized the paper's
+T_j [N m], a generalised force on q_N; in --mode force the thrust F_j [N] of one thruster.
+Reports b_F = int 1/kappa_1 [kg m^2 rad] and Gamma_j = int beta/kappa_1 [kg m^3 rad] per
+interval, zeta* [kg^2 m^4/s^2] nominal and shaped, and both the true fixed-point shift
+sum b_F T_j / (1 - delta_zero^2) and the paper's one-step value sum b_F T_j (SPEC 4 erratum).
+
+Schedules: a --pattern in j (interval 1..n-1) and k (swept by --k), by default the paper's
+k*(j-2) on 4 knots with the interior knots solved so that the fixed point is unchanged
+(shape only; mark free knots with ?); or the gait file's thrust: section; or the
+minimum-norm values reaching --target-zeta [kg^2 m^4/s^2] or --target-speed [m/s].
+
+Writes DIR/shape.json, DIR/shape.csv (orbits), DIR/shape.png/.pdf (limit cycles, black every
+10) and DIR/vector_field.png/.pdf (nominal vs shaped zero-dynamics field, k = --field-k).
+"""
+
+EPILOG = ("Example: thrustwalk shape three_link three_link_walk --knots 0,?,?,1 "
+          "--pattern 'k*(j-2)' --k 0:50:2 --out out/shape")
+
+
+def _knots(text: str | None) -> tuple[float | None, ...] | None:
+    """``"0,?,0.6,1"`` -> (0.0, None, 0.6, 1.0); ``?`` marks a knot to solve for."""
+    if text is None:
+        return None
+    out: list[float | None] = []
+    for item in text.split(","):
+        item = item.strip()
+        if item == "?":
+            out.append(None)
+            continue
+        try:
+            v = float(item)
+        except ValueError:
+            raise InputError(f"option --knots: {item!r} is not a number or ? (a free knot); "
+                             "use e.g. 0,?,?,1 or 0,0.3,0.6,1") from None
+        if v != v or v in (float("inf"), float("-inf")):
+            raise InputError(f"option --knots: knots must be finite, got {item!r}")
+        out.append(v)
+    return tuple(out)
+
+
+def _number(text: str | None, option: str, unit: str) -> float | None:
+    if text is None:
+        return None
+    try:
+        v = float(text)
+    except ValueError:
+        raise InputError(f"option {option}: expected a number [{unit}], got {text!r}") from None
+    if v != v or v in (float("inf"), float("-inf")):
+        raise InputError(f"option {option}: must be finite [{unit}], got {text!r}")
+    return v
+
+
+def run_shape(robot: str | None, gait: str, request: ShapeRequest, out: Path,
+              quiet: bool) -> dict:
+    """Plain function behind the command; returns the JSON document it wrote.
+
+    Exit 1 (after writing shape.json with the reason) when no shape-only knots exist or a
+    target cannot be reached.
+    """
+    from .. import output, plots_shaping
+    from ..model import load_model
+    from ..robot_io import gait_locator, load_gait_for
+    from ..shaping_study import default_ks, resolve, shape_records, shape_study, study_fields
+    from ..zero_dynamics import zero_dynamics
+    from .common import progress
+
+    rob, g = load_gait_for(robot, gait)
+    zd = zero_dynamics(load_model(rob), g)
+    where = gait_locator(gait) if g.thrust is not None else "gait thrust"
+    total = 1
+    if resolve(zd, request)[0] == "pattern":
+        total = len(request.ks if request.ks is not None else default_ks())
+    with progress("shaped limit cycles", total, quiet) as advance:
+        study = shape_study(zd, request, where, advance)
+    doc, csv_rows = shape_records(zd, study)
+    doc = {"provenance": output.provenance(rob, g), **doc}
+    out.mkdir(parents=True, exist_ok=True)
+    output.write_json(out / "shape.json", doc)
+    if not study.success:
+        return doc
+    output.write_csv(out / "shape.csv", csv_rows["header"], csv_rows["rows"],
+                     comments=csv_rows["comments"])
+
+    def curve(lc):
+        if not lc.exists:
+            return None, None
+        return lc.orbit, (zd.alpha_f, lc.alpha_dot_minus, zd.alpha_i, lc.alpha_dot_plus)
+
+    def curve_sigma(lc):
+        if not lc.exists:
+            return None, None
+        return lc.orbit, (zd.alpha_f, lc.sigma_minus, zd.alpha_i, lc.sigma_plus)
+
+    knots = doc["knots"]["alpha"]
+    unit = "N m" if study.mode == "generalized" else "N"
+    what = (f"T_j = {study.pattern} [{unit}]" if study.mode == "generalized"
+            else f"F_j = {study.pattern} [{unit}], {doc['thruster']}")
+    curves = [curve(lc) for lc in study.cycles]
+    fig = plots_shaping.shape_portrait(
+        study.values, study.labels, [c[0] for c in curves], [c[1] for c in curves],
+        curve(study.nominal), knots, value_label=f"k ({what})",
+        title=f"{rob.name} / {g.name}: shaped limit cycles ({len(knots)} knots)")
+    output.save_figure(fig, out / "shape")
+    note = "" if study.field_cycle.exists else f"no shaped orbit: {study.field_cycle.reason}"
+    fields = study_fields(zd, study)
+    nom = {"alpha_dot": curve(study.nominal), "sigma": curve_sigma(study.nominal)}
+    shp = {"alpha_dot": curve(study.field_cycle), "sigma": curve_sigma(study.field_cycle)}
+    fig = plots_shaping.vector_field_figure(
+        fields, nom, shp, knots,
+        shaped_label=study.field_label, note=note,
+        title=f"{rob.name} / {g.name}: zero-dynamics vector field, nominal vs shaped")
+    output.save_figure(fig, out / "vector_field")
+    if not quiet:
+        _table(doc)
+    return doc
+
+
+def _fmt(v, spec: str = ".4g") -> str:
+    return "—" if v is None else format(v, spec)
+
+
+def _values_text(s: dict) -> str:
+    if "T_j" in s:
+        return ", ".join(f"{v:.4g}" for v in s["T_j"])
+    return "; ".join(f"{n}: " + ", ".join(f"{v:.4g}" for v in vals)
+                     for n, vals in s["F_j"].items())
+
+
+def _table(doc: dict) -> None:
+    from rich.table import Table
+
+    c = console()
+    kn = doc["knots"]
+    unit = "N m" if doc["mode"] == "generalized" else "N"
+    c.print(f"knots (fraction of step): {', '.join(f'{v:.6g}' for v in kn['fraction'])}; "
+            f"alpha [rad]: {', '.join(f'{v:.6g}' for v in kn['alpha'])}", markup=False)
+    c.print(f"b_F per interval [kg m^2 rad]: {', '.join(f'{v:.6g}' for v in doc['b_F'])}",
+            markup=False)
+    if doc["mode"] == "force":
+        for name, vals in doc["Gamma_j"].items():
+            c.print(f"Gamma_j {name} [kg m^3 rad]: {', '.join(f'{v:.6g}' for v in vals)}",
+                    markup=False)
+    if doc["knot_solver"]:
+        ks = doc["knot_solver"]
+        c.print(f"knot solver: {ks['reason']} ({ks['method']}; relative residual "
+                f"{_fmt(ks['relative_residual'], '.2g')})", markup=False)
+    if doc["target"]:
+        t = doc["target"]
+        c.print(f"target {t['kind']} = {t['target']:.6g}: {t['reason']} (residual "
+                f"{_fmt(t['residual'], '.2g')})", markup=False)
+    rows = doc["schedules"]
+    shown = rows
+    if len(rows) > 12:
+        shown = [r for r in rows if r["k"] is not None and abs(r["k"] / 10 - round(r["k"] / 10))
+                 < 1e-9] or rows[:: max(1, len(rows) // 10)]
+    nom = doc["nominal"]
+    t = Table(title=f"shaping: {doc['robot']['name']} / {doc['gait']['name']}, {doc['mode']} "
+                    f"mode (nominal zeta* = {_fmt(nom['zeta_star'])}, delta_zero^2 = "
+                    f"{doc['zero_dynamics']['delta_zero_sq']:.4f})")
+    for col in ("schedule", f"values [{unit}]", "zeta* shaped", "true shift",
+                "paper one-step", "zeta+ shaped", "speed [m/s]", "stable"):
+        t.add_column(col, overflow="fold")
+    for r in shown:
+        t.add_row(r["label"], _values_text(r), _fmt(r["zeta_star"]["shaped"]),
+                  _fmt(r["shift"]["true_fixed_point_shift"], ".3g"),
+                  _fmt(r["shift"]["paper_one_step_shift"], ".3g"),
+                  _fmt(r["post_impact"]["shaped"]["zeta"]), _fmt(r["speed"]),
+                  "yes" if r["stable"] else ("no" if r["exists"] else r["reason"]))
+    c.print(t)
+    if len(shown) < len(rows):
+        c.print(f"({len(rows) - len(shown)} more rows in shape.json)", markup=False)
+    c.print("zeta in kg^2 m^4/s^2. true shift = one-step / (1 - delta_zero^2); the paper's "
+            "value omits that factor (SPEC 4 erratum).", markup=False)
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("shape", help=HELP, epilog=EPILOG)
+    def shape_cli(
+        robot: RobotArg = "three_link",
+        gait: GaitArg = "three_link_walk",
+        knots: Annotated[str | None, typer.Option(
+            "--knots", help="Knots as fractions of the step, 0 first and 1 last, ? = solve "
+            "(default: 0,?,...,?,1 with --n-knots knots for a pattern; equal spacing for a "
+            "target).")] = None,
+        alpha_knots: Annotated[bool, typer.Option(
+            "--alpha-knots", help="--knots are alpha values [rad] (alpha_i first, alpha_f "
+            "last) instead of fractions.")] = False,
+        n_knots: Annotated[int, typer.Option(
+            "--n-knots", help="Number of knots n when --knots is omitted.")] = 4,
+        pattern: Annotated[str | None, typer.Option(
+            "--pattern", help="Interval values T_j [N m] (or F_j [N]) as arithmetic in j and "
+            "k, e.g. 'k*(j-2)' (default when the gait has no thrust: section).")] = None,
+        k: Annotated[str | None, typer.Option(
+            "--k", help="Values of k: start:stop:step or a comma list (default 0:50:2).")] = None,
+        field_k: Annotated[str | None, typer.Option(
+            "--field-k", help="k of the vector-field figure (default 60).")] = None,
+        mode: Annotated[str | None, typer.Option(
+            "--mode", help="generalized (T_j [N m] on q_N, default) or force (F_j [N] of "
+            "--thruster).")] = None,
+        thruster: Annotated[str | None, typer.Option(
+            "--thruster", help="Thruster driven in force mode (default: the first).")] = None,
+        target_zeta: Annotated[str | None, typer.Option(
+            "--target-zeta", help="Minimum-norm values reaching this zeta* "
+            "[kg^2 m^4/s^2].")] = None,
+        target_speed: Annotated[str | None, typer.Option(
+            "--target-speed", help="Minimum-norm values reaching this average speed "
+            "[m/s].")] = None,
+        out: OutOpt = Path("out/shape"),
+        quiet: QuietOpt = False,
+    ) -> None:
+        with cli_errors():
+            from ..shaping_study import ShapeRequest
+
+            req = ShapeRequest(
+                knots=_knots(knots), alpha_knots=alpha_knots, n_knots=n_knots,
+                pattern=pattern,
+                ks=None if k is None else tuple(parse_values(k, "--k")),
+                field_k=_number(field_k, "--field-k", "as k"), mode=mode, thruster=thruster,
+                target_zeta=_number(target_zeta, "--target-zeta", "kg^2 m^4/s^2"),
+                target_speed=_number(target_speed, "--target-speed", "m/s"))
+            doc = run_shape(robot, gait, req, out, quiet)
+            if not doc["success"]:
+                import sys
+
+                sys.stderr.write(f"error: {doc['reason']} (details in {out}/shape.json)\n")
+                raise typer.Exit(1)
+            if not quiet:
+                console().print(f"wrote {out}/shape.json, .csv, .png, .pdf and "
+                                f"vector_field.png, .pdf")
