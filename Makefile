@@ -6,7 +6,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench lint docs clean
+.PHONY: demo test bench lint docs figures clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -29,6 +29,33 @@ lint: $(STAMP)
 
 docs: $(STAMP)
 	$(BIN)/python -m thrustwalk_cli.docs README.md
+
+# ---------------------------------------------------------------------------- figures
+# `make figures` (or `make -j2 figures`) runs thrustwalk commands into $(FIG); each result
+# depends on the robot and gait files it uses, so editing a gait rebuilds only its figures.
+# Sweep settings can be overridden (the test suite runs a reduced pipeline this way).
+FIG        ?= figures
+TW         ?= $(BIN)/thrustwalk
+TW_DEP     ?= $(STAMP)
+R3         := robots/three_link.yaml
+G3         := gaits/three_link_walk.yaml
+LC_THRUST  ?= 0:-50:-2
+SHAPE_K    ?= 0:50:2
+FIELD_K    ?= 60
+
+FIGURE_JSON = $(FIG)/limit_cycle/limit_cycles.json $(FIG)/shape/shape.json
+
+figures: $(FIG)/index.md
+
+$(FIG)/index.md: $(FIGURE_JSON)
+	$(TW) report $(FIG) --title "thrustwalk: figures of the paper and beyond" -q
+
+$(FIG)/limit_cycle/limit_cycles.json: $(R3) $(G3) | $(TW_DEP)
+	$(TW) limit-cycle $(R3) $(G3) --thrust $(LC_THRUST) --out $(FIG)/limit_cycle -q
+
+$(FIG)/shape/shape.json: $(R3) $(G3) | $(TW_DEP)
+	$(TW) shape $(R3) $(G3) --pattern 'k*(j-2)' --k $(SHAPE_K) --field-k $(FIELD_K) \
+		--out $(FIG)/shape -q
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

@@ -14,7 +14,7 @@ from . import __version__, commands
 
 # Help lists commands in this order; any other module in commands/ with ``register`` follows.
 ORDER = ["compile", "inspect", "limit_cycle", "shape", "feasibility", "optimize", "simulate",
-         "design_gait"]
+         "design_gait", "report"]
 
 app = typer.Typer(
     name="thrustwalk",

@@ -8,6 +8,7 @@ import json
 import math
 import os
 import platform
+import shlex
 import sys
 import tempfile
 from collections.abc import Iterable, Sequence
@@ -94,7 +95,7 @@ def provenance(robot: Any = None, gait: Any = None, **extra: Any) -> dict[str, A
     prov: dict[str, Any] = {
         "tool": "thrustwalk",
         "version": __version__,
-        "command": " ".join([Path(sys.argv[0]).name] + sys.argv[1:]),
+        "command": shlex.join(["thrustwalk", *sys.argv[1:]]),
         "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "python": platform.python_version(),
     }

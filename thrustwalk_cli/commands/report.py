@@ -1,0 +1,36 @@
+"""``thrustwalk report``: index a results folder (figures, commands, key numbers)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from .common import QuietOpt, cli_errors, console
+
+HELP = """Write DIR/index.md: every figure below DIR with the command that made it (from the
+provenance of the JSON next to it) and its key numbers (SI units: N, m/s, rad), each followed by
+the JSON path it comes from.
+"""
+EPILOG = "Example: thrustwalk report figures"
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("report", help=HELP, epilog=EPILOG)
+    def report_cli(
+        folder: Annotated[Path, typer.Argument(help="Results folder, e.g. figures.")],
+        title: Annotated[str, typer.Option("--title", help="Heading of the index.")] = (
+            "thrustwalk figures"),
+        quiet: QuietOpt = False,
+    ) -> None:
+        with cli_errors():
+            from .. import output
+            from ..errors import InputError
+            from ..report import build_index
+
+            if not folder.is_dir():
+                raise InputError(f"{folder}: not a folder")
+            output.write_text_atomic(folder / "index.md", build_index(folder, title))
+            if not quiet:
+                console().print(f"wrote {folder / 'index.md'}")
