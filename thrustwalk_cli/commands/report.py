@@ -10,8 +10,8 @@ import typer
 from .common import QuietOpt, cli_errors, console
 
 HELP = """Write DIR/index.md: every figure below DIR with the command that made it (from the
-provenance of the JSON next to it) and its key numbers (SI units: N, m/s, rad), each followed by
-the JSON path it comes from.
+provenance of the JSON next to it) and its key numbers in SI units (thrust [N], speed [m/s],
+zeta* [kg^2 m^4/s^2]), each followed by the JSON path it comes from.
 """
 EPILOG = "Example: thrustwalk report figures"
 

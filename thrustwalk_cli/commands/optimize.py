@@ -1,0 +1,131 @@
+"""``thrustwalk optimize``: minimum-effort thrust schedule as an exact convex QP (SPEC 6)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from .common import GaitArg, OutOpt, QuietOpt, RobotArg, cli_errors, console, parse_values
+
+HELP = """The least thrust that reaches a target while staying walkable (SPEC 6).
+
+Chooses one thrust value per knot interval (force mode: newtons on one thruster; generalized
+mode: T_j on q_N in N m) minimising sum_j w_j x_j^2 (w_j = alpha-length [rad] or nominal time
+[s] of interval j) subject to: the fixed-point equation for the target zeta* [kg^2 m^4/s^2]
+(or the zeta* that gives the target speed [m/s]), F_1^v >= eps [N] and |F_1^h| <= mu F_1^v
+on an alpha grid, zeta(alpha) >= zeta_min, and |x_j| <= max thrust. All constraints are
+linear in the thrust values: the convex QP is solved exactly (LP feasibility by HiGHS,
+least-distance QP by NNLS, KKT conditions verified). An infeasible problem is reported with
+the violated constraint family (exit 0); bad input exits 2, a tool failure 1.
+
+Writes DIR/optimal_schedule.json, DIR/<gait>_optimal.yaml (the gait with the resulting
+`thrust:` section) and DIR/optimal_orbit.png/.pdf.
+"""
+
+EPILOG = ("Example: thrustwalk optimize three_link three_link_walk --knots 0:1:0.25 "
+          "--target-speed 1.0 --max-thrust 30 --mu 0.7 --out out/optimize")
+
+
+def run_optimize(robot: str, gait: str, *, knots: list[float], target_speed: float | None,
+                 target_zeta: float | None, max_thrust: float | None, mu: float | None,
+                 eps: float, zeta_min: float | None, thruster: str | None, mode: str,
+                 weights: str, out: Path, quiet: bool) -> dict:
+    """Plain function behind the command; returns the JSON document it wrote."""
+    from .. import output, plots_contact
+    from ..model import load_model
+    from ..optimize import optimize_study
+    from ..robot_io import load_gait_for
+    from ..zero_dynamics import zero_dynamics
+
+    rob, g = load_gait_for(robot, gait)
+    model = load_model(rob)
+    zd = zero_dynamics(model, g)
+    mu = g.mu if mu is None else mu
+    body, figs, yaml_text = optimize_study(
+        model, zd, g, rob, fractions=knots, target_zeta=target_zeta, target_speed=target_speed,
+        max_thrust=max_thrust, mu=mu, eps=eps, zeta_min=zeta_min, thruster=thruster,
+        mode=mode, weights=weights)
+    files = ["optimal_schedule.json"]
+    out.mkdir(parents=True, exist_ok=True)
+    if yaml_text is not None:
+        name = f"{g.name}_optimal.yaml"
+        output.write_text_atomic(out / name, yaml_text)
+        fig = plots_contact.optimal_figure(
+            figs["nominal"], figs["optimal"], figs["knots"], figs["values"], unit=figs["unit"],
+            profile=figs["profile"], mu=mu, title=f"{rob.name} / {g.name}: optimal schedule")
+        output.save_figure(fig, out / "optimal_orbit")
+        files += [name, "optimal_orbit.png", "optimal_orbit.pdf"]
+    doc = {"provenance": output.provenance(rob, g),
+           "robot": {"name": rob.name, "file": rob.source_file},
+           "gait": {"name": g.name, "file": g.source_file}, **body, "files": files}
+    output.write_json(out / "optimal_schedule.json", doc)
+    if not quiet:
+        _summary(doc)
+    return doc
+
+
+def _summary(doc: dict) -> None:
+    from rich.table import Table
+
+    c = console()
+    if not doc["feasible"]:
+        c.print(f"INFEASIBLE — {doc['reason']}", markup=False)
+        return
+    c.print(f"optimal schedule ({doc['mode']} mode): objective {doc['objective']:.4g}, "
+            f"zeta* = {doc['zeta_star']:.6g} kg^2 m^4/s^2, speed {doc['speed']:.4g} m/s",
+            markup=False)
+    t = Table()
+    t.add_column("interval [fraction of step]")
+    t.add_column(f"thrust [{doc['unit']}]")
+    k = doc["knots_fraction"]
+    for i, v in enumerate(doc["values"]):
+        t.add_row(f"{k[i]:g} – {k[i + 1]:g}", f"{v:.4g}")
+    c.print(t)
+    act = doc["active_constraints"]
+    c.print(f"active constraints: {len(act)}"
+            + ("" if not act else " (" + ", ".join(sorted({a['family'] for a in act})) + ")"))
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("optimize", help=HELP, epilog=EPILOG)
+    def optimize_cli(
+        robot: RobotArg = "three_link",
+        gait: GaitArg = "three_link_walk",
+        knots: Annotated[str, typer.Option(
+            "--knots", help="Knots as fractions of the step [-], from 0 to 1 (start:stop:step "
+                            "or a comma list).")] = "0:1:0.25",
+        target_speed: Annotated[float | None, typer.Option(
+            "--target-speed", help="Target average walking speed [m/s].")] = None,
+        target_zeta: Annotated[float | None, typer.Option(
+            "--target-zeta", help="Target fixed point zeta* [kg^2 m^4/s^2].")] = None,
+        max_thrust: Annotated[float | None, typer.Option(
+            "--max-thrust", help="Bound |x_j| <= this [N] (force mode; default: the thruster's "
+                                 "limits) or [N m] (generalized mode, required).")] = None,
+        mu: Annotated[float | None, typer.Option(
+            "--mu", help="Friction coefficient [-] (default: the gait's `mu`).")] = None,
+        eps: Annotated[float, typer.Option(
+            "--eps", help="Minimum vertical ground force [N].")] = 0.0,
+        zeta_min: Annotated[float | None, typer.Option(
+            "--zeta-min", help="Lower bound on zeta(alpha) along the step [kg^2 m^4/s^2] "
+                               "(default: 1 % of zeta*).")] = None,
+        thruster: Annotated[str | None, typer.Option(
+            "--thruster", help="Thruster to schedule in force mode (default: the first).")
+        ] = None,
+        mode: Annotated[str, typer.Option(
+            "--mode", help="force (thrust [N]) or generalized (T_j on q_N [N m]).")] = "force",
+        weights: Annotated[str, typer.Option(
+            "--weights", help="Effort weights w_j: alpha (interval length [rad]) or time "
+                              "(nominal time in the interval [s]).")] = "alpha",
+        out: OutOpt = Path("out/optimize"),
+        quiet: QuietOpt = False,
+    ) -> None:
+        with cli_errors():
+            fr = parse_values(knots, "--knots")
+            doc = run_optimize(robot, gait, knots=fr, target_speed=target_speed,
+                               target_zeta=target_zeta, max_thrust=max_thrust, mu=mu, eps=eps,
+                               zeta_min=zeta_min, thruster=thruster, mode=mode,
+                               weights=weights, out=out, quiet=quiet)
+            if not quiet:
+                console().print(f"wrote {', '.join(f'{out}/{f}' for f in doc['files'])}")
