@@ -43,7 +43,10 @@ LC_THRUST  ?= 0:-50:-2
 SHAPE_K    ?= 0:50:2
 FIELD_K    ?= 60
 
-FIGURE_JSON = $(FIG)/limit_cycle/limit_cycles.json $(FIG)/shape/shape.json
+FEAS_THRUST ?= 0:-50:-10
+
+FIGURE_JSON = $(FIG)/limit_cycle/limit_cycles.json $(FIG)/shape/shape.json \
+	$(FIG)/feasibility/feasibility.json
 
 figures: $(FIG)/index.md
 
@@ -56,6 +59,9 @@ $(FIG)/limit_cycle/limit_cycles.json: $(R3) $(G3) | $(TW_DEP)
 $(FIG)/shape/shape.json: $(R3) $(G3) | $(TW_DEP)
 	$(TW) shape $(R3) $(G3) --pattern 'k*(j-2)' --k $(SHAPE_K) --field-k $(FIELD_K) \
 		--out $(FIG)/shape -q
+
+$(FIG)/feasibility/feasibility.json: $(R3) $(G3) | $(TW_DEP)
+	$(TW) feasibility $(R3) $(G3) --thrust $(FEAS_THRUST) --mu 0.7 --out $(FIG)/feasibility -q
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

@@ -32,6 +32,27 @@ KEY_NUMBERS: dict[str, list[tuple[str, str]]] = {
         ("true fixed-point shift at the last k", "schedules.-1.shift.true_fixed_point_shift"),
         ("vector-field speed [m/s]", "vector_field.speed"),
     ],
+    "feasibility.json": [
+        ("verdict", "verdict"),
+        ("friction coefficient mu", "mu"),
+        ("thrust of the first case [N]", "cases.0.thrust"),
+        ("feasible at the first thrust", "cases.0.feasible"),
+        ("min vertical force at the first thrust [N]", "cases.0.min_vertical_force"),
+        ("max friction ratio at the first thrust", "cases.0.max_friction_ratio"),
+        ("impact friction ratio at the first thrust", "cases.0.impact_friction_ratio"),
+        ("lift-off velocity at the first thrust [m/s]", "cases.0.liftoff_velocity"),
+        ("thrust of the last case [N]", "cases.-1.thrust"),
+        ("feasible at the last thrust", "cases.-1.feasible"),
+        ("min vertical force at the last thrust [N]", "cases.-1.min_vertical_force"),
+        ("max friction ratio at the last thrust", "cases.-1.max_friction_ratio"),
+    ],
+    "optimal_schedule.json": [
+        ("feasible", "feasible"),
+        ("thrust values", "values"),
+        ("objective", "objective"),
+        ("zeta*", "zeta_star"),
+        ("speed [m/s]", "speed"),
+    ],
 }
 
 
