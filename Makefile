@@ -44,9 +44,11 @@ SHAPE_K    ?= 0:50:2
 FIELD_K    ?= 60
 
 FEAS_THRUST ?= 0:-50:-10
+SIM_STEPS  ?= 30
+SIM_FSS    ?= 0:-50:-10
 
 FIGURE_JSON = $(FIG)/limit_cycle/limit_cycles.json $(FIG)/shape/shape.json \
-	$(FIG)/feasibility/feasibility.json
+	$(FIG)/feasibility/feasibility.json $(FIG)/simulate/simulation.json
 
 figures: $(FIG)/index.md
 
@@ -62,6 +64,10 @@ $(FIG)/shape/shape.json: $(R3) $(G3) | $(TW_DEP)
 
 $(FIG)/feasibility/feasibility.json: $(R3) $(G3) | $(TW_DEP)
 	$(TW) feasibility $(R3) $(G3) --thrust $(FEAS_THRUST) --mu 0.7 --out $(FIG)/feasibility -q
+
+$(FIG)/simulate/simulation.json: $(R3) $(G3) | $(TW_DEP)
+	$(TW) simulate $(R3) $(G3) --steps $(SIM_STEPS) --thrust-model second-order \
+		--f-ss $(SIM_FSS) --wn 2 --xi 1 --out $(FIG)/simulate -q
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

@@ -251,11 +251,6 @@ def test_bundled_gait_thrust_sweep_verdicts_are_consistent(walk3):
         assert c.impact_friction_ratio < 0.7, v
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "the shipped three_link_walk leaves the friction cone / loses contact under constant "
-    "hip_x thrust at its own fixed point well before -50 N, although its header claims 0 to "
-    "-50 N; the force itself is validated above (full dynamics, Newton's law). Remove this "
-    "marker once the gait is re-made."))
 def test_bundled_gait_feasible_for_thrust_0_to_minus_50(walk3):
     """SPEC 5 target for the shipped gait: feasible at mu = 0.7 for 0 ... -50 N on hip_x."""
     model, gait, zd = walk3

@@ -46,6 +46,16 @@ KEY_NUMBERS: dict[str, list[tuple[str, str]]] = {
         ("min vertical force at the last thrust [N]", "cases.-1.min_vertical_force"),
         ("max friction ratio at the last thrust", "cases.-1.max_friction_ratio"),
     ],
+    "simulation.json": [
+        ("all runs completed", "success"),
+        ("F_ss of the first run [N]", "runs.0.f_ss"),
+        ("steps completed, first run", "runs.0.steps_completed"),
+        ("final zeta^- relative error vs zero dynamics, first run", "runs.0.final_relative_error"),
+        ("F_ss of the last run [N]", "runs.-1.f_ss"),
+        ("steps completed, last run", "runs.-1.steps_completed"),
+        ("final zeta^- [kg^2 m^4/s^2], last run", "runs.-1.final_zeta_minus"),
+        ("predicted zeta* [kg^2 m^4/s^2], last run", "runs.-1.predicted.zeta_star"),
+    ],
     "optimal_schedule.json": [
         ("feasible", "feasible"),
         ("thrust values", "values"),

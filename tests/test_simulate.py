@@ -1,0 +1,413 @@
+"""Full-order hybrid simulation (SPEC 7) against the zero dynamics (SPEC 3, 4), the affine
+ground force (SPEC 5), energy and impact identities (SPEC 10), and the CLI.
+
+Every expected value comes from a computation the simulator does not use: the zero-dynamics
+fixed point and Poincare eigenvalue, the closed-form output decay of y'' = -Kp y - Kd y', the
+analytic thruster responses, SPEC 5's formula built from kappa_1, kappa_2, beta, Phi, Phi',
+and the plain-NumPy model of ``tests/independent.py`` (energy, thruster power, Carnot loss).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import independent as ind
+import numpy as np
+import pytest
+from scipy.integrate import simpson
+from scipy.linalg import expm
+from typer.testing import CliRunner
+
+from thrustwalk_cli.cli import app
+from thrustwalk_cli.gait import ThrustSchedule
+from thrustwalk_cli.simulate import (
+    ClosedLoop,
+    SimConfig,
+    Start,
+    ThrustModel,
+    initial_state,
+    schedule_from_gait,
+    simulate,
+    zeta_star_at,
+)
+from thrustwalk_cli.simulate_reduced import ReducedModel, simulate_reduced
+from thrustwalk_cli.zero_dynamics import (
+    Schedule,
+    limit_cycles,
+    paper_one_step_shift,
+    zero_dynamics,
+)
+
+TIGHT = SimConfig(steps=3, rtol=1e-10, atol=1e-10)
+runner = CliRunner()
+
+
+def const(model, **thrust) -> ThrustModel:
+    F = np.zeros(model.n_thrusters)
+    for name, v in thrust.items():
+        F[model.robot.thruster_names.index(name)] = v
+    return ThrustModel("constant", F)
+
+
+def cycle(zd, F) -> object:
+    return limit_cycles(zd, Schedule.constant(zd, np.asarray(F, float)[None, :]))[0]
+
+
+# ------------------------------------------------------------------ on and off the orbit
+def test_started_on_fixed_point_stays_on_zero_dynamics_orbit(walk3):
+    model, _, zd = walk3
+    res = simulate(zd, const(model), TIGHT)
+    lc = cycle(zd, np.zeros(model.n_thrusters))
+    assert res.success, res.reason
+    assert len(res.steps) == 3
+    for st in res.steps:
+        assert st.zeta_minus == pytest.approx(lc.zeta_star, rel=1e-6), st.step
+        assert st.max_abs_output < 1e-8, st.step
+        assert st.step_time == pytest.approx(lc.step_time, rel=1e-6), st.step
+        assert st.s_minus == pytest.approx(1.0, abs=1e-6), st.step
+
+
+def test_rabbit_started_on_fixed_point_stays_on_orbit(_cache_dir):
+    from thrustwalk_cli.model import load_model
+    from thrustwalk_cli.robot_io import load_gait_for
+
+    robot, gait = load_gait_for(None, "rabbit_walk")
+    model = load_model(robot)
+    zd = zero_dynamics(model, gait)
+    res = simulate(zd, const(model), replace(TIGHT, steps=2))
+    assert res.success, res.reason
+    for st in res.steps:
+        assert st.zeta_minus == pytest.approx(res.prediction.zeta_star, rel=1e-6), st.step
+        assert st.max_abs_output < 1e-8, st.step
+
+
+def test_perturbed_start_contracts_at_delta_zero_squared(walk3):
+    model, _, zd = walk3
+    res = simulate(zd, const(model), replace(TIGHT, steps=5), Start(perturb=0.3))
+    assert res.success, res.reason
+    err = np.array([st.zeta_minus for st in res.steps]) - res.prediction.zeta_star
+    assert err[0] == pytest.approx(0.3 * zd.delta_zero_sq * res.prediction.zeta_star, rel=1e-6)
+    ratios = err[1:] / err[:-1]
+    np.testing.assert_allclose(ratios, zd.delta_zero_sq, rtol=1e-2, err_msg="contraction")
+
+
+def test_constant_thrust_converges_to_shifted_fixed_point_not_papers(walk3):
+    model, _, zd = walk3
+    F = np.zeros(model.n_thrusters)
+    F[0] = -4.0
+    res = simulate(zd, ThrustModel("constant", F), replace(TIGHT, steps=5),
+                   Start(orbit="nominal"))
+    assert res.success, res.reason
+    z = np.array([st.zeta_minus for st in res.steps])
+    # geometric convergence at the Poincare eigenvalue: Aitken's limit is exact for it
+    limit = z[-1] - (z[-1] - z[-2]) ** 2 / (z[-1] - 2 * z[-2] + z[-3])
+    shifted = cycle(zd, F).zeta_star
+    nominal = cycle(zd, np.zeros_like(F)).zeta_star
+    sched = Schedule.constant(zd, F[None, :])
+    paper = nominal + float(paper_one_step_shift(zd, sched)[0])
+    assert limit == pytest.approx(shifted, rel=1e-6)
+    assert abs(limit - paper) > 0.1 * abs(shifted - nominal)  # the erratum matters
+    np.testing.assert_allclose(np.diff(z)[1:] / np.diff(z)[:-1], zd.delta_zero_sq, rtol=1e-3)
+
+
+# ------------------------------------------------------------------------ controller
+def test_outputs_decay_as_the_closed_loop_linear_system(walk3):
+    """y'' = -Kp y - Kd y' exactly, thrust on the joints cancelled: y(t) = expm(A t) y0."""
+    model, gait, zd = walk3
+    th = const(model, hip_x=-2.0, torso_back=3.0)
+    x0 = initial_state(zd, th, Start())
+    q0 = x0[:3] + np.array([0.01, -0.005, 0.0])
+    res = simulate(zd, th, replace(TIGHT, steps=1), Start(q=q0, dq=x0[3:6]))
+    assert res.success, res.reason
+    st = res.steps[0]
+    t = np.linspace(st.t_start, st.t_impact, 41)
+    d = res.sample(1, t)
+    A = np.array([[0.0, 1.0], [-gait.kp, -gait.kd]])
+    for i in range(2):
+        y0 = np.array([d["y"][0, i], d["dy"][0, i]])
+        pred = np.array([(expm(A * (tk - t[0])) @ y0)[0] for tk in t])
+        np.testing.assert_allclose(d["y"][:, i], pred, atol=1e-8, err_msg=f"output {i}")
+    assert abs(d["y"][0, 0]) > 1e-3  # the test starts visibly off Z
+
+
+def test_scalar_rhs_equals_vectorised_details(walk3):
+    model, gait, zd = walk3
+    sched = ThrustSchedule((0.0, 0.4, 1.0), (("T", (1.5, -2.0)),), "generalized", True)
+    zd_g = replace(zd, gait=replace(gait, thrust=sched))
+    th = ThrustModel("piecewise", np.zeros(2), schedule=schedule_from_gait(zd_g, sched))
+    rng = np.random.default_rng(7)
+    for cfg in (SimConfig(), SimConfig(torque_limit=20.0)):
+        cl = ClosedLoop(zd_g, th, cfg)
+        X = np.column_stack([rng.uniform(-0.4, 0.4, (25, 3)), rng.uniform(-2, 2, (25, 3))])
+        segs = rng.integers(0, len(cl.breaks) + 1, 25)
+        batch = cl.details(X, segs)
+        for k in range(25):
+            dx = np.array(cl.rhs(0.0, X[k], int(segs[k])))
+            np.testing.assert_allclose(dx[3:], batch["ddq"][k], rtol=1e-9, atol=1e-9,
+                                       err_msg=f"state {k}")
+            assert cl.vertical_force(X[k], int(segs[k])) == pytest.approx(
+                batch["F1"][k, 1], rel=1e-9, abs=1e-8)
+        if cfg.torque_limit:
+            assert np.abs(batch["u"]).max() <= 20.0 + 1e-12 and batch["saturated"].any()
+
+
+# ------------------------------------------------------------------------ SPEC 5 forces
+def _spec5_force(model, zd, alpha, zeta, F, sgn):
+    """F_1 from SPEC 5 on Z at one alpha: q'' = Phi alpha'' + Phi' alpha'^2 with
+    alpha'^2 = 2 kappa_1^2 zeta, alpha'' = 2 kappa_1' kappa_1 zeta + kappa_1 (kappa_2 + beta F),
+    u from the pinned rows, F_1 from the unpinned force rows."""
+    N = model.n
+    mp = zd.maps
+
+    def k1(a):
+        q = mp.q_Z(np.array(a))
+        return 1.0 / (model.D(q)[N - 1] @ mp.Phi(np.array(a)))
+
+    q, phi, dphi = mp.q_Z(np.array(alpha)), mp.Phi(np.array(alpha)), mp.dPhi(np.array(alpha))
+    h = 1e-5
+    kap1 = k1(alpha)
+    dk1 = (k1(alpha + h) - k1(alpha - h)) / (2 * h)
+    kap2 = -model.G(q)[N - 1]
+    beta = model.B_F(q)[N - 1]
+    ad = sgn * np.sqrt(2 * zeta) * kap1
+    add = 2 * dk1 * kap1 * zeta + kap1 * (kap2 + beta @ F)
+    ddq = phi * add + dphi * ad**2
+    dq = phi * ad
+    u = (model.D(q) @ ddq + model.h(q, dq) - model.B_F(q) @ F)[: N - 1]
+    gen = (model.D_u(q) @ np.r_[ddq, 0, 0] + model.h_u(q, np.r_[dq, 0, 0])
+           - model.B_Fu(q) @ F - np.r_[u, 0, 0, 0])
+    return gen[N:]
+
+
+def test_ground_force_equals_affine_formula_of_spec5(walk3):
+    model, _, zd = walk3
+    F = np.array([-3.0, 2.0])
+    res = simulate(zd, ThrustModel("constant", F), replace(TIGHT, steps=1))
+    assert res.success, res.reason
+    st = res.steps[0]
+    d = res.sample(1, np.linspace(st.t_start, st.t_impact, 30))
+    sgn = float(np.sign(d["sigma"][0]))
+    m = model.n_thrusters
+    for k, (a, s) in enumerate(zip(d["alpha"], d["sigma"])):
+        L0 = _spec5_force(model, zd, a, 0.0, np.zeros(m), sgn)
+        L1 = _spec5_force(model, zd, a, 1.0, np.zeros(m), sgn) - L0
+        L2 = np.column_stack([_spec5_force(model, zd, a, 0.0, e, sgn) - L0
+                              for e in np.eye(m)])
+        affine = L2 @ F + L1 * (0.5 * s**2) + L0
+        np.testing.assert_allclose(d["F1"][k], affine, rtol=1e-7, atol=1e-4,
+                                   err_msg=f"sample {k} [N]")
+
+
+# ------------------------------------------------------------------------ energy
+def test_energy_bookkeeping_over_a_step(walk3):
+    """E(pre_2) - E(pre_1) = int u.q_b' + int sum F_k d_k.p_k' - Carnot loss of impact 1."""
+    model, _, zd = walk3
+    robot = model.robot
+    th = ThrustModel("second-order", np.array([-3.0, -3.0]), wn=2.0, xi=0.7)
+    res = simulate(zd, th, TIGHT)
+    assert res.success, res.reason
+
+    def energy(q, dq):
+        return 0.5 * dq @ ind.mass_matrix(robot, q) @ dq + ind.potential(robot, q)
+
+    s1, s2 = res.steps[0], res.steps[1]
+    t = np.linspace(s2.t_start, s2.t_impact, 2001)
+    d = res.sample(2, t)
+    p_u = np.einsum("ki,ki->k", d["u"], d["dq"][:, :2])
+    p_f = np.array([ind.thruster_power(robot, q, dq, F)
+                    for q, dq, F in zip(d["q"], d["dq"], d["F"])])
+    work = simpson(p_u, x=t) + simpson(p_f, x=t)
+    qm, dqm = np.array(s1.q_minus), np.array(s1.dq_minus)
+    imp = model.impact(qm, dqm)
+    dv = np.r_[dqm, 0.0, 0.0] - imp.dq_u_plus
+    carnot = 0.5 * dv @ ind.unpinned_mass_matrix(robot, qm) @ dv
+    e1, e2 = energy(qm, dqm), energy(np.array(s2.q_minus), np.array(s2.dq_minus))
+    scale = abs(e1)
+    assert abs(simpson(p_f, x=t)) > 1.0  # the thrust does work
+    assert e2 - e1 == pytest.approx(work - carnot, abs=1e-8 * scale)
+    # the relabelled post-impact state carries E^- minus the Carnot loss
+    assert energy(d["q"][0], d["dq"][0]) == pytest.approx(e1 - carnot, abs=1e-9 * scale)
+    assert s1.energy_minus - s1.energy_plus == pytest.approx(carnot, rel=1e-8)
+
+
+# ------------------------------------------------------------------------ thruster dynamics
+@pytest.mark.parametrize("kind", ["second-order", "first-order"])
+def test_thrust_history_follows_its_ode_across_impacts(walk3, kind):
+    model, _, zd = walk3
+    Fss, wn, tau = -4.0, 2.0, 0.5
+    th = ThrustModel(kind, np.array([Fss, 0.0]), wn=wn, xi=1.0, tau=tau)
+    res = simulate(zd, th, TIGHT)
+    assert res.success, res.reason
+    t = res.trajectory["t"]
+    exact = (Fss * (1 - (1 + wn * t) * np.exp(-wn * t)) if kind == "second-order"
+             else Fss * (1 - np.exp(-t / tau)))
+    np.testing.assert_allclose(res.trajectory["F"][:, 0], exact, atol=1e-7)
+    np.testing.assert_allclose(res.trajectory["F"][:, 1], 0.0, atol=0)
+
+
+def test_reduced_cascade_matches_full_order_under_slow_thrust(walk3):
+    model, _, zd = walk3
+    th = ThrustModel("second-order", np.array([-4.0, 0.0]), wn=2.0, xi=1.0)
+    full = simulate(zd, th, TIGHT)
+    x0 = initial_state(zd, th, Start())
+    sigma0 = float(model.D(x0[:3])[2] @ x0[3:6])
+    red = simulate_reduced(zd, th, 3, float(zd.maps.c @ x0[:3]), sigma0, th.initial_states(),
+                           rtol=1e-10, atol=1e-10)
+    assert full.success and red.success
+    for a, b in zip(full.steps, red.steps):
+        assert a.zeta_minus == pytest.approx(b.zeta_minus, rel=1e-6), a.step
+        assert a.step_time == pytest.approx(b.step_time, rel=1e-6), a.step
+        assert a.thrust_at_impact[0] == pytest.approx(b.thrust_at_impact[0], rel=1e-6)
+
+
+def test_reduced_terms_equal_zero_dynamics_terms(walk3):
+    _, _, zd = walk3
+    rm = ReducedModel(zd)
+    alpha = np.random.default_rng(3).uniform(zd.alpha_i, zd.alpha_f, 9)
+    t = zd.terms(alpha)
+    for k, a in enumerate(alpha):
+        got = rm.terms(float(a))
+        np.testing.assert_allclose(got, np.r_[t["kappa1"][k], t["kappa2"][k], t["beta"][k]],
+                                   rtol=1e-12, atol=1e-12, err_msg=f"alpha {a}")
+
+
+@pytest.mark.parametrize("mode", ["force", "generalized"])
+def test_piecewise_schedule_fixed_point(walk3, mode):
+    model, gait, zd = walk3
+    vals = (("torso_back", (0.0, -3.0, 2.0)),) if mode == "force" else (("T", (-2.0, 0.0, 3.0)),)
+    sched = ThrustSchedule((0.0, 0.3, 0.7, 1.0), vals, mode, True)
+    zd_s = replace(zd, gait=replace(gait, thrust=sched))
+    S = schedule_from_gait(zd_s, sched)
+    th = ThrustModel("piecewise", np.zeros(2), schedule=S)
+    res = simulate(zd_s, th, replace(TIGHT, steps=2))
+    lc = limit_cycles(zd_s, S)[0]
+    assert res.success, res.reason
+    assert lc.zeta_star != pytest.approx(cycle(zd, np.zeros(2)).zeta_star, rel=1e-3)
+    for st in res.steps:
+        assert st.zeta_minus == pytest.approx(lc.zeta_star, rel=1e-6), st.step
+        assert st.max_abs_output < 1e-8
+
+
+# ------------------------------------------------------------------------ failures
+@pytest.mark.parametrize("thrust, start, failure, words", [
+    ({"hip_x": 100.0}, Start(orbit="nominal"), "fall", "alpha reverses"),
+    ({}, Start(perturb=-0.9), "fall", "alpha reverses"),
+    ({"hip_x": -120.0}, Start(orbit="nominal"), "fall", "vertical ground force"),
+])
+def test_falling_walker_is_reported_with_reason(walk3, thrust, start, failure, words):
+    model, _, zd = walk3
+    res = simulate(zd, const(model, **thrust), SimConfig(steps=6), start)
+    assert not res.success
+    assert res.failure == failure and words in res.reason and "step" in res.reason
+    assert len(res.steps) < 6
+
+
+@pytest.mark.parametrize("dq2, words", [(0.2, "before mid-step"), (-0.2, "before s = 0.75")])
+def test_swing_foot_scuff_is_reported(walk3, dq2, words):
+    """Swing leg swung down hard at the start: into the ground at once, or a strike just after
+    mid-step instead of at the end of the step."""
+    model, _, zd = walk3
+    x0 = initial_state(zd, const(model), Start())
+    res = simulate(zd, const(model), SimConfig(steps=2),
+                   Start(q=x0[:3] + np.array([0.0, dq2, 0.0]),
+                         dq=x0[3:6] + np.array([0.0, 3.0, 0.0])))
+    assert not res.success and res.failure == "scuff", res.reason
+    assert "swing foot" in res.reason and words in res.reason
+
+
+def test_integrator_failure_is_reported(walk3, monkeypatch):
+    model, _, zd = walk3
+    real = ClosedLoop.rhs
+
+    def broken(self, t, x, seg):
+        out = real(self, t, x, seg)
+        return [np.nan] * len(out) if t > 0.2 else out
+
+    monkeypatch.setattr(ClosedLoop, "rhs", broken)
+    res = simulate(zd, const(model), SimConfig(steps=2))
+    assert not res.success and res.failure == "integrator" and "DOP853" in res.reason
+
+
+def test_start_without_orbit_is_an_input_error(walk3):
+    from thrustwalk_cli.errors import InputError
+
+    model, _, zd = walk3
+    with pytest.raises(InputError, match="no fixed point"):
+        simulate(zd, const(model, hip_x=100.0), SimConfig(steps=1))
+    assert zeta_star_at(zd, np.array([100.0, 0.0])) < 0
+
+
+# ------------------------------------------------------------------------ CLI
+STEP_KEYS = {"step", "step_time", "zeta_minus", "sigma_minus", "sigma_plus", "impulse",
+             "thrust_at_impact", "min_vertical_force", "max_abs_output", "prediction"}
+
+
+def test_cli_writes_every_output(tmp_path):
+    out = tmp_path / "sim"
+    res = runner.invoke(app, ["simulate", "--steps", "2", "--f-ss", "0,-2", "--samples", "20",
+                              "--animate", "--quiet", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    for name in ("simulation.json", "steps.csv", "trajectory.csv", "thrust_time.png",
+                 "thrust_time.pdf", "phase_portrait.png", "phase_portrait.pdf", "walker.gif"):
+        assert (out / name).stat().st_size > 0, name
+    doc = json.loads((out / "simulation.json").read_text())
+    assert doc["success"] and doc["provenance"]["tool"] == "thrustwalk"
+    assert [r["f_ss"] for r in doc["runs"]] == [0.0, -2.0]
+    assert len(doc["steps"]) == 4
+    for e in doc["steps"]:
+        assert STEP_KEYS <= set(e), sorted(STEP_KEYS - set(e))
+        assert abs(e["prediction"]["relative_error"]) < 1e-6, e["step"]
+    header = (out / "steps.csv").read_text().splitlines()[2].split(",")
+    assert {"zeta_minus", "predicted_zeta_minus", "thrust_hip_x"} <= set(header)
+    assert (out / "walker.gif").read_bytes()[:6] == b"GIF89a"
+
+
+def test_cli_falling_walker_exit_0_with_reason(tmp_path):
+    res = runner.invoke(app, ["simulate", "--thrust-model", "constant", "--f-ss", "100",
+                              "--start", "nominal", "--steps", "3", "--quiet", "--out",
+                              str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "simulation.json").read_text())
+    assert not doc["success"] and not doc["runs"][0]["success"]
+    assert doc["runs"][0]["failure"] == "fall" and "alpha reverses" in doc["reason"]
+    assert "warning: run 0" in res.output
+
+
+def test_cli_reduced_preview_and_npz(tmp_path):
+    res = runner.invoke(app, ["simulate", "--reduced", "--steps", "2", "--f-ss", "0",
+                              "--samples", "10001", "--quiet", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "simulation.json").read_text())
+    assert doc["trajectory_file"] == "trajectory.npz" and doc["steps"][0]["model"] == "reduced"
+    data = np.load(tmp_path / "trajectory.npz")
+    assert data["t"].size == 20002 and {"alpha", "sigma", "thrust_hip_x"} <= set(data.files)
+
+
+def test_cli_integrator_failure_exit_1(tmp_path, monkeypatch):
+    real = ClosedLoop.rhs
+    monkeypatch.setattr(ClosedLoop, "rhs", lambda self, t, x, seg: (
+        [np.nan] * len(x) if t > 0.2 else real(self, t, x, seg)))
+    res = runner.invoke(app, ["simulate", "--steps", "1", "--f-ss", "0", "--quiet", "--out",
+                              str(tmp_path)])
+    assert res.exit_code == 1
+    assert json.loads((tmp_path / "simulation.json").read_text())["runs"][0]["failure"] == \
+        "integrator"
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--thrust-model", "bogus"], "--thrust-model"),
+    (["--f-ss", "500"], "outside the limits"),
+    (["--wn", "0"], "--wn"),
+    (["--q0", "0,0,0"], "--q0/--dq0"),
+    (["--thruster", "nope"], "--thruster"),
+    (["--thrust-model", "piecewise"], "thrust schedule"),
+    (["--steps", "0"], "--steps"),
+    (["--start", "sideways"], "--start"),
+    (["--q0", "0,0", "--dq0", "0,0"], "expected 3 values"),
+])
+def test_cli_bad_input_one_line_exit_2(tmp_path, args, words):
+    res = runner.invoke(app, ["simulate", *args, "--quiet", "--out", str(tmp_path)])
+    assert res.exit_code == 2, res.output
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error:") and words in lines[0], res.output

@@ -1,0 +1,202 @@
+"""``thrustwalk simulate``: full-order closed-loop hybrid simulation with thruster dynamics."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from .common import GaitArg, OutOpt, QuietOpt, RobotArg, cli_errors, console, parse_values, progress
+
+HELP = """Full-order hybrid simulation of the closed loop with thruster dynamics (SPEC 7).
+
+Controller: input-output linearisation y'' = -Kp y - Kd y' (gains from the gait file), which
+cancels the thrust on the joints. Guard: swing-foot height crossing 0 downward after mid-step;
+impact map and leg relabelling; thruster states carry across impacts. One run per F_ss value
+[N]; each is compared step by step with the zero-dynamics prediction and the reduced cascade
+(SPEC 3). Thrust models: constant; first-order lag (tau [s]); second-order
+F'' + 2 xi wn F' + wn^2 F = wn^2 F_ss (wn [rad/s], the paper's slow thruster); piecewise in
+alpha (the gait's thrust: section). The start is just after an impact on the predicted orbit
+(zeta^- = zeta* of the thrust at t = 0, or of zero thrust with --start nominal), scaled by
+1 + --perturb, or --zeta0 [kg^2 m^4/s^2], or an explicit state --q0/--dq0.
+
+A walker that falls (stance leg past horizontal, alpha reversing, negative vertical ground
+force), scuffs or has an infeasible impact is reported in simulation.json (success, reason)
+with exit 0; an integrator or controller failure exits 1 (files are still written).
+
+Writes DIR/simulation.json, DIR/steps.csv, DIR/trajectory.csv (.npz above 20000 samples),
+DIR/thrust_time.png/.pdf, DIR/phase_portrait.png/.pdf and, with --animate, DIR/walker.gif.
+"""
+
+EPILOG = ("Example: thrustwalk simulate three_link three_link_walk --steps 30 --thrust-model "
+          "second-order --f-ss 0:-10:-2 --wn 2 --xi 1 --out out/sim")
+
+
+def _floats(text: str | None, option: str) -> list[float] | None:
+    return None if text is None else parse_values(text, option)
+
+
+def run_simulate(robot: str, gait: str, *, steps: int, thrust_model: str, f_ss: str | None,
+                 wn: float, xi: float, tau: float, f0: float, thrusters: list[str] | None,
+                 perturb: float, zeta0: float | None, q0: str | None, dq0: str | None,
+                 start_orbit: str,
+                 torque_limit: float | None, rtol: float, atol: float, method: str,
+                 samples: int, scuff_tol: float, reduced: bool, animate: bool, out: Path,
+                 quiet: bool) -> dict:
+    """Plain function behind the command; returns the JSON document it wrote."""
+    from .. import output, plots_simulate
+    from ..errors import InputError
+    from ..model import load_model
+    from ..robot_io import load_gait_for
+    from ..simulate import SimConfig, Start
+    from ..simulate_records import (
+        animation_frames,
+        figure_data,
+        make_scenario,
+        run_scenario,
+        simulation_document,
+        steps_table,
+        trajectory_output,
+    )
+    from ..zero_dynamics import zero_dynamics
+
+    if (q0 is None) != (dq0 is None):
+        raise InputError("options --q0/--dq0: give both or neither")
+    if q0 is not None and (zeta0 is not None or perturb != 0.0):
+        raise InputError("options --q0/--dq0 replace --zeta0/--perturb: give one kind of start")
+    values = _floats(f_ss, "--f-ss")
+    if values is None and thrust_model != "piecewise":
+        values = parse_values("0:-50:-10", "--f-ss")
+    start = Start(zeta_minus=zeta0, perturb=perturb, q=_floats(q0, "--q0"),
+                  dq=_floats(dq0, "--dq0"), orbit=start_orbit)
+    config = SimConfig(steps=steps, rtol=rtol, atol=atol, method=method,
+                       samples_per_step=samples, torque_limit=torque_limit, scuff_tol=scuff_tol)
+    rob, g = load_gait_for(robot, gait)
+    model = load_model(rob)
+    zd = zero_dynamics(model, g)
+    sc = make_scenario(zd, thrust_model, values, thrusters, wn=wn, xi=xi, tau=tau, f0=f0,
+                       start=start, config=config, reduced_only=reduced)
+    n_runs = max(1, len(sc.values))
+    with progress("simulating steps", n_runs * steps, quiet) as advance:
+        outcomes = run_scenario(zd, sc, advance)
+    kind, traj = trajectory_output(zd, outcomes)
+    doc = {"provenance": output.provenance(rob, g), **simulation_document(zd, sc, outcomes),
+           "trajectory_file": f"trajectory.{kind}"}
+    out.mkdir(parents=True, exist_ok=True)
+    output.write_json(out / "simulation.json", doc)
+    tab = steps_table(doc, rob.thruster_names)
+    output.write_csv(out / "steps.csv", tab["header"], tab["rows"], comments=tab["comments"])
+    if kind == "npz":
+        output.write_bytes_atomic(out / "trajectory.npz", traj)
+    else:
+        output.write_csv(out / "trajectory.csv", traj["header"], traj["rows"],
+                         comments=traj["comments"])
+    data = figure_data(zd, sc, outcomes)
+    name = f"{rob.name} / {g.name}"
+    output.save_figure(plots_simulate.thrust_time(data, title=f"{name}: thrust"),
+                       out / "thrust_time")
+    output.save_figure(plots_simulate.phase_portrait(data, title=f"{name}: limit cycles"),
+                       out / "phase_portrait")
+    if animate:
+        frames = animation_frames(zd, outcomes[-1])
+        output.write_bytes_atomic(out / "walker.gif", plots_simulate.animate(frames))
+    if not quiet:
+        _table(doc)
+    return doc
+
+
+def _fmt(v, spec: str = ".4g") -> str:
+    return "—" if v is None else format(v, spec)
+
+
+def _table(doc: dict) -> None:
+    from rich.table import Table
+
+    t = Table(title=f"simulate: {doc['robot']['name']} / {doc['gait']['name']} "
+                    f"({doc['settings']['thrust_model']}, delta_zero^2 = "
+                    f"{doc['zero_dynamics']['delta_zero_sq']:.4f})")
+    for col in ("F_ss [N]", "steps", "final ζ⁻", "predicted ζ*", "rel. error", "status"):
+        t.add_column(col, overflow="fold")
+    for r in doc["runs"]:
+        t.add_row(_fmt(r["f_ss"]), str(r["steps_completed"]), _fmt(r["final_zeta_minus"]),
+                  _fmt(r["predicted"]["zeta_star"]), _fmt(r["final_relative_error"], ".2e"),
+                  "ok" if r["success"] else f"{r['failure']} ({r['reason'].split(':')[0]})")
+    console().print(t)
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("simulate", help=HELP, epilog=EPILOG)
+    def simulate_cli(
+        robot: RobotArg = "three_link",
+        gait: GaitArg = "three_link_walk",
+        steps: Annotated[int, typer.Option("--steps", help="Steps per run.")] = 30,
+        thrust_model: Annotated[str, typer.Option(
+            "--thrust-model",
+            help="constant | first-order | second-order | piecewise.")] = "second-order",
+        f_ss: Annotated[str | None, typer.Option(
+            "--f-ss", help="Steady thrust F_ss [N], one run per value: start:stop:step or a "
+                           "comma list (default 0:-50:-10; not with piecewise).")] = None,
+        wn: Annotated[float, typer.Option(
+            "--wn", help="Second-order thruster natural frequency [rad/s].")] = 2.0,
+        xi: Annotated[float, typer.Option(
+            "--xi", help="Second-order thruster damping ratio [1].")] = 1.0,
+        tau: Annotated[float, typer.Option(
+            "--tau", help="First-order thruster time constant [s].")] = 0.5,
+        f0: Annotated[float, typer.Option(
+            "--f0", help="Thrust at t = 0 of the dynamic thrusters [N].")] = 0.0,
+        thruster: Annotated[list[str] | None, typer.Option(
+            "--thruster", metavar="NAME",
+            help="Thruster driven by F_ss (repeat for several; default: the "
+                               "first).")] = None,
+        perturb: Annotated[float, typer.Option(
+            "--perturb", help="Relative change of the start's pre-impact zeta^- [1], e.g. "
+                              "0.2 = 20 % more.")] = 0.0,
+        start_orbit: Annotated[str, typer.Option(
+            "--start", help="Start on the fixed point of the thrust at t = 0 (predicted) or "
+                            "of zero thrust (nominal).")] = "predicted",
+        zeta0: Annotated[float | None, typer.Option(
+            "--zeta0", help="Start's pre-impact zeta^- [kg^2 m^4/s^2] (default: the predicted "
+                            "fixed point).")] = None,
+        q0: Annotated[str | None, typer.Option(
+            "--q0", help="Explicit initial configuration [rad], comma list.")] = None,
+        dq0: Annotated[str | None, typer.Option(
+            "--dq0", help="Explicit initial rates [rad/s], comma list.")] = None,
+        torque_limit: Annotated[float | None, typer.Option(
+            "--torque-limit", help="Joint torque bound |u| [N m] (default: none).")] = None,
+        rtol: Annotated[float, typer.Option("--rtol", help="Integrator relative tolerance.")
+                        ] = 1e-9,
+        atol: Annotated[float, typer.Option(
+            "--atol", help="Integrator absolute tolerance [rad, rad/s].")] = 1e-9,
+        method: Annotated[str, typer.Option(
+            "--method", help="solve_ivp method: DOP853, RK45, Radau, LSODA, BDF.")] = "DOP853",
+        samples: Annotated[int, typer.Option(
+            "--samples", help="Stored trajectory samples per step.")] = 80,
+        scuff_tol: Annotated[float, typer.Option(
+            "--scuff-tol", help="Depth the swing foot may dip before mid-step [m].")] = 1e-4,
+        reduced: Annotated[bool, typer.Option(
+            "--reduced", help="Fast preview: the reduced cascade of SPEC 3 only.")] = False,
+        animate: Annotated[bool, typer.Option(
+            "--animate", help="Also write DIR/walker.gif (the last run).")] = False,
+        out: OutOpt = Path("out/simulate"),
+        quiet: QuietOpt = False,
+    ) -> None:
+        with cli_errors():
+            doc = run_simulate(
+                robot, gait, steps=steps, thrust_model=thrust_model, f_ss=f_ss, wn=wn, xi=xi,
+                tau=tau, f0=f0, thrusters=thruster, perturb=perturb, zeta0=zeta0, q0=q0,
+                dq0=dq0, start_orbit=start_orbit, torque_limit=torque_limit, rtol=rtol,
+                atol=atol, method=method, samples=samples, scuff_tol=scuff_tol,
+                reduced=reduced, animate=animate, out=out, quiet=quiet)
+        tool = [r for r in doc["runs"] if r["failure"] in ("integrator", "controller")]
+        for r in doc["runs"]:
+            if not r["success"]:
+                sys.stderr.write(f"warning: run {r['run']} (F_ss = {r['f_ss']}): "
+                                 f"{r['reason']}\n")
+        if not quiet:
+            console().print(f"wrote {out}/simulation.json, steps.csv, "
+                            f"{doc['trajectory_file']}, thrust_time.png/.pdf, "
+                            f"phase_portrait.png/.pdf" + (", walker.gif" if animate else ""))
+        if tool:
+            raise typer.Exit(1)
