@@ -203,3 +203,16 @@ def test_readme_key_tables_match_schema():
     readme = (REPO / "README.md").read_text()
     assert render(readme) == readme, "README key tables are stale: run `make docs`"
     assert "make demo" in readme and "make test" in readme
+
+
+def test_result_files_are_ordinary_files(tmp_path):
+    """Atomic writes go through mkstemp (mode 0600); results must get the usual mode."""
+    import os
+
+    from thrustwalk_cli import output
+
+    p = output.write_text_atomic(tmp_path / "x.json", "{}")
+    umask = os.umask(0)
+    os.umask(umask)
+    assert p.stat().st_mode & 0o777 == 0o666 & ~umask
+    assert [f.name for f in tmp_path.iterdir()] == ["x.json"]  # no temporary left behind

@@ -1,0 +1,245 @@
+"""``thrustwalk design-gait``: find a stable, walkable Bezier gait for a robot (SPEC 2, 3, 5)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..errors import ComputationError, InputError
+from .common import QuietOpt, RobotArg, cli_errors, console, progress
+
+HELP = """Design a stable, hybrid-invariant Bezier gait by constrained optimisation.
+
+Variables: the pre-impact posture q^- [rad], the free Bezier columns 2..M-1 [rad] (columns 0
+and 1 follow from hybrid invariance) and zeta^- [kg^2 m^4/s^2]; with --design-thrust also one
+constant thrust per thruster [N]. Objective on the zero-dynamics periodic orbit: 'effort' =
+(1/L) int |u|^2 dt [N^2 m s] (default) or 'peak' = max |u_i| [N m]. Constraints: stable
+periodic orbit with delta_zero^2 <= --max-delta-sq; target speed [m/s] and/or step length
+[m]; swing foot >= --clearance [m] at mid-step and >= 0 over the step; stance F_v >= eps [N]
+and |F_h| <= mu F_v; impact impulse in the friction cone and trailing foot lifting off; joint
+ranges [rad] and torque limits [N m] from the robot file.
+
+Writes the gait YAML (a header records how it was made) and NAME.report.json beside it
+(objective, every constraint margin, fixed point, provenance). The written file is loaded back
+and its fixed point compared with the design before it is kept. Exit codes: 0 a feasible gait
+was written; 3 no feasible gait was found (only the report is written; it names the
+constraint family that blocks); 2 bad input; 1 computation failure.
+"""
+
+EPILOG = ("Example: thrustwalk design-gait rabbit --speed 0.53 --starts 8 "
+          "--out gaits/rabbit_walk.yaml")
+
+INFEASIBLE_EXIT = 3
+
+
+def parse_alpha(text: str | None, names: list[str]) -> tuple[float, ...] | None:
+    """``"q_T:-1,q_sh:1,q_sk:0.5"`` -> one coefficient per coordinate (missing = 0)."""
+    if text is None:
+        return None
+    c = dict.fromkeys(names, 0.0)
+    for part in text.split(","):
+        key, sep, val = part.partition(":")
+        key = key.strip()
+        try:
+            num = float(val)
+        except ValueError:
+            num = None
+        if not sep or key not in c or num is None or num != num:
+            raise InputError(f"option --alpha: expected name:value pairs over "
+                             f"{', '.join(names)} (got {part.strip()!r})")
+        c[key] = num
+    return tuple(c.values())
+
+
+def parse_thrust_range(text: str | None) -> tuple[str, float, float] | None:
+    """``"hip_x:-50:0"`` -> ``("hip_x", -50.0, 0.0)`` [N]."""
+    if text is None:
+        return None
+    parts = text.split(":")
+    try:
+        if len(parts) != 3:
+            raise ValueError
+        lo, hi = float(parts[1]), float(parts[2])
+    except ValueError:
+        raise InputError(f"option --thrust-range: expected NAME:LOW:HIGH in N, e.g. hip_x:-50:0 "
+                         f"(got {text!r})") from None
+    return parts[0].strip(), lo, hi
+
+
+def _robot_ref(robot: str, resolved: str, out: Path) -> str:
+    """How the gait file names its robot: the bundled name, or a path relative to it."""
+    import os
+
+    p = Path(robot)
+    if not p.is_file() and "/" not in robot and not robot.endswith((".yaml", ".yml")):
+        return robot
+    return os.path.relpath(Path(resolved).resolve(), out.resolve().parent)
+
+
+def run_design_gait(robot: str, out: Path, *, speed: float | None, step_length: float | None,
+                    mu: float, order: int, starts: int, seed: int, clearance: float,
+                    max_delta_sq: float, objective: str, design_thrust: bool,
+                    thrust_weight: float, thrust_range: str | None,
+                    min_vertical_force: float | None, alpha: str | None,
+                    max_iter: int, name: str | None, compare: str | None,
+                    quiet: bool) -> dict:
+    """Plain function behind the command; returns the report it wrote (``feasible`` says
+    whether the gait file was written)."""
+    import os
+
+    from .. import output
+    from ..design import (
+        DesignSpec,
+        check_gait,
+        design_gait,
+        gait_yaml,
+        reload_check,
+        report_record,
+        with_name,
+        yaml_header,
+    )
+    from ..model import load_model
+    from ..robot_io import load_gait_for, load_robot
+
+    if out.suffix not in (".yaml", ".yml"):
+        raise InputError(f"option --out: the gait file must end in .yaml (got {out})")
+    gait_name = name or out.stem
+    rob = load_robot(robot)
+    model = load_model(rob)
+    spec = DesignSpec(speed=speed, step_length=step_length, mu=mu, order=order,
+                      clearance=clearance, max_delta_sq=max_delta_sq,
+                      min_vertical_force=min_vertical_force, objective=objective,
+                      thrust_design=design_thrust, thrust_weight=thrust_weight,
+                      thrust_range=parse_thrust_range(thrust_range),
+                      alpha_c=parse_alpha(alpha, rob.coordinate_names), starts=starts,
+                      seed=seed, max_iter=max_iter, name=gait_name)
+    spec.validate(model)
+    cmp_gait = None
+    if compare is not None:
+        crob, cmp_gait = load_gait_for(None, compare)
+        if crob.name != rob.name:
+            raise InputError(f"option --compare: gait {cmp_gait.name!r} is for robot "
+                             f"{crob.name!r}, not {rob.name!r}")
+    with progress(f"design-gait {rob.name}: {starts} start(s)", starts, quiet) as advance:
+        res = design_gait(model, spec, progress=lambda done, total, msg: advance(1))
+    res = with_name(res, gait_name)
+    report_path = out.with_name(out.stem + ".report.json")
+    prov = output.provenance(rob)
+    doc = {"provenance": prov, "robot": {"name": rob.name, "file": rob.source_file},
+           "gait_file": str(out) if res.feasible else None, **report_record(res)}
+    if cmp_gait is not None:
+        doc["compare"] = {"gait": cmp_gait.name, "file": cmp_gait.source_file,
+                          **check_gait(model, cmp_gait, spec)}
+    if res.feasible:
+        text = gait_yaml(res, model, _robot_ref(robot, rob.source_file, out),
+                         yaml_header(res, prov, report_path.name))
+        tmp = out.with_name(f".{out.stem}.check{out.suffix}")
+        output.write_text_atomic(tmp, text)
+        try:
+            back = reload_check(model, tmp, res)
+            if not back["relative_error"] <= 1e-8:
+                raise ComputationError(
+                    f"the written gait does not reproduce the designed fixed point "
+                    f"(zeta* {back['zeta_star']} vs {back['reference']})")
+            doc["reload_check"] = back
+            os.replace(tmp, out)
+        finally:
+            tmp.unlink(missing_ok=True)
+    output.write_json(report_path, doc)
+    if not quiet:
+        _summary(doc, out, report_path)
+    return doc
+
+
+def _summary(doc: dict, out: Path, report: Path) -> None:
+    from rich.markup import escape
+    from rich.table import Table
+
+    o, m = doc.get("fixed_point") or {}, doc.get("margins") or {}
+    t = Table(title=f"design-gait {doc['robot']['name']}: "
+                    + ("feasible" if doc["feasible"] else "NO FEASIBLE GAIT"))
+    t.add_column("quantity")
+    t.add_column("value", justify="right")
+    obj = doc["objective"]
+    rows = [(f"objective {obj['name']} [{obj['unit']}]", obj["value"]),
+            ("delta_zero^2", o.get("delta_zero_sq")), ("speed [m/s]", o.get("speed")),
+            ("step length [m]", o.get("step_length")), ("step time [s]", o.get("step_time")),
+            ("zeta* [kg^2 m^4/s^2]", o.get("zeta_star"))]
+    for key in ("clearance_mid_step", "min_swing_height", "vertical_force", "friction",
+                "impact_friction", "liftoff_velocity"):
+        rows.append((f"margin {key}", m.get(key)))
+    for label, v in rows:
+        t.add_row(escape(label), "—" if v is None else f"{v:.5g}")
+    console().print(t)
+    if "compare" in doc:
+        c = doc["compare"]
+        console().print(f"compare {c['gait']}: objective {c.get('objective')}, "
+                        f"feasible {c['feasible']} (failed: {', '.join(c['failed']) or 'none'})")
+    if doc["feasible"]:
+        console().print(f"wrote {out} and {report}")
+    else:
+        console().print(f"wrote {report} (no gait file)")
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("design-gait", help=HELP, epilog=EPILOG)
+    def design_gait_cli(
+        robot: RobotArg,
+        out: Annotated[Path, typer.Option(
+            "--out", "-o", help="Gait file to write (NAME.yaml); the report goes to "
+                                "NAME.report.json beside it.")],
+        speed: Annotated[float | None, typer.Option(
+            "--speed", help="Target average speed [m/s].")] = None,
+        step_length: Annotated[float | None, typer.Option(
+            "--step-length", help="Target step length [m] (swing-foot x at impact).")] = None,
+        mu: Annotated[float, typer.Option("--mu", help="Friction coefficient [1].")] = 0.7,
+        order: Annotated[int, typer.Option("--order", help="Bezier order M [1].")] = 6,
+        starts: Annotated[int, typer.Option(
+            "--starts", help="Solver starts (start 0 is the default start) [1].")] = 8,
+        seed: Annotated[int, typer.Option("--seed", help="Seed of the random starts.")] = 0,
+        clearance: Annotated[float, typer.Option(
+            "--clearance", help="Swing-foot height at mid-step [m] (0 for straight legs).")
+        ] = 0.03,
+        max_delta_sq: Annotated[float, typer.Option(
+            "--max-delta-sq", help="Upper bound on delta_zero^2 [1] (stability margin).")
+        ] = 0.9,
+        objective: Annotated[str, typer.Option(
+            "--objective", help="effort: (1/L) int |u|^2 dt [N^2 m s]; peak: max |u| [N m].")
+        ] = "effort",
+        design_thrust: Annotated[bool, typer.Option(
+            "--design-thrust", help="Co-design one constant thrust per thruster [N].")
+        ] = False,
+        thrust_weight: Annotated[float, typer.Option(
+            "--thrust-weight", help="Weight w of w |F|^2 in the effort [m^2].")] = 1.0,
+        thrust_range: Annotated[str | None, typer.Option(
+            "--thrust-range", help="Also feasible for every constant thrust of one thruster in "
+                                   "LOW..HIGH [N], e.g. hip_x:-50:0.")] = None,
+        min_vertical_force: Annotated[float | None, typer.Option(
+            "--min-vertical-force", help="eps in F_v >= eps [N] (default 10 % of weight).")
+        ] = None,
+        alpha: Annotated[str | None, typer.Option(
+            "--alpha", help="alpha = c q as name:value pairs [1], e.g. q_T:-1,q_sh:1,q_sk:0.5 "
+                            "(default: minus the mean angle of the stance-leg links).")] = None,
+        max_iter: Annotated[int, typer.Option(
+            "--max-iter", help="SLSQP iterations per start [1].")] = 150,
+        name: Annotated[str | None, typer.Option(
+            "--name", help="Gait name (default: the file name).")] = None,
+        compare: Annotated[str | None, typer.Option(
+            "--compare", help="Also evaluate this existing gait with the same objective and "
+                              "constraints (written to the report).")] = None,
+        quiet: QuietOpt = False,
+    ) -> None:
+        with cli_errors():
+            doc = run_design_gait(
+                robot, out, speed=speed, step_length=step_length, mu=mu, order=order,
+                starts=starts, seed=seed, clearance=clearance, max_delta_sq=max_delta_sq,
+                objective=objective, design_thrust=design_thrust, thrust_weight=thrust_weight,
+                thrust_range=thrust_range,
+                min_vertical_force=min_vertical_force, alpha=alpha, max_iter=max_iter,
+                name=name, compare=compare, quiet=quiet)
+            if not doc["feasible"]:
+                sys.stderr.write(f"infeasible: {doc['reason']}\n")
+                raise typer.Exit(INFEASIBLE_EXIT)
