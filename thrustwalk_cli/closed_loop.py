@@ -31,6 +31,7 @@ from operator import mul
 
 import numpy as np
 
+from . import schedules
 from .errors import InputError
 from .gait import bezier
 from .zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
@@ -101,36 +102,18 @@ class ThrustModel:
 
 
 def schedule_from_gait(zd: ZeroDynamics, ts) -> Schedule:
-    """The gait's ``thrust:`` section (a ``gait.ThrustSchedule``) as an alpha :class:`Schedule`.
+    """The gait's ``thrust:`` section (a ``gait.ThrustSchedule``) as an alpha :class:`Schedule`
+    (:func:`thrustwalk_cli.schedules.schedule_from_gait`; a schedule covering only part of the
+    step is padded with zero thrust, as the simulation applies none outside its knots).
 
-    Knots given as fractions of the step map to ``alpha_i + f (alpha_f - alpha_i)`` [rad].
-    Raises :class:`InputError` naming the gait file on unknown thrusters or wrong lengths.
+    Raises :class:`InputError` (``file:line: thrust...``) when the gait has no schedule, on
+    unknown thrusters, wrong lengths or bad knots.
     """
-    where = f"{zd.gait.source_file}: thrust"
+    where = schedules.gait_file_where(zd.gait.source_file)
     if ts is None:
-        raise InputError(f"{zd.gait.source_file}: thrust: the gait has no thrust schedule "
-                         "(needed by --thrust-model piecewise)")
-    kn = np.asarray(ts.knots, float)
-    knots = zd.alpha_i + kn * (zd.alpha_f - zd.alpha_i) if ts.fractions else kn
-    nint = kn.size - 1
-    names = zd.model.robot.thruster_names
-    force = np.zeros((1, nint, zd.model.n_thrusters))
-    gen = np.zeros((1, nint))
-    for name, vals in ts.values:
-        if len(vals) != nint:
-            raise InputError(f"{where}.values.{name}: expected {nint} values (one per interval "
-                             f"between {kn.size} knots), got {len(vals)}")
-        if ts.mode == "generalized":
-            gen[0] = vals
-        elif name not in names:
-            raise InputError(f"{where}.values.{name}: unknown thruster (robot "
-                             f"{zd.model.robot.name} has: {', '.join(names) or 'none'})")
-        else:
-            force[0, :, names.index(name)] = vals
-    s = (knots - zd.alpha_i) / (zd.alpha_f - zd.alpha_i)
-    if np.any(np.diff(s) <= 0):
-        raise InputError(f"{where}.knots: knots must run from the start to the end of the step")
-    return Schedule(knots=knots, force=force, generalized=gen)
+        raise InputError(where(("thrust",), "the gait has no thrust schedule (needed by "
+                                            "--thrust-model piecewise)"))
+    return schedules.schedule_from_gait(zd, ts, where, pad=True)[0]
 
 
 def alpha_pieces(zd: ZeroDynamics, thrust: ThrustModel, extra: tuple[float, ...] = ()

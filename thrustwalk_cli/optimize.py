@@ -29,6 +29,10 @@ constraint does not end up on the wrong side by rounding.
 
 A target speed is not linear in the thrust: it is met by a 1-D root search over zeta* along the
 minimum-effort schedules (each one an exact QP), inside the reachable zeta* range from two LPs.
+
+The LP / QP solvers and the KKT check are in :mod:`thrustwalk_cli.qp`; the command's study
+(option checks, records, gait file) in :mod:`thrustwalk_cli.optimize_study`; both are
+re-exported here.
 """
 
 from __future__ import annotations
@@ -37,8 +41,7 @@ from dataclasses import dataclass, field, replace
 from itertools import combinations
 
 import numpy as np
-from scipy.linalg import null_space
-from scipy.optimize import brentq, linprog, nnls
+from scipy.optimize import brentq, linprog
 
 from .contact import (
     CaseResult,
@@ -50,6 +53,7 @@ from .contact import (
 )
 from .errors import ComputationError, InputError
 from .model import CompiledModel
+from .qp import active_set_qp, kkt, ldp_qp, lp_feasible, normalise_rows
 from .quadrature import integrate, lobatto
 from .zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
 
@@ -251,145 +255,6 @@ def _interval_times(zd: ZeroDynamics, kn: np.ndarray) -> np.ndarray:
     return np.array(out)
 
 
-# ------------------------------------------------------------------------------ LP / QP
-def _normalise(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
-                                                      np.ndarray]:
-    """Unit-norm rows; returns (A, b, norms, constant-row mask) (constant rows: A ~ 0)."""
-    norms = np.linalg.norm(A, axis=1)
-    const = norms <= 1e-12 * max(1.0, float(norms.max(initial=0.0)))
-    safe = np.where(const, 1.0, norms)
-    return A / safe[:, None], b / safe, safe, const
-
-
-def lp_feasible(A: np.ndarray, b: np.ndarray, a_eq: np.ndarray | None, b_eq: float | None
-                ) -> tuple[bool, np.ndarray | None]:
-    """Exact feasibility of ``A x <= b, a_eq x = b_eq`` by HiGHS (status 0 or 2)."""
-    An, bn, _, const = _normalise(A, b)
-    if np.any(bn[const] < -1e-9 * (1 + np.abs(b[const]))):
-        return False, None
-    n = A.shape[1]
-    kw = {}
-    if a_eq is not None:
-        s = np.linalg.norm(a_eq) or 1.0
-        kw = {"A_eq": (a_eq / s)[None, :], "b_eq": [b_eq / s]}
-    res = linprog(np.zeros(n), A_ub=An[~const], b_ub=bn[~const], bounds=[(None, None)] * n,
-                  method="highs", **kw)
-    if res.status == 0:
-        return True, res.x
-    if res.status == 2:
-        return False, None
-    raise ComputationError(f"linear programme (HiGHS) failed: {res.message}")
-
-
-def ldp_qp(A: np.ndarray, b: np.ndarray, a_eq: np.ndarray, b_eq: float, w: np.ndarray
-           ) -> np.ndarray:
-    """``min sum w x^2`` s.t. ``A x <= b``, ``a_eq x = b_eq`` as a least-distance problem.
-
-    ``y = sqrt(w) x``; ``y = y_p + N z`` with ``y_p`` the minimum-norm solution of the equality and
-    ``N`` an orthonormal basis of its null space (so ``|y|^2 = |y_p|^2 + |z|^2``); then
-    ``min |z|`` s.t. ``G z >= h`` is solved exactly by NNLS (Lawson & Hanson, ch. 23):
-    ``u = argmin_{u >= 0} |[G^T; h^T] u - e_last|``, ``r = [G^T; h^T] u - e_last``,
-    ``z = -r[:-1] / r[-1]``. Assumes the problem is feasible (checked by :func:`lp_feasible`).
-    """
-    s = 1.0 / np.sqrt(w)
-    As = A * s
-    ae = a_eq * s
-    nrm2 = float(ae @ ae)
-    if nrm2 == 0.0:
-        yp, N = np.zeros(len(w)), np.eye(len(w))
-    else:
-        yp = ae * b_eq / nrm2
-        N = null_space(ae[None, :])
-    G = -(As @ N)
-    h = -(b - As @ yp)
-    Gn, hn, _, const = _normalise(-G, -h)  # rows of "-G z <= -h"
-    Gn, hn = -Gn[~const], -hn[~const]
-    if N.shape[1] == 0 or len(hn) == 0:
-        return s * yp
-    E = np.vstack([Gn.T, hn[None, :]])
-    f = np.zeros(E.shape[0])
-    f[-1] = 1.0
-    u, _ = nnls(E, f, maxiter=50 * E.shape[1])
-    r = E @ u - f
-    if abs(r[-1]) < 1e-12:
-        raise ComputationError("least-distance QP: NNLS reports incompatible constraints "
-                               "although the LP found a feasible point")
-    zz = -r[:-1] / r[-1]
-    return s * (yp + N @ zz)
-
-
-def active_set_qp(A: np.ndarray, b: np.ndarray, a_eq: np.ndarray, b_eq: float,
-                  w: np.ndarray, x0: np.ndarray, max_iter: int = 500) -> np.ndarray:
-    """Primal active-set method (Nocedal & Wright, alg. 16.3) for ``min sum w x^2`` from a
-    feasible ``x0``; an independent exact solver of the same QP as :func:`ldp_qp`."""
-    An, bn, _, const = _normalise(A, b)
-    An, bn = An[~const], bn[~const]
-    H = np.diag(2.0 * w)
-    x = np.array(x0, float)
-    tol = 1e-10 * (1 + np.abs(bn))
-    work: list[int] = []
-    for i in np.argsort(bn - An @ x):
-        if bn[i] - An[i] @ x > tol[i] or len(work) >= len(w) - 1:
-            break
-        cand = np.vstack([a_eq[None, :], An[work + [int(i)]]])
-        if np.linalg.matrix_rank(cand) == cand.shape[0]:
-            work.append(int(i))
-    for _ in range(max_iter):
-        Aw = np.vstack([a_eq[None, :], An[work]])
-        k = Aw.shape[0]
-        K = np.block([[H, Aw.T], [Aw, np.zeros((k, k))]])
-        rhs = np.concatenate([-H @ x, np.zeros(k)])
-        sol = np.linalg.lstsq(K, rhs, rcond=None)[0]
-        p, lam = sol[:len(w)], sol[len(w) + 1:]
-        if np.linalg.norm(p) <= 1e-12 * (1 + np.linalg.norm(x)):
-            if len(lam) == 0 or lam.min() >= -1e-12 * (1 + np.abs(lam).max()):
-                return x
-            work.pop(int(np.argmin(lam)))
-            continue
-        Ap = An @ p
-        slack = bn - An @ x
-        mask = Ap > 1e-14
-        mask[work] = False
-        steps = np.where(mask, slack / np.where(mask, Ap, 1.0), np.inf)
-        j = int(np.argmin(steps))
-        t = min(1.0, max(0.0, steps[j]))
-        x = x + t * p
-        if steps[j] < 1.0:
-            work.append(j)
-    raise ComputationError(f"active-set QP did not converge in {max_iter} iterations")
-
-
-def kkt(A: np.ndarray, b: np.ndarray, a_eq: np.ndarray, b_eq: float, w: np.ndarray,
-        x: np.ndarray, act_tol: float = 1e-7) -> dict:
-    """KKT check of ``x`` for ``min sum w x^2``: multipliers ``lambda >= 0`` on the active rows
-    and ``nu`` on the equality from NNLS of ``2 W x + nu a_eq + A_act^T lambda = 0``.
-
-    Returns residuals (stationarity relative to ``|2 W x|``, primal feasibility of the
-    normalised rows, complementarity), the active rows and their multipliers in the original
-    row scaling (``d objective / d b_i``)."""
-    An, bn, norms, const = _normalise(A, b)
-    slack = bn - An @ x
-    slack[const] = bn[const]
-    active = np.flatnonzero((~const) & (slack <= act_tol * (1 + np.abs(bn))))
-    grad = 2.0 * w * x
-    M = np.column_stack([An[active].T, a_eq, -a_eq]) if len(active) else \
-        np.column_stack([a_eq, -a_eq])
-    mult, _ = nnls(M, -grad, maxiter=50 * M.shape[1])
-    res = np.linalg.norm(M @ mult + grad)
-    scale = max(np.linalg.norm(grad), 1e-12)
-    lam = mult[:len(active)]
-    return {
-        "stationarity_relative": float(res / scale) if np.linalg.norm(grad) > 1e-12 else
-        float(res),
-        "primal_infeasibility": float(max(0.0, -slack.min(initial=0.0))),
-        "equality_residual": float(abs(a_eq @ x - b_eq) / (np.linalg.norm(a_eq) or 1.0)),
-        "complementarity": float(np.max(lam * np.abs(slack[active]), initial=0.0)),
-        "min_multiplier": float(lam.min(initial=0.0)),
-        "active": active, "multipliers": lam / norms[active],
-        "nu": float(mult[-2] - mult[-1]),
-    }
-
-
 # --------------------------------------------------------------------------------- results
 @dataclass(frozen=True)
 class OptimalSchedule:
@@ -468,7 +333,8 @@ def diagnose(prob: LinearProblem, zs: float | None) -> tuple[str, ...]:
     return tuple(f"{a}+{b}" for a, b in combinations(fams, 2) if feasible_without({a, b}))
 
 
-def _describe(v: str) -> str:
+def describe(v: str) -> str:
+    """Words for a family name or a ``"a+b"`` pair of :data:`FAMILIES`."""
     return " and ".join(FAMILIES[p] for p in v.split("+"))
 
 
@@ -479,7 +345,7 @@ def _infeasible(prob, target, fractions, violated, headline="", *, removal=True,
     parts = [headline] if headline else []
     if removal and violated:
         parts.append("no schedule satisfies every constraint; dropping any one of these makes "
-                     "it feasible: " + " | ".join(_describe(v) for v in violated))
+                     "it feasible: " + " | ".join(describe(v) for v in violated))
     elif removal:
         parts.append("no single constraint family or pair of families explains it")
     reason = "infeasible: " + "; ".join(parts)
@@ -497,7 +363,7 @@ def zeta_range(prob: LinearProblem) -> tuple[float, float, dict]:
     """Reachable zeta* range under all constraints (two LPs in ``(x, zeta*)``) and, per end, the
     families with non-zero LP multipliers (the ones that limit it)."""
     A = np.column_stack([prob.A, prob.z])
-    An, bn, _, const = _normalise(A, prob.b)
+    An, bn, _, const = normalise_rows(A, prob.b)
     ae = np.append(prob.a_eq, prob.z_eq)
     s = np.linalg.norm(ae)
     ends, limits = [], {}
@@ -614,7 +480,7 @@ def _zeta_for_speed(model, zd, prob, target, fr, target_speed):
         raise ComputationError("no periodic orbit anywhere in the reachable zeta* range")
     if not va <= target_speed <= vb:
         end = "max" if target_speed > vb else "min"
-        lim = "; ".join(_describe(f) for f in limits[end]) or "none"
+        lim = "; ".join(describe(f) for f in limits[end]) or "none"
         bound = vb if end == "max" else va
         word = "fastest" if end == "max" else "slowest"
         return _infeasible(
@@ -652,164 +518,13 @@ def _zeta_dip(zd: ZeroDynamics, prob: LinearProblem, sched: Schedule, zs: float,
     return [float(a[j])] if zeta[j] < need * (1 - 1e-9) else []
 
 
-def result_record(res: OptimalSchedule, model: CompiledModel) -> dict:
-    """``optimal_schedule.json`` body (SI units)."""
-    p = res.problem
-    unit = "N" if p.mode == "force" else "N m"
-    lc = res.cycle
-    out = {
-        "feasible": res.feasible, "status": res.status, "reason": res.reason,
-        "violated_families": list(res.violated),
-        "violated_descriptions": [_describe(v) for v in res.violated],
-        "target": res.target, "mode": p.mode,
-        "thruster": model.robot.thruster_names[p.thruster] if p.mode == "force" else None,
-        "unit": unit, "knots_fraction": res.fractions.tolist(), "knots_alpha": p.knots.tolist(),
-        "weights": p.weights.tolist(),
-        "bounds": {"lower": p.lo.tolist(), "upper": p.hi.tolist()},
-        "zeta_star_target": res.zeta_star_target,
-        "reachable_zeta_star": None if res.zeta_range is None else list(res.zeta_range),
-        "values": None if res.values is None else res.values.tolist(),
-        "objective": res.objective,
-        "objective_definition": "sum_j w_j x_j^2, w_j = interval alpha-length [rad] or "
-                                "nominal time [s]",
-        "solver": res.solver,
-    }
-    if res.feasible:
-        out.update({
-            "zeta_star": lc.zeta_star, "speed": lc.speed, "step_time": lc.step_time,
-            "orbit_exists": lc.exists, "stable": lc.stable,
-            "active_constraints": res.active,
-            "kkt": {k: v for k, v in res.kkt.items() if k not in ("active", "multipliers")},
-            "continuous_check": {
-                "feasible": res.contact.feasible, "reason": res.contact.reason,
-                "min_vertical_force": res.contact.min_vertical_force,
-                "max_friction_ratio": res.contact.max_friction_ratio,
-                "note": "the QP enforces the contact conditions on the alpha grid; this "
-                        "re-check polishes the worst points between grid points",
-            },
-        })
-    return out
+# The command's study lives in :mod:`optimize_study` (which imports this module); its public
+# names stay reachable here, resolved on first use.
+_STUDY_NAMES = ("result_record", "check_options", "gait_yaml", "optimize_study")
 
 
-# ------------------------------------------------------------------------- the command's study
-def check_options(*, fractions: list[float], target_zeta: float | None,
-                  target_speed: float | None, max_thrust: float | None, mu: float, eps: float,
-                  zeta_min: float | None, mode: str) -> None:
-    """Bad option values -> InputError naming the option."""
-    if (target_zeta is None) == (target_speed is None):
-        raise InputError("options --target-speed / --target-zeta: give exactly one of them")
-    if target_zeta is not None and not (np.isfinite(target_zeta) and target_zeta > 0):
-        raise InputError(f"option --target-zeta: zeta* must be > 0 kg^2 m^4/s^2 "
-                         f"(got {target_zeta:g})")
-    if target_speed is not None and not (np.isfinite(target_speed) and target_speed > 0):
-        raise InputError(f"option --target-speed: the speed must be > 0 m/s "
-                         f"(got {target_speed:g})")
-    fr = np.asarray(fractions, float)
-    if (len(fr) < 2 or abs(fr[0]) > 1e-9 or abs(fr[-1] - 1.0) > 1e-9
-            or np.any(np.diff(fr) <= 0)):
-        raise InputError("option --knots: fractions of the step from 0 to 1, strictly "
-                         f"increasing, at least two (got {', '.join(f'{v:g}' for v in fr)})")
-    if max_thrust is not None and not (np.isfinite(max_thrust) and max_thrust >= 0):
-        raise InputError(f"option --max-thrust: expected a bound >= 0 (got {max_thrust:g})")
-    if mode not in ("force", "generalized"):
-        raise InputError(f"option --mode: expected 'force' or 'generalized', got {mode!r}")
-    if mode == "generalized" and max_thrust is None:
-        raise InputError("option --max-thrust: required in generalized mode (a bound on T_j "
-                         "in N m)")
-    if not (np.isfinite(mu) and mu > 0):
-        raise InputError(f"option --mu: the friction coefficient must be > 0 (got {mu:g})")
-    if not (np.isfinite(eps) and eps >= 0):
-        raise InputError(f"option --eps: the minimum vertical force must be >= 0 N "
-                         f"(got {eps:g})")
-    if zeta_min is not None and not (np.isfinite(zeta_min) and zeta_min > 0):
-        raise InputError(f"option --zeta-min: expected a value > 0 kg^2 m^4/s^2 "
-                         f"(got {zeta_min:g})")
-
-
-def gait_yaml(gait, robot, res: OptimalSchedule, model: CompiledModel) -> str:
-    """A gait file equal to ``gait`` (coefficients written out, ``invariance: given``) with the
-    optimal schedule as its ``thrust:`` section (schema: ``robot_io.GAIT_SCHEMA``)."""
-    from pathlib import Path
-
-    from .robot_io import resolve
-
-    names = robot.coordinate_names
-    act = [c.name for c in robot.coordinates if c.actuated]
-    try:
-        bundled = resolve(robot.name, "robots").resolve() == Path(robot.source_file).resolve()
-    except InputError:
-        bundled = False
-    ref = robot.name if bundled else str(Path(robot.source_file).resolve())
-    c = {n: v for n, v in zip(names, gait.c) if v != 0.0}
-    p = res.problem
-    key = model.robot.thruster_names[p.thruster] if p.mode == "force" else "T"
-    unit = "N" if p.mode == "force" else "N m"
-
-    def seq(v):
-        return "[" + ", ".join(repr(float(x)) for x in v) + "]"
-
-    lines = [
-        f"# Written by thrustwalk optimize from gait '{gait.name}' ({gait.source_file}).",
-        f"# Minimum-effort thrust schedule (SPEC 6): target {res.target}, objective "
-        f"{res.objective!r}; zeta* = {res.cycle.zeta_star!r} kg^2 m^4/s^2, speed "
-        f"{res.cycle.speed!r} m/s.",
-        "# Bezier columns 0 and 1 were computed for hybrid invariance; written out in full.",
-        f"name: {gait.name}_optimal",
-        f"description: {gait.name} with a minimum-effort thrust schedule",
-        f"robot: {ref}",
-        "alpha:",
-        "  c: {" + ", ".join(f"{k}: {float(v)!r}" for k, v in c.items()) + "}",
-        f"  final: {float(gait.alpha_f)!r}   # [rad]",
-        "bezier:",
-        "  invariance: given",
-        "  coefficients:   # [rad]",
-        *[f"    {n}: {seq(row)}" for n, row in zip(act, gait.A)],
-        "controller:",
-        f"  kp: {float(gait.kp)!r}   # [1/s^2]",
-        f"  kd: {float(gait.kd)!r}   # [1/s]",
-        f"mu: {float(gait.mu)!r}",
-        "thrust:",
-        f"  mode: {p.mode}",
-        f"  knots: {seq(res.fractions)}   # fractions of the step",
-        "  fractions: true",
-        "  values:",
-        f"    {key}: {seq(res.values)}   # [{unit}] one value per interval",
-        "",
-    ]
-    return "\n".join(lines)
-
-
-def optimize_study(model: CompiledModel, zd: ZeroDynamics, gait, robot, *,
-                   fractions: list[float], target_zeta: float | None,
-                   target_speed: float | None, max_thrust: float | None, mu: float,
-                   eps: float, zeta_min: float | None, thruster: str | None, mode: str,
-                   weights: str) -> tuple[dict, dict | None, str | None]:
-    """JSON body, figure data (None if infeasible) and gait YAML (None if infeasible)."""
-    from .zero_dynamics import thruster_index
-
-    check_options(fractions=fractions, target_zeta=target_zeta, target_speed=target_speed,
-                  max_thrust=max_thrust, mu=mu, eps=eps, zeta_min=zeta_min, mode=mode)
-    j = thruster_index(model, thruster) if mode == "force" else 0
-    fr = np.asarray(fractions, float)
-    fr[0], fr[-1] = 0.0, 1.0
-    res = optimize(model, zd, fr, target_zeta=target_zeta,
-                   target_speed=target_speed, mode=mode, thruster=j, mu=mu, eps=eps,
-                   zeta_min=zeta_min, max_thrust=max_thrust, weights=weights)
-    doc = {"mu": mu, "eps": eps,
-           "zeta_min": zeta_min if zeta_min is not None else "1 % of zeta*",
-           **result_record(res, model)}
-    if not res.feasible:
-        return doc, None, None
-    m = model.n_thrusters
-    nom = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, m))))[0]
-
-    def orbit(lc):
-        if not lc.exists:
-            return None
-        o = lc.orbit
-        return {"alpha": o["alpha"], "alpha_dot": o["alpha_dot"],
-                "jump": (zd.alpha_f, lc.alpha_dot_minus, zd.alpha_i, lc.alpha_dot_plus)}
-
-    figs = {"nominal": orbit(nom), "optimal": orbit(res.cycle), "knots": res.problem.knots,
-            "values": res.values, "unit": doc["unit"], "profile": res.contact.profile}
-    return doc, figs, gait_yaml(gait, robot, res, model)
+def __getattr__(name: str):
+    if name in _STUDY_NAMES:
+        from . import optimize_study
+        return getattr(optimize_study, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

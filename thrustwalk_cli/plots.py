@@ -19,6 +19,14 @@ def style():
     return plt.style.context(str(STYLE))
 
 
+def corner_note(ax, text: str) -> None:
+    """A small red note in the lower-left corner of ``ax`` (missing orbits, warnings); none
+    when ``text`` is empty."""
+    if text:
+        ax.text(0.01, 0.01, text, transform=ax.transAxes, fontsize=6, va="bottom",
+                color="firebrick")
+
+
 def _is_multiple(value: float, every: float) -> bool:
     return every > 0 and abs(value / every - round(value / every)) < 1e-9
 
@@ -74,9 +82,7 @@ def phase_portrait(
         text = note
         if missing:
             text += ("\n" if text else "") + "no orbit for " + ", ".join(f"{m:g}" for m in missing)
-        if text:
-            ax.text(0.01, 0.01, text, transform=ax.transAxes, fontsize=6, va="bottom",
-                    color="firebrick")
+        corner_note(ax, text)
         fig.tight_layout()
     return fig
 

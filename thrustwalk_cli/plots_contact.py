@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.lines import Line2D
 
-from .plots import style
+from .plots import corner_note, style
 
 MAX_LINES = 12
 
@@ -86,8 +86,7 @@ def grf_figure(profiles: Sequence[dict | None], values: Sequence[float] | None, 
             fig.suptitle(title)
         missing = [i for i in range(len(profiles)) if profiles[i] is None]
         if missing and values is not None:
-            a_f.text(0.01, 0.01, "no orbit for " + ", ".join(f"{values[i]:g}" for i in missing),
-                     transform=a_f.transAxes, fontsize=6, color="firebrick", va="bottom")
+            corner_note(a_f, "no orbit for " + ", ".join(f"{values[i]:g}" for i in missing))
     return fig
 
 

@@ -14,7 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .plots import phase_portrait, style  # noqa: E402
+from .plots import corner_note, phase_portrait, style  # noqa: E402
 
 YLABEL = {"alpha_dot": r"$\dot\alpha$ [rad/s]", "sigma": r"$\sigma_N$ [kg m$^2$/s]"}
 
@@ -79,9 +79,7 @@ def shape_portrait(values: Sequence[float] | None, labels: Sequence[str],
         text = note + ("\n" if note and missing else "")
         if missing:
             text += "no orbit for " + ", ".join(missing)
-        if text:
-            ax.text(0.01, 0.01, text, transform=ax.transAxes, fontsize=6, va="bottom",
-                    color="firebrick")
+        corner_note(ax, text)
         fig.tight_layout()
     return fig
 

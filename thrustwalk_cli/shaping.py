@@ -22,6 +22,9 @@ target average speed (bracketing root finder on zeta*); (b) :func:`solve_knots`:
 knots making a thrust pattern shape-only (``sum_j b_F T_j = 0`` for every swept value), so that
 zeta^- and zeta^+ are unchanged while the orbit between the knots changes.
 
+Knot validation and schedule building (a gait file's ``thrust:`` section included) live in
+:mod:`thrustwalk_cli.schedules`; the builders used here are re-exported.
+
 zeta = sigma_N^2 / 2 [kg^2 m^4/s^2]; sigma_N [kg m^2/s]; alpha [rad]; alpha' [rad/s].
 """
 
@@ -35,9 +38,9 @@ from numpy.polynomial import chebyshev as C
 from scipy.optimize import brentq, linprog
 
 from . import expr
-from .errors import InputError, Problem
-from .gait import ThrustSchedule
+from .errors import InputError
 from .quadrature import ChebSeries
+from .schedules import knots_alpha, make_schedule, nominal_schedule, schedule_from_gait
 from .zero_dynamics import (
     LimitCycle,
     Schedule,
@@ -45,76 +48,20 @@ from .zero_dynamics import (
     limit_cycles,
 )
 
-MODES = ("generalized", "force")
+__all__ = [  # with the schedule builders of :mod:`schedules`, re-exported
+    "DEFAULT_FIELD_K", "DEFAULT_K", "DEFAULT_PATTERN", "Intervals", "KnotSolution",
+    "TargetSolution", "VectorField", "dkappa1_dalpha", "generalized_input", "intervals",
+    "knots_alpha", "make_schedule", "min_norm_values", "nominal_schedule", "nominal_zeta_star",
+    "one_step_change", "pattern_values", "schedule_from_gait", "solve_knots",
+    "solve_target_speed", "solve_target_zeta", "true_shift", "vector_field"]
+
 DEFAULT_PATTERN = "k*(j-2)"  # the paper's example: T = (-k, 0, k) on n = 4 knots
 DEFAULT_K = "0:50:2"
 DEFAULT_FIELD_K = 60.0
-ALPHA_TOL = 1e-6  # [rad] knots given as alpha values must hit alpha_i / alpha_f this closely
-
-# Where an input problem is reported: an option name ("option --knots") or a function making a
-# file:line Problem from a key path (the gait file's ``thrust:`` section).
-Where = str | Callable[[tuple, str], Problem]
-
-
-def _problem(where: Where, key: tuple, message: str) -> Problem:
-    if callable(where):
-        return where(key, message)
-    return Problem("", None, "", f"{where}: {message}")
-
-
-# ------------------------------------------------------------------------------ knots
-def check_knots(zd: ZeroDynamics, knots: Sequence[float | None], *, fractions: bool,
-                where: Where = "option --knots", key: tuple = ()) -> list[float | None]:
-    """Validate knots and return them as fractions ``s`` of the step (``None``: free knot).
-
-    SPEC 4: ``alpha_1 = alpha_i < ... < alpha_n = alpha_f`` along the step. Fractions must start
-    at 0 and end at 1; alpha values [rad] must match alpha_i, alpha_f within ``ALPHA_TOL``.
-    Raises :class:`InputError` (one line, naming ``where``) otherwise.
-    """
-    def bad(msg: str) -> InputError:
-        return InputError(_problem(where, key, msg))
-
-    ks = list(knots)
-    if len(ks) < 2:
-        raise bad(f"need at least 2 knots (alpha_i and alpha_f), got {len(ks)}")
-    if ks[0] is None or ks[-1] is None:
-        raise bad("the first and last knots are alpha_i and alpha_f; they cannot be free (?)")
-    a_i, a_f = zd.alpha_i, zd.alpha_f
-    if fractions:
-        if ks[0] != 0.0 or ks[-1] != 1.0:
-            raise bad(f"knots are fractions of the step: the first must be 0 and the last 1 "
-                      f"(got {ks[0]:g} and {ks[-1]:g})")
-        s = list(ks)
-    else:
-        if abs(ks[0] - a_i) > ALPHA_TOL or abs(ks[-1] - a_f) > ALPHA_TOL:
-            raise bad(f"knots in alpha [rad] must start at alpha_i = {a_i:.10g} and end at "
-                      f"alpha_f = {a_f:.10g} (got {ks[0]:.10g} and {ks[-1]:.10g})")
-        s = [None if v is None else (v - a_i) / (a_f - a_i) for v in ks]
-        s[0], s[-1] = 0.0, 1.0
-    given = [(i, v) for i, v in enumerate(s) if v is not None]
-    for (i0, v0), (i1, v1) in zip(given, given[1:]):
-        if not v1 > v0:
-            unit = "" if fractions else " rad"
-            raise bad(f"knots must increase strictly along the step: knot {i1 + 1} "
-                      f"({ks[i1]:g}{unit}) does not follow knot {i0 + 1} ({ks[i0]:g}{unit})")
-    return s
-
-
-def knots_alpha(zd: ZeroDynamics, fractions: np.ndarray) -> np.ndarray:
-    """``alpha_j = alpha_i + s_j (alpha_f - alpha_i)`` [rad], endpoints exact."""
-    s = np.asarray(fractions, float)
-    a = zd.alpha_i + s * (zd.alpha_f - zd.alpha_i)
-    a[0], a[-1] = zd.alpha_i, zd.alpha_f
-    return a
 
 
 def _alpha_at(zd: ZeroDynamics, s: float) -> float:
     return zd.alpha_i + s * (zd.alpha_f - zd.alpha_i)
-
-
-def uniform_fractions(n: int) -> list[float]:
-    """``n`` knots equally spaced in alpha: ``s_j = (j - 1)/(n - 1)``."""
-    return [j / (n - 1) for j in range(n)]
 
 
 # ---------------------------------------------------------------------------- pattern
@@ -142,73 +89,6 @@ def pattern_values(text: str, intervals: int, ks: Sequence[float],
         raise InputError(f"{where}: {e.message} in {text!r} (j = 1..{intervals}, "
                          f"k = {', '.join(f'{v:g}' for v in ks)})") from None
     return np.broadcast_to(vals, (k.size, intervals)).astype(float) + 0.0  # no -0.0
-
-
-# --------------------------------------------------------------------------- schedules
-def make_schedule(zd: ZeroDynamics, knots: np.ndarray, values: np.ndarray, mode: str,
-                  thruster: int | None = None) -> Schedule:
-    """Batched schedule from interval values (K, n-1): ``T_j`` [N m] (generalized mode) or
-    ``F_j`` [N] of thruster index ``thruster`` (force mode); SPEC 4."""
-    values = np.atleast_2d(np.asarray(values, float))
-    K, J = values.shape
-    m = zd.model.n_thrusters
-    force = np.zeros((K, J, m))
-    gen = np.zeros((K, J))
-    if mode == "generalized":
-        gen[:] = values
-    elif mode == "force":
-        force[:, :, thruster] = values
-    else:
-        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
-    return Schedule(np.asarray(knots, float), force, gen)
-
-
-def nominal_schedule(knots: np.ndarray, m: int) -> Schedule:
-    """No thrust, on the given knots."""
-    J = len(knots) - 1
-    return Schedule(np.asarray(knots, float), np.zeros((1, J, m)), np.zeros((1, J)))
-
-
-def schedule_from_gait(zd: ZeroDynamics, thrust: ThrustSchedule,
-                       where: Where) -> tuple[Schedule, list[float]]:
-    """A gait file's ``thrust:`` section as a one-schedule :class:`Schedule` (SPEC 4).
-
-    Force mode: one row of ``F_j`` [N] per thruster name; generalized mode: the single key ``T``
-    with ``T_j`` [N m]. Every problem is collected and reported at ``thrust.<key>``.
-    Returns the schedule and the knots as fractions of the step.
-    """
-    problems: list[Problem] = []
-    try:
-        s = check_knots(zd, thrust.knots, fractions=thrust.fractions, where=where,
-                        key=("thrust", "knots"))
-    except InputError as e:
-        problems += e.problems
-    J = len(thrust.knots) - 1
-    names = zd.model.robot.thruster_names
-    force = np.zeros((1, J, len(names)))
-    gen = np.zeros((1, J))
-    for name, vals in thrust.values:
-        key = ("thrust", "values", name)
-        if len(vals) != J:
-            problems.append(_problem(where, key, f"expected {J} values (one per interval "
-                                     f"between {J + 1} knots), got {len(vals)}"))
-            continue
-        if thrust.mode == "generalized":
-            if name != "T":
-                problems.append(_problem(where, key, "in generalized mode the only key is T "
-                                         "(generalised force T_j on q_N, N m)"))
-                continue
-            gen[0] = vals
-        elif name not in names:
-            problems.append(_problem(where, key, f"unknown thruster '{name}' (robot "
-                                     f"{zd.model.robot.name} has: {', '.join(names) or 'none'})"))
-        else:
-            force[0, :, names.index(name)] = vals
-    if not thrust.values:
-        problems.append(_problem(where, ("thrust", "values"), "no values"))
-    if problems:
-        raise InputError(problems)
-    return Schedule(knots_alpha(zd, np.array(s)), force, gen), [float(v) for v in s]
 
 
 def generalized_input(zd: ZeroDynamics, schedule: Schedule, alpha: np.ndarray) -> np.ndarray:

@@ -12,28 +12,30 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import InputError
+from .schedules import (
+    MODES,
+    Where,
+    check_knots,
+    knots_alpha,
+    make_schedule,
+    nominal_schedule,
+    schedule_from_gait,
+    uniform_fractions,
+)
 from .shaping import (
     DEFAULT_FIELD_K,
     DEFAULT_PATTERN,
-    MODES,
     Intervals,
     KnotSolution,
     TargetSolution,
     VectorField,
-    Where,
-    check_knots,
     intervals,
-    knots_alpha,
-    make_schedule,
-    nominal_schedule,
     one_step_change,
     pattern_values,
-    schedule_from_gait,
     solve_knots,
     solve_target_speed,
     solve_target_zeta,
     true_shift,
-    uniform_fractions,
     vector_field,
 )
 from .zero_dynamics import (
@@ -167,12 +169,13 @@ def _cycles(zd: ZeroDynamics, schedule: Schedule,
     return tuple(out)
 
 
-def shape_study(zd: ZeroDynamics, req: ShapeRequest, gait_where: Where = "gait thrust",
+def shape_study(zd: ZeroDynamics, req: ShapeRequest, gait_where: Where | None = None,
                 progress: Callable[[int], None] | None = None) -> ShapeStudy:
     """Run ``thrustwalk shape`` (SPEC 4): resolve the schedule family, solve knots or targets,
     compute nominal and shaped limit cycles and the shifts. ``progress(n)`` is called as
-    schedules finish. Raises :class:`InputError` for bad options; solver failures come back as
-    ``success = False`` with a reason."""
+    schedules finish. ``gait_where`` locates problems in the gait's ``thrust:`` section (default:
+    ``file:line`` in the gait file). Raises :class:`InputError` for bad options; solver failures
+    come back as ``success = False`` with a reason."""
     source, mode, th = resolve(zd, req)
     m = zd.model.n_thrusters
     knots_req = req.knots

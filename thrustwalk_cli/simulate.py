@@ -279,6 +279,10 @@ def _one_step(cl: ClosedLoop, k: int, t0: float, x0: np.ndarray, t_max: float,
     if d0["F1"][0, 1] < 0:
         raise _Stop("fall", f"the vertical ground force is negative at the start of the step "
                             f"({d0['F1'][0, 1]:.4g} N)")
+    h0 = cl.swing_height(x0)
+    if h0 < -cfg.scuff_tol:  # no event can see a foot that starts below the ground and rises
+        raise _Stop("scuff", f"the swing foot starts the step {-h0:.4g} m below the ground "
+                             f"(s = {s0:.4g})")
     t, x = t0, x0
     rising = cl.foot_velocity(x) >= 0.0
     while True:

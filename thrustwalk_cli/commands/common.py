@@ -48,6 +48,11 @@ def cli_errors() -> Iterator[None]:
         raise typer.Exit(1) from None
 
 
+def fmt(v, spec: str = ".4g") -> str:
+    """A number for a summary table or markdown: ``format(v, spec)``, or an em dash for None."""
+    return "—" if v is None else format(v, spec)
+
+
 def parse_values(text: str, option: str, unit: str = "") -> list[float]:
     """``"0:-50:-10"`` (start:stop:step, stop included when reached), ``"0,-10,-25"`` or ``"5"``.
 

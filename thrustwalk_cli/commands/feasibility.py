@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from .common import GaitArg, OutOpt, QuietOpt, RobotArg, cli_errors, console, parse_values
+from .common import GaitArg, OutOpt, QuietOpt, RobotArg, cli_errors, console, fmt, parse_values
 
 HELP = """Is this gait, with this thrust, physically walkable? (SPEC 5)
 
@@ -35,7 +35,7 @@ def run_feasibility(robot: str, gait: str, *, thrust: list[float] | None, schedu
                     fit_tol: float, out: Path, quiet: bool) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from .. import output, plots_contact
-    from ..contact import feasibility_study
+    from ..contact_study import feasibility_study
     from ..errors import InputError
     from ..model import load_model
     from ..robot_io import load_gait, load_gait_for
@@ -83,15 +83,11 @@ def run_feasibility(robot: str, gait: str, *, thrust: list[float] | None, schedu
     return doc
 
 
-def _f(v, spec: str = ".4g") -> str:
-    return "—" if v is None else format(v, spec)
-
-
 def _thrust_text(t) -> str:
     if isinstance(t, dict):
-        return "schedule " + ", ".join(f"{k}: [{', '.join(_f(x, '.3g') for x in v)}]"
+        return "schedule " + ", ".join(f"{k}: [{', '.join(fmt(x, '.3g') for x in v)}]"
                                        for k, v in t["values"].items())
-    return _f(t, "g")
+    return fmt(t, "g")
 
 
 def markdown(doc: dict) -> str:
@@ -122,11 +118,11 @@ def markdown(doc: dict) -> str:
         imp_c = c["impact_impulse"]
         lines.append(
             f"| {_thrust_text(c['thrust'])} | {'feasible' if c['feasible'] else 'INFEASIBLE'} "
-            f"| {_f(c['zeta_star'])} | {_f(c['min_vertical_force'])} "
-            f"| {_f(c['alpha_at_min_vertical_force'])} | {_f(c['max_friction_ratio'])} "
-            f"| {_f(c['alpha_at_max_friction_ratio'])} "
+            f"| {fmt(c['zeta_star'])} | {fmt(c['min_vertical_force'])} "
+            f"| {fmt(c['alpha_at_min_vertical_force'])} | {fmt(c['max_friction_ratio'])} "
+            f"| {fmt(c['alpha_at_max_friction_ratio'])} "
             f"| {'—' if imp_c is None else f'({imp_c[0]:.4g}, {imp_c[1]:.4g})'} "
-            f"| {_f(c['liftoff_velocity'])} | {pv} |")
+            f"| {fmt(c['liftoff_velocity'])} | {pv} |")
     bad = [c for c in doc["cases"] if not c["feasible"]]
     if bad:
         lines += ["", "Reasons:", ""]
@@ -141,7 +137,7 @@ def markdown(doc: dict) -> str:
         "|---|---|",
         f"| impulse per unit abs(sigma_N^-) (h, v) [N s per kg m^2/s] | "
         f"({imp['impulse_per_unit_sigma'][0]:.4g}, {imp['impulse_per_unit_sigma'][1]:.4g}) |",
-        f"| friction ratio abs(F_2^h)/F_2^v | {_f(imp['friction_ratio'])} |",
+        f"| friction ratio abs(F_2^h)/F_2^v | {fmt(imp['friction_ratio'])} |",
         f"| trailing-foot vertical velocity per unit abs(sigma_N^-) [m/s per kg m^2/s] | "
         f"{imp['trailing_foot_velocity_per_unit_sigma'][1]:.4g} |",
         f"| admissible | {'yes' if imp['admissible'] else 'no: ' + '; '.join(imp['reasons'])} |",
@@ -201,8 +197,8 @@ def _table(doc: dict) -> None:
         t.add_column(col, overflow="fold")
     for c in doc["cases"]:
         t.add_row(_thrust_text(c["thrust"]), "feasible" if c["feasible"] else "INFEASIBLE",
-                  _f(c["min_vertical_force"]), _f(c["max_friction_ratio"]),
-                  _f(c["liftoff_velocity"]))
+                  fmt(c["min_vertical_force"]), fmt(c["max_friction_ratio"]),
+                  fmt(c["liftoff_velocity"]))
     con = console()
     con.print(t)
     for c in doc["cases"]:

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from .common import GaitArg, OutOpt, QuietOpt, RobotArg, cli_errors, console, parse_values
+from .common import GaitArg, OutOpt, QuietOpt, RobotArg, cli_errors, console, fmt, parse_values
 
 HELP = """Limit cycles of the hybrid zero dynamics for constant thrust values (SPEC 3-4).
 
@@ -59,10 +59,6 @@ def run_limit_cycle(robot: str, gait: str, thrust: list[float], thruster: str | 
     return doc
 
 
-def _fmt(v: float | None, spec: str = ".4g") -> str:
-    return "—" if v is None else format(v, spec)
-
-
 def _table(doc: dict) -> None:
     from rich.table import Table
 
@@ -73,9 +69,9 @@ def _table(doc: dict) -> None:
                 "reason"):
         t.add_column(col, overflow="fold")
     for c in doc["cycles"]:
-        t.add_row(_fmt(c["thrust"]), _fmt(c["zeta_star"]),
+        t.add_row(fmt(c["thrust"]), fmt(c["zeta_star"]),
                   "yes" if c["stable"] else ("no" if c["exists"] else "no orbit"),
-                  _fmt(c["step_time"]), _fmt(c["speed"]), _fmt(c["min_abs_alpha_dot"]),
+                  fmt(c["step_time"]), fmt(c["speed"]), fmt(c["min_abs_alpha_dot"]),
                   "" if c["stable"] else c["reason"])
     console().print(t)
 

@@ -35,7 +35,7 @@ def run_optimize(robot: str, gait: str, *, knots: list[float], target_speed: flo
     """Plain function behind the command; returns the JSON document it wrote."""
     from .. import output, plots_contact
     from ..model import load_model
-    from ..optimize import optimize_study
+    from ..optimize_study import optimize_study
     from ..robot_io import load_gait_for
     from ..zero_dynamics import zero_dynamics
 

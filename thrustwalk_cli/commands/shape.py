@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from ..errors import InputError
-from .common import GaitArg, OutOpt, QuietOpt, RobotArg, cli_errors, console, parse_values
+from .common import GaitArg, OutOpt, QuietOpt, RobotArg, cli_errors, console, fmt, parse_values
 
 if TYPE_CHECKING:
     from ..shaping_study import ShapeRequest
@@ -76,19 +76,18 @@ def run_shape(robot: str | None, gait: str, request: ShapeRequest, out: Path,
     """
     from .. import output, plots_shaping
     from ..model import load_model
-    from ..robot_io import gait_locator, load_gait_for
+    from ..robot_io import load_gait_for
     from ..shaping_study import default_ks, resolve, shape_records, shape_study, study_fields
     from ..zero_dynamics import zero_dynamics
     from .common import progress
 
     rob, g = load_gait_for(robot, gait)
     zd = zero_dynamics(load_model(rob), g)
-    where = gait_locator(gait) if g.thrust is not None else "gait thrust"
     total = 1
     if resolve(zd, request)[0] == "pattern":
         total = len(request.ks if request.ks is not None else default_ks())
     with progress("shaped limit cycles", total, quiet) as advance:
-        study = shape_study(zd, request, where, advance)
+        study = shape_study(zd, request, progress=advance)
     doc, csv_rows = shape_records(zd, study)
     doc = {"provenance": output.provenance(rob, g), **doc}
     out.mkdir(parents=True, exist_ok=True)
@@ -132,10 +131,6 @@ def run_shape(robot: str | None, gait: str, request: ShapeRequest, out: Path,
     return doc
 
 
-def _fmt(v, spec: str = ".4g") -> str:
-    return "—" if v is None else format(v, spec)
-
-
 def _values_text(s: dict) -> str:
     if "T_j" in s:
         return ", ".join(f"{v:.4g}" for v in s["T_j"])
@@ -160,11 +155,11 @@ def _table(doc: dict) -> None:
     if doc["knot_solver"]:
         ks = doc["knot_solver"]
         c.print(f"knot solver: {ks['reason']} ({ks['method']}; relative residual "
-                f"{_fmt(ks['relative_residual'], '.2g')})", markup=False)
+                f"{fmt(ks['relative_residual'], '.2g')})", markup=False)
     if doc["target"]:
         t = doc["target"]
         c.print(f"target {t['kind']} = {t['target']:.6g}: {t['reason']} (residual "
-                f"{_fmt(t['residual'], '.2g')})", markup=False)
+                f"{fmt(t['residual'], '.2g')})", markup=False)
     rows = doc["schedules"]
     shown = rows
     if len(rows) > 12:
@@ -172,16 +167,16 @@ def _table(doc: dict) -> None:
                  < 1e-9] or rows[:: max(1, len(rows) // 10)]
     nom = doc["nominal"]
     t = Table(title=f"shaping: {doc['robot']['name']} / {doc['gait']['name']}, {doc['mode']} "
-                    f"mode (nominal zeta* = {_fmt(nom['zeta_star'])}, delta_zero^2 = "
+                    f"mode (nominal zeta* = {fmt(nom['zeta_star'])}, delta_zero^2 = "
                     f"{doc['zero_dynamics']['delta_zero_sq']:.4f})")
     for col in ("schedule", f"values [{unit}]", "zeta* shaped", "true shift",
                 "paper one-step", "zeta+ shaped", "speed [m/s]", "stable"):
         t.add_column(col, overflow="fold")
     for r in shown:
-        t.add_row(r["label"], _values_text(r), _fmt(r["zeta_star"]["shaped"]),
-                  _fmt(r["shift"]["true_fixed_point_shift"], ".3g"),
-                  _fmt(r["shift"]["paper_one_step_shift"], ".3g"),
-                  _fmt(r["post_impact"]["shaped"]["zeta"]), _fmt(r["speed"]),
+        t.add_row(r["label"], _values_text(r), fmt(r["zeta_star"]["shaped"]),
+                  fmt(r["shift"]["true_fixed_point_shift"], ".3g"),
+                  fmt(r["shift"]["paper_one_step_shift"], ".3g"),
+                  fmt(r["post_impact"]["shaped"]["zeta"]), fmt(r["speed"]),
                   "yes" if r["stable"] else ("no" if r["exists"] else r["reason"]))
     c.print(t)
     if len(shown) < len(rows):

@@ -8,7 +8,17 @@ from typing import Annotated
 
 import typer
 
-from .common import GaitArg, OutOpt, QuietOpt, RobotArg, cli_errors, console, parse_values, progress
+from .common import (
+    GaitArg,
+    OutOpt,
+    QuietOpt,
+    RobotArg,
+    cli_errors,
+    console,
+    fmt,
+    parse_values,
+    progress,
+)
 
 HELP = """Full-order hybrid simulation of the closed loop with thruster dynamics (SPEC 7).
 
@@ -107,10 +117,6 @@ def run_simulate(robot: str, gait: str, *, steps: int, thrust_model: str, f_ss: 
     return doc
 
 
-def _fmt(v, spec: str = ".4g") -> str:
-    return "—" if v is None else format(v, spec)
-
-
 def _table(doc: dict) -> None:
     from rich.table import Table
 
@@ -120,8 +126,8 @@ def _table(doc: dict) -> None:
     for col in ("F_ss [N]", "steps", "final ζ⁻", "predicted ζ*", "rel. error", "status"):
         t.add_column(col, overflow="fold")
     for r in doc["runs"]:
-        t.add_row(_fmt(r["f_ss"]), str(r["steps_completed"]), _fmt(r["final_zeta_minus"]),
-                  _fmt(r["predicted"]["zeta_star"]), _fmt(r["final_relative_error"], ".2e"),
+        t.add_row(fmt(r["f_ss"]), str(r["steps_completed"]), fmt(r["final_zeta_minus"]),
+                  fmt(r["predicted"]["zeta_star"]), fmt(r["final_relative_error"], ".2e"),
                   "ok" if r["success"] else f"{r['failure']} ({r['reason'].split(':')[0]})")
     console().print(t)
 

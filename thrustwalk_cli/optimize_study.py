@@ -1,0 +1,169 @@
+"""The ``thrustwalk optimize`` study (SPEC 6): option checks, the JSON record, the gait file
+with the optimal schedule and the figure data, around :func:`thrustwalk_cli.optimize.optimize`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .contact import check_contact_options
+from .errors import InputError
+from .model import CompiledModel
+from .optimize import OptimalSchedule, describe, optimize
+from .robot_io import resolve
+from .zero_dynamics import Schedule, ZeroDynamics, limit_cycles, thruster_index
+
+
+def result_record(res: OptimalSchedule, model: CompiledModel) -> dict:
+    """``optimal_schedule.json`` body (SI units)."""
+    p = res.problem
+    unit = "N" if p.mode == "force" else "N m"
+    lc = res.cycle
+    out = {
+        "feasible": res.feasible, "status": res.status, "reason": res.reason,
+        "violated_families": list(res.violated),
+        "violated_descriptions": [describe(v) for v in res.violated],
+        "target": res.target, "mode": p.mode,
+        "thruster": model.robot.thruster_names[p.thruster] if p.mode == "force" else None,
+        "unit": unit, "knots_fraction": res.fractions.tolist(), "knots_alpha": p.knots.tolist(),
+        "weights": p.weights.tolist(),
+        "bounds": {"lower": p.lo.tolist(), "upper": p.hi.tolist()},
+        "zeta_star_target": res.zeta_star_target,
+        "reachable_zeta_star": None if res.zeta_range is None else list(res.zeta_range),
+        "values": None if res.values is None else res.values.tolist(),
+        "objective": res.objective,
+        "objective_definition": "sum_j w_j x_j^2, w_j = interval alpha-length [rad] or "
+                                "nominal time [s]",
+        "solver": res.solver,
+    }
+    if res.feasible:
+        out.update({
+            "zeta_star": lc.zeta_star, "speed": lc.speed, "step_time": lc.step_time,
+            "orbit_exists": lc.exists, "stable": lc.stable,
+            "active_constraints": res.active,
+            "kkt": {k: v for k, v in res.kkt.items() if k not in ("active", "multipliers")},
+            "continuous_check": {
+                "feasible": res.contact.feasible, "reason": res.contact.reason,
+                "min_vertical_force": res.contact.min_vertical_force,
+                "max_friction_ratio": res.contact.max_friction_ratio,
+                "note": "the QP enforces the contact conditions on the alpha grid; this "
+                        "re-check polishes the worst points between grid points",
+            },
+        })
+    return out
+
+
+# ------------------------------------------------------------------------- the command's study
+def check_options(*, fractions: list[float], target_zeta: float | None,
+                  target_speed: float | None, max_thrust: float | None, mu: float, eps: float,
+                  zeta_min: float | None, mode: str) -> None:
+    """Bad option values -> InputError naming the option."""
+    if (target_zeta is None) == (target_speed is None):
+        raise InputError("options --target-speed / --target-zeta: give exactly one of them")
+    if target_zeta is not None and not (np.isfinite(target_zeta) and target_zeta > 0):
+        raise InputError(f"option --target-zeta: zeta* must be > 0 kg^2 m^4/s^2 "
+                         f"(got {target_zeta:g})")
+    if target_speed is not None and not (np.isfinite(target_speed) and target_speed > 0):
+        raise InputError(f"option --target-speed: the speed must be > 0 m/s "
+                         f"(got {target_speed:g})")
+    fr = np.asarray(fractions, float)
+    if (len(fr) < 2 or abs(fr[0]) > 1e-9 or abs(fr[-1] - 1.0) > 1e-9
+            or np.any(np.diff(fr) <= 0)):
+        raise InputError("option --knots: fractions of the step from 0 to 1, strictly "
+                         f"increasing, at least two (got {', '.join(f'{v:g}' for v in fr)})")
+    if max_thrust is not None and not (np.isfinite(max_thrust) and max_thrust >= 0):
+        raise InputError(f"option --max-thrust: expected a bound >= 0 (got {max_thrust:g})")
+    if mode not in ("force", "generalized"):
+        raise InputError(f"option --mode: expected 'force' or 'generalized', got {mode!r}")
+    if mode == "generalized" and max_thrust is None:
+        raise InputError("option --max-thrust: required in generalized mode (a bound on T_j "
+                         "in N m)")
+    check_contact_options(mu, eps)
+    if zeta_min is not None and not (np.isfinite(zeta_min) and zeta_min > 0):
+        raise InputError(f"option --zeta-min: expected a value > 0 kg^2 m^4/s^2 "
+                         f"(got {zeta_min:g})")
+
+
+def gait_yaml(gait, robot, res: OptimalSchedule, model: CompiledModel) -> str:
+    """A gait file equal to ``gait`` (coefficients written out, ``invariance: given``) with the
+    optimal schedule as its ``thrust:`` section (schema: ``robot_io.GAIT_SCHEMA``)."""
+    names = robot.coordinate_names
+    act = [c.name for c in robot.coordinates if c.actuated]
+    try:
+        bundled = resolve(robot.name, "robots").resolve() == Path(robot.source_file).resolve()
+    except InputError:
+        bundled = False
+    ref = robot.name if bundled else str(Path(robot.source_file).resolve())
+    c = {n: v for n, v in zip(names, gait.c) if v != 0.0}
+    p = res.problem
+    key = model.robot.thruster_names[p.thruster] if p.mode == "force" else "T"
+    unit = "N" if p.mode == "force" else "N m"
+
+    def seq(v):
+        return "[" + ", ".join(repr(float(x)) for x in v) + "]"
+
+    lines = [
+        f"# Written by thrustwalk optimize from gait '{gait.name}' ({gait.source_file}).",
+        f"# Minimum-effort thrust schedule (SPEC 6): target {res.target}, objective "
+        f"{res.objective!r}; zeta* = {res.cycle.zeta_star!r} kg^2 m^4/s^2, speed "
+        f"{res.cycle.speed!r} m/s.",
+        "# Bezier columns 0 and 1 were computed for hybrid invariance; written out in full.",
+        f"name: {gait.name}_optimal",
+        f"description: {gait.name} with a minimum-effort thrust schedule",
+        f"robot: {ref}",
+        "alpha:",
+        "  c: {" + ", ".join(f"{k}: {float(v)!r}" for k, v in c.items()) + "}",
+        f"  final: {float(gait.alpha_f)!r}   # [rad]",
+        "bezier:",
+        "  invariance: given",
+        "  coefficients:   # [rad]",
+        *[f"    {n}: {seq(row)}" for n, row in zip(act, gait.A)],
+        "controller:",
+        f"  kp: {float(gait.kp)!r}   # [1/s^2]",
+        f"  kd: {float(gait.kd)!r}   # [1/s]",
+        f"mu: {float(gait.mu)!r}",
+        "thrust:",
+        f"  mode: {p.mode}",
+        f"  knots: {seq(res.fractions)}   # fractions of the step",
+        "  fractions: true",
+        "  values:",
+        f"    {key}: {seq(res.values)}   # [{unit}] one value per interval",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def optimize_study(model: CompiledModel, zd: ZeroDynamics, gait, robot, *,
+                   fractions: list[float], target_zeta: float | None,
+                   target_speed: float | None, max_thrust: float | None, mu: float,
+                   eps: float, zeta_min: float | None, thruster: str | None, mode: str,
+                   weights: str) -> tuple[dict, dict | None, str | None]:
+    """JSON body, figure data (None if infeasible) and gait YAML (None if infeasible)."""
+    check_options(fractions=fractions, target_zeta=target_zeta, target_speed=target_speed,
+                  max_thrust=max_thrust, mu=mu, eps=eps, zeta_min=zeta_min, mode=mode)
+    j = thruster_index(model, thruster) if mode == "force" else 0
+    fr = np.asarray(fractions, float)
+    fr[0], fr[-1] = 0.0, 1.0
+    res = optimize(model, zd, fr, target_zeta=target_zeta,
+                   target_speed=target_speed, mode=mode, thruster=j, mu=mu, eps=eps,
+                   zeta_min=zeta_min, max_thrust=max_thrust, weights=weights)
+    doc = {"mu": mu, "eps": eps,
+           "zeta_min": zeta_min if zeta_min is not None else "1 % of zeta*",
+           **result_record(res, model)}
+    if not res.feasible:
+        return doc, None, None
+    m = model.n_thrusters
+    nom = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, m))))[0]
+
+    def orbit(lc):
+        if not lc.exists:
+            return None
+        o = lc.orbit
+        return {"alpha": o["alpha"], "alpha_dot": o["alpha_dot"],
+                "jump": (zd.alpha_f, lc.alpha_dot_minus, zd.alpha_i, lc.alpha_dot_plus)}
+
+    figs = {"nominal": orbit(nom), "optimal": orbit(res.cycle), "knots": res.problem.knots,
+            "values": res.values, "unit": doc["unit"], "profile": res.contact.profile}
+    return doc, figs, gait_yaml(gait, robot, res, model)
