@@ -56,10 +56,11 @@ def thrust_time(data: dict, *, black_every: float | None = 10.0, title: str = ""
             sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
             cb = fig.colorbar(sm, ax=ax, pad=0.02)
             cb.set_label(r"$F_{ss}$ [N]")
-            handles = [matplotlib.lines.Line2D([], [], color="k", lw=0.9),
-                       matplotlib.lines.Line2D([], [], color="gray", ls=":", lw=0.7)]
-            labels = [f"every {black_every:g} N" if black_every else "run",
-                      "run stopped (see simulation.json)"]
+            handles = [matplotlib.lines.Line2D([], [], color="k", lw=0.9)]
+            labels = [f"every {black_every:g} N" if black_every else "run"]
+            if any(r["failed"] for r in runs):
+                handles.append(matplotlib.lines.Line2D([], [], color="gray", ls=":", lw=0.7))
+                labels.append("run stopped (see simulation.json)")
             ax.legend(handles, labels, loc="best")
         driven = ", ".join(data["driven"]) or "schedule"
         ax.set_xlabel("time $t$ [s]")
