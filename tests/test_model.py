@@ -23,6 +23,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from thrustwalk_cli import cache
+from thrustwalk_cli import model as model_mod
 from thrustwalk_cli.model import _FUNCTIONS, load_model
 from thrustwalk_cli.robot_io import load_robot
 
@@ -431,11 +432,27 @@ def test_cache_second_load_is_a_hit_with_identical_numbers(fresh_cache):
     first = load_model(robot)
     assert not first.cache_hit, "first load into an empty cache must compile"
     assert first.cache_path.parent == fresh_cache
+    model_mod._LOADED.clear()  # force the round trip through the file on disk
     second = load_model(robot)
     assert second.cache_hit, "second load must come from the cache"
     assert second.cache_path == first.cache_path
     _assert_identical(_probe(first), _probe(second), "second load")
     assert cache.verify_entry(second.cache_path, second.key) is None
+
+
+def test_in_process_reuse_is_a_hit_and_sees_rewritten_entries(fresh_cache):
+    """A model already imported in this process is reused (no re-import) and reported as a
+    cache hit; rewriting the entry on disk sends the next load through verification again."""
+    robot = load_robot("three_link")
+    first = load_model(robot)
+    again = load_model(robot)
+    assert again.cache_hit and again._m is first._m
+    _assert_identical(_probe(first), _probe(again), "in-process reuse")
+    path = first.cache_path
+    path.write_bytes(path.read_bytes()[:100])  # truncated: the signature changes
+    rebuilt = load_model(robot)
+    assert not rebuilt.cache_hit and rebuilt._m is not first._m
+    _assert_identical(_probe(first), _probe(rebuilt), "rebuilt after truncation")
 
 
 def _flip_body_byte(b: bytes) -> bytes:

@@ -233,6 +233,12 @@ def load_model(robot: Robot, *, rebuild: bool = False) -> CompiledModel:
     t0 = time.perf_counter()
     key = model_key(robot)
     path = cache.entry_path(robot.name, key)
+    memo = _LOADED.get(str(path))
+    if not rebuild and memo is not None and memo[0] == _signature(path) and \
+            memo[1].key == key and memo[1].robot == robot:
+        # already imported in this process and the entry is untouched: no re-import
+        m = memo[1]
+        return CompiledModel(m.robot, m._m, path, key, True, time.perf_counter() - t0)
     hit = not rebuild and cache.verify_entry(path, key) is None
     if not hit:
         source = generate_source(robot, key)
@@ -243,7 +249,21 @@ def load_model(robot: Robot, *, rebuild: bool = False) -> CompiledModel:
     model = CompiledModel(robot, module, path, key, hit, time.perf_counter() - t0)
     if not hit:
         check_model(model)
+    _LOADED[str(path)] = (_signature(path), model)
     return model
+
+
+# Models imported in this process, by cache entry: (entry mtime and size, model). A rewritten
+# or corrupted entry changes its signature and goes through verification again.
+_LOADED: dict[str, tuple[tuple[int, int] | None, CompiledModel]] = {}
+
+
+def _signature(path: Path) -> tuple[int, int] | None:
+    try:
+        st = path.stat()
+    except OSError:
+        return None
+    return (st.st_mtime_ns, st.st_size)
 
 
 def check_model(model: CompiledModel, samples: int = 16, seed: int = 0) -> None:
