@@ -107,6 +107,9 @@ def test_limit_cycle_outputs(tmp_path):
     assert by_thrust[40.0]["reason"]
     csv_text = (tmp_path / "limit_cycles.csv").read_text()
     assert "40.0,false,none" in csv_text
+    prov = json.loads(csv_text.splitlines()[0].removeprefix("# provenance: "))
+    assert prov["robot"]["sha256"] == doc["provenance"]["robot"]["sha256"]
+    assert prov["command"].startswith("thrustwalk ") and prov["version"] == __version__
     # every numeric value in the JSON is finite
     def walk(v):
         if isinstance(v, float):

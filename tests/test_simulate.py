@@ -358,7 +358,9 @@ def test_cli_writes_every_output(tmp_path):
     for e in doc["steps"]:
         assert STEP_KEYS <= set(e), sorted(STEP_KEYS - set(e))
         assert abs(e["prediction"]["relative_error"]) < 1e-6, e["step"]
-    header = (out / "steps.csv").read_text().splitlines()[2].split(",")
+    lines = (out / "steps.csv").read_text().splitlines()
+    assert lines[0].startswith("# provenance: ")
+    header = next(ln for ln in lines if not ln.startswith("#")).split(",")
     assert {"zeta_minus", "predicted_zeta_minus", "thrust_hip_x"} <= set(header)
     assert (out / "walker.gif").read_bytes()[:6] == b"GIF89a"
 

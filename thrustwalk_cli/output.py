@@ -66,9 +66,12 @@ def write_json(path: Path, obj: Any) -> Path:
 
 
 def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[Any]],
-              comments: Sequence[str] = ()) -> Path:
-    """CSV with ``# comment`` lines first (units, provenance), then a header row."""
+              comments: Sequence[str] = (), provenance: dict | None = None) -> Path:
+    """CSV with ``# comment`` lines first (provenance as one JSON line, units), then a header
+    row."""
     buf = io.StringIO()
+    if provenance is not None:
+        buf.write(f"# provenance: {json.dumps(jsonable(provenance), separators=(',', ':'))}\n")
     for c in comments:
         buf.write(f"# {c}\n")
     w = csv.writer(buf, lineterminator="\n")

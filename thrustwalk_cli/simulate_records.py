@@ -16,6 +16,7 @@ writes them. Units: SI (zeta in kg^2 m^4/s^2, sigma in kg m^2/s).
 from __future__ import annotations
 
 import io
+import json
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -404,16 +405,19 @@ def trajectory_arrays(zd: ZeroDynamics, outcomes: list[Outcome]) -> dict[str, np
     return {k: np.concatenate(v) for k, v in cols.items()}
 
 
-def trajectory_output(zd: ZeroDynamics, outcomes: list[Outcome]) -> tuple[str, object]:
+def trajectory_output(zd: ZeroDynamics, outcomes: list[Outcome],
+                      provenance: dict | None = None) -> tuple[str, object]:
     """``("csv", {header, rows, comments})`` or, above CSV_ROW_LIMIT rows, ``("npz", bytes)``.
-    Columns missing for a run (reduced model) are empty in CSV and NaN in NPZ."""
+    Columns missing for a run (reduced model) are empty in CSV and NaN in NPZ; the NPZ holds
+    ``provenance`` as a JSON string."""
     arrays = trajectory_arrays(zd, outcomes)
     if not arrays:
         return "csv", {"header": ["t"], "rows": [], "comments": ["no samples"]}
     n = arrays["t"].size
     if n > CSV_ROW_LIMIT:
         buf = io.BytesIO()
-        np.savez_compressed(buf, **arrays)
+        extra = {} if provenance is None else {"provenance": np.array(json.dumps(provenance))}
+        np.savez_compressed(buf, **arrays, **extra)
         return "npz", buf.getvalue()
     header = list(arrays)
     mat = np.column_stack([arrays[k] for k in header])

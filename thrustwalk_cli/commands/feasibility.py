@@ -97,8 +97,9 @@ def markdown(doc: dict) -> str:
     lines = [
         f"# Contact feasibility: {doc['robot']['name']} / {doc['gait']['name']}",
         "",
-        f"thrustwalk {p['version']}, {p['created_utc']}; robot `{p['robot']['file']}`, "
-        f"gait `{p['gait']['file']}`.",
+        f"thrustwalk {p['version']}, {p['created_utc']}; robot `{p['robot']['file']}` "
+        f"(sha256 {p['robot']['sha256'][:12]}), gait `{p['gait']['file']}` "
+        f"(sha256 {p['gait']['sha256'][:12]}); command `{p['command']}`.",
         "",
         f"**Verdict: {doc['verdict']}** (mu = {doc['mu']:g}, eps = {doc['eps']:g} N"
         + (f", thruster `{doc['thruster']}`" if doc["thruster"] else "") + ").",

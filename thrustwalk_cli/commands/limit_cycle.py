@@ -40,7 +40,7 @@ def run_limit_cycle(robot: str, gait: str, thrust: list[float], thruster: str | 
     out.mkdir(parents=True, exist_ok=True)
     output.write_json(out / "limit_cycles.json", doc)
     output.write_csv(out / "limit_cycles.csv", csv_rows["header"], csv_rows["rows"],
-                     comments=csv_rows["comments"])
+                     comments=csv_rows["comments"], provenance=doc["provenance"])
     fig = plots.phase_portrait(
         fig_data["values"], fig_data["orbits"], fig_data["jumps"],
         value_label=f"thrust {doc['thruster']} [N]", black_every=10.0,

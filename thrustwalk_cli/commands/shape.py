@@ -95,7 +95,7 @@ def run_shape(robot: str | None, gait: str, request: ShapeRequest, out: Path,
     if not study.success:
         return doc
     output.write_csv(out / "shape.csv", csv_rows["header"], csv_rows["rows"],
-                     comments=csv_rows["comments"])
+                     comments=csv_rows["comments"], provenance=doc["provenance"])
 
     def curve(lc):
         if not lc.exists:

@@ -91,18 +91,20 @@ def run_simulate(robot: str, gait: str, *, steps: int, thrust_model: str, f_ss: 
     n_runs = max(1, len(sc.values))
     with progress("simulating steps", n_runs * steps, quiet) as advance:
         outcomes = run_scenario(zd, sc, advance)
-    kind, traj = trajectory_output(zd, outcomes)
-    doc = {"provenance": output.provenance(rob, g), **simulation_document(zd, sc, outcomes),
+    prov = output.provenance(rob, g)
+    kind, traj = trajectory_output(zd, outcomes, provenance=prov)
+    doc = {"provenance": prov, **simulation_document(zd, sc, outcomes),
            "trajectory_file": f"trajectory.{kind}"}
     out.mkdir(parents=True, exist_ok=True)
     output.write_json(out / "simulation.json", doc)
     tab = steps_table(doc, rob.thruster_names)
-    output.write_csv(out / "steps.csv", tab["header"], tab["rows"], comments=tab["comments"])
+    output.write_csv(out / "steps.csv", tab["header"], tab["rows"], comments=tab["comments"],
+                     provenance=doc["provenance"])
     if kind == "npz":
         output.write_bytes_atomic(out / "trajectory.npz", traj)
     else:
         output.write_csv(out / "trajectory.csv", traj["header"], traj["rows"],
-                         comments=traj["comments"])
+                         comments=traj["comments"], provenance=doc["provenance"])
     data = figure_data(zd, sc, outcomes)
     name = f"{rob.name} / {g.name}"
     output.save_figure(plots_simulate.thrust_time(data, title=f"{name}: thrust"),
