@@ -32,7 +32,8 @@ docs: $(STAMP)
 
 # ---------------------------------------------------------------------------- figures
 # `make figures` (or `make -j2 figures`) runs thrustwalk commands into $(FIG); each result
-# depends on the robot and gait files it uses, so editing a gait rebuilds only its figures.
+# depends on the robot and gait files it uses (and the tool's code), so editing a gait
+# rebuilds only the figures made from it.
 # Sweep settings can be overridden (the test suite runs a reduced pipeline this way).
 FIG        ?= figures
 TW         ?= $(BIN)/thrustwalk
@@ -47,6 +48,9 @@ FEAS_THRUST ?= 0:-50:-10
 SIM_STEPS  ?= 30
 SIM_FSS    ?= 0:-50:-10
 
+# results depend on the tool's code too: editing it rebuilds every figure
+CODE       := $(wildcard thrustwalk_cli/*.py thrustwalk_cli/commands/*.py thrustwalk_cli/*.mplstyle)
+
 FIGURE_JSON = $(FIG)/limit_cycle/limit_cycles.json $(FIG)/shape/shape.json \
 	$(FIG)/feasibility/feasibility.json $(FIG)/simulate/simulation.json
 
@@ -55,17 +59,17 @@ figures: $(FIG)/index.md
 $(FIG)/index.md: $(FIGURE_JSON)
 	$(TW) report $(FIG) --title "thrustwalk: figures of the paper and beyond" -q
 
-$(FIG)/limit_cycle/limit_cycles.json: $(R3) $(G3) | $(TW_DEP)
+$(FIG)/limit_cycle/limit_cycles.json: $(R3) $(G3) $(CODE) | $(TW_DEP)
 	$(TW) limit-cycle $(R3) $(G3) --thrust $(LC_THRUST) --out $(FIG)/limit_cycle -q
 
-$(FIG)/shape/shape.json: $(R3) $(G3) | $(TW_DEP)
+$(FIG)/shape/shape.json: $(R3) $(G3) $(CODE) | $(TW_DEP)
 	$(TW) shape $(R3) $(G3) --pattern 'k*(j-2)' --k $(SHAPE_K) --field-k $(FIELD_K) \
 		--out $(FIG)/shape -q
 
-$(FIG)/feasibility/feasibility.json: $(R3) $(G3) | $(TW_DEP)
+$(FIG)/feasibility/feasibility.json: $(R3) $(G3) $(CODE) | $(TW_DEP)
 	$(TW) feasibility $(R3) $(G3) --thrust $(FEAS_THRUST) --mu 0.7 --out $(FIG)/feasibility -q
 
-$(FIG)/simulate/simulation.json: $(R3) $(G3) | $(TW_DEP)
+$(FIG)/simulate/simulation.json: $(R3) $(G3) $(CODE) | $(TW_DEP)
 	$(TW) simulate $(R3) $(G3) --steps $(SIM_STEPS) --thrust-model second-order \
 		--f-ss $(SIM_FSS) --wn 2 --xi 1 --out $(FIG)/simulate -q
 
