@@ -28,7 +28,7 @@ lint: $(STAMP)
 	$(BIN)/ruff check .
 
 docs: $(STAMP)
-	$(BIN)/python -m thrustwalk_cli.docs README.md
+	$(BIN)/python -m thrustwalk_cli.files.schema_docs docs/files.md
 
 # ---------------------------------------------------------------------------- figures
 # `make figures` (or `make -j2 figures`) runs thrustwalk commands into $(FIG); each result
@@ -49,7 +49,7 @@ SIM_STEPS  ?= 30
 SIM_FSS    ?= 0:-50:-10
 
 # results depend on the tool's code too: editing it rebuilds every figure
-CODE       := $(wildcard thrustwalk_cli/*.py thrustwalk_cli/commands/*.py thrustwalk_cli/*.mplstyle)
+CODE       := $(shell find thrustwalk_cli -name "*.py" -o -name "*.mplstyle")
 
 FIGURE_JSON = $(FIG)/limit_cycle/limit_cycles.json $(FIG)/shape/shape.json \
 	$(FIG)/feasibility/feasibility.json $(FIG)/simulate/simulation.json

@@ -26,15 +26,14 @@ def _gaits() -> list[str]:
 def main() -> None:
     from scipy.integrate import solve_ivp
 
-    from thrustwalk_cli.model import load_model
-    from thrustwalk_cli.robot_io import load_gait_for
-    from thrustwalk_cli.simulate import ClosedLoop, SimConfig, Start, ThrustModel, simulate
-    from thrustwalk_cli.zero_dynamics import Schedule, limit_cycles, zero_dynamics
+    from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles, zero_dynamics
+    from thrustwalk_cli.simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel
+    from thrustwalk_cli.simulation.full_order import Start, simulate
+    from thrustwalk_cli.walker import load_walker
 
     for gait in _gaits():
-        robot, g = load_gait_for(None, gait)
-        model = load_model(robot)
-        zd = zero_dynamics(model, g)
+        walker = load_walker(None, gait)
+        model, g, zd = walker.model, walker.gait, walker.zd
         N, m = model.n, model.n_thrusters
         th = ThrustModel("constant", np.zeros(m))
         cfg = SimConfig(steps=1, rtol=1e-9, atol=1e-9)

@@ -1,4 +1,5 @@
-"""Shared fixtures: compile the canonical robots once per session into a private cache."""
+"""Shared fixtures: compile the canonical robots once per session into a private cache; one
+CLI runner; the bundled walkers."""
 
 from __future__ import annotations
 
@@ -24,19 +25,52 @@ def _cache_dir(tmp_path_factory: pytest.TempPathFactory):
 
 
 @pytest.fixture(scope="session")
-def three_link(_cache_dir):
-    from thrustwalk_cli.model import load_model
-    from thrustwalk_cli.robot_io import load_robot
+def walker3(_cache_dir):
+    """The bundled 3-link robot and gait (:class:`thrustwalk_cli.walker.Walker`)."""
+    from thrustwalk_cli.walker import load_walker
 
-    return load_model(load_robot("three_link"))
+    return load_walker("three_link", "three_link_walk")
 
 
 @pytest.fixture(scope="session")
-def rabbit(_cache_dir):
-    from thrustwalk_cli.model import load_model
-    from thrustwalk_cli.robot_io import load_robot
+def walker_rabbit(_cache_dir):
+    """The bundled RABBIT robot and gait."""
+    from thrustwalk_cli.walker import load_walker
 
-    return load_model(load_robot("rabbit"))
+    return load_walker("rabbit", "rabbit_walk")
+
+
+@pytest.fixture(scope="session")
+def three_link(walker3):
+    """The compiled 3-link model."""
+    return walker3.model
+
+
+@pytest.fixture(scope="session")
+def rabbit(walker_rabbit):
+    """The compiled RABBIT model."""
+    return walker_rabbit.model
+
+
+@pytest.fixture(scope="session")
+def walk3(walker3):
+    """The bundled 3-link gait on its robot: (model, gait, zero dynamics)."""
+    return walker3.model, walker3.gait, walker3.zd
+
+
+@pytest.fixture(scope="session")
+def cli():
+    """Run ``thrustwalk ARGS...`` in-process; returns the click result (exit_code, stdout,
+    stderr kept apart)."""
+    from typer.testing import CliRunner
+
+    from thrustwalk_cli.cli import app
+
+    runner = CliRunner()
+
+    def run(*args: str):
+        return runner.invoke(app, [str(a) for a in args], catch_exceptions=False)
+    return run
 
 
 @pytest.fixture(autouse=True)
@@ -45,15 +79,3 @@ def _close_figures():
     import matplotlib.pyplot as plt
 
     plt.close("all")
-
-
-@pytest.fixture(scope="session")
-def walk3(_cache_dir):
-    """The bundled 3-link gait on its robot: (model, gait, zero dynamics)."""
-    from thrustwalk_cli.model import load_model
-    from thrustwalk_cli.robot_io import load_gait_for
-    from thrustwalk_cli.zero_dynamics import zero_dynamics
-
-    robot, gait = load_gait_for(None, "three_link_walk")
-    model = load_model(robot)
-    return model, gait, zero_dynamics(model, gait)

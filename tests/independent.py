@@ -26,7 +26,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from thrustwalk_cli.robot import Robot
+from thrustwalk_cli.description.robot import Robot
 
 S = np.array([[0.0, -1.0], [1.0, 0.0]])  # d/dtheta Rot(theta) = S Rot(theta)
 

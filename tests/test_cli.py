@@ -1,4 +1,4 @@
-"""Command line: help texts, exit codes, error lines, outputs of compile/inspect/limit-cycle."""
+"""Command line: help texts, exit codes, error lines, limit-cycle outputs."""
 
 from __future__ import annotations
 
@@ -10,32 +10,26 @@ import sys
 from pathlib import Path
 
 import pytest
-from typer.testing import CliRunner
 
-from thrustwalk_cli import __version__
-from thrustwalk_cli.cli import _command_modules, app
+from thrustwalk_cli._version import __version__
+from thrustwalk_cli.cli import COMMANDS
 
 REPO = Path(__file__).resolve().parents[1]
-runner = CliRunner()
 ROBOT = (REPO / "robots" / "three_link.yaml").read_text()
 
 
-def run(*args: str):
-    return runner.invoke(app, list(args), catch_exceptions=False)
-
-
 def commands() -> list[str]:
-    return [m.replace("_", "-") for m in _command_modules()]
+    return [m.__name__.rsplit(".", 1)[1].replace("_", "-") for m in COMMANDS]
 
 
-def test_version():
-    res = run("--version")
+def test_version(cli):
+    res = cli("--version")
     assert res.exit_code == 0 and __version__ in res.output
 
 
 @pytest.mark.parametrize("command", commands())
-def test_every_subcommand_help_has_example_and_units(command):
-    res = run(command, "--help")
+def test_every_subcommand_help_has_example_and_units(command, cli):
+    res = cli(command, "--help")
     assert res.exit_code == 0, res.output
     assert "Example: thrustwalk " + command in res.output, command
     assert re.search(r"\[(N|m|rad|s|kg m\^2|N m|m/s|rad/s)\]", res.output), command
@@ -47,38 +41,12 @@ def test_python_dash_m_entry_point():
     assert __version__ in out.stdout
 
 
-def test_compile_summary():
-    res = run("compile", "three_link")
-    assert res.exit_code == 0, res.output
-    assert "total mass" in res.output and "35 kg" in res.output
-
-
-def test_inspect_json_keys(tmp_path):
-    out = tmp_path / "state.json"
-    res = run("inspect", "three_link", "--q", "0.1,0.2,-0.3", "--dq", "0,1,-1",
-              "--thrust", "-10,0", "--json", str(out), "-q")
-    assert res.exit_code == 0, res.output
-    doc = json.loads(out.read_text())
-    for key in ("q", "dq", "D", "C_dq", "G", "B_F", "swing_foot", "impact", "coordinates",
-                "provenance"):
-        assert key in doc, key
-    assert set(doc["impact"]) >= {"dq_plus", "impulse"}
-    assert doc["coordinates"] == ["q1", "q2", "q3"]
-    assert len(doc["D"]) == 3 and len(doc["impact"]["dq_plus"]) == 3
-
-
-def test_inspect_wrong_q_length_is_one_line_exit_2():
-    res = runner.invoke(app, ["inspect", "three_link", "--q", "0.1,0.2"])
-    assert res.exit_code == 2
-    lines = [ln for ln in res.output.splitlines() if ln.strip()]
-    assert len(lines) == 1 and "--q" in lines[0] and "expected 3 values" in lines[0]
-
-
-def test_limit_cycle_outputs(tmp_path):
-    res = run("limit-cycle", "three_link", "three_link_walk", "--thrust", "0:-50:-10,",
+@pytest.mark.slow
+def test_limit_cycle_outputs(tmp_path, cli):
+    res = cli("limit-cycle", "three_link", "three_link_walk", "--thrust", "0:-50:-10,",
               "--out", str(tmp_path))
     assert res.exit_code == 2  # malformed range
-    res = run("limit-cycle", "--thrust", "0,-10,-25,40", "--out", str(tmp_path), "-q")
+    res = cli("limit-cycle", "--thrust", "0,-10,-25,40", "--out", str(tmp_path), "-q")
     assert res.exit_code == 0, res.output
     for name in ("limit_cycles.json", "limit_cycles.csv", "limit_cycles.png",
                  "limit_cycles.pdf", "fixed_point_shift.png", "fixed_point_shift.pdf"):
@@ -153,11 +121,11 @@ BAD_ROBOTS = {
 
 
 @pytest.mark.parametrize("case", sorted(BAD_ROBOTS))
-def test_bad_robot_file_one_line_with_location_exit_2(tmp_path, case):
+def test_bad_robot_file_one_line_with_location_exit_2(tmp_path, case, cli):
     text, needle = BAD_ROBOTS[case]
     assert text != ROBOT, case
     path = _robot(tmp_path, text)
-    res = runner.invoke(app, ["compile", path])
+    res = cli("compile", path)
     assert res.exit_code == 2, (case, res.output)
     assert "Traceback" not in res.output
     lines = [ln for ln in res.output.splitlines() if ln.strip()]
@@ -168,51 +136,55 @@ def test_bad_robot_file_one_line_with_location_exit_2(tmp_path, case):
     assert any(re.match(rf"error: {re.escape(path)}:\d+: ", ln) for ln in lines), (case, lines)
 
 
-def test_code_injection_rejected_without_execution(tmp_path, monkeypatch):
+def test_code_injection_rejected_without_execution(tmp_path, monkeypatch, cli):
     monkeypatch.chdir(tmp_path)
     text = ROBOT.replace("  L: 0.5 ", "  L: \"__import__('os').system('touch x')\" ")
     assert text != ROBOT
-    res = runner.invoke(app, ["compile", _robot(tmp_path, text)])
+    res = cli("compile", _robot(tmp_path, text))
     assert res.exit_code == 2
     assert "parameters.L" in res.output
     assert not (tmp_path / "x").exists()
 
 
-def test_missing_file_and_unknown_bundled_name():
-    res = runner.invoke(app, ["compile", "no_such_robot"])
+def test_missing_file_and_unknown_bundled_name(cli):
+    res = cli("compile", "no_such_robot")
     assert res.exit_code == 2
     assert "bundled: rabbit, three_link" in res.output
 
 
-def test_gait_robot_mismatch_and_bad_gait(tmp_path):
-    res = runner.invoke(app, ["limit-cycle", "rabbit", "three_link_walk", "--out",
-                              str(tmp_path)])
+def test_gait_robot_mismatch_and_bad_gait(tmp_path, cli):
+    res = cli("limit-cycle", "rabbit", "three_link_walk", "--out",
+                              str(tmp_path))
     assert res.exit_code == 2 and "is for robot 'three_link'" in res.output
     gait = (REPO / "gaits" / "three_link_walk.yaml").read_text()
     bad = tmp_path / "g.yaml"
     bad.write_text(gait.replace("robot: three_link", f"robot: {REPO}/robots/three_link.yaml")
                    .replace("c: {q3: -1}", "c: {q1: 1}"))
-    res = runner.invoke(app, ["limit-cycle", "three_link", str(bad), "--out", str(tmp_path)])
+    res = cli("limit-cycle", "three_link", str(bad), "--out", str(tmp_path))
     assert res.exit_code == 2 and "alpha.c" in res.output and "unactuated" in res.output
     bad.write_text(gait.replace("q1: [~, ~,", "q1: [0.1, ~,"))
-    res = runner.invoke(app, ["limit-cycle", "three_link", str(bad), "--out", str(tmp_path)])
+    res = cli("limit-cycle", "three_link", str(bad), "--out", str(tmp_path))
     assert res.exit_code == 2 and "bezier.coefficients.q1[0]" in res.output
 
 
-def test_readme_key_tables_match_schema():
-    """The README's key tables are the schema tables (regenerate with `make docs`)."""
-    from thrustwalk_cli.docs import render
+def test_docs_key_tables_match_schema():
+    """docs/files.md's key tables are the schema tables (regenerate with `make docs`); the
+    README shows the two setup commands and links the references."""
+    from thrustwalk_cli.files.schema_docs import render
 
+    files = (REPO / "docs" / "files.md").read_text()
+    assert render(files) == files, "docs/files.md key tables are stale: run `make docs`"
     readme = (REPO / "README.md").read_text()
-    assert render(readme) == readme, "README key tables are stale: run `make docs`"
     assert "make demo" in readme and "make test" in readme
+    for doc in ("docs/commands.md", "docs/files.md", "docs/architecture.md"):
+        assert f"]({doc})" in readme, doc
 
 
 def test_result_files_are_ordinary_files(tmp_path):
     """Atomic writes go through mkstemp (mode 0600); results must get the usual mode."""
     import os
 
-    from thrustwalk_cli import output
+    from thrustwalk_cli.files import output
 
     p = output.write_text_atomic(tmp_path / "x.json", "{}")
     umask = os.umask(0)

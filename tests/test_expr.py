@@ -1,4 +1,4 @@
-"""Tests of the restricted arithmetic parser (thrustwalk_cli.expr)."""
+"""Tests of the restricted arithmetic parser (thrustwalk_cli.files.expr)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from thrustwalk_cli.expr import MAX_DEPTH, MAX_LENGTH, ExprError, evaluate, parse
+from thrustwalk_cli.files.expr import MAX_DEPTH, MAX_LENGTH, ExprError, evaluate, parse
 
 # (expression, value computed by Python itself)
 PRECEDENCE = [

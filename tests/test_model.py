@@ -22,10 +22,11 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from thrustwalk_cli import cache
-from thrustwalk_cli import model as model_mod
-from thrustwalk_cli.model import _FUNCTIONS, load_model
-from thrustwalk_cli.robot_io import load_robot
+from thrustwalk_cli.files.robot_file import load_robot
+from thrustwalk_cli.model import cache
+from thrustwalk_cli.model import compiler as model_mod
+from thrustwalk_cli.model.compiled import FUNCTIONS as _FUNCTIONS
+from thrustwalk_cli.model.compiler import load_model
 
 ROBOTS = ["three_link", "rabbit"]
 over_robots = pytest.mark.parametrize("name", ROBOTS)
@@ -521,8 +522,8 @@ def test_cache_concurrent_compiles_leave_one_valid_entry(fresh_cache, three_link
     go = fresh_cache.parent / "go"
     script = textwrap.dedent(f"""
         import json, os, time
-        from thrustwalk_cli.model import load_model
-        from thrustwalk_cli.robot_io import load_robot
+        from thrustwalk_cli.model.compiler import load_model
+        from thrustwalk_cli.files.robot_file import load_robot
         robot = load_robot("three_link")
         while not os.path.exists({str(go)!r}):
             time.sleep(0.005)
@@ -551,8 +552,8 @@ def test_cached_load_does_not_import_sympy(fresh_cache, three_link):
     _seed_entry(three_link)
     script = textwrap.dedent("""
         import json, sys
-        from thrustwalk_cli.model import load_model
-        from thrustwalk_cli.robot_io import load_robot
+        from thrustwalk_cli.model.compiler import load_model
+        from thrustwalk_cli.files.robot_file import load_robot
         m = load_model(load_robot("three_link"))
         m.D([0.1, 0.2, 0.3]); m.impact([0.1, 0.2, 0.3], [1.0, 0.0, -1.0])
         print(json.dumps({"hit": m.cache_hit, "sympy": sorted(

@@ -9,13 +9,13 @@ import json
 import numpy as np
 import pytest
 from scipy.optimize import linprog
-from typer.testing import CliRunner
 
-from thrustwalk_cli import contact
-from thrustwalk_cli import optimize as opt
-from thrustwalk_cli.cli import app
-from thrustwalk_cli.robot_io import load_gait_for
-from thrustwalk_cli.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.contact.terms import impact_data
+from thrustwalk_cli.hzd.schedule import schedule_from_gait
+from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.optimize import qp
+from thrustwalk_cli.optimize import schedule as opt
+from thrustwalk_cli.walker import load_walker
 
 FRACTIONS = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
 
@@ -27,10 +27,10 @@ def test_solvers_on_hand_solved_qps(solver):
     min x1^2 + 3 x2^2, x1 + x2 = 4: Lagrange 2 x1 = 6 x2 -> (3, 1); with x1 <= 2 -> (2, 2)."""
     def solve(A, b, a, c, w):
         if solver == "ldp":
-            return opt.ldp_qp(A, b, a, c, w)
-        ok, x0 = opt.lp_feasible(A, b, a, c)
+            return qp.ldp_qp(A, b, a, c, w)
+        ok, x0 = qp.lp_feasible(A, b, a, c)
         assert ok
-        return opt.active_set_qp(A, b, a, c, w, x0)
+        return qp.active_set_qp(A, b, a, c, w, x0)
 
     one = np.array([1.0, 1.0])
     x = solve(np.array([[1.0, 0.0]]), np.array([0.5]), one, 2.0, np.ones(2))
@@ -42,7 +42,7 @@ def test_solvers_on_hand_solved_qps(solver):
 
 
 def test_lp_detects_infeasible_toy():
-    ok, _ = opt.lp_feasible(np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([1.0, -2.0]),
+    ok, _ = qp.lp_feasible(np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([1.0, -2.0]),
                             None, None)
     assert not ok
 
@@ -75,7 +75,7 @@ def test_optimum_satisfies_kkt(solved):
     res, target = solved
     p = res.problem
     A, b, ae, be = p.at(res.zeta_star_target)
-    k = opt.kkt(A, b, ae, be, p.weights, res.values)
+    k = qp.kkt(A, b, ae, be, p.weights, res.values)
     assert k["stationarity_relative"] < 1e-8
     assert k["primal_infeasibility"] < 1e-9
     assert k["equality_residual"] < 1e-9
@@ -142,10 +142,10 @@ def test_two_solvers_agree(solved):
     res, _ = solved
     p = res.problem
     A, b, ae, be = p.at(res.zeta_star_target)
-    ok, x0 = opt.lp_feasible(A, b, ae, be)
+    ok, x0 = qp.lp_feasible(A, b, ae, be)
     assert ok
-    xa = opt.active_set_qp(A, b, ae, be, p.weights, x0)
-    xl = opt.ldp_qp(A, b, ae, be, p.weights)
+    xa = qp.active_set_qp(A, b, ae, be, p.weights, x0)
+    xl = qp.ldp_qp(A, b, ae, be, p.weights)
     assert np.allclose(xa, xl, rtol=0, atol=1e-7 * (1 + np.abs(xl).max()))
 
 
@@ -180,7 +180,7 @@ def test_low_friction_names_the_friction_family(setup):
     """mu just above the impact's friction ratio (so the impact is admissible) and a target
     beyond what that mu allows: infeasible, with friction among the causes."""
     model, gait, zd, prob, zlo, zhi, z0 = setup
-    mu = 1.02 * contact.impact_data(model, zd).friction_ratio
+    mu = 1.02 * impact_data(model, zd).friction_ratio
     n = len(FRACTIONS) - 1
     low = opt.build_problem(model, zd, FRACTIONS, mu=mu, zeta_min_rel=0.01,
                             bounds=(np.full(n, -100.0), np.full(n, 100.0)))
@@ -206,15 +206,15 @@ def test_unreachable_speed_names_the_limit(setup):
 
 
 # ------------------------------------------------------------------------------------- CLI
-runner = CliRunner()
 
 
-def test_cli_optimize_writes_outputs_and_the_gait_loads_back(setup, tmp_path):
+@pytest.mark.slow
+def test_cli_optimize_writes_outputs_and_the_gait_loads_back(setup, tmp_path, cli):
     model, gait, zd, prob, zlo, zhi, z0 = setup
     target = z0 + 0.3 * (zhi - z0)
     out = tmp_path / "o"
-    res = runner.invoke(app, ["optimize", "--target-zeta", repr(target), "--knots", "0,0.5,1",
-                              "--out", str(out), "-q"])
+    res = cli("optimize", "--target-zeta", repr(target), "--knots", "0,0.5,1",
+                              "--out", str(out), "-q")
     assert res.exit_code == 0, res.output
     doc = json.loads((out / "optimal_schedule.json").read_text())
     for key in ("values", "objective", "active_constraints", "zeta_star", "kkt", "feasible"):
@@ -222,17 +222,17 @@ def test_cli_optimize_writes_outputs_and_the_gait_loads_back(setup, tmp_path):
     assert doc["feasible"] and len(doc["values"]) == 2
     for name in doc["files"]:
         assert (out / name).stat().st_size > 0, name
-    _, g2 = load_gait_for(None, str(out / "three_link_walk_optimal.yaml"))
+    g2 = load_walker(None, str(out / "three_link_walk_optimal.yaml")).gait
     assert np.allclose(np.array(g2.A), np.array(gait.A), rtol=0, atol=0)
-    sched = contact.schedule_from_spec(zd, g2.thrust)
+    sched = schedule_from_gait(zd, g2.thrust, "schedule", pad=True)[0]
     lc = limit_cycles(zd, sched)[0]
     assert lc.zeta_star == pytest.approx(target, rel=1e-9)
 
 
-def test_cli_infeasible_exits_zero(tmp_path):
+def test_cli_infeasible_exits_zero(tmp_path, cli):
     out = tmp_path / "inf"
-    res = runner.invoke(app, ["optimize", "--target-zeta", "1500", "--max-thrust", "0.001",
-                              "--out", str(out), "-q"])
+    res = cli("optimize", "--target-zeta", "1500", "--max-thrust", "0.001",
+                              "--out", str(out), "-q")
     assert res.exit_code == 0, res.output
     doc = json.loads((out / "optimal_schedule.json").read_text())
     assert doc["feasible"] is False and doc["status"] == "infeasible"
@@ -253,8 +253,8 @@ def test_cli_infeasible_exits_zero(tmp_path):
     (["--target-zeta", "100", "--zeta-min", "-3"], "--zeta-min"),
     (["--target-zeta", "100", "--thruster", "nozzle"], "--thruster"),
 ])
-def test_cli_bad_input_exits_two(walk3, tmp_path, args, message):
-    res = runner.invoke(app, ["optimize", *args, "--out", str(tmp_path / "bad"), "-q"])
+def test_cli_bad_input_exits_two(walk3, tmp_path, args, message, cli):
+    res = cli("optimize", *args, "--out", str(tmp_path / "bad"), "-q")
     assert res.exit_code == 2, res.output
     assert message in res.output
     assert "Traceback" not in res.output

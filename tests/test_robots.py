@@ -8,12 +8,12 @@ import independent as ind
 import numpy as np
 import pytest
 
-from thrustwalk_cli import derive
-from thrustwalk_cli import model as model_mod
 from thrustwalk_cli.errors import InputError
-from thrustwalk_cli.model import load_model
-from thrustwalk_cli.robot_io import load_gait_for, load_robot
-from thrustwalk_cli.zero_dynamics import Schedule, limit_cycles, zero_dynamics
+from thrustwalk_cli.files.robot_file import load_robot
+from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.model import compiler as model_mod
+from thrustwalk_cli.model import derive
+from thrustwalk_cli.model.compiler import load_model
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -112,11 +112,9 @@ def test_shipped_three_link_gait_claims(walk3):
     assert "# command: thrustwalk design-gait three_link" in Path(gait.source_file).read_text()
 
 
-def test_shipped_rabbit_gait_claims():
+def test_shipped_rabbit_gait_claims(walker_rabbit):
     """Stable, invariant, knees never hyperextend, clearance >= 3 cm at mid-step."""
-    robot, gait = load_gait_for(None, "rabbit_walk")
-    model = load_model(robot)
-    zd = zero_dynamics(model, gait)
+    robot, model, zd = walker_rabbit.robot, walker_rabbit.model, walker_rabbit.zd
     lc = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, model.n_thrusters))))[0]
     assert lc.stable, lc.reason
     assert zd.maps.position_residual < 1e-12 and zd.maps.velocity_residual < 1e-12

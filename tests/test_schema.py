@@ -1,11 +1,11 @@
-"""Tests of the declarative schemas (thrustwalk_cli.schema)."""
+"""Tests of the declarative schemas (thrustwalk_cli.files.schema)."""
 
 from __future__ import annotations
 
 import pytest
 
 from thrustwalk_cli.errors import InputError, Problem
-from thrustwalk_cli.schema import (
+from thrustwalk_cli.files.schema import (
     Kind,
     boolean,
     check,
@@ -27,7 +27,7 @@ from thrustwalk_cli.schema import (
     validate,
     vector,
 )
-from thrustwalk_cli.yamlio import load_yaml_text
+from thrustwalk_cli.files.yamlio import load_yaml_text
 
 LINK = mapping(
     field("name", string(), "link name"),

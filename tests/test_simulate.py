@@ -17,30 +17,24 @@ import numpy as np
 import pytest
 from scipy.integrate import simpson
 from scipy.linalg import expm
-from typer.testing import CliRunner
 
-from thrustwalk_cli.cli import app
-from thrustwalk_cli.gait import ThrustSchedule
-from thrustwalk_cli.simulate import (
-    ClosedLoop,
-    SimConfig,
-    Start,
-    ThrustModel,
-    initial_state,
-    schedule_from_gait,
-    simulate,
-    zeta_star_at,
-)
-from thrustwalk_cli.simulate_reduced import ReducedModel, simulate_reduced
-from thrustwalk_cli.zero_dynamics import (
+from thrustwalk_cli.description.gait import ThrustSchedule
+from thrustwalk_cli.hzd.schedule import schedule_from_gait as _from_gait
+from thrustwalk_cli.hzd.zero_dynamics import (
     Schedule,
     limit_cycles,
     paper_one_step_shift,
-    zero_dynamics,
 )
+from thrustwalk_cli.simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel, zeta_star_at
+from thrustwalk_cli.simulation.full_order import Start, initial_state, simulate
+from thrustwalk_cli.simulation.reduced import ReducedModel, simulate_reduced
 
 TIGHT = SimConfig(steps=3, rtol=1e-10, atol=1e-10)
-runner = CliRunner()
+
+
+def schedule_from_gait(zd, ts):
+    """A gait-format thrust section as a schedule (padded), problems reported at "thrust"."""
+    return _from_gait(zd, ts, "thrust", pad=True)[0]
 
 
 def const(model, **thrust) -> ThrustModel:
@@ -68,13 +62,8 @@ def test_started_on_fixed_point_stays_on_zero_dynamics_orbit(walk3):
         assert st.s_minus == pytest.approx(1.0, abs=1e-6), st.step
 
 
-def test_rabbit_started_on_fixed_point_stays_on_orbit(_cache_dir):
-    from thrustwalk_cli.model import load_model
-    from thrustwalk_cli.robot_io import load_gait_for
-
-    robot, gait = load_gait_for(None, "rabbit_walk")
-    model = load_model(robot)
-    zd = zero_dynamics(model, gait)
+def test_rabbit_started_on_fixed_point_stays_on_orbit(walker_rabbit):
+    model, zd = walker_rabbit.model, walker_rabbit.zd
     res = simulate(zd, const(model), replace(TIGHT, steps=2))
     assert res.success, res.reason
     for st in res.steps:
@@ -343,10 +332,11 @@ STEP_KEYS = {"step", "step_time", "zeta_minus", "sigma_minus", "sigma_plus", "im
              "thrust_at_impact", "min_vertical_force", "max_abs_output", "prediction"}
 
 
-def test_cli_writes_every_output(tmp_path):
+@pytest.mark.slow
+def test_cli_writes_every_output(tmp_path, cli):
     out = tmp_path / "sim"
-    res = runner.invoke(app, ["simulate", "--steps", "2", "--f-ss", "0,-2", "--samples", "20",
-                              "--animate", "--quiet", "--out", str(out)])
+    res = cli("simulate", "--steps", "2", "--f-ss", "0,-2", "--samples", "20",
+                              "--animate", "--quiet", "--out", str(out))
     assert res.exit_code == 0, res.output
     for name in ("simulation.json", "steps.csv", "trajectory.csv", "thrust_time.png",
                  "thrust_time.pdf", "phase_portrait.png", "phase_portrait.pdf", "walker.gif"):
@@ -365,10 +355,10 @@ def test_cli_writes_every_output(tmp_path):
     assert (out / "walker.gif").read_bytes()[:6] == b"GIF89a"
 
 
-def test_cli_falling_walker_exit_0_with_reason(tmp_path):
-    res = runner.invoke(app, ["simulate", "--thrust-model", "constant", "--f-ss", "100",
+def test_cli_falling_walker_exit_0_with_reason(tmp_path, cli):
+    res = cli("simulate", "--thrust-model", "constant", "--f-ss", "100",
                               "--start", "nominal", "--steps", "3", "--quiet", "--out",
-                              str(tmp_path)])
+                              str(tmp_path))
     assert res.exit_code == 0, res.output
     doc = json.loads((tmp_path / "simulation.json").read_text())
     assert not doc["success"] and not doc["runs"][0]["success"]
@@ -376,9 +366,10 @@ def test_cli_falling_walker_exit_0_with_reason(tmp_path):
     assert "warning: run 0" in res.output
 
 
-def test_cli_reduced_preview_and_npz(tmp_path):
-    res = runner.invoke(app, ["simulate", "--reduced", "--steps", "2", "--f-ss", "0",
-                              "--samples", "10001", "--quiet", "--out", str(tmp_path)])
+@pytest.mark.slow
+def test_cli_reduced_preview_and_npz(tmp_path, cli):
+    res = cli("simulate", "--reduced", "--steps", "2", "--f-ss", "0",
+                              "--samples", "10001", "--quiet", "--out", str(tmp_path))
     assert res.exit_code == 0, res.output
     doc = json.loads((tmp_path / "simulation.json").read_text())
     assert doc["trajectory_file"] == "trajectory.npz" and doc["steps"][0]["model"] == "reduced"
@@ -386,12 +377,12 @@ def test_cli_reduced_preview_and_npz(tmp_path):
     assert data["t"].size == 20002 and {"alpha", "sigma", "thrust_hip_x"} <= set(data.files)
 
 
-def test_cli_integrator_failure_exit_1(tmp_path, monkeypatch):
+def test_cli_integrator_failure_exit_1(tmp_path, monkeypatch, cli):
     real = ClosedLoop.rhs
     monkeypatch.setattr(ClosedLoop, "rhs", lambda self, t, x, seg: (
         [np.nan] * len(x) if t > 0.2 else real(self, t, x, seg)))
-    res = runner.invoke(app, ["simulate", "--steps", "1", "--f-ss", "0", "--quiet", "--out",
-                              str(tmp_path)])
+    res = cli("simulate", "--steps", "1", "--f-ss", "0", "--quiet", "--out",
+                              str(tmp_path))
     assert res.exit_code == 1
     assert json.loads((tmp_path / "simulation.json").read_text())["runs"][0]["failure"] == \
         "integrator"
@@ -408,8 +399,8 @@ def test_cli_integrator_failure_exit_1(tmp_path, monkeypatch):
     (["--start", "sideways"], "--start"),
     (["--q0", "0,0", "--dq0", "0,0"], "expected 3 values"),
 ])
-def test_cli_bad_input_one_line_exit_2(tmp_path, args, words):
-    res = runner.invoke(app, ["simulate", *args, "--quiet", "--out", str(tmp_path)])
+def test_cli_bad_input_one_line_exit_2(tmp_path, args, words, cli):
+    res = cli("simulate", *args, "--quiet", "--out", str(tmp_path))
     assert res.exit_code == 2, res.output
     lines = [ln for ln in res.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("error:") and words in lines[0], res.output

@@ -1,4 +1,4 @@
-"""Tests of line-aware safe YAML loading (thrustwalk_cli.yamlio)."""
+"""Tests of line-aware safe YAML loading (thrustwalk_cli.files.yamlio)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from thrustwalk_cli.errors import InputError
-from thrustwalk_cli.yamlio import format_path, load_yaml, load_yaml_text
+from thrustwalk_cli.files.yamlio import format_path, load_yaml, load_yaml_text
 
 ROBOT = """\
 # a comment

@@ -1,3 +1,85 @@
-"""thrustwalk: thruster-assisted bipedal walking with hybrid zero dynamics."""
+"""thrustwalk: thruster-assisted bipedal walking with hybrid zero dynamics.
 
-__version__ = "0.1.0"
+Use from Python (``import thrustwalk_cli as tw``); every name below loads on first use, so the
+import itself is instant. Results render themselves: ``document()`` (the JSON the command
+writes), ``tables()`` (its CSV tables), ``figures()`` (matplotlib figures), with ``success``
+and ``reason``. Units are SI throughout.
+
+Loading
+    load_walker         robot + gait -> :class:`Walker` (compiled model, zero dynamics)
+    Walker              a robot, its gait, the compiled model and the zero dynamics
+    load_robot          a robot file or bundled name -> :class:`Robot`
+    load_model          :class:`Robot` -> :class:`CompiledModel` (cached by content hash)
+    compile_robot       a robot file or bundled name -> :class:`CompiledModel`
+    Robot               an immutable robot description (links, coordinates, thrusters)
+    Gait                an immutable gait description (Bezier virtual constraints)
+    ThrustSchedule      a piecewise-constant thrust schedule as written in a gait file
+    CompiledModel       the numeric dynamics D, C q' + G, B_F, impact map (SPEC 1)
+
+Zero dynamics (SPEC 3, 4)
+    ZeroDynamics        the thrust-independent integrals of one gait (``walker.zd``)
+    Schedule            thrust per knot interval, batched (``Schedule.constant(zd, F)``)
+    limit_cycles        fixed points and orbits of the zero dynamics for a batch of schedules
+    LimitCycle          one periodic orbit: exists, stable, reason, zeta*, speed, ...
+
+Studies (one per command)
+    limit_cycle         limit cycles over a constant-thrust sweep -> :class:`LimitCycleResult`
+    LimitCycleResult    the sweep's cycles, document, CSV table and figures
+    shape               center-manifold shaping with piecewise thrust -> :class:`ShapeStudy`
+    ShapeRequest        what to shape: pattern and knots, a target, or the gait's schedule
+    ShapeStudy          nominal and shaped cycles, shifts (true and the paper's), figures
+    feasibility         ground-contact feasibility per thrust case -> :class:`FeasibilityResult`
+    FeasibilityResult   verdicts, worst points, margins, feasible region, figures
+    optimize_schedule   minimum-effort thrust schedule, an exact QP -> :class:`OptimizeResult`
+    OptimizeResult      the optimal schedule (or why none exists), gait file, figure
+    simulate            full-order closed-loop simulation -> :class:`SimulationResult`
+    SimulationResult    runs, per-step records, comparison with the zero dynamics, figures
+    design_gait         design a stable, walkable gait -> :class:`DesignGaitResult`
+    DesignSpec          what a gait design asks for (speed, step length, margins, ...)
+    DesignGaitResult    the designed gait, its re-check and report
+    inspect_state       the dynamics at one state (D, C q', G, B_F, impact map)
+
+Errors
+    InputError          bad input: every problem as ``file:line: key.path: message`` or
+                        ``parameter: message``
+    ComputationError    a numerical failure (never silently ignored)
+"""
+
+from ._version import __version__
+
+# public name -> module that defines it (imported on first use)
+_HOMES = {
+    "load_walker": "walker", "Walker": "walker",
+    "load_robot": "files.robot_file", "load_model": "model.compiler",
+    "compile_robot": "studies.compile", "inspect_state": "studies.inspect",
+    "Robot": "description.robot", "Gait": "description.gait",
+    "ThrustSchedule": "description.gait", "CompiledModel": "model.compiled",
+    "ZeroDynamics": "hzd.zero_dynamics", "Schedule": "hzd.zero_dynamics",
+    "limit_cycles": "hzd.zero_dynamics", "LimitCycle": "hzd.zero_dynamics",
+    "limit_cycle": "studies.limit_cycle", "LimitCycleResult": "studies.limit_cycle",
+    "shape": "studies.shape", "ShapeRequest": "studies.shape", "ShapeStudy": "studies.shape",
+    "feasibility": "studies.feasibility", "FeasibilityResult": "studies.feasibility",
+    "optimize_schedule": "studies.optimize", "OptimizeResult": "studies.optimize",
+    "simulate": "studies.simulate", "SimulationResult": "studies.simulate",
+    "design_gait": "studies.design_gait", "DesignGaitResult": "studies.design_gait",
+    "DesignSpec": "design.spec",
+    "InputError": "errors", "ComputationError": "errors",
+}
+
+__all__ = ["__version__", *_HOMES]
+
+
+def __getattr__(name: str):
+    """Load a public name from its home module on first use (PEP 562)."""
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from importlib import import_module
+
+    value = getattr(import_module(f"{__name__}.{home}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

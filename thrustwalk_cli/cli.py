@@ -1,20 +1,31 @@
-"""The ``thrustwalk`` command line. Thin: each command parses, calls the core, renders.
+"""The ``thrustwalk`` command line. Thin: each command parses, calls a study, writes, renders.
 
-Start-up is kept light (no NumPy, SymPy or matplotlib until a command runs).
+Start-up is kept light (no NumPy, SymPy or matplotlib until a command runs): command modules
+import only typer at module level.
 """
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
+import os
 
 import typer
 
-from . import __version__, commands
+from ._version import __version__
+from .commands import (
+    compile,
+    design_gait,
+    feasibility,
+    inspect,
+    limit_cycle,
+    optimize,
+    report,
+    shape,
+    simulate,
+)
 
-# Help lists commands in this order; any other module in commands/ with ``register`` follows.
-ORDER = ["compile", "inspect", "limit_cycle", "shape", "feasibility", "optimize", "simulate",
-         "design_gait", "report"]
+# Help lists the commands in this order.
+COMMANDS = (compile, inspect, limit_cycle, shape, feasibility, optimize, simulate, design_gait,
+            report)
 
 app = typer.Typer(
     name="thrustwalk",
@@ -44,16 +55,10 @@ def _root(
     """Thruster-assisted bipedal walking with hybrid zero dynamics."""
 
 
-def _command_modules() -> list[str]:
-    found = [m.name for m in pkgutil.iter_modules(commands.__path__) if m.name != "common"]
-    return sorted(found, key=lambda n: (ORDER.index(n) if n in ORDER else len(ORDER), n))
-
-
-for _name in _command_modules():
-    _module = importlib.import_module(f"{commands.__name__}.{_name}")
-    if hasattr(_module, "register"):
-        _module.register(app)
+for _module in COMMANDS:
+    _module.register(app)
 
 
 def main() -> None:
+    os.environ.setdefault("MPLBACKEND", "Agg")  # figures only go to files: no screen needed
     app()

@@ -1,31 +1,20 @@
-"""Options shared by every command, error handling, progress and value-list parsing."""
+"""What every command shares: error rendering (parameters become flags), writing a result
+object, progress bars, value-list parsing."""
 
 from __future__ import annotations
 
 import contextlib
+import re
 import sys
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
-from typing import Annotated
 
 import typer
 
-from ..errors import ComputationError, InputError
+from ..errors import ComputationError, InputError, Problem
 
-RobotArg = Annotated[
-    str,
-    typer.Argument(help="Robot: a bundled name (three_link, rabbit) or a path to a YAML file."),
-]
-GaitArg = Annotated[
-    str,
-    typer.Argument(help="Gait: a bundled name (three_link_walk, rabbit_walk) or a YAML path."),
-]
-OutOpt = Annotated[
-    Path, typer.Option("--out", "-o", help="Output folder (created if missing).")
-]
-QuietOpt = Annotated[
-    bool, typer.Option("--quiet", "-q", help="No progress bar and no summary table.")
-]
+_MENTION = re.compile(r"`([A-Za-z_][A-Za-z0-9_]*)`")
 
 
 def console(stderr: bool = False):  # -> rich.console.Console
@@ -34,23 +23,42 @@ def console(stderr: bool = False):  # -> rich.console.Console
     return Console(stderr=stderr, highlight=False)
 
 
+def flags(ctx: typer.Context | None) -> dict[str, str]:
+    """Parameter name -> its long flag, for the command of ``ctx`` (empty without one)."""
+    out: dict[str, str] = {}
+    for p in ctx.command.params if ctx is not None else ():
+        longs = [o for o in getattr(p, "opts", ()) if o.startswith("--")]
+        if p.name and longs:
+            out[p.name] = longs[0]
+    return out
+
+
+def render_problem(p: Problem, flags: dict[str, str]) -> str:
+    """One line for a problem: a parameter problem names the command's flag(s)
+    (``option --mu: ...``); parameters mentioned in backquotes become flags too."""
+    if p.file:
+        return str(p)
+    msg = _MENTION.sub(lambda m: flags.get(m.group(1), m.group(0)), p.message)
+    if p.params:
+        names = [flags.get(x, "--" + x.replace("_", "-")) for x in p.params]
+        return f"option{'s' if len(names) > 1 else ''} {'/'.join(names)}: {msg}"
+    return str(replace(p, message=msg))
+
+
 @contextlib.contextmanager
-def cli_errors() -> Iterator[None]:
-    """Bad input -> one line per problem on stderr, exit 2; tool failure -> exit 1."""
+def cli_errors(ctx: typer.Context | None = None) -> Iterator[None]:
+    """Bad input -> one line per problem on stderr, exit 2; tool failure -> exit 1.
+    ``ctx``: the running command, whose flags name the parameters in messages."""
     try:
         yield
     except InputError as exc:
+        names = flags(ctx)
         for p in exc.problems:
-            sys.stderr.write(f"error: {p}\n")
+            sys.stderr.write(f"error: {render_problem(p, names)}\n")
         raise typer.Exit(2) from None
     except ComputationError as exc:
         sys.stderr.write(f"error: computation failed: {exc}\n")
         raise typer.Exit(1) from None
-
-
-def fmt(v, spec: str = ".4g") -> str:
-    """A number for a summary table or markdown: ``format(v, spec)``, or an em dash for None."""
-    return "—" if v is None else format(v, spec)
 
 
 def parse_values(text: str, option: str, unit: str = "") -> list[float]:
@@ -88,14 +96,56 @@ def parse_values(text: str, option: str, unit: str = "") -> list[float]:
 
 @contextlib.contextmanager
 def progress(description: str, total: int, quiet: bool) -> Iterator:
-    """A rich progress bar (silent with --quiet); yields ``advance(n=1)``."""
+    """A rich progress bar with an ETA on stderr (silent with --quiet); yields
+    ``advance(n=1)``."""
     if quiet:
         yield lambda n=1: None
         return
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.progress import (
+        BarColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     with Progress(TextColumn("{task.description}"), BarColumn(),
                   TextColumn("{task.completed}/{task.total}"), TimeElapsedColumn(),
+                  TextColumn("eta"), TimeRemainingColumn(),
                   console=console(stderr=True), transient=True) as prog:
         task = prog.add_task(description, total=total)
         yield lambda n=1: prog.advance(task, n)
+
+
+def write_result(result, out: Path, provenance: dict) -> dict:
+    """Write a study result into the folder ``out``: ``<name>.json`` (provenance first), its
+    CSV tables, its attachments and its figures (PNG and PDF), every file atomically. Returns
+    the JSON document written."""
+    from ..files import output
+
+    doc = {"provenance": provenance, **result.document()}
+    out.mkdir(parents=True, exist_ok=True)
+    output.write_json(out / f"{result.name}.json", doc)
+    for name, t in result.tables().items():
+        output.write_csv(out / f"{name}.csv", t.header, t.rows, comments=t.comments,
+                         provenance=provenance)
+    attach = getattr(result, "attachments", None)
+    for name, data in (attach(doc) if attach else {}).items():
+        if isinstance(data, bytes):
+            output.write_bytes_atomic(out / name, data)
+        else:
+            output.write_text_atomic(out / name, data)
+    save_figures(result.figures(), out)
+    return doc
+
+
+def save_figures(figures: dict, out: Path) -> None:
+    """Save each figure as ``out/<name>.png`` and ``.pdf`` and close it."""
+    if not figures:
+        return
+    from ..files import output
+    from ..plots.style import close
+
+    for name, fig in figures.items():
+        output.save_figure(fig, out / name)
+        close(fig)

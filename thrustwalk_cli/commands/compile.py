@@ -6,9 +6,10 @@ from typing import Annotated
 
 import typer
 
-from .common import QuietOpt, RobotArg, cli_errors, console
+from .common import cli_errors, console
+from .options import QuietOpt, RobotArg
 
-HELP = """Compile a robot file with SymPy into cached numeric dynamics (SPEC 1).
+HELP = """Compile a robot file with SymPy into cached numeric dynamics.
 
 Derives D, C, G, B_F, the unpinned model, swing-foot kinematics and the impact map, generates
 vectorised code with common-subexpression elimination and caches it by content hash.
@@ -18,22 +19,21 @@ EPILOG = "Example: thrustwalk compile rabbit --rebuild"
 
 
 def run_compile(robot: str, rebuild: bool = False) -> dict:
-    from ..model import load_model
-    from ..robot_io import load_robot
+    from ..studies.compile import compile_robot
 
-    model = load_model(load_robot(robot), rebuild=rebuild)
-    return model.summary()
+    return compile_robot(robot, rebuild).summary()
 
 
 def register(app: typer.Typer) -> None:
     @app.command("compile", help=HELP, epilog=EPILOG)
     def compile_cli(
+        ctx: typer.Context,
         robot: RobotArg = "three_link",
         rebuild: Annotated[bool, typer.Option(
             "--rebuild", help="Ignore the cache and compile again.")] = False,
         quiet: QuietOpt = False,
     ) -> None:
-        with cli_errors():
+        with cli_errors(ctx):
             s = run_compile(robot, rebuild)
             if quiet:
                 return

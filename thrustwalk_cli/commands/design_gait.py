@@ -1,4 +1,4 @@
-"""``thrustwalk design-gait``: find a stable, walkable Bezier gait for a robot (SPEC 2, 3, 5)."""
+"""``thrustwalk design-gait``: find a stable, walkable Bezier gait for a robot."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ from typing import Annotated
 import typer
 
 from ..errors import ComputationError, InputError
-from .common import QuietOpt, RobotArg, cli_errors, console, progress
+from .common import cli_errors, console, progress
+from .options import QuietOpt, RobotArg
 
 HELP = """Design a stable, hybrid-invariant Bezier gait by constrained optimisation.
 
@@ -69,16 +70,6 @@ def parse_thrust_range(text: str | None) -> tuple[str, float, float] | None:
     return parts[0].strip(), lo, hi
 
 
-def _robot_ref(robot: str, resolved: str, out: Path) -> str:
-    """How the gait file names its robot: the bundled name, or a path relative to it."""
-    import os
-
-    p = Path(robot)
-    if not p.is_file() and "/" not in robot and not robot.endswith((".yaml", ".yml")):
-        return robot
-    return os.path.relpath(Path(resolved).resolve(), out.resolve().parent)
-
-
 def run_design_gait(robot: str, out: Path, *, speed: float | None, step_length: float | None,
                     mu: float, order: int, starts: int, seed: int, clearance: float,
                     max_delta_sq: float, objective: str, design_thrust: bool,
@@ -88,27 +79,17 @@ def run_design_gait(robot: str, out: Path, *, speed: float | None, step_length: 
                     quiet: bool) -> dict:
     """Plain function behind the command; returns the report it wrote (``feasible`` says
     whether the gait file was written)."""
-    import os
-
-    from .. import output
-    from ..design import (
-        DesignSpec,
-        check_gait,
-        design_gait,
-        gait_yaml,
-        reload_check,
-        report_record,
-        with_name,
-        yaml_header,
-    )
-    from ..model import load_model
-    from ..robot_io import load_gait_for, load_robot
+    from ..design.spec import DesignSpec
+    from ..files import output
+    from ..studies.compile import compile_robot
+    from ..studies.design_gait import design_gait, reload_check, robot_reference
+    from ..walker import load_walker
 
     if out.suffix not in (".yaml", ".yml"):
         raise InputError(f"option --out: the gait file must end in .yaml (got {out})")
     gait_name = name or out.stem
-    rob = load_robot(robot)
-    model = load_model(rob)
+    model = compile_robot(robot)
+    rob = model.robot
     spec = DesignSpec(speed=speed, step_length=step_length, mu=mu, order=order,
                       clearance=clearance, max_delta_sq=max_delta_sq,
                       min_vertical_force=min_vertical_force, objective=objective,
@@ -117,37 +98,25 @@ def run_design_gait(robot: str, out: Path, *, speed: float | None, step_length: 
                       alpha_c=parse_alpha(alpha, rob.coordinate_names), starts=starts,
                       seed=seed, max_iter=max_iter, name=gait_name)
     spec.validate(model)
-    cmp_gait = None
-    if compare is not None:
-        crob, cmp_gait = load_gait_for(None, compare)
-        if crob.name != rob.name:
-            raise InputError(f"option --compare: gait {cmp_gait.name!r} is for robot "
-                             f"{crob.name!r}, not {rob.name!r}")
+    cmp = load_walker(None, compare) if compare is not None else None
     with progress(f"design-gait {rob.name}: {starts} start(s)", starts, quiet) as advance:
-        res = design_gait(model, spec, progress=lambda done, total, msg: advance(1))
-    res = with_name(res, gait_name)
+        result = design_gait(model, spec, compare=cmp,
+                             progress=lambda done, total, msg: advance(1))
     report_path = out.with_name(out.stem + ".report.json")
     prov = output.provenance(rob)
-    doc = {"provenance": prov, "robot": {"name": rob.name, "file": rob.source_file},
-           "gait_file": str(out) if res.feasible else None, **report_record(res)}
-    if cmp_gait is not None:
-        doc["compare"] = {"gait": cmp_gait.name, "file": cmp_gait.source_file,
-                          **check_gait(model, cmp_gait, spec)}
-    if res.feasible:
-        text = gait_yaml(res, model, _robot_ref(robot, rob.source_file, out),
-                         yaml_header(res, prov, report_path.name))
-        tmp = out.with_name(f".{out.stem}.check{out.suffix}")
-        output.write_text_atomic(tmp, text)
-        try:
-            back = reload_check(model, tmp, res)
-            if not back["relative_error"] <= 1e-8:
-                raise ComputationError(
-                    f"the written gait does not reproduce the designed fixed point "
-                    f"(zeta* {back['zeta_star']} vs {back['reference']})")
-            doc["reload_check"] = back
-            os.replace(tmp, out)
-        finally:
-            tmp.unlink(missing_ok=True)
+    body = result.document()
+    doc = {"provenance": prov, "robot": body.pop("robot"),
+           "gait_file": str(out) if result.success else None, **body}
+    text = None
+    if result.success:
+        text = result.gait_text(prov, robot_reference(rob, robot, out), report_path.name)
+        back = reload_check(model, text, str(out), result.design)
+        if not back["relative_error"] <= 1e-8:
+            raise ComputationError(
+                f"the written gait does not reproduce the designed fixed point "
+                f"(zeta* {back['zeta_star']} vs {back['reference']})")
+        doc["reload_check"] = back
+        output.write_text_atomic(out, text)
     output.write_json(report_path, doc)
     if not quiet:
         _summary(doc, out, report_path)
@@ -187,6 +156,7 @@ def _summary(doc: dict, out: Path, report: Path) -> None:
 def register(app: typer.Typer) -> None:
     @app.command("design-gait", help=HELP, epilog=EPILOG)
     def design_gait_cli(
+        ctx: typer.Context,
         robot: RobotArg,
         out: Annotated[Path, typer.Option(
             "--out", "-o", help="Gait file to write (NAME.yaml); the report goes to "
@@ -209,7 +179,7 @@ def register(app: typer.Typer) -> None:
         objective: Annotated[str, typer.Option(
             "--objective", help="effort: (1/L) int |u|^2 dt [N^2 m s]; peak: max |u| [N m].")
         ] = "effort",
-        design_thrust: Annotated[bool, typer.Option(
+        thrust_design: Annotated[bool, typer.Option(
             "--design-thrust", help="Co-design one constant thrust per thruster [N].")
         ] = False,
         thrust_weight: Annotated[float, typer.Option(
@@ -220,7 +190,7 @@ def register(app: typer.Typer) -> None:
         min_vertical_force: Annotated[float | None, typer.Option(
             "--min-vertical-force", help="eps in F_v >= eps [N] (default 10 % of weight).")
         ] = None,
-        alpha: Annotated[str | None, typer.Option(
+        alpha_c: Annotated[str | None, typer.Option(
             "--alpha", help="alpha = c q as name:value pairs [1], e.g. q_T:-1,q_sh:1,q_sk:0.5 "
                             "(default: minus the mean angle of the stance-leg links).")] = None,
         max_iter: Annotated[int, typer.Option(
@@ -232,13 +202,13 @@ def register(app: typer.Typer) -> None:
                               "constraints (written to the report).")] = None,
         quiet: QuietOpt = False,
     ) -> None:
-        with cli_errors():
+        with cli_errors(ctx):
             doc = run_design_gait(
                 robot, out, speed=speed, step_length=step_length, mu=mu, order=order,
                 starts=starts, seed=seed, clearance=clearance, max_delta_sq=max_delta_sq,
-                objective=objective, design_thrust=design_thrust, thrust_weight=thrust_weight,
+                objective=objective, design_thrust=thrust_design, thrust_weight=thrust_weight,
                 thrust_range=thrust_range,
-                min_vertical_force=min_vertical_force, alpha=alpha, max_iter=max_iter,
+                min_vertical_force=min_vertical_force, alpha=alpha_c, max_iter=max_iter,
                 name=name, compare=compare, quiet=quiet)
             if not doc["feasible"]:
                 sys.stderr.write(f"infeasible: {doc['reason']}\n")

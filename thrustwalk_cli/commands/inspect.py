@@ -8,7 +8,8 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
-from .common import QuietOpt, RobotArg, cli_errors, console
+from .common import cli_errors, console
+from .options import QuietOpt, RobotArg
 
 HELP = """Evaluate the model at one state: D [kg m^2], C q' [N m], G [N m], B_F [m],
 swing-foot position [m] and, with --dq, the impact map (post-impact rates [rad/s] after
@@ -18,38 +19,18 @@ EPILOG = ("Example: thrustwalk inspect three_link --q 0.1,0.2,-0.3 --dq 0,1,-1 "
           "--json state.json")
 
 
-def _vector(text: str, option: str, n: int, names: list[str]) -> list[float]:
-    try:
-        vals = [float(v) for v in text.split(",")]
-    except ValueError:
-        raise InputError(f"option {option}: expected {n} comma-separated numbers "
-                         f"({', '.join(names)}), got {text!r}") from None
-    if len(vals) != n:
-        raise InputError(f"option {option}: expected {n} values ({', '.join(names)}), "
-                         f"got {len(vals)}")
-    return vals
-
-
 def run_inspect(robot: str, q: str, dq: str | None, thrust: str | None) -> dict:
     """Evaluate the model; returns the JSON document (keys fixed by the robot-model issue)."""
-    from ..model import load_model
-    from ..robot_io import load_robot
+    from ..studies.compile import compile_robot
+    from ..studies.inspect import inspect_state
 
-    model = load_model(load_robot(robot))
-    names = model.robot.coordinate_names
-    qv = _vector(q, "--q", model.n, names)
-    doc: dict = {"coordinates": names, "q": qv}
-    doc.update(model.evaluate_state(
-        qv,
-        None if dq is None else _vector(dq, "--dq", model.n, names),
-        None if thrust is None else _vector(thrust, "--thrust", model.n_thrusters,
-                                            model.robot.thruster_names)))
-    return doc
+    return inspect_state(compile_robot(robot), q, dq, thrust)
 
 
 def register(app: typer.Typer) -> None:
     @app.command("inspect", help=HELP, epilog=EPILOG)
     def inspect_cli(
+        ctx: typer.Context,
         robot: RobotArg = "three_link",
         q: Annotated[str, typer.Option("--q", help="Configuration [rad], comma-separated.")] = "",
         dq: Annotated[str | None, typer.Option(
@@ -60,16 +41,19 @@ def register(app: typer.Typer) -> None:
             "--json", help="Also write the numbers to this JSON file.")] = None,
         quiet: QuietOpt = False,
     ) -> None:
-        with cli_errors():
+        with cli_errors(ctx):
             if not q:
                 raise InputError("option --q: required (one angle per coordinate, in rad)")
-            doc = run_inspect(robot, q, dq, thrust)
-            if json_file is not None:
-                from .. import output
-                from ..robot_io import load_robot
+            from ..studies.compile import compile_robot
+            from ..studies.inspect import inspect_state
 
-                rob = load_robot(robot)
-                output.write_json(json_file, {"provenance": output.provenance(rob), **doc})
+            model = compile_robot(robot)
+            doc = inspect_state(model, q, dq, thrust)
+            if json_file is not None:
+                from ..files import output
+
+                output.write_json(json_file, {"provenance": output.provenance(model.robot),
+                                              **doc})
             if not quiet:
                 c = console()
                 for key, val in doc.items():

@@ -7,9 +7,10 @@ from typing import Annotated
 
 import typer
 
-from .common import GaitArg, OutOpt, QuietOpt, RobotArg, cli_errors, console, fmt, parse_values
+from .common import cli_errors, console, parse_values, write_result
+from .options import GaitArg, OutOpt, QuietOpt, RobotArg, ThrusterOpt
 
-HELP = """Limit cycles of the hybrid zero dynamics for constant thrust values (SPEC 3-4).
+HELP = """Limit cycles of the hybrid zero dynamics for constant thrust values.
 
 For every thrust value: Poincare fixed point zeta* [kg^2 m^4/s^2], stability (delta_zero^2),
 step time [s], step length [m], speed [m/s], sigma_N^+/- [kg m^2/s], alpha'^+/- [rad/s] and
@@ -27,33 +28,13 @@ EPILOG = ("Example: thrustwalk limit-cycle three_link three_link_walk --thrust 0
 def run_limit_cycle(robot: str, gait: str, thrust: list[float], thruster: str | None,
                     out: Path, quiet: bool) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
-    from .. import output, plots
-    from ..model import load_model
-    from ..robot_io import load_gait_for
-    from ..zero_dynamics import sweep_records, zero_dynamics
+    from ..files.output import provenance
+    from ..studies.limit_cycle import limit_cycle
+    from ..walker import load_walker
 
-    rob, g = load_gait_for(robot, gait)
-    model = load_model(rob)
-    zd = zero_dynamics(model, g)
-    doc, csv_rows, fig_data = sweep_records(zd, thrust, thruster)
-    doc = {"provenance": output.provenance(rob, g), **doc}
-    out.mkdir(parents=True, exist_ok=True)
-    output.write_json(out / "limit_cycles.json", doc)
-    output.write_csv(out / "limit_cycles.csv", csv_rows["header"], csv_rows["rows"],
-                     comments=csv_rows["comments"], provenance=doc["provenance"])
-    fig = plots.phase_portrait(
-        fig_data["values"], fig_data["orbits"], fig_data["jumps"],
-        value_label=f"thrust {doc['thruster']} [N]", black_every=10.0,
-        title=f"{rob.name} / {g.name}: zero-dynamics limit cycles")
-    output.save_figure(fig, out / "limit_cycles")
-    zd_doc = doc["zero_dynamics"]
-    cycles = doc["cycles"]
-    fig = plots.fixed_point_shift(
-        [c["thrust"] for c in cycles], [c["zeta_star"] if c["exists"] else None for c in cycles],
-        [c["speed"] for c in cycles], zd_doc["zeta_star_per_newton"],
-        zd_doc["zeta_star_at_zero_thrust"], thruster=doc["thruster"],
-        title=f"{rob.name} / {g.name}: fixed-point shift")
-    output.save_figure(fig, out / "fixed_point_shift")
+    walker = load_walker(robot, gait)
+    doc = write_result(limit_cycle(walker, thrust, thruster), out,
+                       provenance(walker.robot, walker.gait))
     if not quiet:
         _table(doc)
     return doc
@@ -61,6 +42,8 @@ def run_limit_cycle(robot: str, gait: str, thrust: list[float], thruster: str | 
 
 def _table(doc: dict) -> None:
     from rich.table import Table
+
+    from ..studies.records import fmt
 
     zd = doc["zero_dynamics"]
     t = Table(title=f"limit cycles: {doc['robot']['name']} / {doc['gait']['name']} "
@@ -79,16 +62,16 @@ def _table(doc: dict) -> None:
 def register(app: typer.Typer) -> None:
     @app.command("limit-cycle", help=HELP, epilog=EPILOG)
     def limit_cycle_cli(
+        ctx: typer.Context,
         robot: RobotArg = "three_link",
         gait: GaitArg = "three_link_walk",
         thrust: Annotated[str, typer.Option(
             "--thrust", help="Thrust values [N]: start:stop:step or a comma list.")] = "0:-50:-10",
-        thruster: Annotated[str | None, typer.Option(
-            "--thruster", help="Thruster that the sweep drives (default: the first).")] = None,
+        thruster: ThrusterOpt = None,
         out: OutOpt = Path("out/limit_cycle"),
         quiet: QuietOpt = False,
     ) -> None:
-        with cli_errors():
+        with cli_errors(ctx):
             values = parse_values(thrust, "--thrust", "N")
             run_limit_cycle(robot, gait, values, thruster, out, quiet)
             if not quiet:

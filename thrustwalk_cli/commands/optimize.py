@@ -7,9 +7,10 @@ from typing import Annotated
 
 import typer
 
-from .common import GaitArg, OutOpt, QuietOpt, RobotArg, cli_errors, console, parse_values
+from .common import cli_errors, console, parse_values, write_result
+from .options import EpsOpt, GaitArg, MuOpt, OutOpt, QuietOpt, RobotArg
 
-HELP = """The least thrust that reaches a target while staying walkable (SPEC 6).
+HELP = """The least thrust that reaches a target while staying walkable.
 
 Chooses one thrust value per knot interval (force mode: newtons on one thruster; generalized
 mode: T_j on q_N in N m) minimising sum_j w_j x_j^2 (w_j = alpha-length [rad] or nominal time
@@ -33,34 +34,16 @@ def run_optimize(robot: str, gait: str, *, knots: list[float], target_speed: flo
                  eps: float, zeta_min: float | None, thruster: str | None, mode: str,
                  weights: str, out: Path, quiet: bool) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
-    from .. import output, plots_contact
-    from ..model import load_model
-    from ..optimize_study import optimize_study
-    from ..robot_io import load_gait_for
-    from ..zero_dynamics import zero_dynamics
+    from ..files.output import provenance
+    from ..studies.optimize import optimize_schedule
+    from ..walker import load_walker
 
-    rob, g = load_gait_for(robot, gait)
-    model = load_model(rob)
-    zd = zero_dynamics(model, g)
-    mu = g.mu if mu is None else mu
-    body, figs, yaml_text = optimize_study(
-        model, zd, g, rob, fractions=knots, target_zeta=target_zeta, target_speed=target_speed,
+    walker = load_walker(robot, gait)
+    result = optimize_schedule(
+        walker, knots=knots, target_zeta=target_zeta, target_speed=target_speed,
         max_thrust=max_thrust, mu=mu, eps=eps, zeta_min=zeta_min, thruster=thruster,
         mode=mode, weights=weights)
-    files = ["optimal_schedule.json"]
-    out.mkdir(parents=True, exist_ok=True)
-    if yaml_text is not None:
-        name = f"{g.name}_optimal.yaml"
-        output.write_text_atomic(out / name, yaml_text)
-        fig = plots_contact.optimal_figure(
-            figs["nominal"], figs["optimal"], figs["knots"], figs["values"], unit=figs["unit"],
-            profile=figs["profile"], mu=mu, title=f"{rob.name} / {g.name}: optimal schedule")
-        output.save_figure(fig, out / "optimal_orbit")
-        files += [name, "optimal_orbit.png", "optimal_orbit.pdf"]
-    doc = {"provenance": output.provenance(rob, g),
-           "robot": {"name": rob.name, "file": rob.source_file},
-           "gait": {"name": g.name, "file": g.source_file}, **body, "files": files}
-    output.write_json(out / "optimal_schedule.json", doc)
+    doc = write_result(result, out, provenance(walker.robot, walker.gait))
     if not quiet:
         _summary(doc)
     return doc
@@ -91,6 +74,7 @@ def _summary(doc: dict) -> None:
 def register(app: typer.Typer) -> None:
     @app.command("optimize", help=HELP, epilog=EPILOG)
     def optimize_cli(
+        ctx: typer.Context,
         robot: RobotArg = "three_link",
         gait: GaitArg = "three_link_walk",
         knots: Annotated[str, typer.Option(
@@ -103,10 +87,8 @@ def register(app: typer.Typer) -> None:
         max_thrust: Annotated[float | None, typer.Option(
             "--max-thrust", help="Bound |x_j| <= this [N] (force mode; default: the thruster's "
                                  "limits) or [N m] (generalized mode, required).")] = None,
-        mu: Annotated[float | None, typer.Option(
-            "--mu", help="Friction coefficient [-] (default: the gait's `mu`).")] = None,
-        eps: Annotated[float, typer.Option(
-            "--eps", help="Minimum vertical ground force [N].")] = 0.0,
+        mu: MuOpt = None,
+        eps: EpsOpt = 0.0,
         zeta_min: Annotated[float | None, typer.Option(
             "--zeta-min", help="Lower bound on zeta(alpha) along the step [kg^2 m^4/s^2] "
                                "(default: 1 % of zeta*).")] = None,
@@ -121,7 +103,7 @@ def register(app: typer.Typer) -> None:
         out: OutOpt = Path("out/optimize"),
         quiet: QuietOpt = False,
     ) -> None:
-        with cli_errors():
+        with cli_errors(ctx):
             fr = parse_values(knots, "--knots")
             doc = run_optimize(robot, gait, knots=fr, target_speed=target_speed,
                                target_zeta=target_zeta, max_thrust=max_thrust, mu=mu, eps=eps,

@@ -7,7 +7,8 @@ from typing import Annotated
 
 import typer
 
-from .common import QuietOpt, cli_errors, console
+from .common import cli_errors, console
+from .options import QuietOpt
 
 HELP = """Write DIR/index.md: every figure below DIR with the command that made it (from the
 provenance of the JSON next to it) and its key numbers in SI units (thrust [N], speed [m/s],
@@ -19,15 +20,16 @@ EPILOG = "Example: thrustwalk report figures"
 def register(app: typer.Typer) -> None:
     @app.command("report", help=HELP, epilog=EPILOG)
     def report_cli(
+        ctx: typer.Context,
         folder: Annotated[Path, typer.Argument(help="Results folder, e.g. figures.")],
         title: Annotated[str, typer.Option("--title", help="Heading of the index.")] = (
             "thrustwalk figures"),
         quiet: QuietOpt = False,
     ) -> None:
-        with cli_errors():
-            from .. import output
+        with cli_errors(ctx):
             from ..errors import InputError
-            from ..report import build_index
+            from ..files import output
+            from ..studies.report import build_index
 
             if not folder.is_dir():
                 raise InputError(f"{folder}: not a folder")

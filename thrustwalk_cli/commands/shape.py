@@ -8,18 +8,20 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from ..errors import InputError
-from .common import GaitArg, OutOpt, QuietOpt, RobotArg, cli_errors, console, fmt, parse_values
+from .common import cli_errors, console, parse_values, progress, write_result
+from .options import GaitArg, OutOpt, QuietOpt, RobotArg
 
 if TYPE_CHECKING:
-    from ..shaping_study import ShapeRequest
+    from ..studies.shape import ShapeRequest
 
-HELP = """Shape the limit cycle with thrust switched at knots alpha_j along the step (SPEC 4).
+HELP = """Shape the limit cycle with thrust switched at knots alpha_j along the step.
 
 Thrust is constant on each interval [alpha_j, alpha_{j+1}): in --mode generalized the paper's
 T_j [N m], a generalised force on q_N; in --mode force the thrust F_j [N] of one thruster.
 Reports b_F = int 1/kappa_1 [kg m^2 rad] and Gamma_j = int beta/kappa_1 [kg m^3 rad] per
 interval, zeta* [kg^2 m^4/s^2] nominal and shaped, and both the true fixed-point shift
-sum b_F T_j / (1 - delta_zero^2) and the paper's one-step value sum b_F T_j (SPEC 4 erratum).
+sum b_F T_j / (1 - delta_zero^2) and the paper's one-step value sum b_F T_j (the paper
+omits the factor 1/(1 - delta_zero^2); see the README's conventions).
 
 Schedules: a --pattern in j (interval 1..n-1) and k (swept by --k), by default the paper's
 k*(j-2) on 4 knots with the interior knots solved so that the fixed point is unchanged
@@ -74,59 +76,15 @@ def run_shape(robot: str | None, gait: str, request: ShapeRequest, out: Path,
     Exit 1 (after writing shape.json with the reason) when no shape-only knots exist or a
     target cannot be reached.
     """
-    from .. import output, plots_shaping
-    from ..model import load_model
-    from ..robot_io import load_gait_for
-    from ..shaping_study import default_ks, resolve, shape_records, shape_study, study_fields
-    from ..zero_dynamics import zero_dynamics
-    from .common import progress
+    from ..files.output import provenance
+    from ..studies.shape import schedule_count, shape
+    from ..walker import load_walker
 
-    rob, g = load_gait_for(robot, gait)
-    zd = zero_dynamics(load_model(rob), g)
-    total = 1
-    if resolve(zd, request)[0] == "pattern":
-        total = len(request.ks if request.ks is not None else default_ks())
-    with progress("shaped limit cycles", total, quiet) as advance:
-        study = shape_study(zd, request, progress=advance)
-    doc, csv_rows = shape_records(zd, study)
-    doc = {"provenance": output.provenance(rob, g), **doc}
-    out.mkdir(parents=True, exist_ok=True)
-    output.write_json(out / "shape.json", doc)
-    if not study.success:
-        return doc
-    output.write_csv(out / "shape.csv", csv_rows["header"], csv_rows["rows"],
-                     comments=csv_rows["comments"], provenance=doc["provenance"])
-
-    def curve(lc):
-        if not lc.exists:
-            return None, None
-        return lc.orbit, (zd.alpha_f, lc.alpha_dot_minus, zd.alpha_i, lc.alpha_dot_plus)
-
-    def curve_sigma(lc):
-        if not lc.exists:
-            return None, None
-        return lc.orbit, (zd.alpha_f, lc.sigma_minus, zd.alpha_i, lc.sigma_plus)
-
-    knots = doc["knots"]["alpha"]
-    unit = "N m" if study.mode == "generalized" else "N"
-    what = (f"T_j = {study.pattern} [{unit}]" if study.mode == "generalized"
-            else f"F_j = {study.pattern} [{unit}], {doc['thruster']}")
-    curves = [curve(lc) for lc in study.cycles]
-    fig = plots_shaping.shape_portrait(
-        study.values, study.labels, [c[0] for c in curves], [c[1] for c in curves],
-        curve(study.nominal), knots, value_label=f"k ({what})",
-        title=f"{rob.name} / {g.name}: shaped limit cycles ({len(knots)} knots)")
-    output.save_figure(fig, out / "shape")
-    note = "" if study.field_cycle.exists else f"no shaped orbit: {study.field_cycle.reason}"
-    fields = study_fields(zd, study)
-    nom = {"alpha_dot": curve(study.nominal), "sigma": curve_sigma(study.nominal)}
-    shp = {"alpha_dot": curve(study.field_cycle), "sigma": curve_sigma(study.field_cycle)}
-    fig = plots_shaping.vector_field_figure(
-        fields, nom, shp, knots,
-        shaped_label=study.field_label, note=note,
-        title=f"{rob.name} / {g.name}: zero-dynamics vector field, nominal vs shaped")
-    output.save_figure(fig, out / "vector_field")
-    if not quiet:
+    walker = load_walker(robot, gait)
+    with progress("shaped limit cycles", schedule_count(walker, request), quiet) as advance:
+        result = shape(walker, request, progress=advance)
+    doc = write_result(result, out, provenance(walker.robot, walker.gait))
+    if result.success and not quiet:
         _table(doc)
     return doc
 
@@ -140,6 +98,8 @@ def _values_text(s: dict) -> str:
 
 def _table(doc: dict) -> None:
     from rich.table import Table
+
+    from ..studies.records import fmt
 
     c = console()
     kn = doc["knots"]
@@ -188,6 +148,7 @@ def _table(doc: dict) -> None:
 def register(app: typer.Typer) -> None:
     @app.command("shape", help=HELP, epilog=EPILOG)
     def shape_cli(
+        ctx: typer.Context,
         robot: RobotArg = "three_link",
         gait: GaitArg = "three_link_walk",
         knots: Annotated[str | None, typer.Option(
@@ -220,8 +181,8 @@ def register(app: typer.Typer) -> None:
         out: OutOpt = Path("out/shape"),
         quiet: QuietOpt = False,
     ) -> None:
-        with cli_errors():
-            from ..shaping_study import ShapeRequest
+        with cli_errors(ctx):
+            from ..studies.shape import ShapeRequest
 
             req = ShapeRequest(
                 knots=_knots(knots), alpha_knots=alpha_knots, n_knots=n_knots,

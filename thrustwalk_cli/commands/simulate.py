@@ -8,25 +8,16 @@ from typing import Annotated
 
 import typer
 
-from .common import (
-    GaitArg,
-    OutOpt,
-    QuietOpt,
-    RobotArg,
-    cli_errors,
-    console,
-    fmt,
-    parse_values,
-    progress,
-)
+from .common import cli_errors, console, parse_values, progress, write_result
+from .options import GaitArg, OutOpt, QuietOpt, RobotArg
 
-HELP = """Full-order hybrid simulation of the closed loop with thruster dynamics (SPEC 7).
+HELP = """Full-order hybrid simulation of the closed loop with thruster dynamics.
 
 Controller: input-output linearisation y'' = -Kp y - Kd y' (gains from the gait file), which
 cancels the thrust on the joints. Guard: swing-foot height crossing 0 downward after mid-step;
 impact map and leg relabelling; thruster states carry across impacts. One run per F_ss value
 [N]; each is compared step by step with the zero-dynamics prediction and the reduced cascade
-(SPEC 3). Thrust models: constant; first-order lag (tau [s]); second-order
+(the zero dynamics in time). Thrust models: constant; first-order lag (tau [s]); second-order
 F'' + 2 xi wn F' + wn^2 F = wn^2 F_ss (wn [rad/s], the paper's slow thruster); piecewise in
 alpha (the gait's thrust: section). The start is just after an impact on the predicted orbit
 (zeta^- = zeta* of the thrust at t = 0, or of zero thrust with --start nominal), scaled by
@@ -56,64 +47,24 @@ def run_simulate(robot: str, gait: str, *, steps: int, thrust_model: str, f_ss: 
                  samples: int, scuff_tol: float, reduced: bool, animate: bool, out: Path,
                  quiet: bool) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
-    from .. import output, plots_simulate
-    from ..errors import InputError
-    from ..model import load_model
-    from ..robot_io import load_gait_for
-    from ..simulate import SimConfig, Start
-    from ..simulate_records import (
-        animation_frames,
-        figure_data,
-        make_scenario,
-        run_scenario,
-        simulation_document,
-        steps_table,
-        trajectory_output,
-    )
-    from ..zero_dynamics import zero_dynamics
+    from ..files import output
+    from ..studies.simulate import simulate
+    from ..walker import load_walker
 
-    if (q0 is None) != (dq0 is None):
-        raise InputError("options --q0/--dq0: give both or neither")
-    if q0 is not None and (zeta0 is not None or perturb != 0.0):
-        raise InputError("options --q0/--dq0 replace --zeta0/--perturb: give one kind of start")
     values = _floats(f_ss, "--f-ss")
-    if values is None and thrust_model != "piecewise":
-        values = parse_values("0:-50:-10", "--f-ss")
-    start = Start(zeta_minus=zeta0, perturb=perturb, q=_floats(q0, "--q0"),
-                  dq=_floats(dq0, "--dq0"), orbit=start_orbit)
-    config = SimConfig(steps=steps, rtol=rtol, atol=atol, method=method,
-                       samples_per_step=samples, torque_limit=torque_limit, scuff_tol=scuff_tol)
-    rob, g = load_gait_for(robot, gait)
-    model = load_model(rob)
-    zd = zero_dynamics(model, g)
-    sc = make_scenario(zd, thrust_model, values, thrusters, wn=wn, xi=xi, tau=tau, f0=f0,
-                       start=start, config=config, reduced_only=reduced)
-    n_runs = max(1, len(sc.values))
+    q, dq = _floats(q0, "--q0"), _floats(dq0, "--dq0")
+    walker = load_walker(robot, gait)
+    n_runs = max(1, len(values)) if values is not None else (
+        1 if thrust_model == "piecewise" else 6)
     with progress("simulating steps", n_runs * steps, quiet) as advance:
-        outcomes = run_scenario(zd, sc, advance)
-    prov = output.provenance(rob, g)
-    kind, traj = trajectory_output(zd, outcomes, provenance=prov)
-    doc = {"provenance": prov, **simulation_document(zd, sc, outcomes),
-           "trajectory_file": f"trajectory.{kind}"}
-    out.mkdir(parents=True, exist_ok=True)
-    output.write_json(out / "simulation.json", doc)
-    tab = steps_table(doc, rob.thruster_names)
-    output.write_csv(out / "steps.csv", tab["header"], tab["rows"], comments=tab["comments"],
-                     provenance=doc["provenance"])
-    if kind == "npz":
-        output.write_bytes_atomic(out / "trajectory.npz", traj)
-    else:
-        output.write_csv(out / "trajectory.csv", traj["header"], traj["rows"],
-                         comments=traj["comments"], provenance=doc["provenance"])
-    data = figure_data(zd, sc, outcomes)
-    name = f"{rob.name} / {g.name}"
-    output.save_figure(plots_simulate.thrust_time(data, title=f"{name}: thrust"),
-                       out / "thrust_time")
-    output.save_figure(plots_simulate.phase_portrait(data, title=f"{name}: limit cycles"),
-                       out / "phase_portrait")
+        result = simulate(
+            walker, steps=steps, thrust_model=thrust_model, f_ss=values, wn=wn, xi=xi, tau=tau,
+            f0=f0, thruster=thrusters, perturb=perturb, zeta0=zeta0, q0=q, dq0=dq,
+            start=start_orbit, torque_limit=torque_limit, rtol=rtol, atol=atol, method=method,
+            samples=samples, scuff_tol=scuff_tol, reduced=reduced, progress=advance)
+    doc = write_result(result, out, output.provenance(walker.robot, walker.gait))
     if animate:
-        frames = animation_frames(zd, outcomes[-1])
-        output.write_bytes_atomic(out / "walker.gif", plots_simulate.animate(frames))
+        output.write_bytes_atomic(out / "walker.gif", result.animation())
     if not quiet:
         _table(doc)
     return doc
@@ -121,6 +72,8 @@ def run_simulate(robot: str, gait: str, *, steps: int, thrust_model: str, f_ss: 
 
 def _table(doc: dict) -> None:
     from rich.table import Table
+
+    from ..studies.records import fmt
 
     t = Table(title=f"simulate: {doc['robot']['name']} / {doc['gait']['name']} "
                     f"({doc['settings']['thrust_model']}, delta_zero^2 = "
@@ -137,6 +90,7 @@ def _table(doc: dict) -> None:
 def register(app: typer.Typer) -> None:
     @app.command("simulate", help=HELP, epilog=EPILOG)
     def simulate_cli(
+        ctx: typer.Context,
         robot: RobotArg = "three_link",
         gait: GaitArg = "three_link_walk",
         steps: Annotated[int, typer.Option("--steps", help="Steps per run.")] = 30,
@@ -161,7 +115,7 @@ def register(app: typer.Typer) -> None:
         perturb: Annotated[float, typer.Option(
             "--perturb", help="Relative change of the start's pre-impact zeta^- [1], e.g. "
                               "0.2 = 20 % more.")] = 0.0,
-        start_orbit: Annotated[str, typer.Option(
+        start: Annotated[str, typer.Option(
             "--start", help="Start on the fixed point of the thrust at t = 0 (predicted) or "
                             "of zero thrust (nominal).")] = "predicted",
         zeta0: Annotated[float | None, typer.Option(
@@ -184,17 +138,18 @@ def register(app: typer.Typer) -> None:
         scuff_tol: Annotated[float, typer.Option(
             "--scuff-tol", help="Depth the swing foot may dip before mid-step [m].")] = 1e-4,
         reduced: Annotated[bool, typer.Option(
-            "--reduced", help="Fast preview: the reduced cascade of SPEC 3 only.")] = False,
+            "--reduced", help="Fast preview: the reduced cascade (zero dynamics plus thruster "
+                              "states) only.")] = False,
         animate: Annotated[bool, typer.Option(
             "--animate", help="Also write DIR/walker.gif (the last run).")] = False,
         out: OutOpt = Path("out/simulate"),
         quiet: QuietOpt = False,
     ) -> None:
-        with cli_errors():
+        with cli_errors(ctx):
             doc = run_simulate(
                 robot, gait, steps=steps, thrust_model=thrust_model, f_ss=f_ss, wn=wn, xi=xi,
                 tau=tau, f0=f0, thrusters=thruster, perturb=perturb, zeta0=zeta0, q0=q0,
-                dq0=dq0, start_orbit=start_orbit, torque_limit=torque_limit, rtol=rtol,
+                dq0=dq0, start_orbit=start, torque_limit=torque_limit, rtol=rtol,
                 atol=atol, method=method, samples=samples, scuff_tol=scuff_tol,
                 reduced=reduced, animate=animate, out=out, quiet=quiet)
         tool = [r for r in doc["runs"] if r["failure"] in ("integrator", "controller")]

@@ -1,0 +1,282 @@
+"""Gait design (``thrustwalk_cli.design``, ``thrustwalk design-gait``): designed gaits re-checked
+by the independent limit-cycle, contact and kinematics code paths; infeasible requests name the
+blocking constraint; the written YAML reproduces the fixed point; bad input exits 2."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from independent import point, swing_foot
+
+from thrustwalk_cli.contact.evaluate import evaluate
+from thrustwalk_cli.design.problem import FAMILIES, Problem, cell_minima, default_alpha
+from thrustwalk_cli.design.solver import solve_design
+from thrustwalk_cli.design.spec import DesignSpec
+from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.simulation.closed_loop import SimConfig, ThrustModel
+from thrustwalk_cli.simulation.full_order import Start, simulate
+from thrustwalk_cli.walker import load_walker
+
+REPO = Path(__file__).resolve().parents[1]
+SPEED = 0.8  # [m/s] 3-link design target (the shipped gait's speed)
+
+
+def _thrust(model, gait) -> np.ndarray:
+    F = np.zeros(model.n_thrusters)
+    if gait.thrust is not None:
+        for name, vals in gait.thrust.values:
+            F[model.robot.thruster_names.index(name)] = vals[0]
+    return F
+
+
+@pytest.fixture(scope="module")
+def designed3(tmp_path_factory, three_link, cli):
+    """One short 3-link design through the CLI: (gait path, report, CLI result)."""
+    out = tmp_path_factory.mktemp("design") / "walk3.yaml"
+    args = ["design-gait", "three_link", "--speed", str(SPEED), "--clearance", "0", "--starts",
+            "1", "--seed", "0", "--out", str(out), "-q"]
+    with pytest.MonkeyPatch.context() as mp:  # the command line recorded in the provenance
+        mp.setattr(sys, "argv", ["thrustwalk", *args])
+        res = cli(*args)
+    report = json.loads(out.with_name("walk3.report.json").read_text())
+    return out, report, res
+
+
+def _orbit(model, path):
+    w = load_walker(None, str(path))
+    assert w.model.key == model.key
+    gait, zd = w.gait, w.zd
+    sched = Schedule.constant(zd, _thrust(model, gait)[None, :])
+    return gait, zd, sched, limit_cycles(zd, sched)[0]
+
+
+@pytest.mark.slow
+def test_designed_gait_passes_independent_checks(designed3, three_link):
+    """Limit cycle (adaptive quadrature), contact feasibility (polished extremes, mu = 0.7) and
+    the swing foot from the independent NumPy kinematics all agree with the design."""
+    path, report, res = designed3
+    assert res.exit_code == 0, res.output
+    assert report["feasible"] and report["blocking_constraint"] is None
+    gait, zd, sched, lc = _orbit(three_link, path)
+    assert lc.exists and lc.stable, lc.reason
+    assert 0 < zd.delta_zero_sq <= 0.9
+    assert lc.speed == pytest.approx(SPEED, rel=1e-6)
+    assert zd.maps.position_residual < 1e-12 and zd.maps.velocity_residual < 1e-12
+    eps = 0.1 * three_link.robot.total_mass * three_link.robot.gravity
+    case = evaluate(three_link, zd, sched, mu=0.7, eps=eps, profiles=False).cases[0]
+    assert case.feasible, case.reason
+    assert all(v >= 0 for v in case.margins.values()), case.margins
+    # swing foot >= 0 over the step (touching allowed: straight legs), independent kinematics
+    s = np.linspace(0.0, 1.0, 2001)
+    q = zd.maps.q_Z(zd.alpha_i + s * (zd.alpha_f - zd.alpha_i))
+    h = np.array([swing_foot(three_link.robot, qk)[1] for qk in q])
+    assert h.min() >= -1e-6, f"swing foot {h.min():.3g} m below ground at s = {s[h.argmin()]}"
+    assert h[1000] >= -1e-6  # clearance 0 at mid-step
+    assert lc.step_length == pytest.approx(swing_foot(three_link.robot, zd.maps.q_minus)[0],
+                                           rel=1e-12)
+
+
+@pytest.mark.slow
+def test_objective_equals_inverse_dynamics_on_the_orbit(designed3, three_link):
+    """effort = (1/L) int |u|^2 dt with u from D q'' + h (q(alpha) differentiated numerically,
+    alpha'' = d(alpha'^2/2)/dalpha): a path that uses neither the affine stance terms nor the
+    design's quadrature. The unactuated row of D q'' + h must vanish on the orbit."""
+    path, report, _ = designed3
+    gait, zd, sched, lc = _orbit(three_link, path)
+    a = np.linspace(zd.alpha_i, zd.alpha_f, 4001)
+    d = 1e-4  # [rad] central differences (q_Z and V_Z extend smoothly past the step's ends)
+
+    def half_adot_sq(x):  # alpha'^2 / 2 = kappa_1^2 zeta
+        return zd.terms(x)["kappa1"] ** 2 * (lc.zeta_plus + zd.V_Z(x, sched)[0])
+
+    adot = zd.direction * np.sqrt(2.0 * half_adot_sq(a))
+    addot = (half_adot_sq(a + d) - half_adot_sq(a - d)) / (2 * d)
+    q, qp, qm = zd.maps.q_Z(a), zd.maps.q_Z(a + d), zd.maps.q_Z(a - d)
+    dq_da, d2q_da2 = (qp - qm) / (2 * d), (qp - 2 * q + qm) / d**2
+    dq = dq_da * adot[:, None]
+    ddq = d2q_da2 * adot[:, None] ** 2 + dq_da * addot[:, None]
+    tau = np.einsum("gij,gj->gi", three_link.D(q), ddq) + three_link.h(q, dq)
+    assert np.abs(tau[:, -1]).max() < 1e-5 * np.abs(tau[:, :-1]).max()
+    u2 = (tau[:, :-1] ** 2).sum(axis=1)
+    effort = np.trapezoid(u2 / adot, a) / lc.step_length
+    assert report["objective"]["value"] == pytest.approx(effort, rel=1e-4)
+    assert report["cost"]["peak"] == pytest.approx(np.abs(tau[:, :-1]).max(), rel=1e-3)
+
+
+@pytest.mark.slow
+def test_written_yaml_reproduces_reported_fixed_point(designed3, three_link):
+    path, report, _ = designed3
+    text = path.read_text()
+    assert text.startswith("# Gait designed by thrustwalk design-gait")
+    assert "# command: " in text and "design-gait three_link" in text
+    assert "robot: three_link" in text and "invariance: auto" in text
+    gait, zd, sched, lc = _orbit(three_link, path)
+    fp = report["fixed_point"]
+    assert lc.zeta_star == pytest.approx(fp["zeta_star"], rel=1e-9)
+    assert lc.speed == pytest.approx(fp["speed"], rel=1e-9)
+    assert zd.delta_zero_sq == pytest.approx(fp["delta_zero_sq"], rel=1e-12)
+    assert np.allclose(gait.coefficients, report["coefficients"], rtol=0, atol=1e-15)
+    assert report["reload_check"]["relative_error"] < 1e-9
+    prov = report["provenance"]
+    assert "design-gait" in prov["command"] and len(prov["robot"]["sha256"]) == 64
+    assert not list(path.parent.glob(".*check*")), "temporary check file left behind"
+
+
+@pytest.mark.slow
+def test_impossible_request_reported_infeasible_with_blocking_constraint(tmp_path, cli):
+    """5 m/s with mu = 0.1 is beyond the 3-link walker: exit 3, a report that names the
+    family blocking the request, and no gait file."""
+    out = tmp_path / "fast.yaml"
+    res = cli("design-gait", "three_link", "--speed", "5", "--mu", "0.1",
+                              "--clearance", "0", "--starts", "1", "--max-iter", "60",
+                              "--out", str(out), "-q")
+    assert res.exit_code == 3, res.output
+    assert "Traceback" not in res.output
+    report = json.loads((tmp_path / "fast.report.json").read_text())
+    assert not report["feasible"] and not out.exists()
+    fam = report["blocking_constraint"]
+    assert fam in FAMILIES
+    assert f"blocked by {fam}" in res.output and f"blocked by {fam}" in report["reason"]
+    viol = report["solver_violations"]
+    assert viol[fam] == max(viol.values()) > 1e-5, viol
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["no_such_robot", "--speed", "0.8"], "no_such_robot"),
+    (["three_link", "--speed", "-1"], "--speed"),
+    (["three_link", "--mu", "0.7"], "--speed/--step-length"),
+    (["three_link", "--speed", "0.8", "--order", "2"], "--order"),
+    (["three_link", "--speed", "0.8", "--objective", "fast"], "--objective"),
+    (["three_link", "--speed", "0.8", "--alpha", "q9:1"], "--alpha"),
+    (["three_link", "--speed", "0.8", "--max-delta-sq", "1.2"], "--max-delta-sq"),
+])
+def test_bad_input_one_line_exit_2(tmp_path, args, needle, cli):
+    res = cli("design-gait", *args, "--out", str(tmp_path / "g.yaml"))
+    assert res.exit_code == 2, res.output
+    lines = [ln for ln in res.output.splitlines() if ln.startswith("error:")]
+    assert len(lines) == 1 and needle in lines[0], res.output
+    assert "Traceback" not in res.output and not (tmp_path / "g.yaml").exists()
+
+
+def test_out_must_be_a_yaml_file(tmp_path, cli):
+    res = cli("design-gait", "three_link", "--speed", "0.8", "--out",
+                              str(tmp_path / "g.json"))
+    assert res.exit_code == 2 and "option --out" in res.output
+
+
+def test_default_alpha_is_the_virtual_stance_leg(rabbit, three_link):
+    """RABBIT: alpha = c q equals the forward lean of the line from the stance foot to the
+    hip (independent kinematics; tibia and femur have equal length); 3-link: minus q3."""
+    c = default_alpha(rabbit)
+    names = rabbit.robot.coordinate_names
+    assert dict(zip(names, c)) == pytest.approx({"q_sk": 0.5, "q_sh": 1.0, "q_wh": 0.0,
+                                                 "q_wk": 0.0, "q_T": -1.0})
+    rng = np.random.default_rng(3)
+    for q in rng.uniform(-0.4, 0.4, size=(5, rabbit.n)):
+        hip = point(rabbit.robot, q, "torso", (0.0, 0.0))
+        assert c @ q == pytest.approx(np.arctan2(hip[0], hip[1]), abs=1e-12)
+    assert default_alpha(three_link) == pytest.approx([0.0, 0.0, -1.0])
+
+
+def test_cell_minima_finds_dips_between_samples():
+    """A quadratic dip between grid points is recovered exactly (the grid minimum misses it);
+    a smooth non-quadratic dip sliding across the grid is tracked closely and continuously."""
+    s = np.linspace(0.0, 1.0, 101)
+    for centre in (0.503, 0.505, 0.5071):
+        h = (s - centre) ** 2 - 1e-5
+        assert cell_minima(h).min() == pytest.approx(-1e-5, abs=1e-15)
+        assert h[1:-1].min() > -0.9e-5
+    centres = np.linspace(0.499, 0.501, 41)
+    est = np.array([cell_minima(0.3 * np.sin(20 * (s - c)) ** 2 - 1e-5).min() for c in centres])
+    grid = np.array([(0.3 * np.sin(20 * (s - c)) ** 2 - 1e-5)[1:-1].min() for c in centres])
+    assert np.abs(est + 1e-5).max() < 2e-6 < np.abs(grid + 1e-5).max()
+    assert np.abs(np.diff(est)).max() < 1e-6
+
+
+@pytest.mark.slow
+def test_deterministic_given_seed(three_link):
+    spec = DesignSpec(speed=SPEED, clearance=0.0, starts=2, seed=7, max_iter=8)
+    p1, p2 = Problem(three_link, spec), Problem(three_link, spec)
+    x1 = p1.start(np.random.default_rng(7))
+    x2 = p2.start(np.random.default_rng(7))
+    assert np.array_equal(x1, x2)
+    r1, r2 = solve_design(three_link, spec), solve_design(three_link, spec)
+    assert r1.gait.A == r2.gait.A and r1.solver_objective == r2.solver_objective
+
+
+@pytest.mark.slow
+def test_thrust_codesign_written_and_reloaded(tmp_path, three_link, cli):
+    """Constant hip thrust designed with the gait: within the robot's limits, written as a
+    thrust schedule, and the reloaded gait's orbit (with that thrust) is the reported one."""
+    out = tmp_path / "thr.yaml"
+    res = cli("design-gait", "three_link", "--speed", str(SPEED), "--clearance",
+                              "0", "--starts", "1", "--design-thrust", "--out", str(out), "-q")
+    assert res.exit_code == 0, res.output
+    report = json.loads(out.with_name("thr.report.json").read_text())
+    F = report["thrust"]
+    assert len(F) == three_link.n_thrusters
+    for f, t in zip(F, three_link.robot.thrusters):
+        assert t.limits[0] <= f <= t.limits[1], t.name
+    gait, zd, sched, lc = _orbit(three_link, out)
+    assert gait.thrust is not None and list(_thrust(three_link, gait)) == F
+    assert lc.zeta_star == pytest.approx(report["fixed_point"]["zeta_star"], rel=1e-9)
+    assert lc.speed == pytest.approx(SPEED, rel=1e-6)
+
+
+@pytest.mark.slow
+def test_thrust_range_feasible_for_every_thrust_in_it(tmp_path, three_link, cli):
+    """--thrust-range hip_x:-50:0 is imposed at the two ends (affinity in a constant thrust);
+    contact.evaluate on the shifted orbits of 11 thrusts across the range confirms it."""
+    out = tmp_path / "robust.yaml"
+    res = cli("design-gait", "three_link", "--speed", str(SPEED), "--clearance",
+                              "0", "--starts", "1", "--thrust-range", "hip_x:-50:0",
+                              "--min-vertical-force", "40", "--out", str(out), "-q")
+    assert res.exit_code == 0, res.output
+    gait, zd, _, lc = _orbit(three_link, out)
+    assert lc.speed == pytest.approx(SPEED, rel=1e-6)
+    F = np.zeros((11, three_link.n_thrusters))
+    F[:, 0] = np.linspace(-50.0, 0.0, 11)
+    cases = evaluate(three_link, zd, Schedule.constant(zd, F), mu=0.7, eps=40.0,
+                             profiles=False).cases
+    for f, c in zip(F[:, 0], cases):
+        assert c.feasible, f"thrust {f} N: {c.reason}"
+    assert cases[0].cycle.speed > 2.0 * SPEED  # the thrust really shifts the orbit
+
+
+def test_shipped_rabbit_gait_meets_the_design_constraints(rabbit):
+    """gaits/rabbit_walk.yaml (made by design-gait): stable, contact-feasible with mu = 0.7,
+    swing foot >= 3 cm at mid-step and >= 0 over the step, knees in range."""
+    w = load_walker(None, "rabbit_walk")
+    robot, gait, zd = w.robot, w.gait, w.zd
+    assert "design-gait rabbit" in Path(gait.source_file).read_text()
+    sched = Schedule.constant(zd, np.zeros((1, rabbit.n_thrusters)))
+    lc = limit_cycles(zd, sched)[0]
+    assert lc.stable and zd.delta_zero_sq <= 0.9, lc.reason
+    eps = 0.1 * robot.total_mass * robot.gravity
+    case = evaluate(rabbit, zd, sched, mu=0.7, eps=eps, profiles=False).cases[0]
+    assert case.feasible, case.reason
+    s = np.linspace(0.0, 1.0, 1001)
+    q = zd.maps.q_Z(zd.alpha_i + s * (zd.alpha_f - zd.alpha_i))
+    h = np.array([swing_foot(robot, qk)[1] for qk in q])
+    assert h[500] >= 0.03 and h[1:-1].min() > 0
+    for j, c in enumerate(robot.coordinates):
+        lo, hi = c.range
+        assert lo <= q[:, j].min() and q[:, j].max() <= hi, c.name
+
+
+def test_simulated_rabbit_gait_settles_on_the_predicted_fixed_point(rabbit):
+    """Full-order closed loop (SPEC 7), started 10 % off the fixed point: 20 steps, zeta^-
+    converges to zeta* with the Poincare eigenvalue delta_zero^2."""
+    zd = load_walker(None, "rabbit_walk").zd
+    run = simulate(zd, ThrustModel("constant", np.zeros(rabbit.n_thrusters)),
+                   SimConfig(steps=20, rtol=1e-9, atol=1e-9), Start(perturb=0.1))
+    assert run.success and len(run.steps) == 20, run.reason
+    zs = run.prediction.zeta_star
+    err = np.array([st.zeta_minus for st in run.steps]) - zs
+    assert abs(err[-1]) < 1e-3 * zs
+    ratio = err[2:8] / err[1:7]
+    assert ratio == pytest.approx(zd.delta_zero_sq, abs=0.02)

@@ -1,0 +1,215 @@
+"""Zero dynamics, Poincare map and limit cycles (SPEC 3, 4, 10).
+
+The closed-form results (spectral integrals of kappa_2/kappa_1 and beta/kappa_1) are checked
+against time integration of the 2-D hybrid zero dynamics, whose right-hand side evaluates
+the model directly at each alpha (``zd.terms``), so the two computations share only the
+model functions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from thrustwalk_cli.hzd.constraints import apply_invariance, gait_maps
+from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.walker import load_walker
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def integrate_step(zd, sigma_plus: float, thrust: np.ndarray, dense: bool = False):
+    """Integrate alpha' = kappa_1 sigma, sigma' = kappa_2 + beta F from alpha_i to alpha_f."""
+    a_f = zd.alpha_f
+    sgn = np.sign(a_f - zd.alpha_i)
+
+    def rhs(t, x):
+        tm = zd.terms(np.array([x[0]]))
+        return [tm["kappa1"][0] * x[1], tm["kappa2"][0] + tm["beta"][0] @ thrust]
+
+    def reach(t, x):
+        return x[0] - a_f
+
+    reach.terminal = True
+    reach.direction = sgn
+    sol = solve_ivp(rhs, (0, 20), [zd.alpha_i, sigma_plus], method="DOP853", rtol=1e-12,
+                    atol=1e-12, events=reach, dense_output=dense)
+    assert sol.status == 1, f"the step did not reach alpha_f: {sol.message}"
+    return sol
+
+
+def poincare_by_integration(zd, zeta_minus: float, thrust: np.ndarray) -> tuple[float, float]:
+    """rho(zeta^-) by impact + time integration; returns (zeta^- next, step time)."""
+    sigma_minus = zd.sigma_sign * np.sqrt(2 * zeta_minus)
+    sol = integrate_step(zd, zd.delta_zero * sigma_minus, thrust)
+    return 0.5 * sol.y_events[0][0][1] ** 2, sol.t_events[0][0]
+
+
+@pytest.mark.parametrize("F", [0.0, -20.0])
+def test_closed_form_zeta_equals_time_integration(walk3, F):
+    """zeta(alpha) = zeta^+ + V_Z(alpha) along a time-integrated step, to 1e-8 relative."""
+    model, _, zd = walk3
+    thrust = np.zeros(model.n_thrusters)
+    thrust[0] = F
+    sched = Schedule.constant(zd, thrust[None, :])
+    lc = limit_cycles(zd, sched)[0]
+    assert lc.exists and lc.stable, lc.reason
+    sol = integrate_step(zd, lc.sigma_plus, thrust, dense=True)
+    t = np.linspace(0, sol.t_events[0][0], 400)
+    alpha, sigma = sol.sol(t)
+    zeta_int = 0.5 * sigma**2
+    zeta_cf = lc.zeta_plus + zd.V_Z(alpha, sched)[0]
+    err = np.max(np.abs(zeta_int - zeta_cf)) / lc.zeta_star
+    assert err < 1e-8, f"F={F}: max relative difference {err:.3g}"
+    # the step time from the spectral integral equals the integration time
+    assert lc.step_time == pytest.approx(sol.t_events[0][0], rel=1e-8)
+    # and the closed-form zeta^- is reached at alpha_f
+    assert 0.5 * sol.y_events[0][0][1] ** 2 == pytest.approx(lc.zeta_star, rel=1e-8)
+
+
+def test_fixed_point_equals_iterated_poincare_map(walk3):
+    """zeta* = V_Z(alpha_f)/(1 - delta^2) equals 300 iterations of rho (SPEC 3)."""
+    model, _, zd = walk3
+    thrust = np.zeros(model.n_thrusters)
+    sched = Schedule.constant(zd, thrust[None, :])
+    zstar = limit_cycles(zd, sched)[0].zeta_star
+    z = 0.3 * zstar
+    for _ in range(300):
+        z = float(zd.poincare(z, sched)[0])
+    assert z == pytest.approx(zstar, rel=1e-12)
+    # rho itself equals impact + time integration (independent of the spectral integrals)
+    for z0 in (0.85 * zstar, 1.7 * zstar):
+        z_int, _ = poincare_by_integration(zd, z0, thrust)
+        assert float(zd.poincare(z0, sched)[0]) == pytest.approx(z_int, rel=1e-9), z0
+    # a few integration-based iterations contract towards zeta* at the rate delta^2
+    z = 1.5 * zstar
+    errs = []
+    for _ in range(4):
+        z, _ = poincare_by_integration(zd, z, thrust)
+        errs.append(z - zstar)
+    ratios = np.array(errs[1:]) / np.array(errs[:-1])
+    np.testing.assert_allclose(ratios, zd.delta_zero_sq, rtol=1e-7)
+
+
+def test_poincare_derivative_is_delta_zero_squared(walk3):
+    """d rho / d zeta^- = delta_zero^2 by central finite differences of the integrated map."""
+    model, _, zd = walk3
+    thrust = np.zeros(model.n_thrusters)
+    z0, h = 800.0, 1.0
+    dp = (poincare_by_integration(zd, z0 + h, thrust)[0]
+          - poincare_by_integration(zd, z0 - h, thrust)[0]) / (2 * h)
+    assert dp == pytest.approx(zd.delta_zero_sq, rel=1e-7)
+
+
+def test_delta_zero_matches_impact_map(walk3):
+    """sigma^+ from the full impact map equals delta_zero sigma^- (SPEC 3)."""
+    model, _, zd = walk3
+    mp = zd.maps
+    sigma_minus = 30.0
+    k1 = zd.terms(np.array([mp.alpha_f]))["kappa1"][0]
+    dq_minus = mp.Phi(np.array(mp.alpha_f)) * k1 * sigma_minus
+    imp = model.impact(mp.q_minus, dq_minus)
+    sigma_plus = model.D(imp.q_plus)[-1] @ imp.dq_plus
+    assert sigma_plus == pytest.approx(zd.delta_zero * sigma_minus, rel=1e-12)
+    # hybrid invariance: the post-impact velocity is tangent to Z at alpha_i
+    phi_i = mp.Phi(np.array(mp.alpha_i))
+    np.testing.assert_allclose(imp.dq_plus, phi_i * (mp.c @ imp.dq_plus), atol=1e-12)
+
+
+def test_fixed_point_affine_in_constant_thrust(walk3):
+    """zeta*(F) is exactly affine in constant thrust (SPEC 4)."""
+    model, _, zd = walk3
+    F = np.linspace(0, -50, 11)
+    thrust = np.zeros((F.size, model.n_thrusters))
+    thrust[:, 0] = F
+    zs = np.array([c.zeta_star for c in limit_cycles(zd, Schedule.constant(zd, thrust))])
+    coef = np.polyfit(F, zs, 1)
+    resid = zs - np.polyval(coef, F)
+    assert np.max(np.abs(resid)) < 1e-9 * np.max(np.abs(zs))
+    # the slope equals Gamma(alpha_f)/(1 - delta^2), with Gamma checked by integration:
+    # integrate d zeta/d alpha = beta/kappa_1 directly with solve_ivp
+    def rhs(a, y):
+        t = zd.terms(np.array([a]))
+        return [t["beta"][0][0] / t["kappa1"][0]]
+
+    sol = solve_ivp(rhs, (zd.alpha_i, zd.alpha_f), [0.0], rtol=1e-12, atol=1e-12,
+                    method="DOP853")
+    assert coef[0] == pytest.approx(sol.y[0, -1] / (1 - zd.delta_zero_sq), rel=1e-9)
+    # the paper's convention for the bundled robot: negative thrust adds energy
+    assert coef[0] < 0
+
+
+def test_integral_error_estimate_reported_and_small(walk3):
+    _, _, zd = walk3
+    assert zd.integral_error / zd.integral_scale < 1e-9
+    lc = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, 2))))[0]
+    assert lc.step_time_error < 1e-9 * lc.step_time
+
+
+def test_invariance_residuals(walk3):
+    """auto: residuals vanish; a perturbed gait taken as written: they do not (SPEC 2)."""
+    model, gait, zd = walk3
+    assert zd.maps.position_residual < 1e-12
+    assert zd.maps.velocity_residual < 1e-12
+    A = np.array(gait.A)
+    A[0, 1] += 0.05
+    A[1, 0] += 0.02
+    bad = replace(gait, A=tuple(map(tuple, A)), invariance="given")
+    mp = gait_maps(model, bad)
+    assert mp.position_residual == pytest.approx(0.02, rel=1e-9)
+    assert mp.velocity_residual > 1e-3
+    # re-imposing invariance repairs it
+    fixed = gait_maps(model, apply_invariance(model, bad))
+    assert fixed.position_residual < 1e-12 and fixed.velocity_residual < 1e-12
+
+
+def test_no_orbit_reported_with_reason(walk3):
+    """Thrust pushing backwards hard enough leaves no periodic orbit: exists False + reason."""
+    model, _, zd = walk3
+    thrust = np.zeros((2, model.n_thrusters))
+    thrust[:, 0] = [30.0, 200.0]
+    cycles = limit_cycles(zd, Schedule.constant(zd, thrust))
+    for c in cycles:
+        assert not c.exists and not c.stable
+        assert c.reason and c.step_time is None and c.speed is None
+
+
+def _variant_files(tmp_path: Path) -> tuple[Path, Path, Path]:
+    """The bundled 3-link robot with q_N = torso angle, and gaits in both coordinates."""
+    robot = (REPO / "robots" / "three_link.yaml").read_text()
+    robot_t = robot.replace("name: three_link\n", "name: three_link_torso_abs\n").replace(
+        "unactuated: {name: q3, link: stance_leg}", "unactuated: {name: qT, link: torso}")
+    assert robot_t != robot
+    (tmp_path / "three_link_torso_abs.yaml").write_text(robot_t)
+    gait = (REPO / "gaits" / "three_link_walk.yaml").read_text()
+    # theta_stance = qT - q1, alpha = -theta_stance: same physical alpha, same rows
+    gait_t = gait.replace("robot: three_link\n", "robot: three_link_torso_abs.yaml\n").replace(
+        "c: {q3: -1}", "c: {q1: 1, qT: -1}")
+    assert gait_t != gait
+    (tmp_path / "walk_torso_abs.yaml").write_text(gait_t)
+    # alpha = +q3 (decreasing over the step), same s, same rows
+    gait_s = gait.replace("c: {q3: -1}", "c: {q3: 1}").replace("final: af", "final: -af")
+    (tmp_path / "walk_flipped.yaml").write_text(gait_s)
+    return (tmp_path / "walk_torso_abs.yaml", tmp_path / "walk_flipped.yaml",
+            tmp_path / "three_link_torso_abs.yaml")
+
+
+def test_equivalent_coordinate_choices_give_same_physics(walk3, tmp_path):
+    """Same walker in other coordinates / alpha sign: same sigma_N, step time, speed."""
+    model, _, zd = walk3
+    ref = limit_cycles(zd, Schedule.constant(zd, np.array([[0.0, 0.0], [-20.0, 0.0]])))
+    g_abs, g_flip, _ = _variant_files(tmp_path)
+    for path in (g_abs, g_flip):
+        zd2 = load_walker(None, str(path)).zd
+        assert zd2.delta_zero_sq == pytest.approx(zd.delta_zero_sq, rel=1e-10), path.name
+        other = limit_cycles(zd2, Schedule.constant(zd2, np.array([[0.0, 0.0], [-20.0, 0.0]])))
+        for a, b in zip(ref, other):
+            assert b.exists, b.reason
+            for key in ("sigma_minus", "sigma_plus", "step_time", "speed", "step_length",
+                        "zeta_star", "min_abs_alpha_dot"):
+                assert getattr(b, key) == pytest.approx(getattr(a, key), rel=1e-9), (
+                    path.name, key)

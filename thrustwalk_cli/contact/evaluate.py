@@ -1,0 +1,292 @@
+"""Contact feasibility of thrust cases on their periodic orbits (SPEC section 5).
+
+For every schedule of a batch: the exact affine ground force
+``F_1(alpha) = Lambda_2 F_T + Lambda_1 zeta(alpha) + Lambda_0``
+(:mod:`thrustwalk_cli.contact.terms`) on a grid over the step (knots included from both
+sides), its worst points polished by a vectorised golden-section search inside their knot
+interval (margins are not grid-limited),
+the same with the polynomial fits L_k, the impact conditions and the verdict:
+``F_1^v >= eps``, ``|F_1^h| <= mu F_1^v``, admissible impact, trailing foot lifting off. SI units.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..hzd.quadrature import ChebSeries
+from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
+from ..model.compiled import CompiledModel
+from .terms import Fits, ImpactData, fit_terms, impact_data, stance_terms, swing_clearance
+
+GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
+
+
+# ------------------------------------------------------------------------- case evaluation
+def step_grid(knots: np.ndarray, points: int = 401) -> tuple[np.ndarray, np.ndarray]:
+    """Grid over the step with every knot interval sampled end to end (knots appear twice, with
+    the thrust of each side). Returns ``(alpha, interval index)``."""
+    kn = np.asarray(knots, float)
+    n_int = len(kn) - 1
+    per = max(41, points // n_int)
+    al = [np.linspace(kn[j], kn[j + 1], per) for j in range(n_int)]
+    return np.concatenate(al), np.repeat(np.arange(n_int), per)
+
+
+class _ZetaAt:
+    """``zeta_i(alpha_i) = zeta^+_i + V_Z(alpha_i; schedule i)`` for one alpha per schedule, with
+    V_0, Gamma and b_F stacked into one Chebyshev series (one evaluation per call)."""
+
+    def __init__(self, zd: ZeroDynamics, sched: Schedule):
+        self.sched = sched
+        self.m = zd.Gamma.coef.shape[1]
+        coef = np.column_stack([zd.V0.coef, zd.Gamma.coef, zd.B.coef])
+        self.series = ChebSeries(zd.V0.a, zd.V0.b, coef)
+        kn = sched.knots
+        self.lo, self.hi = np.minimum(kn[:-1], kn[1:]), np.maximum(kn[:-1], kn[1:])
+        self.at_knots = self.series(kn)  # (n+1, 2+m)
+
+    def __call__(self, zeta_plus: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+        pts = np.vstack([alpha[None, :],
+                         np.clip(alpha[None, :], self.lo[:, None], self.hi[:, None])])
+        v = self.series(pts)  # (1+n, k, 2+m)
+        m = self.m
+        dG = v[1:, :, 1:1 + m] - self.at_knots[:-1, None, 1:1 + m]  # (n, k, m)
+        dB = v[1:, :, -1] - self.at_knots[:-1, None, -1]  # (n, k)
+        return (zeta_plus + v[0, :, 0] + np.einsum("jkm,kjm->k", dG, self.sched.force)
+                + np.einsum("jk,kj->k", dB, self.sched.generalized))
+
+
+Provider = Callable[[np.ndarray], tuple[np.ndarray, ...]]
+
+
+def _exact_provider(model: CompiledModel, zd: ZeroDynamics) -> Provider:
+    def f(alpha):
+        t = stance_terms(model, zd.maps, alpha)
+        return t.L0, t.L1, t.L2, t.LT
+    return f
+
+
+def _force(terms, zeta, F, T):
+    """F_1 from the affine form; zeta (...,), F (..., m), T (...,) broadcast with terms."""
+    L0, L1, L2, LT = terms
+    return (np.einsum("...im,...m->...i", L2, F) + L1 * zeta[..., None] + L0
+            + LT * T[..., None])
+
+
+def friction_ratio(F1: np.ndarray) -> np.ndarray:
+    """``|F^h| / F^v`` of forces ``F1`` (..., 2) [-]; inf where ``F^v <= 0``."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(F1[..., 1] > 0, np.abs(F1[..., 0]) / F1[..., 1], np.inf)
+
+
+def _golden(f: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray,
+            iters: int = 45) -> tuple[np.ndarray, np.ndarray]:
+    """Vectorised golden-section minimisation of ``f`` on ``[lo_i, hi_i]`` (one bracket per
+    entry); returns (argmin, min) of the last bracket's interior points."""
+    a, b = lo.astype(float).copy(), hi.astype(float).copy()
+    c, d = b - GOLDEN * (b - a), a + GOLDEN * (b - a)
+    fc, fd = f(c), f(d)
+    for _ in range(iters):
+        left = fc <= fd
+        na, nb = np.where(left, a, c), np.where(left, d, b)
+        kx, kf = np.where(left, c, d), np.where(left, fc, fd)
+        x = np.where(left, nb - GOLDEN * (nb - na), na + GOLDEN * (nb - na))
+        fx = f(x)
+        c, fc = np.where(left, x, kx), np.where(left, fx, kf)
+        d, fd = np.where(left, kx, x), np.where(left, kf, fx)
+        a, b = na, nb
+    best = fc <= fd
+    return np.where(best, c, d), np.where(best, fc, fd)
+
+
+@dataclass(frozen=True)
+class StanceExtremes:
+    """Worst points of the stance conditions for a batch of cases (SI units)."""
+
+    min_vertical: np.ndarray
+    alpha_min_vertical: np.ndarray
+    max_ratio: np.ndarray  # inf where F^v <= 0 somewhere
+    alpha_max_ratio: np.ndarray
+
+
+def _extremes(provider: Provider, zd: ZeroDynamics, sched: Schedule, zeta_plus: np.ndarray,
+              alpha: np.ndarray, idx: np.ndarray, F1: np.ndarray, polish: bool
+              ) -> StanceExtremes:
+    """Grid extremes of F^v (min) and |F^h|/F^v (max), polished inside their knot interval."""
+    k = F1.shape[0]
+    rows = np.arange(k)
+    Fv, R = F1[..., 1], friction_ratio(F1)
+    jv, jr = np.argmin(Fv, axis=1), np.argmax(R, axis=1)
+    out = [Fv[rows, jv], alpha[jv], R[rows, jr], alpha[jr]]
+    if not polish:
+        return StanceExtremes(*out)
+
+    def bracket(j):
+        same = idx[np.clip(j - 1, 0, len(idx) - 1)] == idx[j]
+        lo = np.where(same & (j > 0), alpha[np.clip(j - 1, 0, None)], alpha[j])
+        same = idx[np.clip(j + 1, 0, len(idx) - 1)] == idx[j]
+        hi = np.where(same & (j < len(idx) - 1), alpha[np.clip(j + 1, None, len(idx) - 1)],
+                      alpha[j])
+        return np.minimum(lo, hi), np.maximum(lo, hi)
+
+    zeta_at = _ZetaAt(zd, sched)
+
+    def f1_at(a, interval):
+        z = zeta_at(zeta_plus, a)
+        F = sched.force[rows, interval, :]
+        T = sched.generalized[rows, interval]
+        return _force(provider(a), z, F, T)
+
+    # minimise F^v; maximise |F^h|/F^v (= minimise its negative) where it is finite
+    for slot, j, col, sign in ((0, jv, 1, 1.0), (2, jr, None, -1.0)):
+        lo, hi = bracket(j)
+
+        def obj(a, interval=idx[j], col=col, sign=sign):
+            F1a = f1_at(a, interval)
+            val = F1a[:, col] if col is not None else friction_ratio(F1a)
+            return np.where(np.isfinite(val), sign * val, 1e300)
+
+        xa, fa = _golden(obj, lo, hi)
+        better = np.isfinite(out[slot]) & (fa < sign * out[slot])
+        out[slot] = np.where(better, sign * fa, out[slot])
+        out[slot + 1] = np.where(better, xa, out[slot + 1])
+    return StanceExtremes(*out)
+
+
+@dataclass(frozen=True)
+class CaseResult:
+    """Contact feasibility of one thrust case on its periodic orbit (SPEC 5), SI units.
+
+    ``feasible``: a periodic orbit exists, ``F_1^v >= eps`` and ``|F_1^h| <= mu F_1^v`` along the
+    step, the impact is admissible and the trailing foot lifts off. ``reason`` names every
+    failed condition. Stance fields are ``None`` when no orbit exists.
+    """
+
+    label: str
+    thrust: float | list | None
+    feasible: bool
+    reason: str
+    cycle: LimitCycle
+    min_vertical_force: float | None = None
+    alpha_at_min_vertical_force: float | None = None
+    max_friction_ratio: float | None = None
+    alpha_at_max_friction_ratio: float | None = None
+    impact_impulse: list | None = None
+    impact_friction_ratio: float | None = None
+    liftoff_velocity: float | None = None
+    max_abs_torque: list | None = None
+    poly: dict | None = None
+    margins: dict | None = None
+    profile: dict | None = field(default=None, repr=False)
+
+
+@dataclass(frozen=True)
+class ContactReport:
+    """Everything the ``feasibility`` command writes (SPEC 5)."""
+
+    mu: float
+    eps: float
+    impact: ImpactData
+    swing: dict
+    fits: Fits
+    cases: list[CaseResult]
+    knots: np.ndarray
+
+
+def evaluate(model: CompiledModel, zd: ZeroDynamics, sched: Schedule, *, mu: float,
+             eps: float = 0.0, fits: Fits | None = None, labels: list[str] | None = None,
+             thrust: list | None = None, points: int = 401, polish: bool = True,
+             profiles: bool = True) -> ContactReport:
+    """Contact feasibility of every schedule in ``sched`` on its own periodic orbit (SPEC 5)."""
+    if fits is None:
+        fits = fit_terms(model, zd)
+    k = sched.size
+    labels = labels or [f"case {i}" for i in range(k)]
+    thrust = thrust if thrust is not None else [None] * k
+    cycles = limit_cycles(zd, sched)
+    imp = impact_data(model, zd)
+    swing = swing_clearance(model, zd)
+    alpha, idx = step_grid(sched.knots, points)
+    exact = stance_terms(model, zd.maps, alpha)
+    ex_terms = (exact.L0, exact.L1, exact.L2, exact.LT)
+    po_terms = fits.force_terms(alpha)
+    zstar = np.array([c.zeta_star if c.exists else 0.0 for c in cycles])
+    zplus = zd.delta_zero_sq * zstar
+    zeta = zplus[:, None] + zd.V_Z(alpha, sched)  # (k, g)
+    F = sched.force[:, idx, :]  # (k, g, m)
+    T = sched.generalized[:, idx]
+    F1 = _force(ex_terms, zeta, F, T)
+    F1p = _force(po_terms, zeta, F, T)
+    U = (np.einsum("gim,kgm->kgi", exact.U2, F) + exact.U1 * zeta[..., None] + exact.U0
+         + exact.UT * T[..., None])
+    ext = _extremes(_exact_provider(model, zd), zd, sched, zplus, alpha, idx, F1, polish)
+    ext_p = _extremes(fits.force_terms, zd, sched, zplus, alpha, idx, F1p, polish)
+    fit_err = np.abs(F1p - F1).max(axis=(1, 2))
+    imp_ok = imp.admissible(mu)
+    cases = []
+    for i, lc in enumerate(cycles):
+        if not lc.exists:
+            why = lc.reason if lc.reason.startswith("no periodic orbit") else \
+                f"no periodic orbit: {lc.reason}"
+            cases.append(CaseResult(labels[i], thrust[i], False, f"infeasible: {why}", lc,
+                                    impact_friction_ratio=imp.friction_ratio))
+            continue
+        why = []
+        v_ok = ext.min_vertical[i] >= eps
+        r_ok = np.isfinite(ext.max_ratio[i]) and ext.max_ratio[i] <= mu
+        if not v_ok:
+            why.append(f"vertical ground force {ext.min_vertical[i]:.4g} N < eps = {eps:g} N at "
+                       f"alpha = {ext.alpha_min_vertical[i]:.4g} rad")
+        if not r_ok and v_ok:
+            why.append(f"friction ratio |F^h|/F^v = {ext.max_ratio[i]:.4g} > mu = {mu:g} at "
+                       f"alpha = {ext.alpha_max_ratio[i]:.4g} rad")
+        why += imp.reasons(mu)
+        sig = abs(lc.sigma_minus)
+        ratio = float(ext.max_ratio[i]) if np.isfinite(ext.max_ratio[i]) else None
+        pv = bool(ext_p.min_vertical[i] >= eps and np.isfinite(ext_p.max_ratio[i])
+                  and ext_p.max_ratio[i] <= mu and imp_ok)
+        pr = float(ext_p.max_ratio[i]) if np.isfinite(ext_p.max_ratio[i]) else None
+        feasible = bool(v_ok and r_ok and imp_ok)
+        margins = {
+            "vertical_force": float(ext.min_vertical[i] - eps),
+            "friction": None if ratio is None else mu - ratio,
+            "impact_friction": None if imp.friction_ratio is None else mu - imp.friction_ratio,
+            "impact_vertical_impulse": float(imp.impulse_per_sigma[1] * sig),
+            "liftoff_velocity": float(imp.liftoff_per_sigma * sig),
+        }
+        prof = None
+        if profiles:
+            prof = {"alpha": alpha, "F1": F1[i], "ratio": friction_ratio(F1[i]), "torque": U[i],
+                    "zeta": zeta[i], "thrust": F[i], "generalized": T[i]}
+        cases.append(CaseResult(
+            labels[i], thrust[i], feasible,
+            "feasible" if feasible else "infeasible: " + "; ".join(why), lc,
+            min_vertical_force=float(ext.min_vertical[i]),
+            alpha_at_min_vertical_force=float(ext.alpha_min_vertical[i]),
+            max_friction_ratio=ratio,
+            alpha_at_max_friction_ratio=float(ext.alpha_max_ratio[i]) if ratio is not None
+            else None,
+            impact_impulse=(imp.impulse_per_sigma * sig).tolist(),
+            impact_friction_ratio=imp.friction_ratio,
+            liftoff_velocity=float(imp.liftoff_per_sigma * sig),
+            max_abs_torque=np.abs(U[i]).max(axis=0).tolist(),
+            poly={"feasible": pv, "agrees": pv == feasible,
+                  "min_vertical_force": float(ext_p.min_vertical[i]),
+                  "alpha_at_min_vertical_force": float(ext_p.alpha_min_vertical[i]),
+                  "max_friction_ratio": pr,
+                  "max_force_error": float(fit_err[i])},
+            margins=margins, profile=prof))
+    return ContactReport(mu, eps, imp, swing, fits, cases, sched.knots)
+
+
+def check_contact_options(mu: float, eps: float) -> None:
+    """Bad ``mu`` [-] / ``eps`` [N] (shared by feasibility and optimize) -> InputError."""
+    if not (np.isfinite(mu) and mu > 0):
+        raise InputError.param("mu", f"the friction coefficient must be > 0 (got {mu:g})")
+    if not (np.isfinite(eps) and eps >= 0):
+        raise InputError.param("eps", "the minimum vertical force must be >= 0 N "
+                         f"(got {eps:g})")

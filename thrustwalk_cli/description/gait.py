@@ -1,0 +1,60 @@
+"""Gait descriptions (SPEC section 2): immutable data, numpy only.
+
+    alpha = c q,   s = (alpha - alpha_i) / (alpha_f - alpha_i) in [0, 1]
+    y = q_b - h_d(alpha),  h_d,i(s) = sum_k a_ik binom(M, k) s^k (1 - s)^(M - k)
+
+Coefficient layout: ``A`` has one row per actuated coordinate (in the robot's order) and
+``M + 1`` columns; column 0 is the post-impact configuration (s = 0, alpha = alpha_i), column M
+the pre-impact configuration (s = 1, alpha = alpha_f). Angles in rad. The numeric geometry
+(``q_Z``, ``Phi``, hybrid invariance) is in :mod:`thrustwalk_cli.hzd.constraints`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ThrustSchedule:
+    """Piecewise-constant thrust on knots (SPEC 4).
+
+    knots: alpha values ``alpha_1 < ... < alpha_n`` in the direction of the step, or fractions
+    of the step when ``fractions`` is true [rad or 1].
+    values: ``(thruster name, one value per interval)`` pairs: thrust [N] (mode ``"force"``)
+    or, in mode ``"generalized"``, a single pair ``("T", ...)`` of generalised forces ``T_j``
+    on q_N [N m].
+    """
+
+    knots: tuple[float, ...]
+    values: tuple[tuple[str, tuple[float, ...]], ...]
+    mode: str = "force"
+    fractions: bool = True
+
+
+@dataclass(frozen=True)
+class Gait:
+    """An immutable gait description (SPEC 2). ``A`` complete (invariance already applied)."""
+
+    name: str
+    robot: str
+    c: tuple[float, ...]
+    alpha_f: float
+    A: tuple[tuple[float, ...], ...]
+    invariance: str = "given"  # "auto" or "given"
+    kp: float = 400.0
+    kd: float = 40.0
+    mu: float = 0.7
+    thrust: ThrustSchedule | None = None
+    source_file: str = "<memory>"
+    source_sha256: str = ""
+    given_A: tuple[tuple[float | None, ...], ...] = field(default=(), compare=False, repr=False)
+
+    @property
+    def order(self) -> int:
+        return len(self.A[0]) - 1
+
+    @property
+    def coefficients(self) -> np.ndarray:
+        return np.array(self.A, dtype=float)

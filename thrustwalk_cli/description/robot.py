@@ -1,0 +1,263 @@
+"""Robot descriptions (SPEC section 1): immutable, numeric, free of SymPy.
+
+Conventions (also in the README):
+
+* World frame: x forward, y up, gravity along -y. Units SI (m, kg, s, rad, N).
+* Every link has a frame. Its absolute angle ``theta`` is the counter-clockwise rotation of
+  the link frame relative to the world frame; a point ``p`` given in link coordinates sits at
+  ``origin + Rot(theta) p`` in the world.
+* The root link is pinned at the stance foot (a point of the root link). Every other link's
+  frame origin is its joint, a point given in its parent's frame.
+* Generalised coordinates ``q = [q_b; q_N]``: ``q_b`` are relative joint angles
+  ``theta_child - theta_parent`` (one per joint, actuated), ``q_N`` is the absolute angle of
+  one link (unactuated). Hence ``theta = T q`` with a constant integer matrix ``T``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError, Problem
+
+Vec2 = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Link:
+    """A rigid planar link.
+
+    joint: origin of this link's frame in the parent's frame [m] (ignored for the root).
+    com: centre of mass in the link frame [m]; mass [kg]; inertia about the COM [kg m^2].
+    rotor_inertia: reflected rotor inertia ``J G^2`` on the joint to the parent [kg m^2].
+    end: a drawing point (the link's far end) in the link frame [m].
+    """
+
+    name: str
+    parent: str | None
+    joint: Vec2
+    mass: float
+    com: Vec2
+    inertia: float
+    end: Vec2 = (0.0, 0.0)
+    rotor_inertia: float = 0.0
+
+
+@dataclass(frozen=True)
+class PointRef:
+    """A point fixed on a link, in that link's frame [m]."""
+
+    link: str
+    point: Vec2
+
+
+@dataclass(frozen=True)
+class Thruster:
+    """A thruster at ``point`` on ``link`` pushing along unit ``direction``.
+
+    frame: ``"world"`` (direction fixed in the world) or ``"link"`` (rotates with the link).
+    limits: (min, max) magnitude [N]; the signed magnitude ``F`` multiplies ``direction``.
+    """
+
+    name: str
+    link: str
+    point: Vec2
+    direction: Vec2
+    frame: str = "world"
+    limits: Vec2 = (-np.inf, np.inf)
+
+
+@dataclass(frozen=True)
+class Coordinate:
+    """A generalised coordinate.
+
+    Actuated: relative angle of joint ``link`` (``theta_link - theta_parent``) [rad].
+    Unactuated: absolute angle of ``link`` (counter-clockwise from the world frame) [rad].
+    range: allowed (min, max) angle [rad]; torque_limit: max |u| [N m] (actuated only).
+    Limits constrain gait design and are reported by checks; they do not enter the dynamics.
+    """
+
+    name: str
+    link: str
+    actuated: bool
+    range: tuple[float, float] = (-np.inf, np.inf)
+    torque_limit: float = np.inf
+
+
+@dataclass(frozen=True)
+class Robot:
+    """An immutable robot description; everything a compiler needs, all numbers SI."""
+
+    name: str
+    links: tuple[Link, ...]
+    coordinates: tuple[Coordinate, ...]
+    stance_foot: PointRef
+    swing_foot: PointRef
+    relabel_R: tuple[tuple[float, ...], ...]
+    relabel_b: tuple[float, ...]
+    thrusters: tuple[Thruster, ...]
+    gravity: float = 9.81
+    description: str = ""
+    source_file: str = "<memory>"
+    source_sha256: str = ""
+    parameters: tuple[tuple[str, float], ...] = field(default=())
+    key_lines: tuple[tuple[str, int], ...] = field(default=(), compare=False, repr=False)
+
+    def line_of(self, path: str) -> int | None:
+        """Line of a key path (e.g. ``"coordinates.unactuated"``) in the source file."""
+        best = None
+        for p, ln in self.key_lines:
+            if path == p or path.startswith(p + ".") or path.startswith(p + "["):
+                if best is None or len(p) > len(best[0]):
+                    best = (p, ln)
+        return best[1] if best else None
+
+    # -- derived structure ---------------------------------------------------------------
+    @property
+    def n(self) -> int:
+        """Number of links = number of generalised coordinates N."""
+        return len(self.links)
+
+    @property
+    def link_names(self) -> list[str]:
+        return [lk.name for lk in self.links]
+
+    @property
+    def coordinate_names(self) -> list[str]:
+        return [c.name for c in self.coordinates]
+
+    @property
+    def thruster_names(self) -> list[str]:
+        return [t.name for t in self.thrusters]
+
+    @property
+    def root(self) -> Link:
+        return next(lk for lk in self.links if lk.parent is None)
+
+    def link_index(self, name: str) -> int:
+        return self.link_names.index(name)
+
+    def thruster_index(self, name: str | None) -> int:
+        """Index of the thruster ``name`` (default: the first). :class:`InputError` on the
+        parameter ``thruster`` when the name is unknown, or at the robot file's ``thrusters``
+        key when the robot has none."""
+        names = self.thruster_names
+        if not names:
+            raise InputError(Problem(self.source_file, None, "thrusters",
+                                     "the robot has no thruster"))
+        if name is None:
+            return 0
+        if name not in names:
+            raise InputError.param("thruster", f"unknown thruster {name!r} (robot {self.name} "
+                                   f"has: {', '.join(names)})")
+        return names.index(name)
+
+    @property
+    def total_mass(self) -> float:
+        return float(sum(lk.mass for lk in self.links))
+
+    def path_from_root(self, name: str) -> list[str]:
+        """Link names from the root to ``name`` (inclusive)."""
+        parents = {lk.name: lk.parent for lk in self.links}
+        path = [name]
+        while parents[path[-1]] is not None:
+            path.append(parents[path[-1]])
+        return path[::-1]
+
+    @property
+    def T(self) -> np.ndarray:
+        """Constant map ``theta = T q`` from coordinates to absolute link angles (SPEC 1)."""
+        return coordinate_map(self.links, self.coordinates)
+
+    @property
+    def R(self) -> np.ndarray:
+        return np.array(self.relabel_R, dtype=float)
+
+    @property
+    def b(self) -> np.ndarray:
+        return np.array(self.relabel_b, dtype=float)
+
+    def canonical(self) -> dict:
+        """Content that determines the compiled model (the cache key is its hash)."""
+        return {
+            "links": [
+                [lk.name, lk.parent, list(lk.joint), lk.mass, list(lk.com), lk.inertia,
+                 list(lk.end), lk.rotor_inertia]
+                for lk in self.links
+            ],
+            "coordinates": [[c.name, c.link, c.actuated] for c in self.coordinates],
+            "stance_foot": [self.stance_foot.link, list(self.stance_foot.point)],
+            "swing_foot": [self.swing_foot.link, list(self.swing_foot.point)],
+            "R": [list(r) for r in self.relabel_R],
+            "b": list(self.relabel_b),
+            "thrusters": [
+                [t.name, t.link, list(t.point), list(t.direction), t.frame]
+                for t in self.thrusters
+            ],
+            "gravity": self.gravity,
+        }
+
+
+def coordinate_map(links: tuple[Link, ...], coords: tuple[Coordinate, ...]) -> np.ndarray:
+    """Integer matrix ``T`` with ``theta = T q``.
+
+    Each absolute angle is the anchor's absolute angle ``q_N`` plus/minus the relative joint
+    angles on the tree path between the anchor link and the link. Raises ``ValueError`` when
+    the coordinates are not one relative angle per joint plus one absolute angle.
+    """
+    names = [lk.name for lk in links]
+    parent = {lk.name: lk.parent for lk in links}
+    n = len(links)
+    act = [c for c in coords if c.actuated]
+    unact = [c for c in coords if not c.actuated]
+    if len(unact) != 1 or len(act) != n - 1 or len(coords) != n:
+        raise ValueError(
+            f"need {n - 1} actuated joint angles and 1 absolute angle for {n} links, "
+            f"got {len(act)} and {len(unact)}"
+        )
+    joint_col = {}
+    for c in act:
+        if parent[c.link] is None:
+            raise ValueError(f"'{c.link}' is the root link: it has no joint to a parent")
+        if c.link in joint_col:
+            raise ValueError(f"joint of '{c.link}' is used by two coordinates")
+        joint_col[c.link] = [cc.name for cc in coords].index(c.name)
+    anchor = unact[0].link
+    anchor_col = [cc.name for cc in coords].index(unact[0].name)
+
+    def root_path(name: str) -> list[str]:
+        p = [name]
+        while parent[p[-1]] is not None:
+            p.append(parent[p[-1]])
+        return p
+
+    # theta_x - theta_root = sum of joint angles on the root path of x (excluding root).
+    T = np.zeros((n, n))
+    anchor_path = root_path(anchor)
+    for i, name in enumerate(names):
+        T[i, anchor_col] = 1.0
+        for lk in root_path(name)[:-1]:
+            T[i, joint_col[lk]] += 1.0
+        for lk in anchor_path[:-1]:
+            T[i, joint_col[lk]] -= 1.0
+    return T
+
+
+def symmetry_relabel(robot_links: tuple[Link, ...], coords: tuple[Coordinate, ...],
+                     swaps: list[tuple[str, str]]) -> np.ndarray:
+    """Relabelling matrix ``R = T^-1 P T`` from swapped link pairs (SPEC 1).
+
+    After impact the link called ``a`` takes the place (and absolute angle) of link ``b``
+    and vice versa; all other links keep their absolute angles.
+    """
+    names = [lk.name for lk in robot_links]
+    n = len(names)
+    P = np.eye(n)
+    for a, b in swaps:
+        ia, ib = names.index(a), names.index(b)
+        P[ia, ia] = P[ib, ib] = 0.0
+        P[ia, ib] = P[ib, ia] = 1.0
+    T = coordinate_map(robot_links, coords)
+    R = np.linalg.solve(T, P @ T)
+    return np.round(R, 12) + 0.0

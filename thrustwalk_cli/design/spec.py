@@ -1,0 +1,111 @@
+"""What a gait design asks for: :class:`DesignSpec` and its validation (SPEC 2, 3, 5)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError, param_problem
+from ..model.compiled import CompiledModel
+
+OBJECTIVES = ("effort", "peak")
+
+
+FEAS_TOL = 1e-5  # normalised constraint violation accepted at the solver's point
+
+
+ELASTIC = 100.0  # cost of one unit of normalised violation (elastic mode of the solver)
+
+
+@dataclass(frozen=True)
+class DesignSpec:
+    """What to design (SI units). ``None`` targets are free.
+
+    speed [m/s] and/or step_length [m] (at least one); mu [1]; order M of the Bezier
+    polynomials; clearance: swing-foot height at mid-step ``s = 1/2`` [m] (height >= 0 over the
+    whole step in any case); max_delta_sq: bound on delta_zero^2 (stability margin);
+    min_vertical_force ``eps`` [N] (None: 10 % of the robot's weight); min_liftoff: vertical
+    velocity of the trailing foot just after impact [m/s]; min_zeta_ratio: ``zeta(alpha) >=
+    ratio zeta^-`` (the walker keeps some momentum at mid-stance); objective ``effort`` or
+    ``peak``; thrust_design: constant thrust per thruster as variables (within the robot's
+    limits), costed ``thrust_weight |F|^2`` [m^2] in the effort objective; thrust_range
+    ``(thruster, low, high)`` [N]: the orbit must exist and the stance, lift-off and torque
+    constraints hold for every constant thrust of that thruster in the range (checked at the
+    ends: zeta*, zeta(alpha), F_1 and u are affine in a constant thrust); alpha_c: gait-timing
+    row vector (None: the virtual stance leg, see :func:`default_alpha`); starts, seed,
+    max_iter: solver; nodes: Lobatto nodes per evaluation (odd, so that s = 1/2 is a node).
+    """
+
+    speed: float | None = None
+    step_length: float | None = None
+    mu: float = 0.7
+    order: int = 6
+    clearance: float = 0.03
+    max_delta_sq: float = 0.9
+    min_vertical_force: float | None = None
+    min_liftoff: float = 0.02
+    min_zeta_ratio: float = 0.02
+    objective: str = "effort"
+    thrust_design: bool = False
+    thrust_weight: float = 1.0
+    thrust_range: tuple[str, float, float] | None = None
+    alpha_c: tuple[float, ...] | None = None
+    starts: int = 8
+    seed: int = 0
+    max_iter: int = 150
+    nodes: int = 33
+    name: str = "designed_gait"
+
+    def validate(self, model: CompiledModel) -> None:
+        """Raise :class:`InputError` (one line per problem, naming the parameter)."""
+        p = []
+
+        def bad(param, message: str) -> None:
+            p.append(param_problem(param, message))
+
+        if self.speed is None and self.step_length is None:
+            bad(("speed", "step_length"), "give a target speed, a step length or both")
+        if self.speed is not None and not 0 < self.speed <= 20:
+            bad("speed", f"must be in (0, 20] m/s (got {self.speed:g})")
+        if self.step_length is not None and not 0 < self.step_length <= 10:
+            bad("step_length", f"must be in (0, 10] m (got {self.step_length:g})")
+        if not 0 < self.mu <= 10:
+            bad("mu", f"must be in (0, 10] (got {self.mu:g})")
+        if not 3 <= self.order <= 12:
+            bad("order", f"Bezier order must be 3..12 (got {self.order})")
+        if not 0 <= self.clearance <= 1:
+            bad("clearance", f"must be in [0, 1] m (got {self.clearance:g})")
+        if not 0 < self.max_delta_sq < 1:
+            bad("max_delta_sq", f"must be in (0, 1) (got {self.max_delta_sq:g})")
+        if self.min_vertical_force is not None and self.min_vertical_force < 0:
+            bad("min_vertical_force", "must be >= 0 N")
+        if self.objective not in OBJECTIVES:
+            bad("objective", f"unknown objective {self.objective!r} (choose from "
+                             f"{', '.join(OBJECTIVES)})")
+        if self.thrust_design and model.n_thrusters == 0:
+            bad("thrust_design", "the robot has no thruster")
+        if self.thrust_range is not None:
+            name, lo, hi = self.thrust_range
+            if name not in model.robot.thruster_names:
+                bad("thrust_range", f"unknown thruster {name!r} (robot {model.robot.name} has: "
+                                    f"{', '.join(model.robot.thruster_names)})")
+            if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+                bad("thrust_range", "need finite NAME:LOW:HIGH with LOW <= HIGH [N]")
+        if self.thrust_weight < 0:
+            bad("thrust_weight", "must be >= 0 m^2")
+        if not 1 <= self.starts <= 1000:
+            bad("starts", f"must be 1..1000 (got {self.starts})")
+        if self.seed < 0:
+            bad("seed", "must be >= 0")
+        if self.max_iter < 1:
+            bad("max_iter", "must be >= 1")
+        if self.nodes < 9 or self.nodes % 4 != 1:
+            bad("nodes", "need 4k + 1 Lobatto nodes (k >= 2), so that s = 1/2 is a node")
+        if self.alpha_c is not None:
+            c = np.asarray(self.alpha_c, float)
+            if c.shape != (model.n,) or c[-1] == 0:
+                bad("alpha_c", f"need one coefficient per coordinate and a non-zero coefficient "
+                               f"on {model.robot.coordinate_names[-1]}")
+        if p:
+            raise InputError(p)

@@ -1,0 +1,287 @@
+"""Robot files: the robot schema table and loading a :class:`Robot` (SPEC 1).
+
+Every problem is reported as ``file:line: key.path: message`` (all of them, not only the
+first); the key tables of ``docs/files.md`` are generated from ``ROBOT_SCHEMA``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..description.robot import (
+    Coordinate,
+    Link,
+    PointRef,
+    Robot,
+    Thruster,
+    coordinate_map,
+    symmetry_relabel,
+)
+from ..errors import InputError, Problem
+from .bundled import resolve
+from .schema import (
+    check,
+    choice,
+    field,
+    list_of,
+    mapping,
+    matrix,
+    null_or,
+    number,
+    parameters,
+    string,
+    vector,
+)
+from .yamlio import load_yaml
+
+# ----------------------------------------------------------------------------- robot schema
+# ----------------------------------------------------------------------------- robot schema
+_POINT_MASS = mapping(
+    field("mass", number("kg", gt=0), "point mass"),
+    field("at", vector(2, "m"), "position in the link frame"),
+)
+
+
+_LINK = mapping(
+    field("name", string(), "unique link name"),
+    field("parent", null_or(string()), "parent link; null for the root (pinned at the stance "
+          "foot)"),
+    field("joint", vector(2, "m"), "origin of this link's frame (its joint) in the parent's "
+          "frame; ignored for the root", default=[0.0, 0.0]),
+    field("mass", number("kg", ge=0), "distributed mass of the link", default=0.0),
+    field("com", vector(2, "m"), "centre of mass of `mass`, link frame", default=[0.0, 0.0]),
+    field("inertia", number("kg m^2", ge=0), "rotational inertia of `mass` about its centre "
+          "of mass", default=0.0),
+    field("point_masses", list_of(_POINT_MASS), "extra point masses on the link (combined "
+          "with `mass` by the parallel-axis theorem)", default=[]),
+    field("end", vector(2, "m"), "far end of the link, for drawing", default=[0.0, 0.0]),
+    field("rotor", null_or(mapping(
+        field("inertia", number("kg m^2", ge=0), "rotor inertia J"),
+        field("gear_ratio", number("1", gt=0), "gear ratio G"),
+    )), "motor on the joint to the parent: adds the reflected inertia J G^2 on the joint "
+        "angle", default=None),
+)
+
+
+_POINT = mapping(
+    field("link", string(), "link name"),
+    field("point", vector(2, "m"), "point in the link frame"),
+)
+
+
+_COORD_ACT = mapping(
+    field("name", string(), "coordinate name"),
+    field("joint", string(), "child link of the joint: angle = theta_child - theta_parent"),
+    field("range", null_or(vector(2, "rad")), "allowed [min, max] joint angle (gait design "
+          "and checks; e.g. knees that must not hyperextend)", default=None),
+    field("torque_limit", null_or(number("N m", gt=0)), "maximum |torque| of the joint motor",
+          default=None),
+)
+
+
+_COORD_UNACT = mapping(
+    field("name", string(), "coordinate name"),
+    field("link", string(), "link whose absolute angle (counter-clockwise from the world "
+          "frame) is q_N"),
+)
+
+
+_THRUSTER = mapping(
+    field("name", string(), "thruster name"),
+    field("link", string(), "link carrying the thruster"),
+    field("point", vector(2, "m"), "application point in the link frame"),
+    field("direction", vector(2), "direction of positive thrust (normalised on load)"),
+    field("frame", choice("world", "link"), "direction fixed in the world or in the link",
+          default="world"),
+    field("limits", vector(2, "N"), "minimum and maximum thrust", default=[-1e3, 1e3]),
+)
+
+
+ROBOT_SCHEMA = mapping(
+    field("name", string(), "robot name (used for caches and outputs)"),
+    field("description", string(nonempty=False), "free text", default=""),
+    field("parameters", parameters(), "named numbers usable in any numeric field, e.g. "
+          "`r/2`; arithmetic + - * / ** ( ), sin, cos, sqrt, pi", default={}),
+    field("gravity", number("m/s^2", gt=0), "gravitational acceleration (along -y)",
+          default=9.81),
+    field("links", list_of(_LINK, min_len=2), "rigid links forming a tree rooted at the stance "
+          "foot"),
+    field("coordinates", mapping(
+        field("actuated", list_of(_COORD_ACT, min_len=1), "q_b: one relative angle per joint, "
+              "in order [rad]"),
+        field("unactuated", _COORD_UNACT, "q_N: one absolute angle [rad]"),
+    ), "generalised coordinates q = [q_b; q_N]"),
+    field("feet", mapping(
+        field("stance", _POINT, "stance foot: a point of the root link, pinned"),
+        field("swing", _POINT, "swing foot: strikes the ground at impact"),
+    ), "foot points"),
+    field("relabel", mapping(
+        field("swap", null_or(list_of(list_of(string(), min_len=2))),
+              "link pairs that exchange roles at impact; R follows (R = T^-1 P T)",
+              default=None),
+        field("R", null_or(matrix()), "explicit N x N relabelling matrix (instead of swap)",
+              default=None),
+        field("b", null_or(vector(unit="rad")), "offset in q+ = R q- + b", default=None),
+    ), "leg relabelling at impact: q+ = R q- + b, q'+ = R q'-"),
+    field("thrusters", list_of(_THRUSTER), "thrusters (may be empty)", default=[]),
+)
+
+
+# ----------------------------------------------------------------------------- robots
+def _combine(mass: float, com: list[float], inertia: float, points: list[dict]
+             ) -> tuple[float, tuple[float, float], float]:
+    """Total mass, centre of mass and inertia about it (parallel-axis theorem)."""
+    items = [(mass, np.array(com), inertia)] + [(p["mass"], np.array(p["at"]), 0.0)
+                                                 for p in points]
+    M = sum(m for m, _, _ in items)
+    if M <= 0:
+        return 0.0, (0.0, 0.0), 0.0
+    c = sum(m * x for m, x, _ in items) / M
+    I = sum(i + m * float((x - c) @ (x - c)) for m, x, i in items)
+    return float(M), (float(c[0]), float(c[1])), float(I)
+
+
+def load_robot(ref: str) -> Robot:
+    """Read, validate and build a :class:`Robot` from a YAML file or bundled name."""
+    path = resolve(ref, "robots")
+    doc = load_yaml(path)
+    res = check(doc, ROBOT_SCHEMA)
+    res.raise_if_problems()
+    d = res.data
+    problems: list[Problem] = []
+    names = [lk["name"] for lk in d["links"]]
+    for i, n in enumerate(names):
+        if names.index(n) != i:
+            problems.append(res.problem(("links", i, "name"), f"duplicate link name '{n}'"))
+    links = []
+    roots = []
+    for i, lk in enumerate(d["links"]):
+        if lk["parent"] is None:
+            roots.append(i)
+        elif lk["parent"] not in names:
+            problems.append(res.problem(("links", i, "parent"),
+                                        f"unknown link '{lk['parent']}'"))
+        m, c, I = _combine(lk["mass"], lk["com"], lk["inertia"], lk["point_masses"])
+        if m <= 0:
+            problems.append(res.problem(("links", i), "link has no mass: give `mass` > 0 or "
+                                        "`point_masses`"))
+        rotor = lk["rotor"]
+        links.append(Link(lk["name"], lk["parent"], tuple(lk["joint"]), m, c, I,
+                          tuple(lk["end"]),
+                          rotor["inertia"] * rotor["gear_ratio"] ** 2 if rotor else 0.0))
+    if len(roots) != 1:
+        problems.append(res.problem(("links",), f"exactly one link needs parent: null (the "
+                                    f"stance-side root), found {len(roots)}"))
+    else:
+        parent = {lk.name: lk.parent for lk in links}
+        for i, lk in enumerate(links):
+            seen, cur = set(), lk.name
+            while cur is not None and cur in parent and cur not in seen:
+                seen.add(cur)
+                cur = parent[cur]
+            if cur is not None and cur in seen:
+                problems.append(res.problem(("links", i, "parent"),
+                                            f"cycle in the link tree through '{lk.name}'"))
+                break
+    if roots and links[roots[0]].rotor_inertia:
+        problems.append(res.problem(("links", roots[0], "rotor"), "the root has no joint"))
+    if problems:
+        raise InputError(problems)
+
+    def need_link(name: str, path: tuple) -> None:
+        if name not in names:
+            problems.append(res.problem(path, f"unknown link '{name}' (links: "
+                                        f"{', '.join(names)})"))
+
+    co = d["coordinates"]
+    coords = []
+    for i, c in enumerate(co["actuated"]):
+        need_link(c["joint"], ("coordinates", "actuated", i, "joint"))
+        rng = tuple(c["range"]) if c["range"] is not None else (-np.inf, np.inf)
+        if rng[0] >= rng[1]:
+            problems.append(res.problem(("coordinates", "actuated", i, "range"),
+                                        "minimum must be below maximum"))
+        tl = c["torque_limit"] if c["torque_limit"] is not None else np.inf
+        coords.append(Coordinate(c["name"], c["joint"], True, rng, tl))
+    need_link(co["unactuated"]["link"], ("coordinates", "unactuated", "link"))
+    coords.append(Coordinate(co["unactuated"]["name"], co["unactuated"]["link"], False))
+    cnames = [c.name for c in coords]
+    if len(set(cnames)) != len(cnames):
+        problems.append(res.problem(("coordinates",), "coordinate names must be unique"))
+    for key in ("stance", "swing"):
+        need_link(d["feet"][key]["link"], ("feet", key, "link"))
+    for i, t in enumerate(d["thrusters"]):
+        need_link(t["link"], ("thrusters", i, "link"))
+        if np.hypot(*t["direction"]) < 1e-12:
+            problems.append(res.problem(("thrusters", i, "direction"), "direction is zero"))
+        if t["limits"][0] > t["limits"][1]:
+            problems.append(res.problem(("thrusters", i, "limits"), "minimum > maximum"))
+    if problems:
+        raise InputError(problems)
+    links_t = tuple(links)
+    coords_t = tuple(coords)
+    root = links[roots[0]].name
+    if d["feet"]["stance"]["link"] != root:
+        problems.append(res.problem(("feet", "stance", "link"),
+                                    f"the stance foot must be on the root link '{root}'"))
+    try:
+        coordinate_map(links_t, coords_t)
+    except ValueError as exc:
+        problems.append(res.problem(("coordinates",), str(exc)))
+    if problems:
+        raise InputError(problems)
+
+    n = len(links)
+    rl = d["relabel"]
+    if (rl["swap"] is None) == (rl["R"] is None):
+        raise InputError(res.problem(("relabel",), "give exactly one of `swap` or `R`"))
+    if rl["swap"] is not None:
+        pairs = []
+        for i, pair in enumerate(rl["swap"]):
+            if len(pair) != 2:
+                problems.append(res.problem(("relabel", "swap", i), "expected a pair of links"))
+                continue
+            for nm in pair:
+                need_link(nm, ("relabel", "swap", i))
+            pairs.append((pair[0], pair[1]))
+        if problems:
+            raise InputError(problems)
+        R = symmetry_relabel(links_t, coords_t, pairs)
+    else:
+        R = np.array(rl["R"], float)
+        if R.shape != (n, n):
+            raise InputError(res.problem(("relabel", "R"), f"expected a {n}x{n} matrix"))
+    b = np.zeros(n) if rl["b"] is None else np.array(rl["b"], float)
+    if b.shape != (n,):
+        raise InputError(res.problem(("relabel", "b"), f"expected {n} values"))
+
+    thrusters = []
+    for t in d["thrusters"]:
+        dvec = np.array(t["direction"], float)
+        dvec = dvec / np.hypot(*dvec)
+        thrusters.append(Thruster(t["name"], t["link"], tuple(t["point"]),
+                                  (float(dvec[0]), float(dvec[1])), t["frame"],
+                                  tuple(t["limits"])))
+    lines = tuple((p, ln) for p, ln in _key_lines(doc))
+    return Robot(
+        name=d["name"], links=links_t, coordinates=coords_t,
+        stance_foot=PointRef(d["feet"]["stance"]["link"], tuple(d["feet"]["stance"]["point"])),
+        swing_foot=PointRef(d["feet"]["swing"]["link"], tuple(d["feet"]["swing"]["point"])),
+        relabel_R=tuple(map(tuple, R.tolist())), relabel_b=tuple(b.tolist()),
+        thrusters=tuple(thrusters), gravity=d["gravity"], description=d["description"],
+        source_file=str(path), source_sha256=doc.sha256,
+        parameters=tuple(sorted(res.params.items())), key_lines=lines,
+    )
+
+
+def _key_lines(doc) -> list[tuple[str, int]]:
+    """Lines of the top-level sections, for errors raised after loading (compile checks)."""
+    out = []
+    for key in ("links", "coordinates", "relabel", "feet", "thrusters"):
+        ln = doc.line_of((key,))
+        if ln is not None:
+            out.append((key, ln))
+    ln = doc.line_of(("coordinates", "unactuated"))
+    if ln is not None:
+        out.append(("coordinates.unactuated", ln))
+    return out

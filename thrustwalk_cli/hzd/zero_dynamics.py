@@ -1,0 +1,353 @@
+"""Hybrid zero dynamics, Poincare map and limit cycles (SPEC sections 3 and 4).
+
+On the zero-dynamics manifold Z, with sigma_N = e_N^T D(q) q' (angular momentum about the
+stance foot, [kg m^2/s]):
+
+    kappa_1(alpha) = 1 / (e_N^T D(q_Z) Phi(alpha))         [1/(kg m^2)]
+    kappa_2(alpha) = -dV/dq_N (q_Z(alpha))                  [N m]
+    beta(alpha)    = b_N(q_Z(alpha))                        [m]   (1 x m)
+    alpha' = kappa_1 sigma_N,   sigma_N' = kappa_2 + beta F_T
+
+With zeta = sigma_N^2 / 2 [kg^2 m^4/s^2] and thrust piecewise constant in alpha:
+
+    zeta(alpha) = zeta^+ + V_Z(alpha)
+    V_Z(alpha)  = int_{alpha_i}^{alpha} (kappa_2 + beta F_T) / kappa_1 dtau
+    rho(zeta^-) = delta_zero^2 zeta^- + V_Z(alpha_f)
+    zeta* = V_Z(alpha_f) / (1 - delta_zero^2)                      (SPEC 3, 4)
+
+SPEC 4 erratum: the paper's ``zeta* = zeta_0* + sum_j b_F T_j`` omits ``1/(1 - delta_zero^2)``;
+this module implements the true fixed point (``paper_one_step_shift`` gives the paper's value).
+
+Integrals are spectral (Chebyshev-Lobatto, :mod:`quadrature`); the node count doubles until the
+nested error estimate is below ``rtol`` relative, and the estimate is reported.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..description.gait import Gait
+from ..model.compiled import CompiledModel
+from .constraints import GaitMaps, gait_maps
+from .quadrature import ChebSeries, cumulative_with_error, integrate, lobatto
+
+RTOL = 1e-9
+
+
+MAX_NODES = 4097
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """Thrust piecewise constant in alpha, batched: ``k`` schedules sharing the knots.
+
+    knots: ``alpha_1 = alpha_i, ..., alpha_n = alpha_f`` [rad].
+    force: (k, n-1, m) physical thrust per interval and thruster [N].
+    generalized: (k, n-1) generalised force ``T_j`` on q_N per interval [N m] (SPEC 4).
+    """
+
+    knots: np.ndarray
+    force: np.ndarray
+    generalized: np.ndarray
+
+    @property
+    def size(self) -> int:
+        return self.force.shape[0]
+
+    @staticmethod
+    def constant(zd: ZeroDynamics, thrust: np.ndarray) -> Schedule:
+        """Constant thrust; ``thrust`` has shape (k, m)."""
+        thrust = np.atleast_2d(np.asarray(thrust, float))
+        k = thrust.shape[0]
+        return Schedule(
+            knots=np.array([zd.alpha_i, zd.alpha_f]),
+            force=thrust[:, None, :],
+            generalized=np.zeros((k, 1)),
+        )
+
+
+@dataclass(frozen=True)
+class LimitCycle:
+    """The periodic orbit of the zero dynamics for one thrust schedule (SPEC 3).
+
+    Every number is SI: zeta [kg^2 m^4/s^2], sigma [kg m^2/s], alpha' [rad/s], step time [s],
+    step length [m], speed [m/s]. Fields are ``None`` when ``exists`` is false; ``reason``
+    says why. ``orbit`` holds the sampled phase-plane curve (alpha, alpha', sigma_N).
+    """
+
+    exists: bool
+    stable: bool
+    reason: str
+    delta_zero_sq: float
+    V_f: float
+    zeta_star: float | None = None
+    zeta_plus: float | None = None
+    sigma_minus: float | None = None
+    sigma_plus: float | None = None
+    alpha_dot_minus: float | None = None
+    alpha_dot_plus: float | None = None
+    step_time: float | None = None
+    step_time_error: float | None = None
+    step_length: float | None = None
+    speed: float | None = None
+    min_abs_alpha_dot: float | None = None
+    alpha_at_min: float | None = None
+    orbit: dict[str, np.ndarray] | None = field(default=None, repr=False)
+
+
+@dataclass
+class ZeroDynamics:
+    """Thrust-independent part of the zero dynamics of one gait on one model (SPEC 3)."""
+
+    model: CompiledModel
+    gait: Gait
+    maps: GaitMaps
+    nodes: int
+    V0: ChebSeries  # int kappa_2/kappa_1 from alpha_i          [kg^2 m^4/s^2]
+    Gamma: ChebSeries  # int beta/kappa_1, one column per thruster  [kg^2 m^4/s^2 per N]
+    B: ChebSeries  # int 1/kappa_1 (generalised mode b_F)          [kg m^2 rad per N m]
+    integral_error: float
+    integral_scale: float
+    delta_zero: float
+    kappa1_ok: bool
+    kappa1_reason: str
+
+    @property
+    def alpha_i(self) -> float:
+        return self.maps.alpha_i
+
+    @property
+    def alpha_f(self) -> float:
+        return self.maps.alpha_f
+
+    @property
+    def delta_zero_sq(self) -> float:
+        return self.delta_zero**2
+
+    @property
+    def direction(self) -> float:
+        """+1 if alpha increases over the step, -1 if it decreases."""
+        return float(np.sign(self.alpha_f - self.alpha_i))
+
+    def terms(self, alpha: np.ndarray) -> dict[str, np.ndarray]:
+        """Direct model evaluation on Z: q_Z, Phi, kappa_1, kappa_2, beta (SPEC 3)."""
+        return zero_dynamics_terms(self.model, self.maps, alpha)
+
+    @property
+    def sigma_sign(self) -> float:
+        """Sign of sigma_N on the orbit: alpha' = kappa_1 sigma_N moves alpha forward."""
+        k1 = self.terms(np.array([self.alpha_i]))["kappa1"][0]
+        return self.direction * float(np.sign(k1))
+
+    def V_Z(self, alpha: np.ndarray, schedule: Schedule) -> np.ndarray:
+        """``V_Z(alpha)`` for each schedule in the batch; shape (k,) + alpha.shape."""
+        alpha = np.asarray(alpha, float)
+        kn = schedule.knots
+        out = np.broadcast_to(self.V0(alpha), (schedule.size,) + alpha.shape).copy()
+        lo, hi = np.minimum(kn[:-1], kn[1:]), np.maximum(kn[:-1], kn[1:])
+        for j in range(len(kn) - 1):
+            a = np.clip(alpha, lo[j], hi[j])
+            dG = self.Gamma(a) - self.Gamma(kn[j])  # alpha.shape + (m,)
+            dB = self.B(a) - self.B(kn[j])
+            out += np.einsum("...m,km->k...", dG, schedule.force[:, j, :])
+            out += schedule.generalized[:, j].reshape((-1,) + (1,) * alpha.ndim) * dB
+        return out
+
+    def interval_integrals(self, knots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per interval: ``b_F(alpha_{j+1}, alpha_j) = int 1/kappa_1`` and
+        ``Gamma_j = int beta/kappa_1`` (SPEC 4); shapes (n-1,) and (n-1, m)."""
+        kn = np.asarray(knots, float)
+        return np.diff(self.B(kn)), np.diff(self.Gamma(kn), axis=0)
+
+    def poincare(self, zeta_minus: np.ndarray, schedule: Schedule) -> np.ndarray:
+        """``rho(zeta^-) = delta_zero^2 zeta^- + V_Z(alpha_f)`` (SPEC 3); NaN-free, unchecked
+        domain: see :func:`limit_cycles` for the existence conditions."""
+        return self.delta_zero_sq * np.asarray(zeta_minus) + self.V_Z(
+            np.array(self.alpha_f), schedule)
+
+
+def zero_dynamics_terms(model: CompiledModel, maps: GaitMaps, alpha: np.ndarray) -> dict:
+    """q_Z, Phi, kappa_1 = 1/(e_N^T D Phi), kappa_2 = -dV/dq_N, beta = b_N on Z (SPEC 3)."""
+    alpha = np.asarray(alpha, float)
+    q = maps.q_Z(alpha)
+    phi = maps.Phi(alpha)
+    D = model.D(q)
+    N = model.n
+    eDPhi = np.einsum("...j,...j->...", D[..., N - 1, :], phi)
+    with np.errstate(divide="ignore"):
+        kappa1 = 1.0 / eDPhi
+    kappa2 = -model.G(q)[..., N - 1]
+    beta = model.B_F(q)[..., N - 1, :]
+    return {"q": q, "Phi": phi, "kappa1": kappa1, "kappa2": kappa2, "beta": beta, "eDPhi": eDPhi}
+
+
+def _kappa1_check(k1: np.ndarray, alpha: np.ndarray) -> tuple[bool, str]:
+    if not np.all(np.isfinite(k1)):
+        bad = alpha[~np.isfinite(k1)][0]
+        return False, f"kappa_1 is singular (e_N^T D Phi = 0) near alpha = {bad:.6g} rad"
+    sign = np.sign(k1)
+    if np.any(sign != sign[0]) or np.any(sign == 0):
+        j = int(np.argmax(sign != sign[0]))
+        return False, (f"kappa_1 changes sign near alpha = {alpha[j]:.6g} rad: alpha stops being "
+                       "monotonic and the zero dynamics are singular")
+    return True, ""
+
+
+def zero_dynamics(model: CompiledModel, gait: Gait, rtol: float = RTOL,
+                  nodes: int = 65) -> ZeroDynamics:
+    """Precompute the thrust-independent integrals V_0, Gamma, b_F and delta_zero (SPEC 3, 4).
+
+    ``delta_zero = e_N^T D(q^+) R Delta_q'(q^-) Phi(alpha_f) kappa_1(alpha_f)``.
+    """
+    maps = gait_maps(model, gait)
+    a, b = maps.alpha_i, maps.alpha_f
+    n = nodes
+    while True:
+        alpha = lobatto(a, b, n)
+        t = zero_dynamics_terms(model, maps, alpha)
+        ok, why = _kappa1_check(t["kappa1"], alpha)
+        inv = t["eDPhi"]  # 1/kappa_1, finite everywhere
+        vals = np.column_stack([t["kappa2"] * inv, t["beta"] * inv[:, None], inv])
+        series, err = cumulative_with_error(a, b, vals)
+        scale = float(np.max(np.abs(series(alpha)), axis=0).max()) or 1.0
+        if err <= rtol * scale or n >= MAX_NODES or not ok:
+            break
+        n = 2 * n - 1
+    m = model.n_thrusters
+    V0 = ChebSeries(a, b, series.coef[:, 0])
+    Gamma = ChebSeries(a, b, series.coef[:, 1:1 + m])
+    B = ChebSeries(a, b, series.coef[:, 1 + m])
+    _, _, Delta = model.impact_maps(maps.q_minus)
+    tf = zero_dynamics_terms(model, maps, np.array([b]))
+    N = model.n
+    D_plus = model.D(maps.q_plus)
+    delta = float(D_plus[N - 1, :] @ model.R @ Delta @ tf["Phi"][0] * tf["kappa1"][0])
+    return ZeroDynamics(model, gait, maps, n, V0, Gamma, B, err, scale, delta, ok, why)
+
+
+def _step_times(zd: ZeroDynamics, schedule: Schedule, zeta_plus: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``T = int dalpha / alpha'`` for a batch, per knot interval (spectral, nested estimate).
+
+    Nodes double on each interval until the estimate is below ``0.1 RTOL`` relative for the
+    whole batch. Returns (T, error estimate, ok) with ok false where zeta <= 0 on a node.
+    """
+    kn = schedule.knots
+    k = schedule.size
+    sgn = zd.sigma_sign
+    T, T_err, ok = np.zeros(k), np.zeros(k), np.ones(k, bool)
+    for j in range(len(kn) - 1):
+        n_p = 33
+        while True:
+            p = lobatto(kn[j], kn[j + 1], n_p)
+            k1p = zd.terms(p)["kappa1"]
+            zpnl = zeta_plus[:, None] + zd.V_Z(p, schedule)
+            bad = np.any(zpnl <= 0, axis=1)
+            f = 1.0 / (k1p * sgn * np.sqrt(2.0 * np.where(zpnl > 0, zpnl, 1.0)))
+            val, err = integrate(p[0], p[-1], f)
+            good = ~bad
+            if np.all(err[good] <= 0.1 * RTOL * np.abs(val[good])) or n_p >= MAX_NODES:
+                break
+            n_p = 2 * n_p - 1
+        T += val
+        T_err += err
+        ok &= good
+    return T, T_err, ok
+
+
+def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> list[LimitCycle]:
+    """Fixed points, stability and orbits for a batch of thrust schedules (SPEC 3, 4).
+
+    Exists  <=>  kappa_1 keeps its sign, 0 < delta_zero^2 != 1, zeta* > 0 and
+    delta_zero^2 zeta* + min V_Z > 0. Stable  <=>  exists and delta_zero^2 < 1.
+    The step time ``T = int dalpha / alpha'`` is integrated per knot interval (spectral, with a
+    nested error estimate); alpha' = kappa_1 sigma_N, sigma_N = sgn sqrt(2 zeta).
+    Everything is vectorised over the batch: a sweep costs little more than one orbit.
+    """
+    d2 = zd.delta_zero_sq
+    a_i, a_f = zd.alpha_i, zd.alpha_f
+    kn = schedule.knots
+    Vf = zd.V_Z(np.array(a_f), schedule)  # (k,)
+    # dense grid for min V_Z / min |alpha'| and the sampled orbit (includes the knots)
+    grid = np.unique(np.concatenate([np.linspace(a_i, a_f, samples), kn]))
+    if a_f < a_i:
+        grid = grid[::-1]
+    k1 = zd.terms(grid)["kappa1"]
+    VZ = zd.V_Z(grid, schedule)  # (k, g)
+    step_length = float(zd.model.p_swing(zd.maps.q_minus)[0])
+    sgn = zd.sigma_sign
+    with np.errstate(divide="ignore", invalid="ignore"):
+        zstar = Vf / (1.0 - d2)
+    zp = d2 * zstar
+    zeta = zp[:, None] + VZ
+    jmin = np.argmin(zeta, axis=1)
+    zmin = zeta[np.arange(len(Vf)), jmin]
+    candidates = zd.kappa1_ok and 0.0 < d2 != 1.0
+    live = np.nonzero((zstar > 0) & (zmin > 0))[0] if candidates else np.array([], int)
+    T = np.full(len(Vf), np.nan)
+    T_err = np.full(len(Vf), np.nan)
+    T_ok = np.zeros(len(Vf), bool)
+    if live.size:
+        sub = Schedule(kn, schedule.force[live], schedule.generalized[live])
+        T[live], T_err[live], T_ok[live] = _step_times(zd, sub, zp[live])
+    out = []
+    for i in range(len(Vf)):
+        base = dict(delta_zero_sq=d2, V_f=float(Vf[i]))
+        zs = float(zstar[i])
+        if not zd.kappa1_ok:
+            out.append(LimitCycle(False, False, zd.kappa1_reason, **base))
+        elif d2 == 1.0 or d2 <= 0.0:
+            out.append(LimitCycle(False, False,
+                                  f"delta_zero^2 = {d2:.6g}: no isolated fixed point", **base))
+        elif zs <= 0.0:
+            why = (f"no periodic orbit: zeta* = V_Z(alpha_f)/(1 - delta_zero^2) = {zs:.6g} <= 0"
+                   if d2 < 1 else
+                   f"no periodic orbit with zeta* > 0 (delta_zero^2 = {d2:.6g} >= 1, "
+                   f"V_Z(alpha_f) = {Vf[i]:.6g})")
+            out.append(LimitCycle(False, False, why, **base))
+        elif zmin[i] <= 0.0:
+            out.append(LimitCycle(
+                False, False,
+                f"the walker stops before the end of the step: zeta reaches 0 near alpha = "
+                f"{grid[jmin[i]]:.6g} rad (delta_zero^2 zeta* + min V_Z = {zmin[i]:.6g} <= 0)",
+                zeta_star=zs, **base))
+        elif not T_ok[i]:
+            out.append(LimitCycle(False, False, "the walker stops inside the step (zeta <= 0 "
+                                  "between grid points)", zeta_star=zs, **base))
+        elif not (np.isfinite(T[i]) and T[i] > 0):
+            out.append(LimitCycle(False, False, f"step time integral failed (T = {T[i]})",
+                                  zeta_star=zs, **base))
+        else:
+            sigma = sgn * np.sqrt(2.0 * zeta[i])
+            adot = k1 * sigma
+            jm = int(np.argmin(np.abs(adot)))
+            s_minus = sgn * np.sqrt(2.0 * zs)
+            s_plus = zd.delta_zero * s_minus
+            stable = d2 < 1.0
+            reason = "stable periodic orbit" if stable else (
+                f"periodic orbit exists but is unstable (delta_zero^2 = {d2:.6g} >= 1)")
+            out.append(LimitCycle(
+                exists=True, stable=stable, reason=reason, zeta_star=zs, zeta_plus=float(zp[i]),
+                sigma_minus=float(s_minus), sigma_plus=float(s_plus),
+                alpha_dot_minus=float(k1[-1] * s_minus), alpha_dot_plus=float(k1[0] * s_plus),
+                step_time=float(T[i]), step_time_error=float(T_err[i]),
+                step_length=step_length, speed=step_length / float(T[i]),
+                min_abs_alpha_dot=float(abs(adot[jm])), alpha_at_min=float(grid[jm]),
+                orbit={"alpha": grid, "alpha_dot": adot, "sigma": sigma, "zeta": zeta[i]},
+                **base))
+    return out
+
+
+def paper_one_step_shift(zd: ZeroDynamics, schedule: Schedule) -> np.ndarray:
+    """The paper's ``sum_j b_F T_j`` (+ force terms): the change of zeta^- in ONE step for a
+    fixed zeta^+, not the fixed-point shift (SPEC 4 erratum)."""
+    nominal = Schedule(schedule.knots, np.zeros_like(schedule.force),
+                       np.zeros_like(schedule.generalized))
+    return (zd.V_Z(np.array(zd.alpha_f), schedule) - zd.V_Z(np.array(zd.alpha_f), nominal))
+
+
+def fixed_point_shift(zd: ZeroDynamics, schedule: Schedule) -> np.ndarray:
+    """True shift ``Delta zeta* = sum_j b_F T_j / (1 - delta_zero^2)`` (SPEC 4)."""
+    return paper_one_step_shift(zd, schedule) / (1.0 - zd.delta_zero_sq)

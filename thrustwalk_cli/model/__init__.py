@@ -1,0 +1,2 @@
+"""SPEC 1: robot description -> SymPy derivation -> generated code -> cached compiled model.
+SymPy is imported only by ``derive`` and ``codegen``, and only when compiling."""

@@ -1,0 +1,1 @@
+"""Matplotlib figures from plain figure data; imports no other thrustwalk layer."""

@@ -1,0 +1,106 @@
+"""Figures of ``thrustwalk limit-cycle``: zero-dynamics limit cycles over a swept value and
+the fixed-point shift versus thrust (SPEC 3, 4; the paper's figure 3). Plain data in."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+
+from .style import corner_note, is_multiple, style
+
+
+def phase_portrait(
+    values: Sequence[float],
+    orbits: Sequence[dict | None],
+    jumps: Sequence[tuple[float, float, float, float] | None],
+    *,
+    value_label: str,
+    y: str = "alpha_dot",
+    black_every: float | None = 10.0,
+    title: str = "",
+    note: str = "",
+):
+    """Orbits in the (alpha, alpha') or (alpha, sigma_N) plane, coloured by a swept value.
+
+    ``orbits[i]``: dict with arrays ``alpha`` and ``y`` (None when no orbit exists).
+    ``jumps[i]``: (alpha_f, y^-, alpha_i, y^+), drawn dashed (the impact).
+    Values that are multiples of ``black_every`` are drawn in black (the paper's style).
+    """
+    ylabel = {"alpha_dot": r"$\dot\alpha$ [rad/s]",
+              "sigma": r"$\sigma_N$ [kg m$^2$/s]"}[y]
+    with style():
+        fig, ax = plt.subplots(figsize=(3.5, 2.7))
+        vals = np.asarray(values, float)
+        lo, hi = (vals.min(), vals.max()) if vals.size else (0.0, 1.0)
+        norm = matplotlib.colors.Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1)
+        cmap = matplotlib.colormaps["viridis"]
+        missing = []
+        for v, orb, jump in zip(vals, orbits, jumps):
+            if orb is None:
+                missing.append(v)
+                continue
+            black = black_every is not None and is_multiple(v, black_every)
+            color = "k" if black else cmap(norm(v))
+            ax.plot(orb["alpha"], orb[y], color=color, lw=0.9 if black else 0.6,
+                    zorder=3 if black else 2)
+            if jump is not None:
+                ax.plot([jump[0], jump[2]], [jump[1], jump[3]], color=color, ls="--",
+                        lw=0.5, zorder=1)
+        sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
+        cb = fig.colorbar(sm, ax=ax, pad=0.02)
+        cb.set_label(value_label)
+        ax.set_xlabel(r"$\alpha$ [rad]")
+        ax.set_ylabel(ylabel)
+        handles = [matplotlib.lines.Line2D([], [], color="k", lw=0.9),
+                   matplotlib.lines.Line2D([], [], color="gray", ls="--", lw=0.5)]
+        labels = [f"every {black_every:g}" if black_every else "orbit", "impact"]
+        ax.legend(handles, labels, loc="best")
+        if title:
+            ax.set_title(title)
+        text = note
+        if missing:
+            text += ("\n" if text else "") + "no orbit for " + ", ".join(f"{m:g}" for m in missing)
+        corner_note(ax, text)
+        fig.tight_layout()
+    return fig
+
+
+def fixed_point_shift(values: Sequence[float], zeta_star: Sequence[float | None],
+                      speed: Sequence[float | None], slope: float, zeta0: float | None,
+                      *, thruster: str, title: str = ""):
+    """Fixed point zeta* [kg^2 m^4/s^2] and speed [m/s] versus constant thrust [N] (SPEC 4).
+
+    The line is the exact affine law ``zeta*(F) = zeta*(0) + Gamma(alpha_f) F / (1 - delta^2)``;
+    markers are the computed fixed points (missing where no orbit exists).
+    """
+    vals = np.asarray(values, float)
+    ok = np.array([z is not None for z in zeta_star])
+    with style():
+        fig, ax = plt.subplots(figsize=(3.5, 2.6))
+        if zeta0 is not None:
+            grid = np.linspace(vals.min(), vals.max(), 200)
+            ax.plot(grid, zeta0 + slope * grid, color="0.6", lw=0.8,
+                    label=r"affine law $\zeta^*_0 + \Gamma F/(1-\delta^2)$")
+        ax.plot(vals[ok], [z for z in zeta_star if z is not None], "o", ms=2.5, color="k",
+                label=r"computed $\zeta^*$")
+        if (~ok).any():
+            ax.plot(vals[~ok], np.zeros((~ok).sum()), "x", ms=3, color="firebrick",
+                    label="no periodic orbit")
+        ax.set_xlabel(f"thrust {thruster} [N]")
+        ax.set_ylabel(r"$\zeta^*$ [kg$^2$ m$^4$/s$^2$]")
+        ax2 = ax.twinx()
+        ax2.grid(False)
+        ax2.plot(vals[ok], [v for v in speed if v is not None], "--", color="tab:blue", lw=0.8,
+                 label="average speed (right axis)")
+        ax2.set_ylabel("average speed [m/s]", color="tab:blue")
+        ax2.tick_params(axis="y", colors="tab:blue")
+        h1, l1 = ax.get_legend_handles_labels()
+        h2, l2 = ax2.get_legend_handles_labels()
+        ax.legend(h1 + h2, l1 + l2, loc="best")
+        if title:
+            ax.set_title(title)
+        fig.tight_layout()
+    return fig

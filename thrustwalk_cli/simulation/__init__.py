@@ -1,0 +1,2 @@
+"""SPEC 7: full-order closed-loop hybrid simulation with thruster dynamics, and the reduced
+cascade of SPEC 3."""

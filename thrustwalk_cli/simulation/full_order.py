@@ -1,0 +1,413 @@
+"""Full-order closed-loop hybrid simulation with thruster dynamics (SPEC section 7).
+
+The stance phase is the closed loop of :mod:`closed_loop` (input-output linearisation of
+``y = H_0 q - h_d(c q)``, ``y'' = -K_p y - K_d y'``, thrust models). Hybrid execution: the
+guard is the swing-foot height crossing zero downward once the step is past ``s = 0.5``; the
+impact map and relabelling of :meth:`CompiledModel.impact` (SPEC 5, 1) give the next step;
+thruster states are continuous across impacts. Failures stop the run and are reported in
+``SimResult.reason``: integrator failure, swing-foot scuff, stance leg past horizontal, alpha
+reversing, negative vertical ground force, an infeasible impact, or no impact. SI units.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
+
+from ..errors import InputError
+from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics
+from .closed_loop import (
+    ClosedLoop,
+    SimConfig,
+    ThrustModel,
+    predicted_cycle,
+    zeta_star_at,
+)
+
+
+@dataclass(frozen=True)
+class Start:
+    """Initial condition: on Z just after an impact whose pre-impact value is
+    ``zeta^- = (1 + perturb) zeta_minus`` [kg^2 m^4/s^2], or an explicit state ``(q, dq)``
+    [rad, rad/s]. ``zeta_minus`` None: the predicted fixed point of the thrust at t = 0
+    (``orbit="predicted"``: F_ss for constant thrust, the initial thrust of the dynamic
+    models, the schedule for piecewise) or of zero thrust (``orbit="nominal"``)."""
+
+    zeta_minus: float | None = None
+    perturb: float = 0.0
+    q: np.ndarray | None = None
+    dq: np.ndarray | None = None
+    orbit: str = "predicted"
+
+
+# ----------------------------------------------------------------------------- results
+@dataclass(frozen=True)
+class StepRecord:
+    """One simulated step, from the post-impact state to the next impact (SI units).
+
+    ``*_minus`` just before the impact that ends the step, ``*_plus`` just after it (after
+    relabelling). sigma [kg m^2/s], zeta = sigma^2/2 [kg^2 m^4/s^2], impulse F_2 [N s],
+    forces [N], torques [N m], outputs y [rad], y' [rad/s].
+    """
+
+    step: int
+    t_start: float
+    t_impact: float
+    step_time: float
+    alpha_start: float
+    z_start: tuple[float, ...]
+    alpha_minus: float
+    s_minus: float
+    sigma_start: float
+    zeta_start: float
+    sigma_minus: float
+    zeta_minus: float
+    sigma_plus: float
+    zeta_plus: float
+    impulse: tuple[float, float]
+    impulse_friction_ratio: float
+    trailing_foot_lift_velocity: float
+    thrust_at_impact: tuple[float, ...]
+    min_vertical_force: float
+    max_friction_ratio: float | None  # None if F_1^v <= 0 somewhere (then the step failed)
+    max_abs_output: float
+    max_abs_output_rate: float
+    max_abs_torque: float
+    torque_saturated: bool
+    energy_minus: float
+    energy_plus: float
+    q_minus: tuple[float, ...]
+    dq_minus: tuple[float, ...]
+    nfev: int
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A smooth piece of the trajectory: one ``solve_ivp`` call (dense solution)."""
+
+    step: int
+    t0: float
+    t1: float
+    interval: int
+    sol: object = field(repr=False)
+
+
+@dataclass(frozen=True)
+class SimResult:
+    """A full-order run. ``success`` false means the run stopped early; ``failure`` is one of
+    ``fall``, ``scuff``, ``impact``, ``no-impact``, ``integrator``, ``controller`` and ``reason``
+    says what happened, where and when. ``steps`` holds every completed step."""
+
+    success: bool
+    reason: str
+    failure: str
+    thrust: ThrustModel
+    config: SimConfig
+    steps: tuple[StepRecord, ...]
+    prediction: LimitCycle
+    trajectory: dict[str, np.ndarray] = field(repr=False)
+    segments: tuple[Segment, ...] = field(repr=False)
+    nfev: int = 0
+    wall_time: float = 0.0
+    sim: object = field(default=None, repr=False)
+
+    def sample(self, step: int, times: np.ndarray) -> dict[str, np.ndarray]:
+        """Dense state and details (``q``, ``dq``, ``ddq``, ``u``, ``y``, ``F``, ``F1``, ...) at
+        ``times`` inside step ``step`` (1-based, end points included) [SI]."""
+        segs = [s for s in self.segments if s.step == step]
+        if not segs:
+            raise ValueError(f"step {step} was not simulated")
+        times = np.asarray(times, float)
+        X = np.empty((times.size, segs[0].sol(segs[0].t0).size))
+        iv = np.empty(times.size, int)
+        for j, s in enumerate(segs):
+            last = j == len(segs) - 1
+            sel = (times >= s.t0) & ((times <= s.t1) if last else (times < s.t1))
+            if j == 0:
+                sel |= times < s.t0
+            if last:
+                sel |= times > s.t1
+            if sel.any():
+                X[sel] = s.sol(times[sel]).T
+                iv[sel] = s.interval
+        return self.sim.details(X, iv)
+
+
+class _Stop(Exception):
+    def __init__(self, failure: str, reason: str):
+        super().__init__(reason)
+        self.failure, self.reason = failure, reason
+
+
+_EVENT_REASONS = {
+    "scuff": ("scuff", "the swing foot scuffs the ground before mid-step"),
+    "overshoot": ("no-impact", "the swing foot has not reached the ground by the end of the "
+                               "step (s = max_s)"),
+    "reverse": ("fall", "alpha reverses (alpha' = 0): the walker stops and falls back"),
+    "horizontal": ("fall", "the stance leg passes the horizontal"),
+    "force": ("fall", "the vertical ground force becomes negative: the stance foot would "
+                      "lift off"),
+}
+
+
+def _dip(cl: ClosedLoop, sol, lows, seg: int, t0: float, t1: float):
+    """The first lowest point of the swing foot in ``[t0, t1]`` that is below the ground:
+    with the guard armed (deeper than ``ground_tol``) the downward crossing before it,
+    located on the dense solution by brentq, is the strike: ``("guard", t)``; before the
+    guard is armed a dip deeper than ``scuff_tol`` is ``("scuff", t)``. None otherwise."""
+    armed = cl.guard_armed(seg)
+    limit = -cl.config.ground_tol if armed else -cl.config.scuff_tol
+    for tm in lows:
+        if tm > t1 or cl.swing_height(sol.sol(tm)) >= limit:
+            continue
+        if not armed:
+            return "scuff", float(tm)
+        grid = np.linspace(t0, tm, 65)
+        h = np.array([cl.swing_height(sol.sol(tt)) for tt in grid])
+        idx = np.nonzero((h[:-1] > 0) & (h[1:] <= 0))[0]
+        if idx.size == 0:  # already below the ground when the guard was armed
+            return "scuff", float(t0)
+        i = int(idx[0])
+        return "guard", float(brentq(lambda tt: cl.swing_height(sol.sol(tt)), grid[i],
+                                     grid[i + 1], xtol=1e-14, rtol=4 * np.finfo(float).eps))
+    return None
+
+
+def initial_state(zd: ZeroDynamics, thrust: ThrustModel, start: Start) -> np.ndarray:
+    """``x0 = [q; q'; z]``: the impact map (SPEC 5) applied to the pre-impact state on Z with
+    ``zeta^- = (1 + perturb) zeta_minus``, or the explicit state of ``start``."""
+    model = zd.model
+    N = model.n
+    z0 = thrust.initial_states()
+    if start.q is not None:
+        q, dq = np.asarray(start.q, float), np.asarray(start.dq, float)
+        if q.shape != (N,) or dq.shape != (N,):
+            raise InputError.param(("q0", "dq0"), f"expected {N} values each "
+                             f"({', '.join(model.robot.coordinate_names)})")
+        return np.concatenate([q, dq, z0])
+    zm = start.zeta_minus
+    if start.orbit not in ("predicted", "nominal"):
+        raise InputError.param("start", f"unknown orbit {start.orbit!r} (predicted, nominal)")
+    if zm is None and start.orbit == "nominal":
+        zm = zeta_star_at(zd, np.zeros(thrust.m))
+        if not zm > 0:
+            raise InputError(f"cannot start on the nominal orbit: no fixed point without "
+                             f"thrust (zeta* = {zm:.6g}); give `zeta0` or `q0`/`dq0`")
+    if zm is None:
+        if thrust.time_dependent:
+            F0 = np.zeros(thrust.m) if thrust.initial is None else thrust.initial
+        else:
+            F0 = thrust.target
+        if thrust.kind == "piecewise":
+            lc = predicted_cycle(zd, thrust)
+            if not lc.exists:
+                raise InputError(f"cannot start on the predicted orbit: {lc.reason}")
+            zm = lc.zeta_star
+        else:
+            zm = zeta_star_at(zd, np.asarray(F0, float))
+            if not zm > 0:
+                raise InputError(f"cannot start on the predicted orbit: no fixed point for the "
+                                 f"initial thrust (zeta* = {zm:.6g}); use `start` nominal, "
+                                 f"`zeta0` or `q0`/`dq0`")
+    zm = zm * (1.0 + start.perturb)
+    if not zm > 0:
+        raise InputError.param("perturb", f"the start needs zeta^- > 0 (got {zm:.6g})")
+    t = zd.terms(np.array([zd.alpha_f]))
+    sigma = zd.sigma_sign * np.sqrt(2.0 * zm)
+    dq_minus = t["Phi"][0] * t["kappa1"][0] * sigma
+    imp = model.impact(zd.maps.q_minus, dq_minus)
+    return np.concatenate([imp.q_plus, imp.dq_plus, z0])
+
+
+def simulate(zd: ZeroDynamics, thrust: ThrustModel, config: SimConfig = SimConfig(),
+             start: Start = Start(), progress: Callable[[int], None] | None = None
+             ) -> SimResult:
+    """Simulate ``config.steps`` steps of the closed-loop hybrid system (SPEC 7).
+
+    ``progress(1)`` is called after every completed step. Never raises on a physical failure:
+    the result carries ``success``, ``failure`` and ``reason``.
+    """
+    config.validate()
+    t_wall = time.perf_counter()
+    cl = ClosedLoop(zd, thrust, config)
+    pred = predicted_cycle(zd, thrust)
+    x = initial_state(zd, thrust, start)
+    t_max = config.max_step_time or (10.0 * pred.step_time if pred.exists else 10.0)
+    steps: list[StepRecord] = []
+    segments: list[Segment] = []
+    t = 0.0
+    failure, reason = "", ""
+    for k in range(1, config.steps + 1):
+        try:
+            rec, x, t = _one_step(cl, k, t, x, t_max, segments)
+        except _Stop as stop:
+            failure, reason = stop.failure, f"step {k}: {stop.reason}"
+            break
+        steps.append(rec)
+        if progress is not None:
+            progress(1)
+    traj = _trajectory(cl, segments, config.samples_per_step)
+    ok = not failure
+    if ok:
+        reason = f"completed {len(steps)} steps"
+    return SimResult(ok, reason, failure, thrust, config, tuple(steps), pred, traj,
+                     tuple(segments), cl.nfev, time.perf_counter() - t_wall, cl)
+
+
+def _one_step(cl: ClosedLoop, k: int, t0: float, x0: np.ndarray, t_max: float,
+              segments: list[Segment]) -> tuple[StepRecord, np.ndarray, float]:
+    """Integrate one step (segment by segment) up to the guard, then apply the impact."""
+    N, cfg = cl.N, cl.config
+    nfev0 = cl.nfev
+    s0 = (float(cl.c @ x0[:N]) - cl.ai) / cl.span
+    seg = cl.segment_of(s0)
+    start_segments = len(segments)
+    # states outside every event's domain at the start
+    d0 = cl.details(x0[None], np.array([seg]))
+    if d0["F1"][0, 1] < 0:
+        raise _Stop("fall", f"the vertical ground force is negative at the start of the step "
+                            f"({d0['F1'][0, 1]:.4g} N)")
+    h0 = cl.swing_height(x0)
+    if h0 < -cfg.scuff_tol:  # no event can see a foot that starts below the ground and rises
+        raise _Stop("scuff", f"the swing foot starts the step {-h0:.4g} m below the ground "
+                             f"(s = {s0:.4g})")
+    t, x = t0, x0
+    rising = cl.foot_velocity(x) >= 0.0
+    while True:
+        evs = cl.events(seg, rising)
+        names = [name for name, _ in evs]
+        try:
+            sol = solve_ivp(cl.rhs, (t, t0 + t_max), x, method=cfg.method, rtol=cfg.rtol,
+                            atol=cfg.atol, events=[f for _, f in evs], dense_output=True,
+                            args=(seg,))
+        except np.linalg.LinAlgError:
+            raise _Stop("controller", f"the decoupling matrix is singular near t = {t:.6g} s "
+                                      "(input-output linearisation undefined)") from None
+        t1, x1 = float(sol.t[-1]), sol.y[:, -1].copy()
+        fired = [nm for (nm, f), te in zip(evs, sol.t_events)
+                 if f.terminal and len(te) and te[-1] == t1]
+        name = fired[0] if fired else ""
+        # the swing foot's lowest points: a dip below the ground between two integrator
+        # steps is a strike (armed guard) or a scuff (before mid-step); it comes first
+        lows = sol.t_events[names.index("foot_min")] if "foot_min" in names else ()
+        dip = _dip(cl, sol, lows, seg, t, t1)
+        if dip is not None:
+            name, t1 = dip
+            x1 = sol.sol(t1)
+        elif sol.status == -1:
+            if sol.sol is not None and t1 > t:
+                segments.append(Segment(k, t, t1, seg, sol.sol))
+            raise _Stop("integrator", f"integrator {cfg.method} failed at t = {t1:.6g} s: "
+                                      f"{sol.message}")
+        if t1 > t:
+            segments.append(Segment(k, t, t1, seg, sol.sol))
+        t, x = t1, x1
+        if name in ("foot_min", "foot_max"):  # an extremum above the ground: watch the next
+            rising = name == "foot_min"
+            continue
+        if name == "":
+            raise _Stop("no-impact", f"no impact within {t_max:.4g} s (alpha = "
+                                     f"{cl.c @ x1[:N]:.6g} rad)")
+        if name == "break":
+            seg += 1
+            continue
+        if name == "guard":
+            break
+        failure, text = _EVENT_REASONS[name]
+        s = (float(cl.c @ x[:N]) - cl.ai) / cl.span
+        raise _Stop(failure, f"{text} at t = {t:.6g} s, s = {s:.4g}")
+    s_minus = (float(cl.c @ x[:N]) - cl.ai) / cl.span
+    if s_minus < cfg.min_impact_s:
+        raise _Stop("scuff", f"the swing foot strikes the ground at s = {s_minus:.4g}, before "
+                             f"s = {cfg.min_impact_s:g} (a scuff, not the end of the step)")
+    rec, x_next = _impact_and_record(cl, k, t0, t, x0, x, seg, segments[start_segments:],
+                                     cl.nfev - nfev0)
+    return rec, x_next, t
+
+
+def _impact_and_record(cl: ClosedLoop, k, t0, t1, x0, x, seg, segs, nfev):
+    """Impact map (SPEC 5), its checks, and the step's statistics from the dense solution."""
+    N, model = cl.N, cl.model
+    q, dq, z = x[:N], x[N:2 * N], x[2 * N:]
+    imp = model.impact(q, dq)
+    Fx, Fy = (float(v) for v in imp.impulse)
+    lift = float(imp.dq_u_plus[N + 1])
+    if Fy <= 0:
+        raise _Stop("impact", f"impact infeasible: vertical impulse {Fy:.4g} N s <= 0 at "
+                              f"t = {t1:.6g} s")
+    if lift <= 0:
+        raise _Stop("impact", f"impact infeasible: the trailing foot does not lift off (vertical "
+                              f"velocity {lift:.4g} m/s) at t = {t1:.6g} s")
+    # statistics on the solver's own nodes plus a uniform grid of the step
+    ts, Xs, ivs = [], [], []
+    grid = np.linspace(t0, t1, 201)
+    for s in segs:
+        tt = np.concatenate([s.sol.ts, grid, [s.t0, s.t1]])
+        tt = np.unique(tt[(tt >= s.t0) & (tt <= s.t1)])
+        ts.append(tt)
+        Xs.append(s.sol(tt).T)
+        ivs.append(np.full(tt.size, s.interval))
+    d = cl.details(np.vstack(Xs), np.concatenate(ivs))
+    F1 = d["F1"]
+    pos = F1[:, 1] > 0
+    ratio = np.abs(F1[pos, 0]) / F1[pos, 1]
+    D_minus = np.array(model.D_s(list(q))).reshape(N, N)
+    sigma_minus = float(D_minus[N - 1] @ dq)
+    D_plus = np.array(model.D_s(list(imp.q_plus))).reshape(N, N)
+    sigma_plus = float(D_plus[N - 1] @ imp.dq_plus)
+    D0 = np.array(model.D_s(list(x0[:N]))).reshape(N, N)
+    sigma0 = float(D0[N - 1] @ x0[N:2 * N])
+    Fi = cl.force(z, seg)
+    rec = StepRecord(
+        step=k, t_start=t0, t_impact=t1, step_time=t1 - t0,
+        alpha_start=float(cl.c @ x0[:N]), z_start=tuple(map(float, x0[2 * N:])),
+        alpha_minus=float(cl.c @ q), s_minus=(float(cl.c @ q) - cl.ai) / cl.span,
+        sigma_start=sigma0, zeta_start=0.5 * sigma0**2,
+        sigma_minus=sigma_minus, zeta_minus=0.5 * sigma_minus**2,
+        sigma_plus=sigma_plus, zeta_plus=0.5 * sigma_plus**2,
+        impulse=(Fx, Fy), impulse_friction_ratio=abs(Fx) / Fy,
+        trailing_foot_lift_velocity=lift,
+        thrust_at_impact=tuple(float(v) for v in Fi),
+        min_vertical_force=float(F1[:, 1].min()),
+        max_friction_ratio=float(ratio.max()) if pos.all() else None,
+        max_abs_output=float(np.abs(d["y"]).max()),
+        max_abs_output_rate=float(np.abs(d["dy"]).max()),
+        max_abs_torque=float(np.abs(d["u"]).max()),
+        torque_saturated=bool(d["saturated"].any()),
+        energy_minus=float(model.energy(q, dq)),
+        energy_plus=float(model.energy(imp.q_plus, imp.dq_plus)),
+        q_minus=tuple(map(float, q)), dq_minus=tuple(map(float, dq)), nfev=nfev,
+    )
+    return rec, np.concatenate([imp.q_plus, imp.dq_plus, z])
+
+
+def _trajectory(cl: ClosedLoop, segments: list[Segment], per_step: int) -> dict:
+    """Uniform samples of every step (end points included) with the stance-foot position."""
+    if not segments:
+        return {}
+    out: dict[str, list] = {}
+    foot = 0.0
+    steps = sorted({s.step for s in segments})
+    for k in steps:
+        segs = [s for s in segments if s.step == k]
+        times = np.linspace(segs[0].t0, segs[-1].t1, per_step)
+        X, iv = [], []
+        for j, s in enumerate(segs):
+            last = j == len(segs) - 1
+            sel = (times >= s.t0) & ((times <= s.t1) if last else (times < s.t1))
+            if sel.any():
+                X.append(s.sol(times[sel]).T)
+                iv.append(np.full(int(sel.sum()), s.interval))
+        d = cl.details(np.vstack(X), np.concatenate(iv))
+        d["t"] = times
+        d["step"] = np.full(times.size, k)
+        d["foot_x"] = np.full(times.size, foot)
+        for key, v in d.items():
+            out.setdefault(key, []).append(v)
+        foot += float(cl.model.p_swing(d["q"][-1])[0])
+    return {key: np.concatenate(v) for key, v in out.items()}

@@ -1,0 +1,194 @@
+"""Scenarios of the full-order simulation: one thrust model swept over steady values, each
+run compared step by step with the zero-dynamics prediction (SPEC 3, 7).
+
+A scenario is one thrust model and a sweep of ``F_ss`` values [N] (one full-order run per
+value, each with the reduced cascade of SPEC 3 run from the same initial state). Every step of
+the full-order run is compared with the zero-dynamics prediction:
+
+* thrust a function of alpha (constant, piecewise): ``zeta^-_pred = zeta_start + V_Z(alpha_f)``
+  (SPEC 3, closed form, from the simulated post-impact value);
+* thrust a function of time (first-/second-order): one step of the reduced cascade from the
+  simulated post-impact ``(alpha, sigma_N, thruster state)``.
+
+Units: SI (zeta in kg^2 m^4/s^2, sigma in kg m^2/s). The documents written from the outcomes
+are built in :mod:`thrustwalk_cli.studies.simulate`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError, param_problem
+from ..hzd.zero_dynamics import Schedule, ZeroDynamics
+from .closed_loop import THRUST_MODELS, ThrustModel, predicted_cycle, zeta_star_at
+from .full_order import SimConfig, SimResult, Start, initial_state, simulate
+from .reduced import ReducedModel, ReducedResult, predict_step, simulate_reduced
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """What to simulate: thrust model ``kind`` driven at each of ``values`` [N] on the
+    thrusters ``thrusters`` (indices), ``wn`` [rad/s], ``xi`` [1], ``tau`` [s], initial
+    thrust ``f0`` [N]; ``schedule``: the piecewise schedule (``kind == "piecewise"``);
+    ``reduced_only`` skips the full-order model (the fast preview)."""
+
+    kind: str
+    values: tuple[float, ...]
+    thrusters: tuple[int, ...]
+    wn: float = 2.0
+    xi: float = 1.0
+    tau: float = 0.5
+    f0: float = 0.0
+    start: Start = Start()
+    config: SimConfig = SimConfig()
+    reduced_only: bool = False
+    schedule: Schedule | None = None
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """One run: the sweep value (None for piecewise), its thrust model, the full-order result
+    (None for ``reduced_only``), the reduced cascade and the per-step comparison."""
+
+    value: float | None
+    thrust: ThrustModel
+    full: SimResult | None
+    reduced: ReducedResult
+    comparison: tuple[dict, ...]
+
+
+def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
+                  thrusters: list[str] | None, *, schedule: Schedule | None = None,
+                  **kw) -> Scenario:
+    """Validate parameters into a :class:`Scenario`; :class:`InputError` names the parameter
+    (``thrust_model``, ``f_ss`` for ``values``, ``thruster``, ``f0``, ``wn``, ``xi``, ``tau``).
+    ``schedule``: the piecewise schedule (from the gait's ``thrust:`` section), required for
+    ``kind == "piecewise"``."""
+    robot = zd.model.robot
+    problems = []
+    if kind not in THRUST_MODELS:
+        raise InputError.param("thrust_model", f"unknown model {kind!r} (choose from "
+                               f"{', '.join(THRUST_MODELS)})")
+    if kind == "piecewise":
+        if values is not None:
+            raise InputError.param("f_ss", "not used with the piecewise thrust model (the "
+                                   "schedule comes from the gait's thrust: section)")
+        if thrusters:
+            raise InputError.param("thruster", "not used with the piecewise thrust model")
+        if schedule is None:
+            raise InputError.param("thrust_model", "piecewise thrust needs a schedule")
+        idx: tuple[int, ...] = ()
+        values = []
+    else:
+        names = thrusters or [None]
+        idx = tuple(robot.thruster_index(n) for n in names)
+        if len(set(idx)) != len(idx):
+            raise InputError.param("thruster", "a thruster is named twice")
+        for j in idx:
+            lo, hi = robot.thrusters[j].limits
+            for v in list(values or []) + [kw.get("f0", 0.0)]:
+                if not lo <= v <= hi:
+                    problems.append(param_problem(
+                        ("f_ss", "f0"), f"{v:g} N is outside the limits [{lo:g}, {hi:g}] N of "
+                        f"thruster {robot.thruster_names[j]}"))
+    for key, unit in (("wn", "rad/s"), ("xi", ""), ("tau", "s")):
+        if key in kw and not kw[key] > 0:
+            problems.append(param_problem(key, f"must be > 0{' ' + unit if unit else ''} "
+                                               f"(got {kw[key]:g})"))
+    if problems:
+        raise InputError(sorted(set(problems), key=str))
+    kw["config"].validate()
+    return Scenario(kind, tuple(values), idx, schedule=schedule, **kw)
+
+
+def thrust_models(zd: ZeroDynamics, sc: Scenario) -> list[tuple[float | None, ThrustModel]]:
+    """One :class:`ThrustModel` per sweep value (a single one for piecewise)."""
+    m = zd.model.n_thrusters
+    if sc.kind == "piecewise":
+        return [(None, ThrustModel("piecewise", np.zeros(m), schedule=sc.schedule))]
+    out = []
+    for v in sc.values:
+        target = np.zeros(m)
+        f0 = np.zeros(m)
+        target[list(sc.thrusters)] = v
+        f0[list(sc.thrusters)] = sc.f0
+        out.append((v, ThrustModel(sc.kind, target, wn=sc.wn, xi=sc.xi, tau=sc.tau,
+                                   initial=f0)))
+    return out
+
+
+def run_scenario(zd: ZeroDynamics, sc: Scenario,
+                 progress: Callable[[int], None] | None = None) -> list[Outcome]:
+    """Run every sweep value (full order unless ``reduced_only``, plus the cascade).
+    ``progress(1)`` after every step of the primary model."""
+    rm = ReducedModel(zd)
+    cfg = sc.config
+    N = zd.model.n
+    out = []
+    for value, th in thrust_models(zd, sc):
+        x0 = initial_state(zd, th, sc.start)
+        D0 = np.array(zd.model.D_s(x0[:N].tolist())).reshape(N, N)
+        a0, s0 = float(zd.maps.c @ x0[:N]), float(D0[N - 1] @ x0[N:2 * N])
+        pred = predicted_cycle(zd, th)
+        t_max = cfg.max_step_time or (10.0 * pred.step_time if pred.exists else 10.0)
+        full = None
+        if not sc.reduced_only:
+            full = simulate(zd, th, cfg, sc.start, progress)
+        red = simulate_reduced(zd, th, cfg.steps, a0, s0, x0[2 * N:].tolist(), rtol=cfg.rtol,
+                               atol=cfg.atol, method=cfg.method,
+                               samples_per_step=cfg.samples_per_step, max_step_time=t_max,
+                               progress=progress if sc.reduced_only else None, model=rm)
+        comp = tuple(compare_steps(zd, th, full, red, rm)) if full is not None else ()
+        out.append(Outcome(value, th, full, red, comp))
+    return out
+
+
+def compare_steps(zd: ZeroDynamics, th: ThrustModel, full: SimResult, red: ReducedResult,
+                  rm: ReducedModel) -> list[dict]:
+    """Zero-dynamics prediction of every full-order step (see the module docstring)."""
+    V = _V_f(zd, th)
+    pred = full.prediction
+    ref_q = ref_dq = None
+    if pred.exists:
+        t = zd.terms(np.array([zd.alpha_f]))
+        ref_q = zd.maps.q_minus
+        ref_dq = t["Phi"][0] * t["kappa1"][0] * pred.sigma_minus
+    out = []
+    for st in full.steps:
+        if th.time_dependent:
+            zp = predict_step(zd, th, st.alpha_start, st.sigma_start, list(st.z_start),
+                              rtol=full.config.rtol, atol=full.config.atol, model=rm)
+            method = "reduced cascade over one step from the simulated post-impact state"
+            zs = zeta_star_at(zd, np.array(st.thrust_at_impact))
+        else:
+            zp = st.zeta_start + V
+            method = "zeta^+ (simulated) + V_Z(alpha_f)"
+            zs = pred.zeta_star
+        rs = red.steps[st.step - 1] if st.step <= len(red.steps) else None
+        rec = {
+            "method": method,
+            "zeta_minus": zp,
+            "relative_error": None if zp is None else (st.zeta_minus - zp) / zp,
+            "zeta_star": zs if zs is not None and zs > 0 else None,
+            "reduced_zeta_minus": rs.zeta_minus if rs else None,
+            "reduced_relative_error": ((st.zeta_minus - rs.zeta_minus) / rs.zeta_minus
+                                       if rs else None),
+            "reduced_step_time": rs.step_time if rs else None,
+        }
+        if ref_q is not None:
+            rec["orbit_distance"] = {
+                "q": float(np.abs(np.array(st.q_minus) - ref_q).max()),
+                "dq": float(np.abs(np.array(st.dq_minus) - ref_dq).max())}
+        else:
+            rec["orbit_distance"] = None
+        out.append(rec)
+    return out
+
+
+def _V_f(zd: ZeroDynamics, th: ThrustModel) -> float:
+    sched = th.schedule if th.kind == "piecewise" else Schedule.constant(
+        zd, np.asarray(th.target, float)[None, :])
+    return float(zd.V_Z(np.array(zd.alpha_f), sched)[0])

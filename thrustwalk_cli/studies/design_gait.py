@@ -1,0 +1,252 @@
+"""The ``design-gait`` study: a stable, walkable Bezier gait for a robot, found by constrained
+optimisation (SPEC 2, 3, 5) and re-checked by the independent code paths; the report record,
+the gait file text (with a header recording how it was made) and the reload check of that text.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..description.robot import Robot
+from ..design.solver import DesignResult, solve_design
+from ..design.spec import DesignSpec
+from ..design.verify import check_gait
+from ..errors import ComputationError, InputError
+from ..files.gait_file import bind_gait, load_gait_text, same_robot_file
+from ..hzd.constraints import apply_invariance
+from ..hzd.zero_dynamics import Schedule, limit_cycles, zero_dynamics
+from ..model.compiled import CompiledModel
+from ..walker import Walker
+
+
+# ------------------------------------------------------------------------------ records
+def report_record(res: DesignResult) -> dict:
+    """JSON body of ``NAME.report.json`` (provenance is added by the command)."""
+    s = res.spec
+    r = res.check
+    return {
+        "feasible": res.feasible, "reason": res.reason, "blocking_constraint": res.blocking,
+        "objective": {"name": s.objective, "value": res.objective,
+                      "solver_value": res.solver_objective,
+                      "unit": "N^2 m s" if s.objective == "effort" else "N m",
+                      "definition": ("(1/L) int_0^T |u|^2 dt over one step of the periodic "
+                                     "orbit" + (" + thrust_weight |F|^2 T / L"
+                                                if s.thrust_design else "")
+                                     if s.objective == "effort" else "max_i,alpha |u_i|")},
+        "spec": {"speed": s.speed, "step_length": s.step_length, "mu": s.mu,
+                 "order": s.order, "clearance": s.clearance, "max_delta_sq": s.max_delta_sq,
+                 "min_vertical_force": res.eps, "min_liftoff_velocity": s.min_liftoff,
+                 "min_zeta_ratio": s.min_zeta_ratio, "objective": s.objective,
+                 "thrust_design": s.thrust_design, "thrust_weight": s.thrust_weight,
+                 "thrust_range": None if s.thrust_range is None else
+                 {"thruster": s.thrust_range[0], "low": s.thrust_range[1],
+                  "high": s.thrust_range[2]},
+                 "starts": s.starts, "seed": s.seed, "max_iter": s.max_iter,
+                 "nodes": s.nodes},
+        "units": {"speed": "m/s", "step_length": "m", "clearance": "m", "force": "N",
+                  "torque": "N m", "zeta": "kg^2 m^4/s^2", "sigma": "kg m^2/s",
+                  "angle": "rad", "time": "s", "thrust": "N",
+                  "margins": "SI units of each quantity; >= 0 when satisfied"},
+        "thrust": list(res.thrust),
+        "fixed_point": r.get("orbit"),
+        "margins": r.get("margins"),
+        "failed_checks": r.get("failed"),
+        "cost": r.get("cost"),
+        "contact": r.get("contact"),
+        "swing_foot": r.get("swing"),
+        "solver_violations": res.violations,
+        "alpha_c": list(res.c),
+        "coefficients": [list(row) for row in res.gait.A],
+        "starts": [{"index": t.index, "status": t.status, "objective": _num(t.objective),
+                    "max_violation": _num(t.max_violation), "iterations": t.iterations,
+                    "evaluations": t.evaluations, "seconds": t.seconds} for t in res.starts],
+        "evaluations": res.evaluations, "seconds": res.seconds,
+    }
+
+
+def _num(v: float) -> float | None:
+    return float(v) if np.isfinite(v) else None
+
+
+def gait_yaml(res: DesignResult, model: CompiledModel, robot_ref: str,
+              header: list[str]) -> str:
+    """The gait as YAML (``invariance: auto``, columns 0 and 1 written as ``~``), loadable by
+    :func:`robot_io.load_gait_for`; ``header`` lines become ``#`` comments."""
+    g, r = res.gait, model.robot
+    names = r.coordinate_names
+    act = [c.name for c in r.coordinates if c.actuated]
+    o = res.check.get("orbit", {})
+    c_map = ", ".join(f"{nm}: {_f(v)}" for nm, v in zip(names, g.c) if v != 0.0)
+    desc = (f"order-{g.order} Bezier gait designed by thrustwalk design-gait "
+            f"({res.spec.objective} objective)")
+    if o.get("speed") is not None:
+        desc += f", {o['speed']:.3f} m/s, step {o['step_length']:.3f} m"
+    lines = [f"# {h}" for h in header]
+    lines += [f"name: {g.name}", f"description: {desc}", f"robot: {robot_ref}",
+              "parameters:",
+              f"  af: {_f(g.alpha_f)}   # [rad] alpha_f = c q^-, the value of alpha at impact",
+              "alpha:", f"  c: {{{c_map}}}   # alpha = c q [rad]", "  final: af",
+              "bezier:", "  invariance: auto",
+              "  coefficients:   # [rad]; column k at s = k/M, s = 0 after impact, "
+              "s = 1 before impact"]
+    for nm, row in zip(act, g.A):
+        lines.append(f"    {nm}: [~, ~, " + ", ".join(_f(v) for v in row[2:]) + "]")
+    lines += ["controller:", f"  kp: {_f(g.kp)}   # [1/s^2]", f"  kd: {_f(g.kd)}   # [1/s]",
+              f"mu: {_f(res.spec.mu)}"]
+    if res.thrust:
+        vals = ", ".join(f"{nm}: [{_f(v)}]" for nm, v in zip(r.thruster_names, res.thrust))
+        lines += ["thrust:   # designed constant thrust [N]", "  mode: force",
+                  "  knots: [0, 1]", "  fractions: true", f"  values: {{{vals}}}"]
+    return "\n".join(lines) + "\n"
+
+
+def yaml_header(res: DesignResult, provenance: dict, report_name: str) -> list[str]:
+    """Comment lines recording how the gait was made (command, date, objective, margins)."""
+    s, chk = res.spec, res.check
+    o, m = chk.get("orbit", {}), chk.get("margins", {})
+    con, sw = chk.get("contact", {}), chk.get("swing", {})
+    obj_unit = "N^2 m s" if s.objective == "effort" else "N m"
+    rng = {k: v for k, v in (m.get("joint_range") or {}).items() if v is not None}
+    out = [
+        f"Gait designed by thrustwalk design-gait (thrustwalk {provenance.get('version')}), "
+        f"{provenance.get('created_utc')}.",
+        f"command: {provenance.get('command')}",
+        f"Objective ({s.objective}): "
+        + ("(1/L) int_0^T |u|^2 dt" if s.objective == "effort" else "max |u_i|")
+        + f" = {res.objective:.6g} {obj_unit} on the periodic orbit; peak torque "
+        f"{chk['cost']['peak']:.4g} N m.",
+        f"Variables: pre-impact posture q^-, Bezier columns 2..{s.order - 1} (order "
+        f"{s.order}; invariance: auto), zeta^-" + (", constant thrust" if s.thrust_design
+                                                   else "") + f"; SLSQP, {s.starts} start(s), "
+        f"seed {s.seed}.",
+        f"Orbit: stable, delta_zero^2 = {o['delta_zero_sq']:.4f} (<= {s.max_delta_sq:g}), "
+        f"{o['speed']:.4f} m/s, step {o['step_length']:.4f} m, step time "
+        f"{o['step_time']:.4f} s, zeta* = {o['zeta_star']:.6g} kg^2 m^4/s^2.",
+        f"Swing foot: {sw['mid_step_height'] * 100:.2f} cm at mid-step (>= "
+        f"{s.clearance * 100:g} cm), >= {sw['min_height_window'] * 1000:.2f} mm for s in "
+        f"[0.05, 0.95], >= 0 over the step.",
+        f"Stance: F_v >= {con['min_vertical_force']:.4g} N (>= {res.eps:.4g} N), |F_h|/F_v <= "
+        f"{con['max_friction_ratio']:.3f} (mu = {s.mu:g}). Impact: |F_h|/F_v = "
+        f"{con['impact_friction_ratio']:.3f}, trailing foot lifts off at "
+        f"{con['liftoff_velocity']:.3f} m/s.",
+    ]
+    tr = m.get("thrust_range")
+    if s.thrust_range is not None and tr:
+        out.append(f"Also feasible on the orbit of every constant {s.thrust_range[0]} thrust in "
+                   f"[{s.thrust_range[1]:g}, {s.thrust_range[2]:g}] N: F_v margin >= "
+                   f"{tr['vertical_force']:.4g} N, friction margin >= {tr['friction']:.3f}.")
+    if rng:
+        out.append("Joint-range margins [rad]: "
+                   + ", ".join(f"{k} {v:.3f}" for k, v in rng.items()) + ".")
+    out.append(f"Every margin and the fixed point: {report_name}. Re-check: thrustwalk "
+               "limit-cycle / feasibility with this file.")
+    return out
+
+
+def _f(v: float) -> str:
+    v = float(v)
+    return str(int(v)) if v.is_integer() and abs(v) < 1e15 else repr(v)
+
+
+def with_name(res: DesignResult, name: str) -> DesignResult:
+    """The same result with the gait renamed."""
+    return replace(res, gait=replace(res.gait, name=name))
+
+
+def reload_check(model: CompiledModel, text: str, file: str, res: DesignResult) -> dict:
+    """Load the gait file text back as the file ``file`` would be read (its ``robot:`` reference
+    must name the robot's file) and compare its fixed point with the design's: returns
+    ``{zeta_star, reference, relative_error, coefficients_error}``."""
+    g, source = load_gait_text(text, file)
+    robot = model.robot
+    if not same_robot_file(robot, g.robot):
+        raise ComputationError(f"the written gait names robot {g.robot!r}, which is not the "
+                               f"robot file {robot.source_file}")
+    g = bind_gait(g, source, robot)
+    if g.invariance == "auto":
+        g = apply_invariance(model, g)
+    zd = zero_dynamics(model, g)
+    F = np.zeros(model.n_thrusters)
+    if g.thrust is not None:
+        for nm, vals in g.thrust.values:
+            F[robot.thruster_names.index(nm)] = vals[0]
+    lc = limit_cycles(zd, Schedule.constant(zd, F[None, :]))[0]
+    ref = res.check["orbit"]["zeta_star"]
+    got = lc.zeta_star if lc.exists else None
+    err = abs(got - ref) / abs(ref) if got is not None else float("inf")
+    return {"zeta_star": got, "reference": ref, "relative_error": err,
+            "coefficients_error": float(np.abs(np.array(g.A) - np.array(res.gait.A)).max())}
+
+
+@dataclass(frozen=True)
+class DesignGaitResult:
+    """A gait design (:class:`~thrustwalk_cli.design.solver.DesignResult`) for one robot.
+
+    ``success`` (= ``design.feasible``): the chosen gait passed the independent re-check;
+    ``reason`` says why not otherwise (the blocking constraint family). ``compare``: the same
+    objective and constraints evaluated on an existing gait, when one was given.
+    """
+
+    model: CompiledModel = field(repr=False)
+    design: DesignResult
+    compare: dict | None = None
+
+    @property
+    def robot(self) -> Robot:
+        return self.model.robot
+
+    @property
+    def success(self) -> bool:
+        return self.design.feasible
+
+    @property
+    def reason(self) -> str:
+        return self.design.reason
+
+    def document(self) -> dict:
+        """The JSON body of ``NAME.report.json`` (provenance is added by the command)."""
+        rob = self.robot
+        doc = {"robot": {"name": rob.name, "file": rob.source_file},
+               **report_record(self.design)}
+        if self.compare is not None:
+            doc["compare"] = self.compare
+        return doc
+
+    def gait_text(self, provenance: dict, robot_ref: str, report_name: str) -> str:
+        """The designed gait as a YAML file (``invariance: auto``), with a header recording the
+        command, the objective and every margin (only for a feasible design)."""
+        return gait_yaml(self.design, self.model, robot_ref,
+                         yaml_header(self.design, provenance, report_name))
+
+
+def design_gait(robot: CompiledModel, spec: DesignSpec, *, compare: Walker | None = None,
+                progress: Callable[[int, int, str], None] | None = None) -> DesignGaitResult:
+    """Design a gait for the compiled robot ``robot`` (:func:`solve_design`, SPEC 2, 3, 5) and
+    optionally evaluate an existing gait (``compare``) with the same objective and
+    constraints. ``progress(done, total, message)`` after every solver start."""
+    spec.validate(robot)
+    if compare is not None and compare.robot.name != robot.robot.name:
+        raise InputError.param("compare", f"gait {compare.gait.name!r} is for robot "
+                                          f"{compare.robot.name!r}, not {robot.robot.name!r}")
+    res = solve_design(robot, spec, progress=progress)
+    res = with_name(res, spec.name)
+    cmp = None
+    if compare is not None:
+        cmp = {"gait": compare.gait.name, "file": compare.gait.source_file,
+               **check_gait(robot, compare.gait, spec)}
+    return DesignGaitResult(robot, res, cmp)
+
+
+def robot_reference(robot: Robot, given: str, out: Path) -> str:
+    """How a gait file at ``out`` names its robot: the bundled name it was given by, or the
+    robot file's path relative to the gait file's folder."""
+    import os
+
+    p = Path(given)
+    if not p.is_file() and "/" not in given and not given.endswith((".yaml", ".yml")):
+        return given
+    return os.path.relpath(Path(robot.source_file).resolve(), out.resolve().parent)

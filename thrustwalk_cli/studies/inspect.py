@@ -1,0 +1,41 @@
+"""The ``inspect`` study: the numeric dynamics of a robot at one state (SPEC 1, 5)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from ..errors import InputError
+from ..model.compiled import CompiledModel
+
+
+def _vector(value: str | Sequence[float], param: str, n: int, names: list[str]) -> list[float]:
+    """``value`` as ``n`` floats: a sequence, or a comma-separated string."""
+    if isinstance(value, str):
+        try:
+            vals = [float(v) for v in value.split(",")]
+        except ValueError:
+            raise InputError.param(param, f"expected {n} comma-separated numbers "
+                                          f"({', '.join(names)}), got {value!r}") from None
+    else:
+        vals = [float(v) for v in value]
+    if len(vals) != n:
+        raise InputError.param(param, f"expected {n} values ({', '.join(names)}), "
+                                      f"got {len(vals)}")
+    return vals
+
+
+def inspect_state(model: CompiledModel, q: str | Sequence[float],
+                  dq: str | Sequence[float] | None = None,
+                  thrust: str | Sequence[float] | None = None) -> dict:
+    """D [kg m^2], C q' [N m], G [N m], B_F [m], the swing foot [m] at ``q`` [rad] and, with
+    ``dq`` [rad/s], the impact map; with ``thrust`` [N] per thruster, ``B_F F_T`` (keys fixed
+    by the robot-model issue)."""
+    names = model.robot.coordinate_names
+    qv = _vector(q, "q", model.n, names)
+    doc: dict = {"coordinates": names, "q": qv}
+    doc.update(model.evaluate_state(
+        qv,
+        None if dq is None else _vector(dq, "dq", model.n, names),
+        None if thrust is None else _vector(thrust, "thrust", model.n_thrusters,
+                                            model.robot.thruster_names)))
+    return doc

@@ -1,0 +1,242 @@
+"""The ``optimize`` study: the least thrust that reaches a target while staying walkable
+(SPEC 6), around :func:`thrustwalk_cli.optimize.schedule.optimize`: parameter checks, the JSON
+record, the gait file with the optimal schedule, and the figure."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..contact.evaluate import check_contact_options
+from ..errors import InputError
+from ..files.bundled import resolve
+from ..hzd.zero_dynamics import LimitCycle, Schedule, limit_cycles
+from ..model.compiled import CompiledModel
+from ..optimize.schedule import OptimalSchedule, describe, optimize
+from ..walker import Walker
+
+
+def result_record(res: OptimalSchedule, model: CompiledModel) -> dict:
+    """``optimal_schedule.json`` body (SI units)."""
+    p = res.problem
+    unit = "N" if p.mode == "force" else "N m"
+    lc = res.cycle
+    out = {
+        "feasible": res.feasible, "status": res.status, "reason": res.reason,
+        "violated_families": list(res.violated),
+        "violated_descriptions": [describe(v) for v in res.violated],
+        "target": res.target, "mode": p.mode,
+        "thruster": model.robot.thruster_names[p.thruster] if p.mode == "force" else None,
+        "unit": unit, "knots_fraction": res.fractions.tolist(), "knots_alpha": p.knots.tolist(),
+        "weights": p.weights.tolist(),
+        "bounds": {"lower": p.lo.tolist(), "upper": p.hi.tolist()},
+        "zeta_star_target": res.zeta_star_target,
+        "reachable_zeta_star": None if res.zeta_range is None else list(res.zeta_range),
+        "values": None if res.values is None else res.values.tolist(),
+        "objective": res.objective,
+        "objective_definition": "sum_j w_j x_j^2, w_j = interval alpha-length [rad] or "
+                                "nominal time [s]",
+        "solver": res.solver,
+    }
+    if res.feasible:
+        out.update({
+            "zeta_star": lc.zeta_star, "speed": lc.speed, "step_time": lc.step_time,
+            "orbit_exists": lc.exists, "stable": lc.stable,
+            "active_constraints": res.active,
+            "kkt": {k: v for k, v in res.kkt.items() if k not in ("active", "multipliers")},
+            "continuous_check": {
+                "feasible": res.contact.feasible, "reason": res.contact.reason,
+                "min_vertical_force": res.contact.min_vertical_force,
+                "max_friction_ratio": res.contact.max_friction_ratio,
+                "note": "the QP enforces the contact conditions on the alpha grid; this "
+                        "re-check polishes the worst points between grid points",
+            },
+        })
+    return out
+
+
+# ------------------------------------------------------------------------- the command's study
+def check_options(*, fractions: list[float], target_zeta: float | None,
+                  target_speed: float | None, max_thrust: float | None, mu: float, eps: float,
+                  zeta_min: float | None, mode: str) -> None:
+    """Bad parameter values -> :class:`InputError` naming the parameter."""
+    err = InputError.param
+    if (target_zeta is None) == (target_speed is None):
+        raise err(("target_speed", "target_zeta"), "give exactly one of them")
+    if target_zeta is not None and not (np.isfinite(target_zeta) and target_zeta > 0):
+        raise err("target_zeta", f"zeta* must be > 0 kg^2 m^4/s^2 (got {target_zeta:g})")
+    if target_speed is not None and not (np.isfinite(target_speed) and target_speed > 0):
+        raise err("target_speed", f"the speed must be > 0 m/s (got {target_speed:g})")
+    fr = np.asarray(fractions, float)
+    if (len(fr) < 2 or abs(fr[0]) > 1e-9 or abs(fr[-1] - 1.0) > 1e-9
+            or np.any(np.diff(fr) <= 0)):
+        raise err("knots", "fractions of the step from 0 to 1, strictly increasing, at least "
+                           f"two (got {', '.join(f'{v:g}' for v in fr)})")
+    if max_thrust is not None and not (np.isfinite(max_thrust) and max_thrust >= 0):
+        raise err("max_thrust", f"expected a bound >= 0 (got {max_thrust:g})")
+    if mode not in ("force", "generalized"):
+        raise err("mode", f"expected 'force' or 'generalized', got {mode!r}")
+    if mode == "generalized" and max_thrust is None:
+        raise err("max_thrust", "required in generalized mode (a bound on T_j in N m)")
+    check_contact_options(mu, eps)
+    if zeta_min is not None and not (np.isfinite(zeta_min) and zeta_min > 0):
+        raise err("zeta_min", f"expected a value > 0 kg^2 m^4/s^2 (got {zeta_min:g})")
+
+
+def gait_yaml(gait, robot, res: OptimalSchedule, model: CompiledModel) -> str:
+    """A gait file equal to ``gait`` (coefficients written out, ``invariance: given``) with the
+    optimal schedule as its ``thrust:`` section (schema: ``robot_io.GAIT_SCHEMA``)."""
+    names = robot.coordinate_names
+    act = [c.name for c in robot.coordinates if c.actuated]
+    try:
+        bundled = resolve(robot.name, "robots").resolve() == Path(robot.source_file).resolve()
+    except InputError:
+        bundled = False
+    ref = robot.name if bundled else str(Path(robot.source_file).resolve())
+    c = {n: v for n, v in zip(names, gait.c) if v != 0.0}
+    p = res.problem
+    key = model.robot.thruster_names[p.thruster] if p.mode == "force" else "T"
+    unit = "N" if p.mode == "force" else "N m"
+
+    def seq(v):
+        return "[" + ", ".join(repr(float(x)) for x in v) + "]"
+
+    lines = [
+        f"# Written by thrustwalk optimize from gait '{gait.name}' ({gait.source_file}).",
+        f"# Minimum-effort thrust schedule (SPEC 6): target {res.target}, objective "
+        f"{res.objective!r}; zeta* = {res.cycle.zeta_star!r} kg^2 m^4/s^2, speed "
+        f"{res.cycle.speed!r} m/s.",
+        "# Bezier columns 0 and 1 were computed for hybrid invariance; written out in full.",
+        f"name: {gait.name}_optimal",
+        f"description: {gait.name} with a minimum-effort thrust schedule",
+        f"robot: {ref}",
+        "alpha:",
+        "  c: {" + ", ".join(f"{k}: {float(v)!r}" for k, v in c.items()) + "}",
+        f"  final: {float(gait.alpha_f)!r}   # [rad]",
+        "bezier:",
+        "  invariance: given",
+        "  coefficients:   # [rad]",
+        *[f"    {n}: {seq(row)}" for n, row in zip(act, gait.A)],
+        "controller:",
+        f"  kp: {float(gait.kp)!r}   # [1/s^2]",
+        f"  kd: {float(gait.kd)!r}   # [1/s]",
+        f"mu: {float(gait.mu)!r}",
+        "thrust:",
+        f"  mode: {p.mode}",
+        f"  knots: {seq(res.fractions)}   # fractions of the step",
+        "  fractions: true",
+        "  values:",
+        f"    {key}: {seq(res.values)}   # [{unit}] one value per interval",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+
+@dataclass(frozen=True)
+class OptimizeResult:
+    """A minimum-effort schedule (SPEC 6) for one walker, or the reason there is none.
+
+    ``schedule``: the exact QP result (values, objective, active constraints, KKT residuals,
+    continuous re-check); ``nominal``: the zero-thrust limit cycle (for the figure).
+    ``success``: a feasible optimum was found; ``reason`` says what happened.
+    """
+
+    walker: Walker = field(repr=False)
+    schedule: OptimalSchedule
+    mu: float
+    eps: float
+    zeta_min: float | None
+    nominal: LimitCycle | None = None
+
+    name = "optimal_schedule"
+
+    @property
+    def success(self) -> bool:
+        return self.schedule.feasible
+
+    @property
+    def reason(self) -> str:
+        return self.schedule.reason
+
+    @property
+    def gait_file(self) -> str:
+        return f"{self.walker.gait.name}_optimal.yaml"
+
+    @property
+    def files(self) -> list[str]:
+        """The files a command writes for this result, the JSON first."""
+        out = ["optimal_schedule.json"]
+        if self.success:
+            out += [self.gait_file, "optimal_orbit.png", "optimal_orbit.pdf"]
+        return out
+
+    def document(self) -> dict:
+        """The JSON body of ``optimal_schedule.json`` (SI units)."""
+        w = self.walker
+        return {"robot": {"name": w.robot.name, "file": w.robot.source_file},
+                "gait": {"name": w.gait.name, "file": w.gait.source_file},
+                "mu": self.mu, "eps": self.eps,
+                "zeta_min": self.zeta_min if self.zeta_min is not None else "1 % of zeta*",
+                **result_record(self.schedule, w.model), "files": self.files}
+
+    def tables(self) -> dict:
+        return {}
+
+    def figures(self) -> dict:
+        """``optimal_orbit``: nominal vs optimal orbit, the schedule and the contact margins."""
+        if not self.success:
+            return {}
+        from ..plots.optimize import optimal_figure
+
+        zd, res = self.walker.zd, self.schedule
+
+        def orbit(lc):
+            if lc is None or not lc.exists:
+                return None
+            o = lc.orbit
+            return {"alpha": o["alpha"], "alpha_dot": o["alpha_dot"],
+                    "jump": (zd.alpha_f, lc.alpha_dot_minus, zd.alpha_i, lc.alpha_dot_plus)}
+
+        unit = "N" if res.problem.mode == "force" else "N m"
+        return {"optimal_orbit": optimal_figure(
+            orbit(self.nominal), orbit(res.cycle), res.problem.knots, res.values, unit=unit,
+            profile=res.contact.profile, mu=self.mu,
+            title=f"{self.walker.name}: optimal schedule")}
+
+    def attachments(self, doc: dict) -> dict[str, str]:
+        """The gait file with the optimal schedule as its ``thrust:`` section."""
+        if not self.success:
+            return {}
+        w = self.walker
+        return {self.gait_file: gait_yaml(w.gait, w.robot, self.schedule, w.model)}
+
+
+def optimize_schedule(walker: Walker, *, knots: list[float] = (0.0, 0.25, 0.5, 0.75, 1.0),
+                      target_zeta: float | None = None, target_speed: float | None = None,
+                      max_thrust: float | None = None, mu: float | None = None,
+                      eps: float = 0.0, zeta_min: float | None = None,
+                      thruster: str | None = None, mode: str = "force",
+                      weights: str = "alpha") -> OptimizeResult:
+    """The minimum-effort schedule (SPEC 6) on ``knots`` (fractions of the step) reaching
+    ``target_zeta`` [kg^2 m^4/s^2] or ``target_speed`` [m/s], with ``|x_j| <= max_thrust``
+    [N, or N m in generalized mode], the friction cone ``mu`` (default: the gait's), vertical
+    force ``>= eps`` [N] and ``zeta >= zeta_min`` (default 1 % of zeta*). An infeasible problem
+    is a result with ``success`` false and the violated constraint families."""
+    model, zd = walker.model, walker.zd
+    mu = walker.gait.mu if mu is None else float(mu)
+    check_options(fractions=list(knots), target_zeta=target_zeta, target_speed=target_speed,
+                  max_thrust=max_thrust, mu=mu, eps=eps, zeta_min=zeta_min, mode=mode)
+    j = model.robot.thruster_index(thruster) if mode == "force" else 0
+    fr = np.asarray(knots, float)
+    fr[0], fr[-1] = 0.0, 1.0
+    res = optimize(model, zd, fr, target_zeta=target_zeta, target_speed=target_speed,
+                   mode=mode, thruster=j, mu=mu, eps=eps, zeta_min=zeta_min,
+                   max_thrust=max_thrust, weights=weights)
+    nominal = None
+    if res.feasible:
+        m = model.n_thrusters
+        nominal = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, m))))[0]
+    return OptimizeResult(walker, res, mu, eps, zeta_min, nominal)

@@ -1,0 +1,74 @@
+"""Pieces shared by every study's records: tables, number formatting, the gait record.
+
+A study returns a result object that renders itself (the python-control pattern):
+``document()`` is the JSON body (SI units, no NaN), ``tables()`` the CSV tables,
+``figures()`` the matplotlib figures and ``attachments(doc)`` any other file (Markdown,
+YAML, NPZ) made from the written document. Commands only add provenance and write them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..hzd.zero_dynamics import ZeroDynamics
+
+
+@dataclass(frozen=True)
+class Table:
+    """A CSV table: a header row, data rows and ``#`` comment lines (units, meaning)."""
+
+    header: list[str]
+    rows: list[list[Any]]
+    comments: list[str] = field(default_factory=list)
+
+
+def fmt(v: Any, spec: str = ".4g") -> str:
+    """A number for a summary table or Markdown: ``format(v, spec)``, or an em dash for None."""
+    return "—" if v is None else format(v, spec)
+
+
+def gait_record(zd: ZeroDynamics) -> dict:
+    """Gait description for outputs: layout of the coefficients, sign and range of alpha."""
+    g, r, mp = zd.gait, zd.model.robot, zd.maps
+    act = [c.name for c in r.coordinates if c.actuated]
+    return {
+        "name": g.name,
+        "file": g.source_file,
+        "alpha": {
+            "definition": "alpha = c q",
+            "c": dict(zip(r.coordinate_names, map(float, g.c))),
+            "alpha_i": mp.alpha_i, "alpha_f": mp.alpha_f,
+            "direction": "increasing" if mp.alpha_f > mp.alpha_i else "decreasing",
+            "s": "s = (alpha - alpha_i) / (alpha_f - alpha_i), 0 just after impact, 1 before",
+        },
+        "bezier": {
+            "order": g.order,
+            "layout": "one row per actuated coordinate; column k multiplies binom(M,k) s^k "
+                      "(1-s)^(M-k); column 0 = post-impact q_b (s = 0), column M = pre-impact "
+                      "q_b (s = 1)",
+            "coefficients": {name: list(row) for name, row in zip(act, g.A)},
+            "invariance": g.invariance,
+        },
+        "q_minus": dict(zip(r.coordinate_names, mp.q_minus.tolist())),
+        "q_plus": dict(zip(r.coordinate_names, mp.q_plus.tolist())),
+        "swing_foot_height_at_impact": float(zd.model.p_swing(mp.q_minus)[1]),
+        "invariance_residual": {"position": mp.position_residual,
+                                "velocity": mp.velocity_residual},
+    }
+
+
+def robot_record(zd: ZeroDynamics) -> dict:
+    """Robot name, file, coordinates and thrusters for outputs."""
+    r = zd.model.robot
+    return {"name": r.name, "file": r.source_file, "coordinates": r.coordinate_names,
+            "thrusters": r.thruster_names}
+
+
+def constant_thrust(zd: ZeroDynamics, values, thruster: int) -> np.ndarray:
+    """Thrust per thruster (k, m) [N] with ``values`` on thruster index ``thruster``."""
+    F = np.zeros((len(values), zd.model.n_thrusters))
+    F[:, thruster] = values
+    return F

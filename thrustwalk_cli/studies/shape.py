@@ -1,0 +1,481 @@
+"""The ``shape`` study: center-manifold shaping with piecewise-constant thrust (SPEC 4).
+
+One request (a pattern sweep, a target, or the gait's schedule) -> nominal and shaped limit
+cycles, the shifts (true and the paper's one-step value, SPEC 4 erratum), vector fields, and
+the records rendered from them. The mathematics lives in :mod:`thrustwalk_cli.hzd.shaping`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..files import expr
+from ..hzd.schedule import (
+    MODES,
+    check_knots,
+    knots_alpha,
+    make_schedule,
+    nominal_schedule,
+    schedule_from_gait,
+    uniform_fractions,
+)
+from ..hzd.shaping import (
+    DEFAULT_FIELD_K,
+    DEFAULT_PATTERN,
+    Intervals,
+    KnotSolution,
+    TargetSolution,
+    VectorField,
+    intervals,
+    one_step_change,
+    solve_knots,
+    solve_target_speed,
+    solve_target_zeta,
+    true_shift,
+    vector_field,
+)
+from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
+from ..walker import Walker
+from .records import Table, gait_record, robot_record
+
+
+# ---------------------------------------------------------------------------- pattern
+def pattern_values(text: str, intervals: int, ks: Sequence[float],
+                   where: str = "pattern") -> np.ndarray:
+    """Interval values ``P[k, j-1] = pattern(j, k)``, j = 1 .. n-1 [N m or N], shape (K, n-1).
+
+    The pattern is the safe arithmetic of :mod:`thrustwalk_cli.files.expr` (numbers,
+    + - * / **, parentheses, sin, cos, sqrt, pi) in the names ``j`` (interval index, 1-based)
+    and ``k`` (swept value); never ``eval``. Raises :class:`InputError` naming ``where``.
+    """
+    try:
+        ex = expr.parse(text)
+    except expr.ExprError as e:
+        raise InputError.param(where, f"{e.message} at column {e.column + 1} of {text!r}"
+                               ) from None
+    unknown = sorted(ex.names() - {"j", "k"})
+    if unknown:
+        raise InputError.param(where, f"unknown name {', '.join(map(repr, unknown))} in "
+                               f"{text!r}: a pattern may use j (interval 1..n-1) and k (the "
+                               "swept value)")
+    j = np.arange(1, intervals + 1, dtype=float)[None, :]
+    k = np.asarray(ks, float)[:, None]
+    try:
+        vals = ex.evaluate_array({"j": j, "k": k})
+    except expr.ExprError as e:
+        raise InputError.param(where, f"{e.message} in {text!r} (j = 1..{intervals}, "
+                               f"k = {', '.join(f'{v:g}' for v in ks)})") from None
+    return np.broadcast_to(vals, (k.size, intervals)).astype(float) + 0.0  # no -0.0
+
+
+@dataclass(frozen=True)
+class ShapeRequest:
+    """Options of ``thrustwalk shape`` as plain values (validated by :func:`shape_study`).
+
+    knots: fractions of the step (or alpha [rad] with ``alpha_knots``), ``None`` = free;
+    ks: swept pattern values; field_k: pattern value of the vector-field figure;
+    target_zeta [kg^2 m^4/s^2]; target_speed [m/s].
+    """
+
+    knots: tuple[float | None, ...] | None = None
+    alpha_knots: bool = False
+    n_knots: int = 4
+    pattern: str | None = None
+    ks: tuple[float, ...] | None = None
+    field_k: float | None = None
+    mode: str | None = None
+    thruster: str | None = None
+    target_zeta: float | None = None
+    target_speed: float | None = None
+
+
+@dataclass(frozen=True)
+class ShapeStudy:
+    """Nominal and shaped limit cycles for one family of piecewise schedules (SPEC 4).
+
+    source: ``"pattern"`` (T_j or F_j = pattern(j, k) for each k), ``"gait"`` (the gait file's
+    ``thrust:`` section), ``"target-zeta"`` or ``"target-speed"`` (solver a). ``labels`` and
+    ``values`` (k, or None) name the shaped schedules; ``one_step`` and ``shift`` are the paper's
+    one-step value and the true fixed-point shift [kg^2 m^4/s^2] per schedule. When ``success``
+    is false (no shape-only knots, target out of reach) the shaped fields are empty and
+    ``reason`` says why.
+    """
+
+    walker: Walker = field(repr=False)
+    success: bool
+    reason: str
+    source: str
+    mode: str
+    thruster: int | None
+    pattern: str | None
+    nominal: LimitCycle
+    labels: tuple[str, ...] = ()
+    values: tuple[float, ...] | None = None
+    knot_solution: KnotSolution | None = None
+    target: TargetSolution | None = None
+    intervals: Intervals | None = None
+    schedule: Schedule | None = None
+    cycles: tuple[LimitCycle, ...] = ()
+    one_step: np.ndarray | None = None
+    shift: np.ndarray | None = None
+    field_label: str | None = None
+    field_schedule: Schedule | None = None
+    field_cycle: LimitCycle | None = None
+
+    name = "shape"
+
+    def document(self) -> dict:
+        """The JSON body of ``shape.json`` (keys fixed by the shaping issue; SI units)."""
+        return shape_records(self.walker.zd, self)[0]
+
+    def tables(self) -> dict[str, Table]:
+        """``shape.csv``: nominal and shaped orbits (none when ``success`` is false)."""
+        return {"shape": shape_records(self.walker.zd, self)[1]} if self.success else {}
+
+    def figures(self) -> dict:
+        """``shape`` (shaped limit cycles, black every 10) and ``vector_field`` (nominal vs
+        shaped zero-dynamics field, the paper's figures 4 and 5); none when ``success`` is
+        false."""
+        if not self.success:
+            return {}
+        from ..plots.shape import shape_portrait, vector_field_figure
+
+        zd, w = self.walker.zd, self.walker
+
+        def curve(lc, key="alpha_dot"):
+            if not lc.exists:
+                return None, None
+            jump = ((zd.alpha_f, lc.alpha_dot_minus, zd.alpha_i, lc.alpha_dot_plus)
+                    if key == "alpha_dot" else
+                    (zd.alpha_f, lc.sigma_minus, zd.alpha_i, lc.sigma_plus))
+            return lc.orbit, jump
+
+        knots = self.intervals.knots.tolist()
+        unit = "N m" if self.mode == "generalized" else "N"
+        what = (f"T_j = {self.pattern} [{unit}]" if self.mode == "generalized"
+                else f"F_j = {self.pattern} [{unit}], "
+                     f"{w.robot.thruster_names[self.thruster]}")
+        curves = [curve(lc) for lc in self.cycles]
+        portrait = shape_portrait(
+            self.values, self.labels, [c[0] for c in curves], [c[1] for c in curves],
+            curve(self.nominal), knots, value_label=f"k ({what})",
+            title=f"{w.name}: shaped limit cycles ({len(knots)} knots)")
+        fc = self.field_cycle
+        note = "" if fc.exists else f"no shaped orbit: {fc.reason}"
+        planes = ("alpha_dot", "sigma")
+        field = vector_field_figure(
+            study_fields(zd, self), {k: curve(self.nominal, k) for k in planes},
+            {k: curve(fc, k) for k in planes}, knots, shaped_label=self.field_label,
+            note=note, title=f"{w.name}: zero-dynamics vector field, nominal vs shaped")
+        return {"shape": portrait, "vector_field": field}
+
+
+def default_ks() -> tuple[float, ...]:
+    """k = 0, 2, ..., 50 (the paper's figure: k from 0 to 50, black lines every 10)."""
+    return tuple(float(k) for k in range(0, 51, 2))
+
+
+def resolve(zd: ZeroDynamics, req: ShapeRequest) -> tuple[str, str, int | None]:
+    """Source, mode and driven thruster of a request; :class:`InputError` on the parameter
+    when parameters conflict."""
+    err = InputError.param
+    if req.target_zeta is not None and req.target_speed is not None:
+        raise err("target_speed", "give either `target_zeta` or `target_speed`, not both")
+    if req.target_zeta is not None and not req.target_zeta > 0:
+        raise err("target_zeta", f"must be > 0 [kg^2 m^4/s^2], got {req.target_zeta:g}")
+    if req.target_speed is not None and not req.target_speed > 0:
+        raise err("target_speed", f"must be > 0 [m/s], got {req.target_speed:g}")
+    if req.n_knots < 2:
+        raise err("n_knots", f"need at least 2 knots, got {req.n_knots}")
+    if req.mode is not None and req.mode not in MODES:
+        raise err("mode", f"must be one of {', '.join(MODES)}, got {req.mode!r}")
+    target = req.target_zeta is not None or req.target_speed is not None
+    gait_thrust = zd.gait.thrust
+    if target:
+        name = "target_zeta" if req.target_zeta is not None else "target_speed"
+        for opt, v in (("pattern", req.pattern), ("k", req.ks), ("field_k", req.field_k)):
+            if v is not None:
+                raise err(opt, f"cannot be combined with `{name}` (the solver chooses the "
+                               "values)")
+        if req.knots is not None and any(v is None for v in req.knots):
+            raise err("knots", "free knots (?) are only solved for a shape-only `pattern`")
+        source = name.replace("_", "-")
+    elif req.pattern is None and gait_thrust is not None:
+        for opt, v in (("knots", req.knots), ("k", req.ks), ("field_k", req.field_k)):
+            if v is not None:
+                raise err(opt, "the gait file's thrust: section fixes the schedule; pass "
+                               "`pattern` to replace it")
+        source = "gait"
+    else:
+        source = "pattern"
+    if source == "gait":
+        if req.mode is not None and req.mode != gait_thrust.mode:
+            raise err("mode", f"the gait's thrust: section is in {gait_thrust.mode} mode")
+        if req.thruster is not None:
+            raise err("thruster", "the gait's thrust: section names its thrusters")
+        return source, gait_thrust.mode, None
+    mode = req.mode or "generalized"
+    if mode == "generalized":
+        if req.thruster is not None:
+            raise err("thruster", "only used with `mode` force")
+        return source, mode, None
+    return source, mode, zd.model.robot.thruster_index(req.thruster)
+
+
+def _cycles(zd: ZeroDynamics, schedule: Schedule,
+            progress: Callable[[int], None] | None) -> tuple[LimitCycle, ...]:
+    """limit_cycles (vectorised over the batch) in at most 5 chunks, reporting progress."""
+    K = schedule.size
+    step = max(1, -(-K // 5))
+    out: list[LimitCycle] = []
+    for i in range(0, K, step):
+        sl = slice(i, min(K, i + step))
+        out += limit_cycles(zd, Schedule(schedule.knots, schedule.force[sl],
+                                         schedule.generalized[sl]))
+        if progress is not None:
+            progress(sl.stop - sl.start)
+    return tuple(out)
+
+
+def schedule_count(walker: Walker, req: ShapeRequest) -> int:
+    """How many shaped schedules :func:`shape` computes (for a progress bar)."""
+    if resolve(walker.zd, req)[0] == "pattern":
+        return len(req.ks if req.ks is not None else default_ks())
+    return 1
+
+
+def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
+          progress: Callable[[int], None] | None = None) -> ShapeStudy:
+    """Shape the limit cycle of ``walker`` (SPEC 4): resolve the schedule family, solve knots or
+    targets, compute nominal and shaped limit cycles and the shifts. ``progress(n)`` is called
+    as schedules finish. Problems in the gait's ``thrust:`` section are located in the gait
+    file. Raises :class:`InputError` for bad parameters; solver failures come back as
+    ``success = False`` with a reason."""
+    zd = walker.zd
+    source, mode, th = resolve(zd, req)
+    m = zd.model.n_thrusters
+    knots_req = req.knots
+    if source == "gait":
+        sched, fr = schedule_from_gait(zd, zd.gait.thrust, walker.where)
+        knots = sched.knots
+        labels, values, P_field, ksol, target = ("gait thrust",), None, None, None, None
+    else:
+        if knots_req is None:
+            knots_req = ((0.0,) + (None,) * (req.n_knots - 2) + (1.0,) if source == "pattern"
+                         else tuple(uniform_fractions(req.n_knots)))
+        fr = check_knots(zd, knots_req, fractions=not req.alpha_knots)
+    nominal = None
+    if source == "pattern":
+        pattern = req.pattern or DEFAULT_PATTERN
+        ks = tuple(req.ks) if req.ks is not None else default_ks()
+        fk = DEFAULT_FIELD_K if req.field_k is None else float(req.field_k)
+        P = pattern_values(pattern, len(fr) - 1, ks + (fk,))
+        ksol = None
+        if any(v is None for v in fr):
+            ksol = solve_knots(zd, fr, P, mode, th)
+            if not ksol.success:
+                knots = knots_alpha(zd, np.array([0.0 if v is None else v for v in fr]))
+                nominal = limit_cycles(zd, nominal_schedule(knots, m))[0]
+                return ShapeStudy(walker, False, ksol.reason, source, mode, th, pattern, nominal,
+                                  knot_solution=ksol)
+            fr = list(ksol.fractions)
+        knots = knots_alpha(zd, np.array(fr, float))
+        sched = make_schedule(zd, knots, P[:-1], mode, th)
+        labels, values, P_field, target = tuple(f"k = {k:g}" for k in ks), ks, P[-1:], None
+    elif source != "gait":
+        pattern = None
+        knots = knots_alpha(zd, np.array(fr, float))
+        if source == "target-zeta":
+            target = solve_target_zeta(zd, knots, req.target_zeta, mode, th)
+        else:
+            target = solve_target_speed(zd, knots, req.target_speed, mode, th)
+        ksol, labels, values, P_field = None, ("minimum-norm",), None, None
+        if not target.success:
+            nominal = limit_cycles(zd, nominal_schedule(knots, m))[0]
+            return ShapeStudy(walker, False, target.reason, source, mode, th, None, nominal,
+                              target=target)
+        sched = make_schedule(zd, knots, target.values[None, :], mode, th)
+    else:
+        pattern = None
+    nominal = limit_cycles(zd, nominal_schedule(knots, m))[0]
+    cycles = _cycles(zd, sched, progress)
+    if P_field is not None:
+        fsched = make_schedule(zd, knots, P_field, mode, th)
+        flabel = f"k = {fk:g}"
+    else:
+        fsched, flabel = sched, labels[0]
+    fcycle = limit_cycles(zd, fsched)[0]
+    return ShapeStudy(walker, True, "shaped limit cycles computed", source, mode, th, pattern,
+                      nominal, labels, values, ksol, target, intervals(zd, knots), sched, cycles,
+                      one_step_change(zd, sched), true_shift(zd, sched), flabel, fsched, fcycle)
+
+
+# --------------------------------------------------------------------------- records
+SHAPE_UNITS = {
+    "alpha": "rad", "alpha_dot": "rad / s", "sigma_N": "kg m^2 / s",
+    "zeta": "kg^2 m^4 / s^2 (zeta = sigma_N^2 / 2)", "T_j": "N m (generalised force on q_N)",
+    "F_j": "N (physical thrust per thruster)", "b_F": "kg m^2 rad (int dalpha / kappa_1)",
+    "Gamma_j": "kg m^3 rad (int beta / kappa_1 dalpha)", "q": "rad", "q_dot": "rad / s",
+    "step_time": "s", "speed": "m / s", "shift": "kg^2 m^4 / s^2",
+}
+
+
+ERRATUM = ("SPEC 4 erratum: the paper writes zeta* = zeta_0* + sum_j b_F T_j; that sum is the "
+           "change of zeta^- in ONE step for a fixed zeta^+ (paper_one_step_shift). The fixed "
+           "point moves by true_fixed_point_shift = sum_j b_F T_j / (1 - delta_zero^2). Both "
+           "vanish exactly when sum_j b_F T_j = 0 (shape-only shaping).")
+
+
+def _state(zd: ZeroDynamics, lc: LimitCycle, pre: bool) -> dict:
+    """Pre- (alpha_f) or post-impact (alpha_i) state of an orbit: zeta, sigma_N, alpha', q, q'."""
+    names = zd.model.robot.coordinate_names
+    alpha = zd.alpha_f if pre else zd.alpha_i
+    q = zd.maps.q_minus if pre else zd.maps.q_plus
+    out = {"alpha": alpha, "q": dict(zip(names, q.tolist()))}
+    if not lc.exists:
+        return {**out, "zeta": None, "sigma_N": None, "alpha_dot": None, "q_dot": None}
+    ad = lc.alpha_dot_minus if pre else lc.alpha_dot_plus
+    qd = zd.maps.Phi(np.array(alpha)) * ad
+    return {**out, "zeta": lc.zeta_star if pre else lc.zeta_plus,
+            "sigma_N": lc.sigma_minus if pre else lc.sigma_plus, "alpha_dot": ad,
+            "q_dot": dict(zip(names, qd.tolist()))}
+
+
+def _cycle_summary(lc: LimitCycle) -> dict:
+    return {"exists": lc.exists, "stable": lc.stable, "reason": lc.reason,
+            "zeta_star": lc.zeta_star, "step_time": lc.step_time, "speed": lc.speed,
+            "min_abs_alpha_dot": lc.min_abs_alpha_dot, "alpha_at_min": lc.alpha_at_min}
+
+
+def _values(zd: ZeroDynamics, study: ShapeStudy, sched: Schedule, i: int) -> dict:
+    if study.mode == "generalized":
+        return {"T_j": sched.generalized[i].tolist()}
+    names = zd.model.robot.thruster_names
+    used = [t for t in range(len(names)) if np.any(sched.force[:, :, t])]
+    if study.thruster is not None:
+        used = [study.thruster]
+    return {"F_j": {names[t]: sched.force[i, :, t].tolist() for t in used}}
+
+
+def shape_records(zd: ZeroDynamics, study: ShapeStudy) -> tuple[dict, Table]:
+    """JSON document body and CSV rows (orbits) of a study (keys fixed by the shaping issue)."""
+    r = zd.model.robot
+    nom = study.nominal
+    ks = study.knot_solution
+    doc: dict = {
+        "units": SHAPE_UNITS,
+        "robot": robot_record(zd),
+        "gait": gait_record(zd),
+        "success": study.success, "reason": study.reason, "source": study.source,
+        "mode": study.mode, "pattern": study.pattern,
+        "thruster": None if study.thruster is None else r.thruster_names[study.thruster],
+        "zero_dynamics": {"delta_zero": zd.delta_zero, "delta_zero_sq": zd.delta_zero_sq,
+                          "kappa1_ok": zd.kappa1_ok, "kappa1_reason": zd.kappa1_reason,
+                          "integral_error_estimate": zd.integral_error},
+        "formulas": {
+            "b_F": "b_F(alpha_{j+1}, alpha_j) = int_{alpha_j}^{alpha_{j+1}} dtau / kappa_1",
+            "Gamma_j": "Gamma_j = int_{alpha_j}^{alpha_{j+1}} beta / kappa_1 dtau",
+            "true_fixed_point_shift": "(sum_j b_F T_j + sum_j Gamma_j F_j) / (1 - delta_zero^2)",
+            "paper_one_step_shift": "sum_j b_F T_j + sum_j Gamma_j F_j (zeta^+ held fixed)",
+        },
+        "erratum": ERRATUM,
+        "knot_solver": None if ks is None else {
+            "success": ks.success, "reason": ks.reason, "method": ks.method,
+            "free_knots": [i + 1 for i in ks.free], "independent_conditions": ks.conditions,
+            "relative_residual": ks.residual,
+            "coordinate": None if ks.coordinate is None else ks.coordinate.tolist(),
+            "coordinate_definition": "u_j = W(alpha_j) / W(alpha_f), W = int 1/kappa_1 "
+                                     "(generalized) or int beta/kappa_1 (force)"},
+        "target": None if study.target is None else {
+            "kind": study.target.kind, "target": study.target.target,
+            "success": study.target.success, "reason": study.target.reason,
+            "zeta_star": study.target.zeta_star, "speed": study.target.speed,
+            "residual": study.target.residual, "evaluations": study.target.evaluations,
+            "method": "minimum Euclidean norm of the interval values (exact linear relation)"},
+        "nominal": {**_cycle_summary(nom), "pre_impact": _state(zd, nom, True),
+                    "post_impact": _state(zd, nom, False)},
+    }
+    iv = study.intervals
+    doc["knots"] = None if iv is None else {"alpha": iv.knots.tolist(),
+                                            "fraction": iv.fractions.tolist()}
+    doc["b_F"] = None if iv is None else iv.b_F.tolist()
+    doc["Gamma_j"] = None if iv is None else {
+        n: iv.Gamma[:, t].tolist() for t, n in enumerate(r.thruster_names)}
+    rows: list[list] = []
+    header = ["schedule", "k", "exists", "segment", "alpha_rad", "alpha_dot_rad_s",
+              "sigma_kg_m2_s", "zeta", "reason"]
+
+    def orbit_rows(label: str, k: float | None, lc: LimitCycle) -> None:
+        if not lc.exists:
+            rows.append([label, k, "false", "none", None, None, None, None, lc.reason])
+            return
+        o = lc.orbit
+        for a, ad, sg, z in zip(o["alpha"], o["alpha_dot"], o["sigma"], o["zeta"]):
+            rows.append([label, k, "true", "stance", float(a), float(ad), float(sg), float(z),
+                         ""])
+        rows.append([label, k, "true", "impact", zd.alpha_f, lc.alpha_dot_minus,
+                     lc.sigma_minus, lc.zeta_star, ""])
+        rows.append([label, k, "true", "impact", zd.alpha_i, lc.alpha_dot_plus, lc.sigma_plus,
+                     lc.zeta_plus, ""])
+
+    orbit_rows("nominal", None, nom)
+    scheds = []
+    for i, lc in enumerate(study.cycles):
+        k = None if study.values is None else study.values[i]
+        change = None
+        if lc.exists and nom.exists:
+            change = float(np.max(np.abs(lc.orbit["alpha_dot"] - nom.orbit["alpha_dot"])))
+        scheds.append({
+            "label": study.labels[i], "k": k, **_values(zd, study, study.schedule, i),
+            **{key: v for key, v in _cycle_summary(lc).items() if key != "zeta_star"},
+            "zeta_star": {"nominal": nom.zeta_star, "shaped": lc.zeta_star},
+            "shift": {"true_fixed_point_shift": float(study.shift[i]),
+                      "paper_one_step_shift": float(study.one_step[i]),
+                      "observed": (lc.zeta_star - nom.zeta_star
+                                   if lc.zeta_star is not None and nom.zeta_star is not None
+                                   else None)},
+            "pre_impact": {"nominal": _state(zd, nom, True), "shaped": _state(zd, lc, True)},
+            "post_impact": {"nominal": _state(zd, nom, False), "shaped": _state(zd, lc, False)},
+            "max_orbit_change_alpha_dot": change,
+        })
+        orbit_rows(study.labels[i], k, lc)
+    doc["schedules"] = scheds
+    if study.field_schedule is not None:
+        fc = study.field_cycle
+        doc["vector_field"] = {"label": study.field_label,
+                               **_values(zd, study, study.field_schedule, 0),
+                               **_cycle_summary(fc),
+                               "shift": {"true_fixed_point_shift": float(
+                                   true_shift(zd, study.field_schedule)[0])}}
+    csv = Table(header, rows, [
+        f"thrustwalk shape: robot {r.name}, gait {zd.gait.name}, mode {study.mode}, "
+        f"source {study.source}" + (f", pattern {study.pattern}" if study.pattern else ""),
+        "units: alpha rad, alpha_dot rad/s, sigma kg m^2/s, zeta kg^2 m^4/s^2; k as in the "
+        "pattern (T_j in N m, F_j in N)",
+        "segment 'impact' rows: pre-impact state then post-impact state (the jump)",
+    ])
+    return doc, csv
+
+
+def field_range(orbits: Sequence[LimitCycle], key: str) -> tuple[float, float]:
+    """y-range of the vector-field grid: 0 and 1.25x the extreme of the orbits' ``key``."""
+    vals = [v for lc in orbits if lc is not None and lc.exists for v in lc.orbit[key]]
+    if not vals:
+        return (-1.0, 1.0)
+    lo, hi = min(0.0, 1.25 * min(vals)), max(0.0, 1.25 * max(vals))
+    return (lo, hi) if hi > lo else (lo - 1.0, hi + 1.0)
+
+
+def study_fields(zd: ZeroDynamics, study: ShapeStudy) -> dict[str, tuple[VectorField, ...]]:
+    """Nominal and shaped vector fields in both planes, sized to hold both limit cycles."""
+    out = {}
+    nom_s = nominal_schedule(study.field_schedule.knots, zd.model.n_thrusters)
+    for plane, key in (("alpha_dot", "alpha_dot"), ("sigma", "sigma")):
+        rng = field_range([study.nominal, study.field_cycle], key)
+        out[plane] = (vector_field(zd, nom_s, plane, rng),
+                      vector_field(zd, study.field_schedule, plane, rng))
+    return out

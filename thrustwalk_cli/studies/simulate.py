@@ -1,0 +1,437 @@
+"""The ``simulate`` study: full-order closed-loop hybrid simulation with thruster dynamics,
+compared step by step with the zero-dynamics prediction and the reduced cascade (SPEC 3, 7).
+
+Documents for JSON/CSV/NPZ, figure data and animation frames are plain Python built here from
+the outcomes of :mod:`thrustwalk_cli.simulation.scenario`. Units: SI (zeta in kg^2 m^4/s^2,
+sigma in kg m^2/s).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..hzd.schedule import schedule_from_gait
+from ..hzd.zero_dynamics import Schedule, ZeroDynamics, limit_cycles, paper_one_step_shift
+from ..simulation.closed_loop import SimConfig, predicted_cycle
+from ..simulation.full_order import Start
+from ..simulation.scenario import Outcome, Scenario, make_scenario, run_scenario
+from ..walker import Walker
+from .records import Table, gait_record, robot_record
+
+UNITS = {
+    "time": "s", "thrust": "N", "generalized_thrust": "N m", "alpha": "rad",
+    "alpha_dot": "rad/s", "sigma_N": "kg m^2/s", "zeta": "kg^2 m^4/s^2 (zeta = sigma_N^2/2)",
+    "impulse": "N s", "force": "N", "torque": "N m", "output_y": "rad", "output_rate": "rad/s",
+    "energy": "J", "orbit_distance": "rad (q), rad/s (dq), max norm", "wn": "rad/s",
+    "tau": "s", "velocity": "m/s",
+}
+
+
+CSV_ROW_LIMIT = 20000  # trajectories with more samples go to .npz
+
+
+# ----------------------------------------------------------------------------- documents
+def _names(zd: ZeroDynamics, values) -> dict:
+    return dict(zip(zd.model.robot.thruster_names, map(float, values)))
+
+
+def step_entries(zd: ZeroDynamics, outcomes: list[Outcome]) -> list[dict]:
+    """The ``steps`` list of simulation.json (one entry per step of every run)."""
+    out = []
+    for i, oc in enumerate(outcomes):
+        if oc.full is None:
+            for st in oc.reduced.steps:
+                out.append({
+                    "run": i, "f_ss": oc.value, "model": "reduced", "step": st.step,
+                    "t_start": st.t_start, "t_impact": st.t_impact, "step_time": st.step_time,
+                    "zeta_start": st.zeta_start, "sigma_minus": st.sigma_minus,
+                    "zeta_minus": st.zeta_minus, "sigma_plus": st.sigma_plus,
+                    "zeta_plus": st.zeta_plus, "impulse": None,
+                    "thrust_at_impact": _names(zd, st.thrust_at_impact),
+                    "min_vertical_force": None, "max_abs_output": None,
+                    "prediction": None})
+            continue
+        for st, cmp in zip(oc.full.steps, oc.comparison):
+            out.append({
+                "run": i, "f_ss": oc.value, "model": "full-order", "step": st.step,
+                "t_start": st.t_start, "t_impact": st.t_impact, "step_time": st.step_time,
+                "alpha_minus": st.alpha_minus, "s_minus": st.s_minus,
+                "zeta_start": st.zeta_start, "sigma_minus": st.sigma_minus,
+                "zeta_minus": st.zeta_minus, "sigma_plus": st.sigma_plus,
+                "zeta_plus": st.zeta_plus, "impulse": list(st.impulse),
+                "impulse_friction_ratio": st.impulse_friction_ratio,
+                "trailing_foot_lift_velocity": st.trailing_foot_lift_velocity,
+                "thrust_at_impact": _names(zd, st.thrust_at_impact),
+                "min_vertical_force": st.min_vertical_force,
+                "max_friction_ratio": st.max_friction_ratio,
+                "max_abs_output": st.max_abs_output,
+                "max_abs_output_rate": st.max_abs_output_rate,
+                "max_abs_torque": st.max_abs_torque, "torque_saturated": st.torque_saturated,
+                "energy_minus": st.energy_minus, "energy_plus": st.energy_plus,
+                "impact_energy_loss": st.energy_minus - st.energy_plus,
+                "prediction": cmp})
+    return out
+
+
+def run_entries(zd: ZeroDynamics, outcomes: list[Outcome]) -> list[dict]:
+    """The ``runs`` list: status, prediction and final agreement of every run."""
+    runs = []
+    for i, oc in enumerate(outcomes):
+        full, red = oc.full, oc.reduced
+        lc = predicted_cycle(zd, oc.thrust)
+        primary = full if full is not None else red
+        last = primary.steps[-1] if primary.steps else None
+        warn = []
+        if full is not None:
+            mu = zd.gait.mu
+            for st in full.steps:
+                stance = st.max_friction_ratio
+                if (stance is not None and stance > mu) or st.impulse_friction_ratio > mu:
+                    warn.append(f"step {st.step}: friction cone mu = {mu:g} violated (stance "
+                                f"{stance if stance is None else format(stance, '.3g')}, "
+                                f"impact {st.impulse_friction_ratio:.3g})")
+                if st.torque_saturated:
+                    warn.append(f"step {st.step}: joint torques saturated")
+        sched = oc.thrust.schedule if oc.thrust.kind == "piecewise" else Schedule.constant(
+            zd, np.asarray(oc.thrust.target, float)[None, :])
+        zero = Schedule(sched.knots, np.zeros_like(sched.force), np.zeros_like(sched.generalized))
+        z0 = _zeta_star(zd, zero)
+        runs.append({
+            "run": i, "f_ss": oc.value, "model": "full-order" if full is not None else "reduced",
+            "success": primary.success, "failure": primary.failure or None,
+            "reason": primary.reason, "steps_completed": len(primary.steps),
+            "wall_time": primary.wall_time, "rhs_evaluations": primary.nfev,
+            "predicted": {
+                "exists": lc.exists, "stable": lc.stable, "reason": lc.reason,
+                "zeta_star": lc.zeta_star, "sigma_minus": lc.sigma_minus,
+                "step_time": lc.step_time, "speed": lc.speed,
+                "paper_one_step_value": (None if z0 is None else
+                                         z0 + float(paper_one_step_shift(zd, sched)[0])),
+                "note": "zeta* = V_Z(alpha_f)/(1 - delta_zero^2) (SPEC 4); "
+                        "paper_one_step_value = zeta*_0 + sum_j b_F T_j, the paper's formula "
+                        "without 1/(1 - delta_zero^2) (erratum)",
+            },
+            "final_zeta_minus": last.zeta_minus if last else None,
+            "final_relative_error": ((last.zeta_minus - lc.zeta_star) / lc.zeta_star
+                                     if last and lc.exists else None),
+            "reduced": {"success": red.success, "reason": red.reason,
+                        "steps_completed": len(red.steps), "wall_time": red.wall_time,
+                        "final_zeta_minus": red.steps[-1].zeta_minus if red.steps else None},
+            "warnings": warn,
+        })
+    return runs
+
+
+def _zeta_star(zd: ZeroDynamics, sched: Schedule) -> float | None:
+    """``zeta*`` of a schedule, None when no orbit exists."""
+    lc = limit_cycles(zd, sched)[0]
+    return lc.zeta_star if lc.exists else None
+
+
+def simulation_document(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome]) -> dict:
+    """The body of simulation.json (provenance is added by the command)."""
+    runs = run_entries(zd, outcomes)
+    bad = [r for r in runs if not r["success"]]
+    r = zd.model.robot
+    cfg = sc.config
+    return {
+        "units": UNITS,
+        "robot": robot_record(zd),
+        "gait": gait_record(zd),
+        "zero_dynamics": {"delta_zero": zd.delta_zero, "delta_zero_sq": zd.delta_zero_sq,
+                          "fixed_point_formula": "zeta* = V_Z(alpha_f) / (1 - delta_zero^2)"},
+        "settings": {
+            "thrust_model": sc.kind,
+            "thrusters": [r.thruster_names[j] for j in sc.thrusters],
+            "f_ss": list(sc.values), "wn": sc.wn, "xi": sc.xi, "tau": sc.tau, "f0": sc.f0,
+            "start": {"orbit": sc.start.orbit, "zeta_minus": sc.start.zeta_minus,
+                      "perturb": sc.start.perturb,
+                      "q": None if sc.start.q is None else list(map(float, sc.start.q)),
+                      "dq": None if sc.start.dq is None else list(map(float, sc.start.dq))},
+            "reduced_only": sc.reduced_only, "steps": cfg.steps, "rtol": cfg.rtol,
+            "atol": cfg.atol, "method": cfg.method, "torque_limit": cfg.torque_limit,
+            "kp": zd.gait.kp, "kd": zd.gait.kd, "scuff_tolerance": cfg.scuff_tol,
+            "guard": f"swing-foot height crosses 0 downward for s > {cfg.guard_s:g}",
+        },
+        "success": not bad,
+        "reason": ("all runs completed" if not bad else
+                   "; ".join(f"run {b['run']} (F_ss = {b['f_ss']}): {b['reason']}"
+                             for b in bad)),
+        "runs": runs,
+        "steps": step_entries(zd, outcomes),
+    }
+
+
+STEP_COLUMNS = ["run", "f_ss", "model", "step", "t_start", "step_time", "s_minus",
+                "zeta_start", "sigma_minus", "zeta_minus", "sigma_plus", "zeta_plus",
+                "impulse_x", "impulse_y", "min_vertical_force", "max_friction_ratio",
+                "max_abs_output", "max_abs_torque", "impact_energy_loss",
+                "predicted_zeta_minus", "relative_error", "zeta_star", "reduced_zeta_minus",
+                "orbit_distance_q", "orbit_distance_dq"]
+
+
+def steps_table(doc: dict, thruster_names: list[str]) -> Table:
+    """steps.csv (header, rows, comments) from the document's ``steps`` list."""
+    header = STEP_COLUMNS + [f"thrust_{n}" for n in thruster_names]
+    rows = []
+    for e in doc["steps"]:
+        p = e.get("prediction") or {}
+        od = p.get("orbit_distance") or {}
+        imp = e.get("impulse") or [None, None]
+        rows.append([e["run"], e["f_ss"], e["model"], e["step"], e["t_start"], e["step_time"],
+                     e.get("s_minus"), e["zeta_start"], e["sigma_minus"], e["zeta_minus"],
+                     e["sigma_plus"], e["zeta_plus"], imp[0], imp[1],
+                     e.get("min_vertical_force"), e.get("max_friction_ratio"),
+                     e.get("max_abs_output"), e.get("max_abs_torque"),
+                     e.get("impact_energy_loss"), p.get("zeta_minus"),
+                     p.get("relative_error"), p.get("zeta_star"), p.get("reduced_zeta_minus"),
+                     od.get("q"), od.get("dq")]
+                    + [e["thrust_at_impact"][n] for n in thruster_names])
+    return Table(header, rows, [
+        "thrustwalk simulate: one row per step (pre-impact '_minus', post-impact '_plus')",
+        "units: time s, zeta kg^2 m^4/s^2, sigma kg m^2/s, impulse N s, force N, torque N m, "
+        "output rad, energy J, thrust N; empty = not computed (reduced model) or no orbit",
+    ])
+
+
+def trajectory_arrays(zd: ZeroDynamics, outcomes: list[Outcome]) -> dict[str, np.ndarray]:
+    """All sampled time histories as named columns (``run`` tells the runs apart)."""
+    r = zd.model.robot
+    cols: dict[str, list] = {}
+    for i, oc in enumerate(outcomes):
+        tr = oc.full.trajectory if oc.full is not None else oc.reduced.trajectory
+        if not tr:
+            continue
+        n = tr["t"].size
+        base = {"run": np.full(n, i), "f_ss": np.full(n, np.nan if oc.value is None
+                                                        else oc.value),
+                "step": tr["step"], "t": tr["t"], "alpha": tr["alpha"],
+                "alpha_dot": tr["alpha_dot"], "sigma": tr["sigma"],
+                "zeta": 0.5 * tr["sigma"] ** 2}
+        for j, name in enumerate(r.thruster_names):
+            base[f"thrust_{name}"] = tr["F"][:, j]
+        base["generalized_T"] = tr["T"]
+        if oc.full is not None:
+            act = [c.name for c in r.coordinates if c.actuated]
+            for j, name in enumerate(r.coordinate_names):
+                base[f"q_{name}"] = tr["q"][:, j]
+                base[f"dq_{name}"] = tr["dq"][:, j]
+            for j, name in enumerate(act):
+                base[f"u_{name}"] = tr["u"][:, j]
+                base[f"y_{name}"] = tr["y"][:, j]
+            base["F1_x"], base["F1_y"] = tr["F1"][:, 0], tr["F1"][:, 1]
+            base["swing_height"] = tr["swing_height"]
+            base["stance_foot_x"] = tr["foot_x"]
+            base["energy"] = tr["energy"]
+        for k, v in base.items():
+            cols.setdefault(k, []).append(np.asarray(v, float))
+    return {k: np.concatenate(v) for k, v in cols.items()}
+
+
+def trajectory_output(zd: ZeroDynamics, outcomes: list[Outcome],
+                      provenance: dict | None = None) -> tuple[str, object]:
+    """``("csv", {header, rows, comments})`` or, above CSV_ROW_LIMIT rows, ``("npz", bytes)``.
+    Columns missing for a run (reduced model) are empty in CSV and NaN in NPZ; the NPZ holds
+    ``provenance`` as a JSON string."""
+    arrays = trajectory_arrays(zd, outcomes)
+    if not arrays:
+        return "csv", Table(["t"], [], ["no samples"])
+    n = arrays["t"].size
+    if n > CSV_ROW_LIMIT:
+        buf = io.BytesIO()
+        extra = {} if provenance is None else {"provenance": np.array(json.dumps(provenance))}
+        np.savez_compressed(buf, **arrays, **extra)
+        return "npz", buf.getvalue()
+    header = list(arrays)
+    mat = np.column_stack([arrays[k] for k in header])
+    rows = [[None if not np.isfinite(v) else (int(v) if k in ("run", "step") else float(v))
+             for k, v in zip(header, row)] for row in mat]
+    return "csv", Table(header, rows, [
+        "thrustwalk simulate: sampled time histories (uniform in time within each step)",
+        "units: t s, q rad, dq rad/s, alpha rad, alpha_dot rad/s, sigma kg m^2/s, zeta "
+        "kg^2 m^4/s^2, thrust N, generalized_T N m (piecewise generalised mode), u N m, "
+        "y rad, F1 N (ground reaction on the stance foot), "
+        "heights and positions m, energy J",
+    ])
+
+
+# ----------------------------------------------------------------------------- figure data
+def figure_data(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome]) -> dict:
+    """Thrust histories and phase-plane curves per run, with the predicted orbits."""
+    runs = []
+    for oc in outcomes:
+        tr = oc.full.trajectory if oc.full is not None else oc.reduced.trajectory
+        lc = predicted_cycle(zd, oc.thrust)
+        j = sc.thrusters[0] if sc.thrusters else None
+        steps = []
+        if tr:
+            for k in np.unique(tr["step"]):
+                sel = tr["step"] == k
+                steps.append({"alpha": tr["alpha"][sel], "alpha_dot": tr["alpha_dot"][sel]})
+        runs.append({
+            "value": oc.value,
+            "t": tr["t"] if tr else np.zeros(0),
+            "thrust": (tr["F"][:, j] if (tr and j is not None) else
+                       (tr["F"] if tr else np.zeros((0, zd.model.n_thrusters)))),
+            "T": tr["T"] if tr else np.zeros(0),
+            "steps": steps,
+            "predicted": ({"alpha": lc.orbit["alpha"], "alpha_dot": lc.orbit["alpha_dot"]}
+                          if lc.exists else None),
+            "failed": not (oc.full or oc.reduced).success,
+        })
+    generalized = bool(sc.kind == "piecewise" and np.any(sc.schedule.generalized))
+    return {"runs": runs, "thruster_names": zd.model.robot.thruster_names,
+            "generalized": generalized,
+            "driven": [zd.model.robot.thruster_names[j] for j in sc.thrusters],
+            "kind": sc.kind, "model": "reduced" if sc.reduced_only else "full-order"}
+
+
+def animation_frames(zd: ZeroDynamics, outcome: Outcome, fps: float = 20.0,
+                     max_frames: int = 400) -> dict:
+    """Stick-figure frames of a full-order run in world coordinates [m]: per frame the links
+    ``(n_links, 2, 2)``, thruster points and thrust vectors ``(m, 2)`` [N], and the time."""
+    full = outcome.full
+    if full is None or not full.trajectory:
+        raise InputError.param("animate", "needs a full-order run with at least one sample "
+                                          "(not `reduced`)")
+    tr = full.trajectory
+    t = tr["t"]
+    n = int(min(max_frames, max(2, (t[-1] - t[0]) * fps)))
+    idx = np.unique(np.searchsorted(t, np.linspace(t[0], t[-1], n)).clip(0, t.size - 1))
+    model = zd.model
+    q = tr["q"][idx]
+    lp = model.link_points(q).reshape(idx.size, -1, 2, 2)
+    off = np.stack([tr["foot_x"][idx], np.zeros(idx.size)], axis=-1)
+    lp = lp + off[:, None, None, :]
+    pts = np.swapaxes(model.thruster_points(q), -1, -2) + off[:, None, :]
+    dirs = np.swapaxes(model.thruster_dirs(q), -1, -2)
+    vec = dirs * tr["F"][idx][:, :, None]
+    return {"t": t[idx], "links": lp, "points": pts, "thrust": vec,
+            "thruster_names": model.robot.thruster_names,
+            "title": f"{model.robot.name} / {zd.gait.name}"
+                     + (f", F_ss = {outcome.value:g} N" if outcome.value is not None else "")}
+
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """Full-order runs of one scenario (one per steady thrust value), each with the reduced
+    cascade and the per-step comparison with the zero-dynamics prediction (SPEC 3, 7).
+
+    ``success``: every run completed its steps; ``reason`` names the runs that did not.
+    ``tool_failure``: a run ended by an integrator or controller failure (not physics).
+    """
+
+    walker: Walker = field(repr=False)
+    scenario: Scenario
+    outcomes: tuple[Outcome, ...]
+
+    name = "simulation"
+
+    def _runs(self) -> list[dict]:
+        return run_entries(self.walker.zd, list(self.outcomes))
+
+    @property
+    def success(self) -> bool:
+        return all((oc.full or oc.reduced).success for oc in self.outcomes)
+
+    @property
+    def reason(self) -> str:
+        return simulation_document(self.walker.zd, self.scenario, list(self.outcomes))["reason"]
+
+    @property
+    def tool_failure(self) -> bool:
+        return any((oc.full or oc.reduced).failure in ("integrator", "controller")
+                   for oc in self.outcomes)
+
+    def _trajectory(self, provenance: dict | None = None) -> tuple[str, object]:
+        return trajectory_output(self.walker.zd, list(self.outcomes), provenance=provenance)
+
+    def document(self) -> dict:
+        """The JSON body of ``simulation.json``."""
+        zd = self.walker.zd
+        kind = "npz" if trajectory_arrays(zd, list(self.outcomes)).get(
+            "t", np.zeros(0)).size > CSV_ROW_LIMIT else "csv"
+        return {**simulation_document(zd, self.scenario, list(self.outcomes)),
+                "trajectory_file": f"trajectory.{kind}"}
+
+    def tables(self) -> dict[str, Table]:
+        """``steps`` (one row per step) and ``trajectory`` (sampled time histories, unless
+        they are too long for CSV: then ``trajectory.npz`` is an attachment)."""
+        out = {"steps": steps_table(self.document(), self.walker.robot.thruster_names)}
+        kind, traj = self._trajectory()
+        if kind == "csv":
+            out["trajectory"] = traj
+        return out
+
+    def attachments(self, doc: dict) -> dict[str, bytes]:
+        """``trajectory.npz`` (with the provenance of ``doc``) when the trajectory is long."""
+        kind, traj = self._trajectory(doc.get("provenance"))
+        return {"trajectory.npz": traj} if kind == "npz" else {}
+
+    def figures(self) -> dict:
+        """``thrust_time`` (the paper's figure 1) and ``phase_portrait`` (figure 2)."""
+        from ..plots.simulate import phase_portrait, thrust_time
+
+        data = figure_data(self.walker.zd, self.scenario, list(self.outcomes))
+        name = self.walker.name
+        return {"thrust_time": thrust_time(data, title=f"{name}: thrust"),
+                "phase_portrait": phase_portrait(data, title=f"{name}: limit cycles")}
+
+    def animation(self) -> bytes:
+        """A GIF of the last run (the stick figure walking, thrust vectors drawn)."""
+        from ..plots.simulate import animate
+
+        return animate(animation_frames(self.walker.zd, self.outcomes[-1]))
+
+
+def simulate(walker: Walker, *, steps: int = 30, thrust_model: str = "second-order",
+             f_ss: Sequence[float] | None = None, wn: float = 2.0, xi: float = 1.0,
+             tau: float = 0.5, f0: float = 0.0, thruster: Sequence[str] | None = None,
+             perturb: float = 0.0, zeta0: float | None = None,
+             q0: Sequence[float] | None = None, dq0: Sequence[float] | None = None,
+             start: str = "predicted", torque_limit: float | None = None, rtol: float = 1e-9,
+             atol: float = 1e-9, method: str = "DOP853", samples: int = 80,
+             scuff_tol: float = 1e-4, reduced: bool = False,
+             progress: Callable[[int], None] | None = None) -> SimulationResult:
+    """Simulate ``steps`` steps of the full-order closed loop (SPEC 7) for each steady thrust
+    ``f_ss`` [N] (default 0 to -50 N in steps of 10; not with ``thrust_model="piecewise"``,
+    which uses the gait's ``thrust:`` section) on ``thruster`` (default: the first).
+
+    Thrust models: ``constant``, ``first-order`` (``tau`` [s]), ``second-order`` (``wn``
+    [rad/s], ``xi``), ``piecewise``; ``f0`` [N] is the thrust at t = 0 of the dynamic models.
+    The start is just after an impact on the predicted orbit (``start="predicted"``) or the
+    zero-thrust one (``"nominal"``), with ``zeta^-`` scaled by ``1 + perturb`` or given as
+    ``zeta0`` [kg^2 m^4/s^2], or the explicit state ``q0`` [rad], ``dq0`` [rad/s].
+    ``reduced``: only the reduced cascade (SPEC 3). ``progress(1)`` after every step.
+    A physical failure (a fall, a scuff) is a run with ``success`` false, never an exception.
+    """
+    if (q0 is None) != (dq0 is None):
+        raise InputError.param(("q0", "dq0"), "give both or neither")
+    if q0 is not None and (zeta0 is not None or perturb != 0.0):
+        raise InputError.param(("q0", "dq0"), "replace `zeta0`/`perturb`: give one kind of "
+                                              "start")
+    values = None if f_ss is None else [float(v) for v in f_ss]
+    if values is None and thrust_model != "piecewise":
+        values = [0.0, -10.0, -20.0, -30.0, -40.0, -50.0]
+    st = Start(zeta_minus=zeta0, perturb=perturb, q=None if q0 is None else list(q0),
+               dq=None if dq0 is None else list(dq0), orbit=start)
+    config = SimConfig(steps=steps, rtol=rtol, atol=atol, method=method,
+                       samples_per_step=samples, torque_limit=torque_limit, scuff_tol=scuff_tol)
+    zd = walker.zd
+    schedule = None
+    if thrust_model == "piecewise":
+        if walker.gait.thrust is None:
+            raise InputError(walker.where(("thrust",), "the gait has no thrust schedule "
+                                                       "(needed by the piecewise thrust model)"))
+        schedule = schedule_from_gait(zd, walker.gait.thrust, walker.where, pad=True)[0]
+    sc = make_scenario(zd, thrust_model, values, list(thruster) if thruster else None,
+                       schedule=schedule, wn=wn, xi=xi, tau=tau, f0=f0, start=st,
+                       config=config, reduced_only=reduced)
+    return SimulationResult(walker, sc, tuple(run_scenario(zd, sc, progress)))
