@@ -46,7 +46,7 @@ FIELD_K    ?= 60
 
 FEAS_THRUST ?= 0:-50:-10
 SIM_STEPS  ?= 30
-SIM_FSS    ?= 0:-50:-10
+SIM_THRUST ?= 0:-50:-10
 
 # results depend on the tool's code too: editing it rebuilds every figure
 CODE       := $(shell find thrustwalk_cli -name "*.py" -o -name "*.mplstyle")
@@ -71,7 +71,7 @@ $(FIG)/feasibility/feasibility.json: $(R3) $(G3) $(CODE) | $(TW_DEP)
 
 $(FIG)/simulate/simulation.json: $(R3) $(G3) $(CODE) | $(TW_DEP)
 	$(TW) simulate $(R3) $(G3) --steps $(SIM_STEPS) --thrust-model second-order \
-		--f-ss $(SIM_FSS) --wn 2 --xi 1 --out $(FIG)/simulate -q
+		--thrust $(SIM_THRUST) --wn 2 --xi 1 --out $(FIG)/simulate -q
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

@@ -37,8 +37,8 @@ def _thrust(model, gait) -> np.ndarray:
 def designed3(tmp_path_factory, three_link, cli):
     """One short 3-link design through the CLI: (gait path, report, CLI result)."""
     out = tmp_path_factory.mktemp("design") / "walk3.yaml"
-    args = ["design-gait", "three_link", "--speed", str(SPEED), "--clearance", "0", "--starts",
-            "1", "--seed", "0", "--out", str(out), "-q"]
+    args = ["design-gait", "three_link", "--target-speed", str(SPEED), "--clearance", "0",
+            "--starts", "1", "--seed", "0", "--out", str(out.parent), "--name", "walk3", "-q"]
     with pytest.MonkeyPatch.context() as mp:  # the command line recorded in the provenance
         mp.setattr(sys, "argv", ["thrustwalk", *args])
         res = cli(*args)
@@ -131,9 +131,9 @@ def test_impossible_request_reported_infeasible_with_blocking_constraint(tmp_pat
     """5 m/s with mu = 0.1 is beyond the 3-link walker: exit 3, a report that names the
     family blocking the request, and no gait file."""
     out = tmp_path / "fast.yaml"
-    res = cli("design-gait", "three_link", "--speed", "5", "--mu", "0.1",
-                              "--clearance", "0", "--starts", "1", "--max-iter", "60",
-                              "--out", str(out), "-q")
+    res = cli("design-gait", "three_link", "--target-speed", "5", "--mu", "0.1",
+              "--clearance", "0", "--starts", "1", "--max-iter", "60",
+              "--out", str(tmp_path), "--name", "fast", "-q")
     assert res.exit_code == 3, res.output
     assert "Traceback" not in res.output
     report = json.loads((tmp_path / "fast.report.json").read_text())
@@ -146,26 +146,31 @@ def test_impossible_request_reported_infeasible_with_blocking_constraint(tmp_pat
 
 
 @pytest.mark.parametrize("args, needle", [
-    (["no_such_robot", "--speed", "0.8"], "no_such_robot"),
-    (["three_link", "--speed", "-1"], "--speed"),
-    (["three_link", "--mu", "0.7"], "--speed/--step-length"),
-    (["three_link", "--speed", "0.8", "--order", "2"], "--order"),
-    (["three_link", "--speed", "0.8", "--objective", "fast"], "--objective"),
-    (["three_link", "--speed", "0.8", "--alpha", "q9:1"], "--alpha"),
-    (["three_link", "--speed", "0.8", "--max-delta-sq", "1.2"], "--max-delta-sq"),
+    (["no_such_robot", "--target-speed", "0.8"], "no_such_robot"),
+    (["three_link", "--target-speed", "-1"], "--target-speed"),
+    (["three_link", "--mu", "0.7"], "--target-speed/--step-length"),
+    (["three_link", "--target-speed", "0.8", "--order", "2"], "--order"),
+    (["three_link", "--target-speed", "0.8", "--objective", "fast"], "--objective"),
+    (["three_link", "--target-speed", "0.8", "--alpha", "q9:1"], "--alpha"),
+    (["three_link", "--target-speed", "0.8", "--max-delta-sq", "1.2"], "--max-delta-sq"),
 ])
 def test_bad_input_one_line_exit_2(tmp_path, args, needle, cli):
-    res = cli("design-gait", *args, "--out", str(tmp_path / "g.yaml"))
+    res = cli("design-gait", *args, "--out", str(tmp_path / "g"))
     assert res.exit_code == 2, res.output
     lines = [ln for ln in res.output.splitlines() if ln.startswith("error:")]
     assert len(lines) == 1 and needle in lines[0], res.output
-    assert "Traceback" not in res.output and not (tmp_path / "g.yaml").exists()
+    assert "Traceback" not in res.output and not (tmp_path / "g").exists()
 
 
-def test_out_must_be_a_yaml_file(tmp_path, cli):
-    res = cli("design-gait", "three_link", "--speed", "0.8", "--out",
-                              str(tmp_path / "g.json"))
-    assert res.exit_code == 2 and "option --out" in res.output
+def test_out_must_be_a_folder(tmp_path, cli):
+    res = cli("design-gait", "three_link", "--target-speed", "0.8", "--out",
+              str(tmp_path / "g.yaml"))
+    assert res.exit_code == 2 and "option --out: a folder is expected" in res.output
+    (tmp_path / "file").write_text("x")
+    res = cli("design-gait", "three_link", "--target-speed", "0.8", "--out",
+              str(tmp_path / "file"))
+    assert res.exit_code == 2 and res.output.startswith("error: option --out: ")
+    assert "is a file, not a folder" in res.output
 
 
 def test_default_alpha_is_the_virtual_stance_leg(rabbit, three_link):
@@ -213,8 +218,9 @@ def test_thrust_codesign_written_and_reloaded(tmp_path, three_link, cli):
     """Constant hip thrust designed with the gait: within the robot's limits, written as a
     thrust schedule, and the reloaded gait's orbit (with that thrust) is the reported one."""
     out = tmp_path / "thr.yaml"
-    res = cli("design-gait", "three_link", "--speed", str(SPEED), "--clearance",
-                              "0", "--starts", "1", "--design-thrust", "--out", str(out), "-q")
+    res = cli("design-gait", "three_link", "--target-speed", str(SPEED), "--clearance",
+              "0", "--starts", "1", "--design-thrust", "--out", str(tmp_path), "--name", "thr",
+              "-q")
     assert res.exit_code == 0, res.output
     report = json.loads(out.with_name("thr.report.json").read_text())
     F = report["thrust"]
@@ -232,9 +238,9 @@ def test_thrust_range_feasible_for_every_thrust_in_it(tmp_path, three_link, cli)
     """--thrust-range hip_x:-50:0 is imposed at the two ends (affinity in a constant thrust);
     contact.evaluate on the shifted orbits of 11 thrusts across the range confirms it."""
     out = tmp_path / "robust.yaml"
-    res = cli("design-gait", "three_link", "--speed", str(SPEED), "--clearance",
-                              "0", "--starts", "1", "--thrust-range", "hip_x:-50:0",
-                              "--min-vertical-force", "40", "--out", str(out), "-q")
+    res = cli("design-gait", "three_link", "--target-speed", str(SPEED), "--clearance",
+              "0", "--starts", "1", "--thrust-range", "hip_x:-50:0",
+              "--min-vertical-force", "40", "--out", str(tmp_path), "--name", "robust", "-q")
     assert res.exit_code == 0, res.output
     gait, zd, _, lc = _orbit(three_link, out)
     assert lc.speed == pytest.approx(SPEED, rel=1e-6)

@@ -35,7 +35,7 @@ def pipeline(tmp_path_factory) -> Path:
     fig = tmp_path_factory.mktemp("figures")
     cmd = ["make", "-j2", "figures", f"FIG={fig}", f"TW={sys.executable} -m thrustwalk_cli",
            "TW_DEP=", "LC_THRUST=0:-50:-25", "SHAPE_K=0:50:25", "FIELD_K=60",
-           "FEAS_THRUST=0:-50:-25", "SIM_STEPS=3", "SIM_FSS=0:-50:-25",
+           "FEAS_THRUST=0:-50:-25", "SIM_STEPS=3", "SIM_THRUST=0:-50:-25",
            *PIPELINE_OVERRIDES]
     res = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]

@@ -335,7 +335,7 @@ STEP_KEYS = {"step", "step_time", "zeta_minus", "sigma_minus", "sigma_plus", "im
 @pytest.mark.slow
 def test_cli_writes_every_output(tmp_path, cli):
     out = tmp_path / "sim"
-    res = cli("simulate", "--steps", "2", "--f-ss", "0,-2", "--samples", "20",
+    res = cli("simulate", "--steps", "2", "--thrust", "0,-2", "--samples", "20",
                               "--animate", "--quiet", "--out", str(out))
     assert res.exit_code == 0, res.output
     for name in ("simulation.json", "steps.csv", "trajectory.csv", "thrust_time.png",
@@ -349,14 +349,15 @@ def test_cli_writes_every_output(tmp_path, cli):
         assert STEP_KEYS <= set(e), sorted(STEP_KEYS - set(e))
         assert abs(e["prediction"]["relative_error"]) < 1e-6, e["step"]
     lines = (out / "steps.csv").read_text().splitlines()
-    assert lines[0].startswith("# provenance: ")
-    header = next(ln for ln in lines if not ln.startswith("#")).split(",")
-    assert {"zeta_minus", "predicted_zeta_minus", "thrust_hip_x"} <= set(header)
+    header = lines[0].split(",")
+    assert {"zeta_minus_kg2m4_s2", "predicted_zeta_minus_kg2m4_s2", "thrust_hip_x_N"} <= set(
+        header)
+    assert doc["tables"]["steps.csv"]["columns"] == header
     assert (out / "walker.gif").read_bytes()[:6] == b"GIF89a"
 
 
 def test_cli_falling_walker_exit_0_with_reason(tmp_path, cli):
-    res = cli("simulate", "--thrust-model", "constant", "--f-ss", "100",
+    res = cli("simulate", "--thrust-model", "constant", "--thrust", "100",
                               "--start", "nominal", "--steps", "3", "--quiet", "--out",
                               str(tmp_path))
     assert res.exit_code == 0, res.output
@@ -368,20 +369,21 @@ def test_cli_falling_walker_exit_0_with_reason(tmp_path, cli):
 
 @pytest.mark.slow
 def test_cli_reduced_preview_and_npz(tmp_path, cli):
-    res = cli("simulate", "--reduced", "--steps", "2", "--f-ss", "0",
+    res = cli("simulate", "--reduced", "--steps", "2", "--thrust", "0",
                               "--samples", "10001", "--quiet", "--out", str(tmp_path))
     assert res.exit_code == 0, res.output
     doc = json.loads((tmp_path / "simulation.json").read_text())
     assert doc["trajectory_file"] == "trajectory.npz" and doc["steps"][0]["model"] == "reduced"
     data = np.load(tmp_path / "trajectory.npz")
-    assert data["t"].size == 20002 and {"alpha", "sigma", "thrust_hip_x"} <= set(data.files)
+    assert data["t_s"].size == 20002
+    assert {"alpha_rad", "sigma_kgm2_s", "thrust_hip_x_N"} <= set(data.files)
 
 
 def test_cli_integrator_failure_exit_1(tmp_path, monkeypatch, cli):
     real = ClosedLoop.rhs
     monkeypatch.setattr(ClosedLoop, "rhs", lambda self, t, x, seg: (
         [np.nan] * len(x) if t > 0.2 else real(self, t, x, seg)))
-    res = cli("simulate", "--steps", "1", "--f-ss", "0", "--quiet", "--out",
+    res = cli("simulate", "--steps", "1", "--thrust", "0", "--quiet", "--out",
                               str(tmp_path))
     assert res.exit_code == 1
     assert json.loads((tmp_path / "simulation.json").read_text())["runs"][0]["failure"] == \
@@ -390,7 +392,7 @@ def test_cli_integrator_failure_exit_1(tmp_path, monkeypatch, cli):
 
 @pytest.mark.parametrize("args, words", [
     (["--thrust-model", "bogus"], "--thrust-model"),
-    (["--f-ss", "500"], "outside the limits"),
+    (["--thrust", "500"], "outside the limits"),
     (["--wn", "0"], "--wn"),
     (["--q0", "0,0,0"], "--q0/--dq0"),
     (["--thruster", "nope"], "--thruster"),

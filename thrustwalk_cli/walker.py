@@ -14,16 +14,23 @@ thrust-independent zero dynamics.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
+from math import pi
 
+from .contact.terms import scuff_reason, swing_clearance
 from .description.gait import Gait
 from .description.robot import Robot
 from .errors import InputError, Where
-from .files.gait_file import bind_gait, load_gait, same_robot_file
+from .files.bundled import bundled_names
+from .files.gait_file import GaitSource, bind_gait, load_gait, same_robot_file
 from .files.robot_file import load_robot
-from .hzd.constraints import apply_invariance
+from .hzd.constraints import apply_invariance, gait_maps
 from .hzd.zero_dynamics import ZeroDynamics, zero_dynamics
 from .model.compiled import CompiledModel
 from .model.compiler import load_model
+
+FOOT_TOL = 1e-6  # [m] the swing foot must be this close to the ground at impact
+DEFAULT_GAIT = "three_link_walk"
 
 
 @dataclass(frozen=True)
@@ -47,18 +54,76 @@ class Walker:
         """``robot / gait``, for titles and tables."""
         return f"{self.robot.name} / {self.gait.name}"
 
+    @cached_property
+    def swing(self) -> dict:
+        """Swing-foot height along the step [m] (minimum, deepest dip, ``scuffs``)."""
+        return swing_clearance(self.model, self.zd)
 
-def load_walker(robot: str | None = None, gait: str = "three_link_walk") -> Walker:
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """What makes every zero-dynamics verdict of this gait invalid or doubtful: not
+        hybrid-invariant, kappa_1 singular, the swing foot below the ground (scuffing)."""
+        out = []
+        if not self.zd.valid:
+            out.append(self.zd.invalid_reason)
+        sw = self.swing
+        if sw["scuffs"]:
+            out.append(scuff_reason(sw))
+        return tuple(out)
+
+
+def default_gait(robot: Robot | None) -> str:
+    """The bundled gait for ``robot`` (the first, by name, whose ``robot:`` names its file),
+    or the default gait when no robot is given."""
+    if robot is None:
+        return DEFAULT_GAIT
+    for name in bundled_names("gaits"):
+        if same_robot_file(robot, load_gait(name)[0].robot):
+            return name
+    raise InputError.param("gait", f"no gait given and no bundled gait for robot "
+                                   f"{robot.name!r}: give a gait file")
+
+
+def check_impact_posture(model: CompiledModel, gait: Gait, source: GaitSource) -> None:
+    """The swing foot must be on the ground at impact (``q^- = H^-1 [a_M; alpha_f]``, SPEC 2):
+    a gait written in degrees, or with the wrong sign of alpha, puts it under or above the
+    ground. Raises :class:`InputError` at the gait file's line."""
+    maps = gait_maps(model, gait)
+    h = float(model.p_swing(maps.q_minus)[1])
+    if abs(h) <= FOOT_TOL:
+        return
+    big = [(("bezier", "coefficients", name, j), v) for name, row in source.rows.items()
+           for j, v in enumerate(row) if v is not None and abs(v) > pi]
+    if abs(gait.alpha_f) > pi:
+        big.insert(0, (("alpha", "final"), gait.alpha_f))
+    where = f"{abs(h):.4g} m {'below' if h < 0 else 'above'} the ground at impact"
+    if big:
+        key, msg = big[0][0], (f"the swing foot is {where}; angles are in radians "
+                               f"({big[0][1]:g} > pi)")
+    elif h < 0:
+        key, msg = ("alpha", "final"), f"the swing foot is {where}"
+    else:
+        key, msg = ("alpha", "final"), (
+            f"the swing foot is {where}: alpha_f = c q^- must be reached with the swing foot "
+            "on the ground (check the sign of alpha.c and alpha.final)")
+    raise InputError(source.where(key, msg))
+
+
+def load_walker(robot: str | None = None, gait: str | None = None) -> Walker:
     """Load a gait and its robot (``robot`` overrides the gait's own ``robot:``), check them
     against each other, compile (or load) the model, apply ``invariance: auto`` (SPEC 2) and
-    precompute the zero dynamics (SPEC 3). ``robot`` and ``gait`` are bundled names or paths.
+    precompute the zero dynamics (SPEC 3). ``robot`` and ``gait`` are bundled names or paths;
+    without a gait, the robot's bundled gait (or ``three_link_walk`` without a robot).
 
-    Raises :class:`InputError` (``file:line: key.path: message``) on bad files, or when
-    ``robot`` is not the robot the gait was written for.
+    Raises :class:`InputError` (``file:line: key.path: message``) on bad files, when ``robot``
+    is not the robot the gait was written for, or when the swing foot is not on the ground at
+    impact (angles in degrees, the wrong sign of alpha).
     """
+    rob = load_robot(robot) if robot else None
+    if gait is None:
+        gait = default_gait(rob)
     g, source = load_gait(gait)
-    if robot:
-        rob = load_robot(robot)
+    if rob is not None:
         if not same_robot_file(rob, g.robot):
             try:
                 own = load_robot(g.robot).name
@@ -71,12 +136,8 @@ def load_walker(robot: str | None = None, gait: str = "three_link_walk") -> Walk
         rob = load_robot(g.robot)
     g = bind_gait(g, source, rob)
     model = load_model(rob)
+    check_impact_posture(model, g, source)
     if g.invariance == "auto":
         g = apply_invariance(model, g)
     return Walker(rob, g, model, zero_dynamics(model, g), source.where)
 
-
-def walker_from(model: CompiledModel, gait: Gait, where: Where = "gait") -> Walker:
-    """A walker from a compiled model and a complete gait already in memory (``A`` with
-    invariance applied), e.g. a gait just designed."""
-    return Walker(model.robot, gait, model, zero_dynamics(model, gait), where)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import re
 import sys
+import time
 from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
@@ -94,12 +95,79 @@ def parse_values(text: str, option: str, unit: str = "") -> list[float]:
     return values
 
 
+def parse_knots(text: str, option: str = "--knots") -> list[float | None]:
+    """Knots in one syntax for every command: a comma list whose entries are numbers or ``?``
+    (a knot to solve for), or a range ``start:stop:step`` (stop included)."""
+    text = text.strip()
+    if ":" in text:
+        return [float(v) for v in parse_values(text, option)]
+    out: list[float | None] = []
+    for item in text.split(","):
+        item = item.strip()
+        if item == "?":
+            out.append(None)
+            continue
+        try:
+            v = float(item)
+        except ValueError:
+            raise InputError(f"option {option}: {item!r} is not a number or ? (a free knot); "
+                             "use e.g. 0,?,?,1, 0,0.3,0.6,1 or 0:1:0.25") from None
+        if v != v or v in (float("inf"), float("-inf")):
+            raise InputError(f"option {option}: knots must be finite, got {item!r}")
+        out.append(v)
+    return out
+
+
+def parse_formats(text: str, allowed: tuple[str, ...] = ("csv", "png", "pdf")) -> set[str]:
+    """``--formats csv,png`` -> the set of file kinds to write besides the JSON."""
+    kinds = {k.strip().lower() for k in text.split(",") if k.strip()}
+    bad = sorted(kinds - set(allowed))
+    if bad:
+        raise InputError(f"option --formats: unknown {', '.join(bad)} (choose from "
+                         f"{', '.join(allowed)})")
+    return kinds
+
+
+def warn(lines) -> None:
+    """Warnings on standard error, one line each (also with --quiet)."""
+    for line in lines:
+        sys.stderr.write(f"warning: {line}\n")
+
+
+def load_walker(robot: str | None, gait: str | None):
+    """:func:`thrustwalk_cli.walker.load_walker`, with the gait's warnings printed."""
+    from ..walker import load_walker as _load
+
+    walker = _load(robot, gait)
+    warn(walker.warnings)
+    return walker
+
+
+def check_out(out: Path) -> None:
+    """An output folder must be a folder (or not exist yet)."""
+    if out.exists() and not out.is_dir():
+        raise InputError.param("out", f"{out} is a file, not a folder")
+
+
 @contextlib.contextmanager
 def progress(description: str, total: int, quiet: bool) -> Iterator:
     """A rich progress bar with an ETA on stderr (silent with --quiet); yields
     ``advance(n=1)``."""
     if quiet:
         yield lambda n=1: None
+        return
+    con = console(stderr=True)
+    if not con.is_terminal:  # a log, not a terminal: one line per finished unit
+        t0 = time.monotonic()
+        done = 0
+
+        def line(n: int = 1) -> None:
+            nonlocal done
+            done += n
+            el = time.monotonic() - t0
+            eta = el / done * (total - done) if done else 0.0
+            sys.stderr.write(f"{description}: {done}/{total} ({el:.1f} s, eta {eta:.1f} s)\n")
+        yield line
         return
     from rich.progress import (
         BarColumn,
@@ -112,40 +180,59 @@ def progress(description: str, total: int, quiet: bool) -> Iterator:
     with Progress(TextColumn("{task.description}"), BarColumn(),
                   TextColumn("{task.completed}/{task.total}"), TimeElapsedColumn(),
                   TextColumn("eta"), TimeRemainingColumn(),
-                  console=console(stderr=True), transient=True) as prog:
+                  console=con, transient=True) as prog:
         task = prog.add_task(description, total=total)
         yield lambda n=1: prog.advance(task, n)
 
 
-def write_result(result, out: Path, provenance: dict) -> dict:
+def write_result(result, out: Path, provenance: dict, *, json: str | None = None,
+                 formats: set[str] | None = None, titles: bool = False) -> dict:
     """Write a study result into the folder ``out``: ``<name>.json`` (provenance first), its
-    CSV tables, its attachments and its figures (PNG and PDF), every file atomically. Returns
-    the JSON document written."""
+    CSV tables, its attachments and its figures (PNG and PDF), each kind only when in
+    ``formats`` (default: all), every file atomically; with ``json`` also the document to that
+    path, or to standard output for ``-``. Returns the JSON document written."""
+    import json as _json
+
     from ..files import output
 
+    check_out(out)
+    kinds = {"csv", "png", "pdf", "md", "yaml", "npz", "gif"} if formats is None else formats
+    tables = result.tables() if "csv" in kinds else {}
     doc = {"provenance": provenance, **result.document()}
+    if tables:
+        doc["tables"] = {f"{name}.csv": {"columns": t.header, "notes": t.comments}
+                         for name, t in tables.items()}
     out.mkdir(parents=True, exist_ok=True)
     output.write_json(out / f"{result.name}.json", doc)
-    for name, t in result.tables().items():
-        output.write_csv(out / f"{name}.csv", t.header, t.rows, comments=t.comments,
-                         provenance=provenance)
+    for name, t in tables.items():
+        output.write_csv(out / f"{name}.csv", t.header, t.rows)
     attach = getattr(result, "attachments", None)
     for name, data in (attach(doc) if attach else {}).items():
+        needs = {"md": "md", "npz": "csv"}.get(name.rsplit(".", 1)[-1])
+        if needs and needs not in kinds:
+            continue
         if isinstance(data, bytes):
             output.write_bytes_atomic(out / name, data)
         else:
             output.write_text_atomic(out / name, data)
-    save_figures(result.figures(), out)
+    figure_kinds = [k for k in ("png", "pdf") if k in kinds]
+    if figure_kinds:
+        save_figures(result.figures(titles=titles), out, figure_kinds)
+    if json == "-":
+        sys.stdout.write(_json.dumps(output.jsonable(doc), indent=2) + "\n")
+    elif json:
+        output.write_json(Path(json), doc)
     return doc
 
 
-def save_figures(figures: dict, out: Path) -> None:
-    """Save each figure as ``out/<name>.png`` and ``.pdf`` and close it."""
-    if not figures:
-        return
+def save_figures(figures: dict, out: Path, kinds=("png", "pdf")) -> None:
+    """Save each figure as ``out/<name>.<kind>`` (PNG, PDF) and close it."""
+    from .._version import __version__
     from ..files import output
-    from ..plots.style import close
+    from ..plots.style import close, render
 
     for name, fig in figures.items():
-        output.save_figure(fig, out / name)
+        for kind in kinds:
+            output.write_bytes_atomic(out / f"{name}.{kind}",
+                                      render(fig, kind, f"thrustwalk {__version__}"))
         close(fig)

@@ -10,7 +10,7 @@ import typer
 
 from ..errors import ComputationError, InputError
 from .common import cli_errors, console, progress
-from .options import QuietOpt, RobotArg
+from .options import JsonOpt, QuietOpt, RobotArg
 
 HELP = """Design a stable, hybrid-invariant Bezier gait by constrained optimisation.
 
@@ -19,19 +19,19 @@ and 1 follow from hybrid invariance) and zeta^- [kg^2 m^4/s^2]; with --design-th
 constant thrust per thruster [N]. Objective on the zero-dynamics periodic orbit: 'effort' =
 (1/L) int |u|^2 dt [N^2 m s] (default) or 'peak' = max |u_i| [N m]. Constraints: stable
 periodic orbit with delta_zero^2 <= --max-delta-sq; target speed [m/s] and/or step length
-[m]; swing foot >= --clearance [m] at mid-step and >= 0 over the step; stance F_v >= eps [N]
-and |F_h| <= mu F_v; impact impulse in the friction cone and trailing foot lifting off; joint
-ranges [rad] and torque limits [N m] from the robot file.
+[m]; swing foot >= --clearance [m] at mid-step and >= 0 over the step; stance F_v >=
+--min-vertical-force [N] and |F_h| <= mu F_v; impact impulse in the friction cone and
+trailing foot lifting off; joint ranges [rad] and torque limits [N m] from the robot file.
 
-Writes the gait YAML (a header records how it was made) and NAME.report.json beside it
+Writes DIR/NAME.yaml (the gait; a header records how it was made) and DIR/NAME.report.json
 (objective, every constraint margin, fixed point, provenance). The written file is loaded back
 and its fixed point compared with the design before it is kept. Exit codes: 0 a feasible gait
 was written; 3 no feasible gait was found (only the report is written; it names the
 constraint family that blocks); 2 bad input; 1 computation failure.
 """
 
-EPILOG = ("Example: thrustwalk design-gait rabbit --speed 0.53 --starts 8 "
-          "--out gaits/rabbit_walk.yaml")
+EPILOG = ("Example: thrustwalk design-gait rabbit --target-speed 0.53 --starts 8 "
+          "--out gaits --name rabbit_walk")
 
 INFEASIBLE_EXIT = 3
 
@@ -76,20 +76,25 @@ def run_design_gait(robot: str, out: Path, *, speed: float | None, step_length: 
                     thrust_weight: float, thrust_range: str | None,
                     min_vertical_force: float | None, alpha: str | None,
                     max_iter: int, name: str | None, compare: str | None,
-                    quiet: bool) -> dict:
+                    quiet: bool, json: str | None = None) -> dict:
     """Plain function behind the command; returns the report it wrote (``feasible`` says
     whether the gait file was written)."""
     from ..design.spec import DesignSpec
     from ..files import output
     from ..studies.compile import compile_robot
     from ..studies.design_gait import design_gait, reload_check, robot_reference
-    from ..walker import load_walker
+    from .common import check_out, load_walker
 
-    if out.suffix not in (".yaml", ".yml"):
-        raise InputError(f"option --out: the gait file must end in .yaml (got {out})")
-    gait_name = name or out.stem
+    check_out(out)
+    if out.suffix in (".yaml", ".yml"):
+        raise InputError(f"option --out: a folder is expected (the gait goes to "
+                         f"DIR/NAME.yaml, NAME from --name), got {out}")
     model = compile_robot(robot)
     rob = model.robot
+    gait_name = name or f"{rob.name}_designed"
+    if not gait_name.replace("_", "").replace("-", "").isalnum():
+        raise InputError(f"option --name: letters, digits, _ and - only (got {gait_name!r})")
+    gait_path = out / f"{gait_name}.yaml"
     spec = DesignSpec(speed=speed, step_length=step_length, mu=mu, order=order,
                       clearance=clearance, max_delta_sq=max_delta_sq,
                       min_vertical_force=min_vertical_force, objective=objective,
@@ -102,24 +107,32 @@ def run_design_gait(robot: str, out: Path, *, speed: float | None, step_length: 
     with progress(f"design-gait {rob.name}: {starts} start(s)", starts, quiet) as advance:
         result = design_gait(model, spec, compare=cmp,
                              progress=lambda done, total, msg: advance(1))
-    report_path = out.with_name(out.stem + ".report.json")
+    report_path = out / f"{gait_name}.report.json"
     prov = output.provenance(rob)
     body = result.document()
     doc = {"provenance": prov, "robot": body.pop("robot"),
-           "gait_file": str(out) if result.success else None, **body}
+           "gait_file": str(gait_path) if result.success else None, **body}
     text = None
     if result.success:
-        text = result.gait_text(prov, robot_reference(rob, robot, out), report_path.name)
-        back = reload_check(model, text, str(out), result.design)
+        text = result.gait_text(prov, robot_reference(rob, robot, gait_path), report_path.name)
+        back = reload_check(model, text, str(gait_path), result.design)
         if not back["relative_error"] <= 1e-8:
             raise ComputationError(
                 f"the written gait does not reproduce the designed fixed point "
                 f"(zeta* {back['zeta_star']} vs {back['reference']})")
         doc["reload_check"] = back
-        output.write_text_atomic(out, text)
+        out.mkdir(parents=True, exist_ok=True)
+        output.write_text_atomic(gait_path, text)
+    out.mkdir(parents=True, exist_ok=True)
     output.write_json(report_path, doc)
-    if not quiet:
-        _summary(doc, out, report_path)
+    if json == "-":
+        import json as _json
+
+        sys.stdout.write(_json.dumps(output.jsonable(doc), indent=2) + "\n")
+    elif json:
+        output.write_json(Path(json), doc)
+    if not quiet and json != "-":
+        _summary(doc, gait_path, report_path)
     return doc
 
 
@@ -130,13 +143,15 @@ def _summary(doc: dict, out: Path, report: Path) -> None:
     o, m = doc.get("fixed_point") or {}, doc.get("margins") or {}
     t = Table(title=f"design-gait {doc['robot']['name']}: "
                     + ("feasible" if doc["feasible"] else "NO FEASIBLE GAIT"))
-    t.add_column("quantity")
-    t.add_column("value", justify="right")
+    t.add_column("quantity", overflow="fold")
+    t.add_column("value", justify="right", no_wrap=True)
     obj = doc["objective"]
     rows = [(f"objective {obj['name']} [{obj['unit']}]", obj["value"]),
             ("delta_zero^2", o.get("delta_zero_sq")), ("speed [m/s]", o.get("speed")),
             ("step length [m]", o.get("step_length")), ("step time [s]", o.get("step_time")),
             ("zeta* [kg^2 m^4/s^2]", o.get("zeta_star"))]
+    rows += [(f"designed thrust {n} [N]", v)
+             for n, v in zip(doc.get("thrusters") or [], doc.get("thrust") or [])]
     for key in ("clearance_mid_step", "min_swing_height", "vertical_force", "friction",
                 "impact_friction", "liftoff_velocity"):
         rows.append((f"margin {key}", m.get(key)))
@@ -148,9 +163,9 @@ def _summary(doc: dict, out: Path, report: Path) -> None:
         console().print(f"compare {c['gait']}: objective {c.get('objective')}, "
                         f"feasible {c['feasible']} (failed: {', '.join(c['failed']) or 'none'})")
     if doc["feasible"]:
-        console().print(f"wrote {out} and {report}")
+        console().print(f"wrote {out} and {report}", markup=False)
     else:
-        console().print(f"wrote {report} (no gait file)")
+        console().print(f"wrote {report} (no gait file)", markup=False)
 
 
 def register(app: typer.Typer) -> None:
@@ -159,10 +174,10 @@ def register(app: typer.Typer) -> None:
         ctx: typer.Context,
         robot: RobotArg,
         out: Annotated[Path, typer.Option(
-            "--out", "-o", help="Gait file to write (NAME.yaml); the report goes to "
-                                "NAME.report.json beside it.")],
+            "--out", "-o", help="Output folder: the gait goes to DIR/NAME.yaml, the report to "
+                                "DIR/NAME.report.json.")] = Path("out/design_gait"),
         speed: Annotated[float | None, typer.Option(
-            "--speed", help="Target average speed [m/s].")] = None,
+            "--target-speed", help="Target average speed [m/s].")] = None,
         step_length: Annotated[float | None, typer.Option(
             "--step-length", help="Target step length [m] (swing-foot x at impact).")] = None,
         mu: Annotated[float, typer.Option("--mu", help="Friction coefficient [1].")] = 0.7,
@@ -196,10 +211,11 @@ def register(app: typer.Typer) -> None:
         max_iter: Annotated[int, typer.Option(
             "--max-iter", help="SLSQP iterations per start [1].")] = 150,
         name: Annotated[str | None, typer.Option(
-            "--name", help="Gait name (default: the file name).")] = None,
+            "--name", help="Gait name and file stem (default: ROBOT_designed).")] = None,
         compare: Annotated[str | None, typer.Option(
             "--compare", help="Also evaluate this existing gait with the same objective and "
                               "constraints (written to the report).")] = None,
+        json: JsonOpt = None,
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
@@ -209,7 +225,7 @@ def register(app: typer.Typer) -> None:
                 objective=objective, design_thrust=thrust_design, thrust_weight=thrust_weight,
                 thrust_range=thrust_range,
                 min_vertical_force=min_vertical_force, alpha=alpha_c, max_iter=max_iter,
-                name=name, compare=compare, quiet=quiet)
+                name=name, compare=compare, quiet=quiet, json=json)
             if not doc["feasible"]:
                 sys.stderr.write(f"infeasible: {doc['reason']}\n")
                 raise typer.Exit(INFEASIBLE_EXIT)

@@ -1,4 +1,4 @@
-"""``thrustwalk feasibility``: ground-contact feasibility of thrust-assisted walking (SPEC 5)."""
+"""``thrustwalk feasibility``: ground-contact feasibility of thrust-assisted walking."""
 
 from __future__ import annotations
 
@@ -7,19 +7,41 @@ from typing import Annotated
 
 import typer
 
-from .common import cli_errors, console, parse_values, write_result
-from .options import EpsOpt, GaitArg, MuOpt, OutOpt, QuietOpt, RobotArg
+from .common import (
+    cli_errors,
+    console,
+    load_walker,
+    parse_formats,
+    parse_values,
+    warn,
+    write_result,
+)
+from .options import (
+    FormatsOpt,
+    GaitArg,
+    JsonOpt,
+    MinVerticalForceOpt,
+    MuOpt,
+    OutOpt,
+    QuietOpt,
+    RobotArg,
+    ThrusterOpt,
+    ThrustOpt,
+    TitlesOpt,
+)
 
 HELP = """Is this gait, with this thrust, physically walkable?
 
-For each constant thrust value [N] (or one piecewise schedule from a gait-format YAML file):
-the exact ground reaction force F_1(alpha) = Lambda_2 F + Lambda_1 zeta + Lambda_0 [N] along the
-periodic orbit, joint torques [N m], swing-foot height [m], and the impact impulse [N s] with
-the trailing foot's lift-off velocity [m/s]. Feasible when a periodic orbit exists,
-F_1^v >= eps, |F_1^h| <= mu F_1^v (the exact planar cone; an inscribed pyramid mu/sqrt(2) is
-about 29 % too strict), the impact impulse lies in the cone and the trailing foot lifts off.
-Polynomial fits L_0, L_1, L_2 of the Lambdas give a second verdict beside the exact one.
-An infeasible gait is a valid answer (exit 0); bad input exits 2, a tool failure 1.
+For each constant thrust value [N] (or one piecewise schedule from a gait-format YAML file, or
+the gait's own thrust: section when neither is given): the exact ground reaction force
+F_1(alpha) = Lambda_2 F + Lambda_1 zeta + Lambda_0 [N] along the periodic orbit, joint torques
+[N m], swing-foot height [m], and the impact impulse [N s] with the trailing foot's lift-off
+velocity [m/s]. Feasible when a periodic orbit exists, F_1^v >= the minimum vertical force,
+|F_1^h| <= mu F_1^v (the exact planar cone; an inscribed pyramid mu/sqrt(2) is about 29 % too
+strict), the impact impulse lies in the cone, the trailing foot lifts off and the swing foot
+stays above the ground. Polynomial fits L_0, L_1, L_2 of the Lambdas give a second verdict
+beside the exact one. An infeasible gait is a valid answer (exit 0); bad input exits 2, a tool
+failure 1.
 
 Writes DIR/feasibility.json, DIR/feasibility.md, DIR/grf.png/.pdf and
 DIR/feasible_region.png/.pdf.
@@ -28,23 +50,27 @@ DIR/feasible_region.png/.pdf.
 EPILOG = ("Example: thrustwalk feasibility three_link three_link_walk --thrust 0:-50:-10 "
           "--mu 0.7 --out out/feasibility")
 
-DEFAULT_THRUST = "0:-50:-10"  # the study's default values, as the help shows them
 
-
-def run_feasibility(robot: str, gait: str, *, thrust: list[float] | None, schedule: str | None,
-                    mu: float | None, eps: float, thruster: str | None, degree: int | None,
-                    fit_tol: float, out: Path, quiet: bool) -> dict:
+def run_feasibility(robot: str | None, gait: str | None, *, thrust: list[float] | None,
+                    schedule: str | None, mu: float | None, min_vertical_force: float,
+                    thruster: str | None, degree: int | None, fit_tol: float, out: Path,
+                    quiet: bool, json: str | None = None, formats: set[str] | None = None,
+                    titles: bool = False) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files.output import provenance
     from ..studies.feasibility import feasibility
-    from ..walker import load_walker
 
     walker = load_walker(robot, gait)
-    result = feasibility(walker, thrust, schedule=schedule, thruster=thruster, mu=mu, eps=eps,
-                         degree=degree, fit_tol=fit_tol)
-    doc = write_result(result, out, provenance(walker.robot, walker.gait, schedule=schedule))
-    if not quiet:
+    result = feasibility(walker, thrust, schedule=schedule, thruster=thruster, mu=mu,
+                         min_vertical_force=min_vertical_force, degree=degree, fit_tol=fit_tol)
+    if thrust is None and schedule is None and result.schedule is not None and not quiet:
+        warn(["no --thrust or --schedule given: the gait's own thrust: schedule is evaluated"])
+    doc = write_result(result, out, provenance(walker.robot, walker.gait, schedule=schedule),
+                       json=json, formats=formats, titles=titles)
+    if not quiet and json != "-":
         _table(doc)
+        console().print(f"verdict: {doc['verdict']}; wrote {out}/feasibility.json, .md and "
+                        "figures", markup=False)
     return doc
 
 
@@ -56,8 +82,10 @@ def _table(doc: dict) -> None:
 
     t = Table(title=f"feasibility: {doc['robot']['name']} / {doc['gait']['name']} "
                     f"(mu = {doc['mu']:g}, verdict: {doc['verdict']})")
-    for col in ("thrust [N]", "verdict", "min F^v [N]", "max |F^h|/F^v", "lift-off [m/s]"):
-        t.add_column(col, overflow="fold")
+    t.add_column("thrust [N]", overflow="fold")
+    t.add_column("verdict", no_wrap=True)
+    for col in ("min F^v [N]", "max |F^h|/F^v", "lift-off [m/s]"):
+        t.add_column(col, no_wrap=True, justify="right")
     for c in doc["cases"]:
         t.add_row(thrust_text(c["thrust"]), "feasible" if c["feasible"] else "INFEASIBLE",
                   fmt(c["min_vertical_force"]), fmt(c["max_friction_ratio"]),
@@ -74,31 +102,30 @@ def register(app: typer.Typer) -> None:
     def feasibility_cli(
         ctx: typer.Context,
         robot: RobotArg = "three_link",
-        gait: GaitArg = "three_link_walk",
-        thrust: Annotated[str | None, typer.Option(
-            "--thrust", help=f"Constant thrust values [N]: start:stop:step or a comma list "
-                             f"(default {DEFAULT_THRUST}).")] = None,
+        gait: GaitArg = None,
+        thrust: ThrustOpt = None,
         schedule: Annotated[str | None, typer.Option(
             "--schedule", help="Gait-format YAML file whose `thrust:` section (piecewise in "
                                "alpha, per thruster [N] or generalised [N m]) is evaluated "
                                "instead of --thrust.")] = None,
         mu: MuOpt = None,
-        eps: EpsOpt = 0.0,
-        thruster: Annotated[str | None, typer.Option(
-            "--thruster", help="Thruster that --thrust drives (default: the first).")] = None,
+        min_vertical_force: MinVerticalForceOpt = 0.0,
+        thruster: ThrusterOpt = None,
         degree: Annotated[int | None, typer.Option(
             "--degree", help="Degree of the polynomial fits L_k (default: from --fit-tol).")
         ] = None,
         fit_tol: Annotated[float, typer.Option(
             "--fit-tol", help="Relative max error target of the fits L_k [-].")] = 1e-3,
         out: OutOpt = Path("out/feasibility"),
+        json: JsonOpt = None,
+        formats: FormatsOpt = "png,pdf,md",
+        titles: TitlesOpt = False,
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
             values = None if thrust is None else parse_values(thrust, "--thrust", "N")
-            doc = run_feasibility(robot, gait, thrust=values, schedule=schedule, mu=mu, eps=eps,
-                                  thruster=thruster, degree=degree, fit_tol=fit_tol, out=out,
-                                  quiet=quiet)
-            if not quiet:
-                console().print(f"verdict: {doc['verdict']}; wrote {out}/feasibility.json, "
-                                f".md, grf.png/.pdf, feasible_region.png/.pdf")
+            run_feasibility(robot, gait, thrust=values, schedule=schedule, mu=mu,
+                            min_vertical_force=min_vertical_force, thruster=thruster,
+                            degree=degree, fit_tol=fit_tol, out=out, quiet=quiet, json=json,
+                            formats=parse_formats(formats, ("png", "pdf", "md")),
+                            titles=titles)

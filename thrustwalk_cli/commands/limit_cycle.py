@@ -3,19 +3,39 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
 
 import typer
 
-from .common import cli_errors, console, parse_values, write_result
-from .options import GaitArg, OutOpt, QuietOpt, RobotArg, ThrusterOpt
+from .common import (
+    cli_errors,
+    console,
+    load_walker,
+    parse_formats,
+    parse_values,
+    warn,
+    write_result,
+)
+from .options import (
+    FormatsOpt,
+    GaitArg,
+    JsonOpt,
+    MaxOutputOpt,
+    OutOpt,
+    QuietOpt,
+    RobotArg,
+    ThrusterOpt,
+    ThrustOpt,
+    TitlesOpt,
+)
 
 HELP = """Limit cycles of the hybrid zero dynamics for constant thrust values.
 
 For every thrust value: Poincare fixed point zeta* [kg^2 m^4/s^2], stability (delta_zero^2),
 step time [s], step length [m], speed [m/s], sigma_N^+/- [kg m^2/s], alpha'^+/- [rad/s] and
-the point of minimum |alpha'|. Thrust is in newtons; with the bundled robots negative thrust
-pushes forward (the paper's convention).
+the point of minimum |alpha'|, with a verdict: walkable only when the orbit exists and is
+stable, the gait is hybrid-invariant and the swing foot stays above the ground. Thrust is in
+newtons; with the bundled robots negative thrust pushes forward (the paper's convention).
+Without --thrust, a gait with a thrust: section is analysed with its own schedule.
 
 Writes DIR/limit_cycles.json, DIR/limit_cycles.csv, DIR/limit_cycles.png and .pdf, and
 DIR/fixed_point_shift.png and .pdf (zeta* and speed versus thrust, with the affine law).
@@ -25,18 +45,24 @@ EPILOG = ("Example: thrustwalk limit-cycle three_link three_link_walk --thrust 0
           "--out out/lc")
 
 
-def run_limit_cycle(robot: str, gait: str, thrust: list[float], thruster: str | None,
-                    out: Path, quiet: bool) -> dict:
+def run_limit_cycle(robot: str | None, gait: str | None, thrust: list[float] | None,
+                    thruster: str | None, out: Path, quiet: bool, *, json: str | None = None,
+                    formats: set[str] | None = None, titles: bool = False,
+                    max_output: float = 100.0) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files.output import provenance
     from ..studies.limit_cycle import limit_cycle
-    from ..walker import load_walker
 
     walker = load_walker(robot, gait)
-    doc = write_result(limit_cycle(walker, thrust, thruster), out,
-                       provenance(walker.robot, walker.gait))
-    if not quiet:
+    result = limit_cycle(walker, thrust, thruster, max_output=max_output * 1e6)
+    if result.source == "gait" and not quiet:
+        warn(["no --thrust given: the gait's own thrust: schedule is analysed"])
+    doc = write_result(result, out, provenance(walker.robot, walker.gait), json=json,
+                       formats=formats, titles=titles)
+    if not quiet and json != "-":
         _table(doc)
+        console().print(f"wrote {out}/limit_cycles.json and its CSV and figures",
+                        markup=False)
     return doc
 
 
@@ -48,14 +74,14 @@ def _table(doc: dict) -> None:
     zd = doc["zero_dynamics"]
     t = Table(title=f"limit cycles: {doc['robot']['name']} / {doc['gait']['name']} "
                     f"(delta_zero^2 = {zd['delta_zero_sq']:.4f})")
-    for col in ("thrust [N]", "zeta*", "stable", "T [s]", "speed [m/s]", "min|α'| [rad/s]",
-                "reason"):
-        t.add_column(col, overflow="fold")
+    for col in ("thrust [N]", "zeta* [kg^2 m^4/s^2]", "T [s]", "speed [m/s]",
+                "min|α'| [rad/s]"):
+        t.add_column(col, no_wrap=True, justify="right")
+    t.add_column("verdict", overflow="fold")
     for c in doc["cycles"]:
-        t.add_row(fmt(c["thrust"]), fmt(c["zeta_star"]),
-                  "yes" if c["stable"] else ("no" if c["exists"] else "no orbit"),
+        t.add_row("gait" if c["thrust"] is None else fmt(c["thrust"]), fmt(c["zeta_star"]),
                   fmt(c["step_time"]), fmt(c["speed"]), fmt(c["min_abs_alpha_dot"]),
-                  "" if c["stable"] else c["reason"])
+                  c["verdict"])
     console().print(t)
 
 
@@ -64,16 +90,18 @@ def register(app: typer.Typer) -> None:
     def limit_cycle_cli(
         ctx: typer.Context,
         robot: RobotArg = "three_link",
-        gait: GaitArg = "three_link_walk",
-        thrust: Annotated[str, typer.Option(
-            "--thrust", help="Thrust values [N]: start:stop:step or a comma list.")] = "0:-50:-10",
+        gait: GaitArg = None,
+        thrust: ThrustOpt = None,
         thruster: ThrusterOpt = None,
         out: OutOpt = Path("out/limit_cycle"),
+        json: JsonOpt = None,
+        formats: FormatsOpt = "csv,png,pdf",
+        titles: TitlesOpt = False,
+        max_output: MaxOutputOpt = 100.0,
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
-            values = parse_values(thrust, "--thrust", "N")
-            run_limit_cycle(robot, gait, values, thruster, out, quiet)
-            if not quiet:
-                console().print(f"wrote {out}/limit_cycles.json, .csv, .png, .pdf and "
-                                f"{out}/fixed_point_shift.png, .pdf")
+            values = None if thrust is None else parse_values(thrust, "--thrust", "N")
+            run_limit_cycle(robot, gait, values, thruster, out, quiet, json=json,
+                            formats=parse_formats(formats), titles=titles,
+                            max_output=max_output)

@@ -1,4 +1,4 @@
-"""``thrustwalk optimize``: minimum-effort thrust schedule as an exact convex QP (SPEC 6)."""
+"""``thrustwalk optimize``: minimum-effort thrust schedule as an exact convex QP."""
 
 from __future__ import annotations
 
@@ -7,19 +7,30 @@ from typing import Annotated
 
 import typer
 
-from .common import cli_errors, console, parse_values, write_result
-from .options import EpsOpt, GaitArg, MuOpt, OutOpt, QuietOpt, RobotArg
+from .common import cli_errors, console, load_walker, parse_formats, parse_knots, write_result
+from .options import (
+    FormatsOpt,
+    GaitArg,
+    JsonOpt,
+    MinVerticalForceOpt,
+    MuOpt,
+    OutOpt,
+    QuietOpt,
+    RobotArg,
+    TargetSpeedOpt,
+    TitlesOpt,
+)
 
 HELP = """The least thrust that reaches a target while staying walkable.
 
 Chooses one thrust value per knot interval (force mode: newtons on one thruster; generalized
 mode: T_j on q_N in N m) minimising sum_j w_j x_j^2 (w_j = alpha-length [rad] or nominal time
 [s] of interval j) subject to: the fixed-point equation for the target zeta* [kg^2 m^4/s^2]
-(or the zeta* that gives the target speed [m/s]), F_1^v >= eps [N] and |F_1^h| <= mu F_1^v
-on an alpha grid, zeta(alpha) >= zeta_min, and |x_j| <= max thrust. All constraints are
-linear in the thrust values: the convex QP is solved exactly (LP feasibility by HiGHS,
-least-distance QP by NNLS, KKT conditions verified). An infeasible problem is reported with
-the violated constraint family (exit 0); bad input exits 2, a tool failure 1.
+(or the zeta* that gives the target speed [m/s]), F_1^v >= the minimum vertical force [N] and
+|F_1^h| <= mu F_1^v on an alpha grid, zeta(alpha) >= zeta_min, and |x_j| <= max thrust. All
+constraints are linear in the thrust values: the convex QP is solved exactly (LP feasibility by
+HiGHS, least-distance QP by NNLS, KKT conditions verified). An infeasible problem is reported
+with the violated constraint family (exit 0); bad input exits 2, a tool failure 1.
 
 Writes DIR/optimal_schedule.json, DIR/<gait>_optimal.yaml (the gait with the resulting
 `thrust:` section) and DIR/optimal_orbit.png/.pdf.
@@ -29,23 +40,27 @@ EPILOG = ("Example: thrustwalk optimize three_link three_link_walk --knots 0:1:0
           "--target-speed 1.0 --max-thrust 30 --mu 0.7 --out out/optimize")
 
 
-def run_optimize(robot: str, gait: str, *, knots: list[float], target_speed: float | None,
-                 target_zeta: float | None, max_thrust: float | None, mu: float | None,
-                 eps: float, zeta_min: float | None, thruster: str | None, mode: str,
-                 weights: str, out: Path, quiet: bool) -> dict:
+def run_optimize(robot: str | None, gait: str | None, *, knots: list[float | None],
+                 target_speed: float | None, target_zeta: float | None,
+                 max_thrust: float | None, mu: float | None, min_vertical_force: float,
+                 zeta_min: float | None, thruster: str | None, mode: str, weights: str,
+                 out: Path, quiet: bool, json: str | None = None,
+                 formats: set[str] | None = None, titles: bool = False) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files.output import provenance
     from ..studies.optimize import optimize_schedule
-    from ..walker import load_walker
 
     walker = load_walker(robot, gait)
     result = optimize_schedule(
         walker, knots=knots, target_zeta=target_zeta, target_speed=target_speed,
-        max_thrust=max_thrust, mu=mu, eps=eps, zeta_min=zeta_min, thruster=thruster,
-        mode=mode, weights=weights)
-    doc = write_result(result, out, provenance(walker.robot, walker.gait))
-    if not quiet:
+        max_thrust=max_thrust, mu=mu, min_vertical_force=min_vertical_force,
+        zeta_min=zeta_min, thruster=thruster, mode=mode, weights=weights)
+    doc = write_result(result, out, provenance(walker.robot, walker.gait), json=json,
+                       formats=formats, titles=titles)
+    if not quiet and json != "-":
         _summary(doc)
+        console().print(f"wrote {', '.join(f'{out}/{f}' for f in doc['files'])}",
+                        markup=False)
     return doc
 
 
@@ -60,15 +75,16 @@ def _summary(doc: dict) -> None:
             f"zeta* = {doc['zeta_star']:.6g} kg^2 m^4/s^2, speed {doc['speed']:.4g} m/s",
             markup=False)
     t = Table()
-    t.add_column("interval [fraction of step]")
-    t.add_column(f"thrust [{doc['unit']}]")
+    t.add_column("interval [fraction of step]", no_wrap=True)
+    t.add_column(f"thrust [{doc['unit']}]", no_wrap=True, justify="right")
     k = doc["knots_fraction"]
     for i, v in enumerate(doc["values"]):
         t.add_row(f"{k[i]:g} – {k[i + 1]:g}", f"{v:.4g}")
     c.print(t)
     act = doc["active_constraints"]
     c.print(f"active constraints: {len(act)}"
-            + ("" if not act else " (" + ", ".join(sorted({a['family'] for a in act})) + ")"))
+            + ("" if not act else " (" + ", ".join(sorted({a['family'] for a in act})) + ")"),
+            markup=False)
 
 
 def register(app: typer.Typer) -> None:
@@ -76,19 +92,18 @@ def register(app: typer.Typer) -> None:
     def optimize_cli(
         ctx: typer.Context,
         robot: RobotArg = "three_link",
-        gait: GaitArg = "three_link_walk",
+        gait: GaitArg = None,
         knots: Annotated[str, typer.Option(
-            "--knots", help="Knots as fractions of the step [-], from 0 to 1 (start:stop:step "
-                            "or a comma list).")] = "0:1:0.25",
-        target_speed: Annotated[float | None, typer.Option(
-            "--target-speed", help="Target average walking speed [m/s].")] = None,
+            "--knots", help="Knots as fractions of the step [-], 0 first and 1 last: a comma "
+                            "list or start:stop:step.")] = "0:1:0.25",
+        target_speed: TargetSpeedOpt = None,
         target_zeta: Annotated[float | None, typer.Option(
             "--target-zeta", help="Target fixed point zeta* [kg^2 m^4/s^2].")] = None,
         max_thrust: Annotated[float | None, typer.Option(
             "--max-thrust", help="Bound |x_j| <= this [N] (force mode; default: the thruster's "
                                  "limits) or [N m] (generalized mode, required).")] = None,
         mu: MuOpt = None,
-        eps: EpsOpt = 0.0,
+        min_vertical_force: MinVerticalForceOpt = 0.0,
         zeta_min: Annotated[float | None, typer.Option(
             "--zeta-min", help="Lower bound on zeta(alpha) along the step [kg^2 m^4/s^2] "
                                "(default: 1 % of zeta*).")] = None,
@@ -101,13 +116,15 @@ def register(app: typer.Typer) -> None:
             "--weights", help="Effort weights w_j: alpha (interval length [rad]) or time "
                               "(nominal time in the interval [s]).")] = "alpha",
         out: OutOpt = Path("out/optimize"),
+        json: JsonOpt = None,
+        formats: FormatsOpt = "png,pdf",
+        titles: TitlesOpt = False,
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
-            fr = parse_values(knots, "--knots")
-            doc = run_optimize(robot, gait, knots=fr, target_speed=target_speed,
-                               target_zeta=target_zeta, max_thrust=max_thrust, mu=mu, eps=eps,
-                               zeta_min=zeta_min, thruster=thruster, mode=mode,
-                               weights=weights, out=out, quiet=quiet)
-            if not quiet:
-                console().print(f"wrote {', '.join(f'{out}/{f}' for f in doc['files'])}")
+            run_optimize(robot, gait, knots=parse_knots(knots), target_speed=target_speed,
+                         target_zeta=target_zeta, max_thrust=max_thrust, mu=mu,
+                         min_vertical_force=min_vertical_force, zeta_min=zeta_min,
+                         thruster=thruster, mode=mode, weights=weights, out=out, quiet=quiet,
+                         json=json, formats=parse_formats(formats, ("png", "pdf")),
+                         titles=titles)

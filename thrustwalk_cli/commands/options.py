@@ -1,4 +1,4 @@
-"""Options shared by several commands, defined once (name, help text with units)."""
+"""Options shared by several commands, defined once: one name per concept, units in the help."""
 
 from __future__ import annotations
 
@@ -12,14 +12,35 @@ RobotArg = Annotated[
     typer.Argument(help="Robot: a bundled name (three_link, rabbit) or a path to a YAML file."),
 ]
 GaitArg = Annotated[
-    str,
-    typer.Argument(help="Gait: a bundled name (three_link_walk, rabbit_walk) or a YAML path."),
+    str | None,
+    typer.Argument(help="Gait: a bundled name (three_link_walk, rabbit_walk) or a YAML path "
+                        "(default: the robot's bundled gait)."),
 ]
 OutOpt = Annotated[
-    Path, typer.Option("--out", "-o", help="Output folder (created if missing).")
+    Path, typer.Option("--out", "-o", help="Output folder (created if missing; an existing "
+                                           "file is refused).")
 ]
 QuietOpt = Annotated[
-    bool, typer.Option("--quiet", "-q", help="No progress bar and no summary table.")
+    bool, typer.Option("--quiet", "-q", help="No progress and no summary table (warnings and "
+                                             "errors still go to standard error).")
+]
+JsonOpt = Annotated[
+    str | None, typer.Option("--json", metavar="PATH", help="Also write the JSON document to "
+                             "PATH; '-' writes it to standard output instead of the summary "
+                             "table, for piping.")
+]
+FormatsOpt = Annotated[
+    str, typer.Option("--formats", help="Files to write besides the JSON, a comma list of "
+                                        "csv, png, pdf (and md where a command writes one).")
+]
+TitlesOpt = Annotated[
+    bool, typer.Option("--titles", help="Put a title (robot / gait: what) on every figure "
+                                        "(off: figures for a paper carry captions instead).")
+]
+ThrustOpt = Annotated[
+    str | None, typer.Option("--thrust", help="Constant thrust values [N]: start:stop:step or "
+                                              "a comma list (default: the gait's thrust: "
+                                              "section, else 0:-50:-10).")
 ]
 ThrusterOpt = Annotated[
     str | None, typer.Option("--thruster", help="Thruster driven by the thrust values "
@@ -29,6 +50,14 @@ MuOpt = Annotated[
     float | None, typer.Option("--mu", help="Friction coefficient [-] (default: the gait's "
                                             "`mu`).")
 ]
-EpsOpt = Annotated[
-    float, typer.Option("--eps", help="Minimum vertical ground force [N].")
+MinVerticalForceOpt = Annotated[
+    float, typer.Option("--min-vertical-force", help="Minimum vertical ground force F^v along "
+                                                     "the step [N].")
+]
+TargetSpeedOpt = Annotated[
+    float | None, typer.Option("--target-speed", help="Target average walking speed [m/s].")
+]
+MaxOutputOpt = Annotated[
+    float, typer.Option("--max-output", help="Refuse a sweep whose CSV table would exceed this "
+                                             "many megabytes [MB].")
 ]

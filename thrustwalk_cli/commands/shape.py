@@ -1,4 +1,4 @@
-"""``thrustwalk shape``: center-manifold shaping with piecewise-constant thrust (SPEC 4)."""
+"""``thrustwalk shape``: center-manifold shaping with piecewise-constant thrust."""
 
 from __future__ import annotations
 
@@ -8,8 +8,18 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from ..errors import InputError
-from .common import cli_errors, console, parse_values, progress, write_result
-from .options import GaitArg, OutOpt, QuietOpt, RobotArg
+from .common import (
+    cli_errors,
+    console,
+    load_walker,
+    parse_formats,
+    parse_knots,
+    parse_values,
+    progress,
+    warn,
+    write_result,
+)
+from .options import FormatsOpt, GaitArg, JsonOpt, OutOpt, QuietOpt, RobotArg, TitlesOpt
 
 if TYPE_CHECKING:
     from ..studies.shape import ShapeRequest
@@ -25,8 +35,9 @@ omits the factor 1/(1 - delta_zero^2); see the README's conventions).
 
 Schedules: a --pattern in j (interval 1..n-1) and k (swept by --k), by default the paper's
 k*(j-2) on 4 knots with the interior knots solved so that the fixed point is unchanged
-(shape only; mark free knots with ?); or the gait file's thrust: section; or the
-minimum-norm values reaching --target-zeta [kg^2 m^4/s^2] or --target-speed [m/s].
+(shape only; mark free knots with ?); or the gait file's piecewise thrust: section; or the
+minimum-norm values reaching --target-zeta [kg^2 m^4/s^2] or --target-speed [m/s]. A gait
+with a constant thrust (from design-gait --design-thrust) is shaped around that thrust.
 
 Writes DIR/shape.json, DIR/shape.csv (orbits), DIR/shape.png/.pdf (limit cycles, black every
 10) and DIR/vector_field.png/.pdf (nominal vs shaped zero-dynamics field, k = --field-k).
@@ -34,27 +45,6 @@ Writes DIR/shape.json, DIR/shape.csv (orbits), DIR/shape.png/.pdf (limit cycles,
 
 EPILOG = ("Example: thrustwalk shape three_link three_link_walk --knots 0,?,?,1 "
           "--pattern 'k*(j-2)' --k 0:50:2 --out out/shape")
-
-
-def _knots(text: str | None) -> tuple[float | None, ...] | None:
-    """``"0,?,0.6,1"`` -> (0.0, None, 0.6, 1.0); ``?`` marks a knot to solve for."""
-    if text is None:
-        return None
-    out: list[float | None] = []
-    for item in text.split(","):
-        item = item.strip()
-        if item == "?":
-            out.append(None)
-            continue
-        try:
-            v = float(item)
-        except ValueError:
-            raise InputError(f"option --knots: {item!r} is not a number or ? (a free knot); "
-                             "use e.g. 0,?,?,1 or 0,0.3,0.6,1") from None
-        if v != v or v in (float("inf"), float("-inf")):
-            raise InputError(f"option --knots: knots must be finite, got {item!r}")
-        out.append(v)
-    return tuple(out)
 
 
 def _number(text: str | None, option: str, unit: str) -> float | None:
@@ -69,8 +59,9 @@ def _number(text: str | None, option: str, unit: str) -> float | None:
     return v
 
 
-def run_shape(robot: str | None, gait: str, request: ShapeRequest, out: Path,
-              quiet: bool) -> dict:
+def run_shape(robot: str | None, gait: str | None, request: ShapeRequest, out: Path,
+              quiet: bool, *, json: str | None = None, formats: set[str] | None = None,
+              titles: bool = False) -> dict:
     """Plain function behind the command; returns the JSON document it wrote.
 
     Exit 1 (after writing shape.json with the reason) when no shape-only knots exist or a
@@ -78,13 +69,18 @@ def run_shape(robot: str | None, gait: str, request: ShapeRequest, out: Path,
     """
     from ..files.output import provenance
     from ..studies.shape import schedule_count, shape
-    from ..walker import load_walker
 
     walker = load_walker(robot, gait)
     with progress("shaped limit cycles", schedule_count(walker, request), quiet) as advance:
         result = shape(walker, request, progress=advance)
-    doc = write_result(result, out, provenance(walker.robot, walker.gait))
-    if result.success and not quiet:
+    if result.base is not None and not quiet:
+        warn(["the gait has a constant thrust: the patterns are shaped around it and the "
+              "nominal orbit is the gait's own"])
+    elif result.source == "gait" and not quiet:
+        warn(["no --pattern given: the gait's own thrust: schedule is shaped"])
+    doc = write_result(result, out, provenance(walker.robot, walker.gait), json=json,
+                       formats=formats, titles=titles)
+    if result.success and not quiet and json != "-":
         _table(doc)
     return doc
 
@@ -129,9 +125,12 @@ def _table(doc: dict) -> None:
     t = Table(title=f"shaping: {doc['robot']['name']} / {doc['gait']['name']}, {doc['mode']} "
                     f"mode (nominal zeta* = {fmt(nom['zeta_star'])}, delta_zero^2 = "
                     f"{doc['zero_dynamics']['delta_zero_sq']:.4f})")
-    for col in ("schedule", f"values [{unit}]", "zeta* shaped", "true shift",
-                "paper one-step", "zeta+ shaped", "speed [m/s]", "stable"):
-        t.add_column(col, overflow="fold")
+    t.add_column("schedule", no_wrap=True)
+    t.add_column(f"values [{unit}]", overflow="fold")
+    for col in ("zeta* shaped", "true shift", "paper one-step", "zeta+ shaped"):
+        t.add_column(f"{col} [kg^2 m^4/s^2]", no_wrap=True, justify="right")
+    t.add_column("speed [m/s]", no_wrap=True, justify="right")
+    t.add_column("stable", overflow="fold")
     for r in shown:
         t.add_row(r["label"], _values_text(r), fmt(r["zeta_star"]["shaped"]),
                   fmt(r["shift"]["true_fixed_point_shift"], ".3g"),
@@ -142,7 +141,7 @@ def _table(doc: dict) -> None:
     if len(shown) < len(rows):
         c.print(f"({len(rows) - len(shown)} more rows in shape.json)", markup=False)
     c.print("zeta in kg^2 m^4/s^2. true shift = one-step / (1 - delta_zero^2); the paper's "
-            "value omits that factor (SPEC 4 erratum).", markup=False)
+            "value omits that factor (an erratum of the paper).", markup=False)
 
 
 def register(app: typer.Typer) -> None:
@@ -150,7 +149,7 @@ def register(app: typer.Typer) -> None:
     def shape_cli(
         ctx: typer.Context,
         robot: RobotArg = "three_link",
-        gait: GaitArg = "three_link_walk",
+        gait: GaitArg = None,
         knots: Annotated[str | None, typer.Option(
             "--knots", help="Knots as fractions of the step, 0 first and 1 last, ? = solve "
             "(default: 0,?,...,?,1 with --n-knots knots for a pattern; equal spacing for a "
@@ -179,24 +178,28 @@ def register(app: typer.Typer) -> None:
             "--target-speed", help="Minimum-norm values reaching this average speed "
             "[m/s].")] = None,
         out: OutOpt = Path("out/shape"),
+        json: JsonOpt = None,
+        formats: FormatsOpt = "csv,png,pdf",
+        titles: TitlesOpt = False,
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
             from ..studies.shape import ShapeRequest
 
             req = ShapeRequest(
-                knots=_knots(knots), alpha_knots=alpha_knots, n_knots=n_knots,
+                knots=None if knots is None else tuple(parse_knots(knots)),
+                alpha_knots=alpha_knots, n_knots=n_knots,
                 pattern=pattern,
                 ks=None if k is None else tuple(parse_values(k, "--k")),
                 field_k=_number(field_k, "--field-k", "as k"), mode=mode, thruster=thruster,
                 target_zeta=_number(target_zeta, "--target-zeta", "kg^2 m^4/s^2"),
                 target_speed=_number(target_speed, "--target-speed", "m/s"))
-            doc = run_shape(robot, gait, req, out, quiet)
+            doc = run_shape(robot, gait, req, out, quiet, json=json,
+                            formats=parse_formats(formats), titles=titles)
             if not doc["success"]:
                 import sys
 
                 sys.stderr.write(f"error: {doc['reason']} (details in {out}/shape.json)\n")
                 raise typer.Exit(1)
-            if not quiet:
-                console().print(f"wrote {out}/shape.json, .csv, .png, .pdf and "
-                                f"vector_field.png, .pdf")
+            if not quiet and json != "-":
+                console().print(f"wrote {out}/shape.json and its CSV and figures", markup=False)

@@ -8,65 +8,101 @@ from typing import Annotated
 
 import typer
 
-from .common import cli_errors, console, parse_values, progress, write_result
-from .options import GaitArg, OutOpt, QuietOpt, RobotArg
+from .common import (
+    cli_errors,
+    console,
+    load_walker,
+    parse_formats,
+    parse_values,
+    progress,
+    warn,
+    write_result,
+)
+from .options import (
+    FormatsOpt,
+    GaitArg,
+    JsonOpt,
+    MuOpt,
+    OutOpt,
+    QuietOpt,
+    RobotArg,
+    TitlesOpt,
+)
 
 HELP = """Full-order hybrid simulation of the closed loop with thruster dynamics.
 
 Controller: input-output linearisation y'' = -Kp y - Kd y' (gains from the gait file), which
 cancels the thrust on the joints. Guard: swing-foot height crossing 0 downward after mid-step;
-impact map and leg relabelling; thruster states carry across impacts. One run per F_ss value
-[N]; each is compared step by step with the zero-dynamics prediction and the reduced cascade
-(the zero dynamics in time). Thrust models: constant; first-order lag (tau [s]); second-order
-F'' + 2 xi wn F' + wn^2 F = wn^2 F_ss (wn [rad/s], the paper's slow thruster); piecewise in
-alpha (the gait's thrust: section). The start is just after an impact on the predicted orbit
-(zeta^- = zeta* of the thrust at t = 0, or of zero thrust with --start nominal), scaled by
-1 + --perturb, or --zeta0 [kg^2 m^4/s^2], or an explicit state --q0/--dq0.
+impact map and leg relabelling; thruster states carry across impacts. One run per steady thrust
+value F_ss [N] (--thrust); each is compared step by step with the zero-dynamics prediction and
+the reduced cascade (the zero dynamics in time). Thrust models: constant; first-order lag (tau
+[s]); second-order F'' + 2 xi wn F' + wn^2 F = wn^2 F_ss (wn [rad/s], the paper's slow
+thruster); piecewise in alpha (the gait's thrust: section; the default for a gait that has one
+when no --thrust is given). The start is just after an impact on the predicted orbit (zeta^- =
+zeta* of the thrust at t = 0, or of zero thrust with --start nominal), scaled by 1 + --perturb,
+or --zeta0 [kg^2 m^4/s^2], or an explicit state --q0/--dq0.
 
-A walker that falls (stance leg past horizontal, alpha reversing, negative vertical ground
-force), scuffs or has an infeasible impact is reported in simulation.json (success, reason)
-with exit 0; an integrator or controller failure exits 1 (files are still written).
+A run that leaves the friction cone (mu) or saturates a torque is reported as such, never as
+plain "ok". A walker that falls (stance leg past horizontal, alpha reversing, negative vertical
+ground force), scuffs or has an infeasible impact is reported in simulation.json (success,
+reason) with exit 0; an integrator or controller failure exits 1 (files are still written).
 
 Writes DIR/simulation.json, DIR/steps.csv, DIR/trajectory.csv (.npz above 20000 samples),
 DIR/thrust_time.png/.pdf, DIR/phase_portrait.png/.pdf and, with --animate, DIR/walker.gif.
 """
 
 EPILOG = ("Example: thrustwalk simulate three_link three_link_walk --steps 30 --thrust-model "
-          "second-order --f-ss 0:-10:-2 --wn 2 --xi 1 --out out/sim")
+          "second-order --thrust 0:-10:-2 --wn 2 --xi 1 --out out/sim")
 
 
 def _floats(text: str | None, option: str) -> list[float] | None:
     return None if text is None else parse_values(text, option)
 
 
-def run_simulate(robot: str, gait: str, *, steps: int, thrust_model: str, f_ss: str | None,
-                 wn: float, xi: float, tau: float, f0: float, thrusters: list[str] | None,
-                 perturb: float, zeta0: float | None, q0: str | None, dq0: str | None,
-                 start_orbit: str,
+def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_model: str | None,
+                 thrust: str | None, wn: float, xi: float, tau: float, f0: float,
+                 thrusters: list[str] | None, perturb: float, zeta0: float | None,
+                 q0: str | None, dq0: str | None, start_orbit: str,
                  torque_limit: float | None, rtol: float, atol: float, method: str,
                  samples: int, scuff_tol: float, reduced: bool, animate: bool, out: Path,
-                 quiet: bool) -> dict:
+                 quiet: bool, mu: float | None = None, json: str | None = None,
+                 formats: set[str] | None = None, titles: bool = False) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files import output
     from ..studies.simulate import simulate
-    from ..walker import load_walker
 
-    values = _floats(f_ss, "--f-ss")
+    values = _floats(thrust, "--thrust")
     q, dq = _floats(q0, "--q0"), _floats(dq0, "--dq0")
     walker = load_walker(robot, gait)
-    n_runs = max(1, len(values)) if values is not None else (
-        1 if thrust_model == "piecewise" else 6)
+    gait_schedule = thrust_model is None and values is None and walker.gait.thrust is not None
+    if gait_schedule and not quiet:
+        warn(["no --thrust or --thrust-model given: the walker runs on the gait's own thrust: "
+              "schedule (piecewise), started on its orbit"])
+    n_runs = (1 if gait_schedule or thrust_model == "piecewise" else
+              6 if values is None else max(1, len(values)))
     with progress("simulating steps", n_runs * steps, quiet) as advance:
         result = simulate(
-            walker, steps=steps, thrust_model=thrust_model, f_ss=values, wn=wn, xi=xi, tau=tau,
-            f0=f0, thruster=thrusters, perturb=perturb, zeta0=zeta0, q0=q, dq0=dq,
-            start=start_orbit, torque_limit=torque_limit, rtol=rtol, atol=atol, method=method,
-            samples=samples, scuff_tol=scuff_tol, reduced=reduced, progress=advance)
-    doc = write_result(result, out, output.provenance(walker.robot, walker.gait))
+            walker, steps=steps, thrust_model=thrust_model, thrust=values, wn=wn, xi=xi,
+            tau=tau, f0=f0, thruster=thrusters, perturb=perturb, zeta0=zeta0, q0=q, dq0=dq,
+            start=start_orbit, torque_limit=torque_limit, rtol=rtol, atol=atol,
+            method=method, samples=samples, scuff_tol=scuff_tol, reduced=reduced, mu=mu,
+            progress=advance)
+    doc = write_result(result, out, output.provenance(walker.robot, walker.gait), json=json,
+                       formats=formats, titles=titles)
+    for r in doc["runs"]:
+        if r["status"] != "ok":
+            warn([f"run {r['run']} (F_ss = {r['f_ss']}): {r['status']}"] + r["warnings"])
     if animate:
-        output.write_bytes_atomic(out / "walker.gif", result.animation())
-    if not quiet:
+        gif = result.animation()
+        if gif is None:
+            warn(["nothing to animate: no full-order run has samples (every run failed at "
+                  "its start, or --reduced)"])
+        else:
+            output.write_bytes_atomic(out / "walker.gif", gif)
+    if not quiet and json != "-":
         _table(doc)
+        console().print(f"wrote {out}/simulation.json, steps.csv, {doc['trajectory_file']} "
+                        "and figures" + (", walker.gif" if animate else ""), markup=False)
     return doc
 
 
@@ -78,12 +114,16 @@ def _table(doc: dict) -> None:
     t = Table(title=f"simulate: {doc['robot']['name']} / {doc['gait']['name']} "
                     f"({doc['settings']['thrust_model']}, delta_zero^2 = "
                     f"{doc['zero_dynamics']['delta_zero_sq']:.4f})")
-    for col in ("F_ss [N]", "steps", "final ζ⁻", "predicted ζ*", "rel. error", "status"):
-        t.add_column(col, overflow="fold")
+    t.add_column("F_ss [N]", no_wrap=True, justify="right")
+    t.add_column("steps", no_wrap=True, justify="right")
+    for col in ("final ζ⁻", "predicted ζ*"):
+        t.add_column(f"{col} [kg^2 m^4/s^2]", no_wrap=True, justify="right")
+    t.add_column("rel. error", no_wrap=True, justify="right")
+    t.add_column("status", overflow="fold")
     for r in doc["runs"]:
         t.add_row(fmt(r["f_ss"]), str(r["steps_completed"]), fmt(r["final_zeta_minus"]),
                   fmt(r["predicted"]["zeta_star"]), fmt(r["final_relative_error"], ".2e"),
-                  "ok" if r["success"] else f"{r['failure']} ({r['reason'].split(':')[0]})")
+                  r["status"])
     console().print(t)
 
 
@@ -92,14 +132,15 @@ def register(app: typer.Typer) -> None:
     def simulate_cli(
         ctx: typer.Context,
         robot: RobotArg = "three_link",
-        gait: GaitArg = "three_link_walk",
+        gait: GaitArg = None,
         steps: Annotated[int, typer.Option("--steps", help="Steps per run.")] = 30,
-        thrust_model: Annotated[str, typer.Option(
+        thrust_model: Annotated[str | None, typer.Option(
             "--thrust-model",
-            help="constant | first-order | second-order | piecewise.")] = "second-order",
-        f_ss: Annotated[str | None, typer.Option(
-            "--f-ss", help="Steady thrust F_ss [N], one run per value: start:stop:step or a "
-                           "comma list (default 0:-50:-10; not with piecewise).")] = None,
+            help="constant | first-order | second-order | piecewise (default: piecewise for "
+                 "a gait with a thrust: section, else second-order).")] = None,
+        thrust: Annotated[str | None, typer.Option(
+            "--thrust", help="Steady thrust F_ss [N], one run per value: start:stop:step or "
+                             "a comma list (default 0:-50:-10; not with piecewise).")] = None,
         wn: Annotated[float, typer.Option(
             "--wn", help="Second-order thruster natural frequency [rad/s].")] = 2.0,
         xi: Annotated[float, typer.Option(
@@ -110,7 +151,7 @@ def register(app: typer.Typer) -> None:
             "--f0", help="Thrust at t = 0 of the dynamic thrusters [N].")] = 0.0,
         thruster: Annotated[list[str] | None, typer.Option(
             "--thruster", metavar="NAME",
-            help="Thruster driven by F_ss (repeat for several; default: the "
+            help="Thruster driven by --thrust (repeat for several; default: the "
                                "first).")] = None,
         perturb: Annotated[float, typer.Option(
             "--perturb", help="Relative change of the start's pre-impact zeta^- [1], e.g. "
@@ -127,6 +168,7 @@ def register(app: typer.Typer) -> None:
             "--dq0", help="Explicit initial rates [rad/s], comma list.")] = None,
         torque_limit: Annotated[float | None, typer.Option(
             "--torque-limit", help="Joint torque bound |u| [N m] (default: none).")] = None,
+        mu: MuOpt = None,
         rtol: Annotated[float, typer.Option("--rtol", help="Integrator relative tolerance.")
                         ] = 1e-9,
         atol: Annotated[float, typer.Option(
@@ -143,23 +185,20 @@ def register(app: typer.Typer) -> None:
         animate: Annotated[bool, typer.Option(
             "--animate", help="Also write DIR/walker.gif (the last run).")] = False,
         out: OutOpt = Path("out/simulate"),
+        json: JsonOpt = None,
+        formats: FormatsOpt = "csv,png,pdf",
+        titles: TitlesOpt = False,
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
             doc = run_simulate(
-                robot, gait, steps=steps, thrust_model=thrust_model, f_ss=f_ss, wn=wn, xi=xi,
-                tau=tau, f0=f0, thrusters=thruster, perturb=perturb, zeta0=zeta0, q0=q0,
+                robot, gait, steps=steps, thrust_model=thrust_model, thrust=thrust, wn=wn,
+                xi=xi, tau=tau, f0=f0, thrusters=thruster, perturb=perturb, zeta0=zeta0, q0=q0,
                 dq0=dq0, start_orbit=start, torque_limit=torque_limit, rtol=rtol,
                 atol=atol, method=method, samples=samples, scuff_tol=scuff_tol,
-                reduced=reduced, animate=animate, out=out, quiet=quiet)
-        tool = [r for r in doc["runs"] if r["failure"] in ("integrator", "controller")]
-        for r in doc["runs"]:
-            if not r["success"]:
-                sys.stderr.write(f"warning: run {r['run']} (F_ss = {r['f_ss']}): "
-                                 f"{r['reason']}\n")
-        if not quiet:
-            console().print(f"wrote {out}/simulation.json, steps.csv, "
-                            f"{doc['trajectory_file']}, thrust_time.png/.pdf, "
-                            f"phase_portrait.png/.pdf" + (", walker.gif" if animate else ""))
-        if tool:
+                reduced=reduced, animate=animate, out=out, quiet=quiet, mu=mu, json=json,
+                formats=parse_formats(formats), titles=titles)
+        if any(r["failure"] in ("integrator", "controller") for r in doc["runs"]):
+            sys.stderr.write("error: an integrator or controller failure ended a run (see "
+                             f"{out}/simulation.json)\n")
             raise typer.Exit(1)

@@ -20,7 +20,15 @@ from ..errors import InputError
 from ..hzd.quadrature import ChebSeries
 from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
 from ..model.compiled import CompiledModel
-from .terms import Fits, ImpactData, fit_terms, impact_data, stance_terms, swing_clearance
+from .terms import (
+    Fits,
+    ImpactData,
+    fit_terms,
+    impact_data,
+    scuff_reason,
+    stance_terms,
+    swing_clearance,
+)
 
 GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
 
@@ -162,7 +170,8 @@ class CaseResult:
     """Contact feasibility of one thrust case on its periodic orbit (SPEC 5), SI units.
 
     ``feasible``: a periodic orbit exists, ``F_1^v >= eps`` and ``|F_1^h| <= mu F_1^v`` along the
-    step, the impact is admissible and the trailing foot lifts off. ``reason`` names every
+    step, the impact is admissible, the trailing foot lifts off and the swing foot stays above
+    the ground (no scuffing). ``reason`` names every
     failed condition. Stance fields are ``None`` when no orbit exists.
     """
 
@@ -245,12 +254,14 @@ def evaluate(model: CompiledModel, zd: ZeroDynamics, sched: Schedule, *, mu: flo
             why.append(f"friction ratio |F^h|/F^v = {ext.max_ratio[i]:.4g} > mu = {mu:g} at "
                        f"alpha = {ext.alpha_max_ratio[i]:.4g} rad")
         why += imp.reasons(mu)
+        if swing["scuffs"]:
+            why.append(scuff_reason(swing))
         sig = abs(lc.sigma_minus)
         ratio = float(ext.max_ratio[i]) if np.isfinite(ext.max_ratio[i]) else None
         pv = bool(ext_p.min_vertical[i] >= eps and np.isfinite(ext_p.max_ratio[i])
-                  and ext_p.max_ratio[i] <= mu and imp_ok)
+                  and ext_p.max_ratio[i] <= mu and imp_ok and not swing["scuffs"])
         pr = float(ext_p.max_ratio[i]) if np.isfinite(ext_p.max_ratio[i]) else None
-        feasible = bool(v_ok and r_ok and imp_ok)
+        feasible = bool(v_ok and r_ok and imp_ok and not swing["scuffs"])
         margins = {
             "vertical_force": float(ext.min_vertical[i] - eps),
             "friction": None if ratio is None else mu - ratio,
@@ -284,9 +295,10 @@ def evaluate(model: CompiledModel, zd: ZeroDynamics, sched: Schedule, *, mu: flo
 
 
 def check_contact_options(mu: float, eps: float) -> None:
-    """Bad ``mu`` [-] / ``eps`` [N] (shared by feasibility and optimize) -> InputError."""
+    """Bad ``mu`` [-] / minimum vertical force ``eps`` [N] (shared by feasibility and optimize)
+    -> InputError on the parameters ``mu`` / ``min_vertical_force``."""
     if not (np.isfinite(mu) and mu > 0):
         raise InputError.param("mu", f"the friction coefficient must be > 0 (got {mu:g})")
     if not (np.isfinite(eps) and eps >= 0):
-        raise InputError.param("eps", "the minimum vertical force must be >= 0 N "
+        raise InputError.param("min_vertical_force", "the minimum vertical force must be >= 0 N "
                          f"(got {eps:g})")

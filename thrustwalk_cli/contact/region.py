@@ -65,7 +65,7 @@ def feasible_region(model: CompiledModel, zd: ZeroDynamics, unit: Schedule,
     valid = np.zeros(scale.shape, bool)
     zs = np.zeros(scale.shape)
     fp_feas = np.zeros(scale.shape, bool)
-    if 0 < d2 < 1 and zd.kappa1_ok:
+    if 0 < d2 < 1 and zd.valid:
         zs = Vf / (1 - d2)
         zfp = d2 * zs[:, None] + V0 + scale[:, None] * W
         valid = (zs > 0) & (zfp.min(axis=-1) > 0)

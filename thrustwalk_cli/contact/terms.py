@@ -255,3 +255,10 @@ def swing_clearance(model: CompiledModel, zd: ZeroDynamics, points: int = 801) -
             "max_height": float(h.max()), "deepest": float(min(h[k], 0.0)),
             "alpha_at_deepest": float(a[k]), "scuffs": bool(h[k] < -SCUFF_TOL),
             "alpha": a, "height": h}
+
+
+def scuff_reason(swing: dict) -> str:
+    """The scuffing verdict of a swing-foot clearance record (:func:`swing_clearance`)."""
+    return (f"the swing foot goes {1e3 * -swing['deepest']:.4g} mm below the ground near "
+            f"alpha = {swing['alpha_at_deepest']:.4g} rad (scuffing; tolerance "
+            f"{1e3 * SCUFF_TOL:g} mm)")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import io
 import json
 import math
@@ -65,36 +64,39 @@ def write_json(path: Path, obj: Any) -> Path:
     return write_text_atomic(path, json.dumps(jsonable(obj), indent=2) + "\n")
 
 
-def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[Any]],
-              comments: Sequence[str] = (), provenance: dict | None = None) -> Path:
-    """CSV with ``# comment`` lines first (provenance as one JSON line, units), then a header
-    row."""
+def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) -> Path:
+    """A CSV that ``pandas.read_csv(path)`` and ``numpy.genfromtxt(path, names=True,
+    delimiter=",")`` load with no options: the header on the first line, no comment lines
+    (units are in the column names, notes and provenance in the JSON beside it), no quoted
+    fields (commas and line breaks in text become ``;`` and spaces), empty = missing."""
+    def cell(v: Any) -> str:
+        if v is None:
+            return ""
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, float):
+            if not math.isfinite(v):
+                raise ValueError("refusing to write a non-finite number to CSV")
+            return repr(v)
+        return str(v).replace(",", ";").replace("\n", " ").replace("\r", " ").replace('"', "'")
+
     buf = io.StringIO()
-    if provenance is not None:
-        buf.write(f"# provenance: {json.dumps(jsonable(provenance), separators=(',', ':'))}\n")
-    for c in comments:
-        buf.write(f"# {c}\n")
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(header)
+    buf.write(",".join(cell(h) for h in header) + "\n")
     for row in rows:
-        w.writerow(["" if v is None else (repr(float(v)) if isinstance(v, float) else v)
-                    for v in row])
+        buf.write(",".join(cell(v) for v in row) + "\n")
     return write_text_atomic(path, buf.getvalue())
-
-
-def save_figure(fig: Any, stem: Path, formats: Sequence[str] = ("png", "pdf")) -> list[Path]:
-    """Save a matplotlib figure as ``stem.png`` and ``stem.pdf``, each atomically."""
-    out = []
-    for ext in formats:
-        buf = io.BytesIO()
-        fig.savefig(buf, format=ext, dpi=200, bbox_inches="tight",
-                    metadata={"Creator": f"thrustwalk {__version__}"} if ext == "pdf" else None)
-        out.append(write_bytes_atomic(Path(f"{stem}.{ext}"), buf.getvalue()))
-    return out
 
 
 def file_ref(path: str, sha256: str) -> dict[str, str]:
     return {"file": str(path), "sha256": sha256}
+
+
+def created_utc() -> str:
+    """Now in UTC, or ``SOURCE_DATE_EPOCH`` when set (reproducible result files)."""
+    epoch = os.environ.get("SOURCE_DATE_EPOCH", "").strip()
+    when = (datetime.fromtimestamp(int(epoch), timezone.utc) if epoch.isdigit()
+            else datetime.now(timezone.utc))
+    return when.isoformat(timespec="seconds")
 
 
 def provenance(robot: Any = None, gait: Any = None, **extra: Any) -> dict[str, Any]:
@@ -103,7 +105,7 @@ def provenance(robot: Any = None, gait: Any = None, **extra: Any) -> dict[str, A
         "tool": "thrustwalk",
         "version": __version__,
         "command": shlex.join(["thrustwalk", *sys.argv[1:]]),
-        "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "created_utc": created_utc(),
         "python": platform.python_version(),
     }
     if robot is not None:

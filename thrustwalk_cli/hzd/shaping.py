@@ -145,8 +145,8 @@ def min_norm_values(zd: ZeroDynamics, knots: np.ndarray, zeta_target: float, mod
 
 def _target_precheck(zd: ZeroDynamics, knots, mode, thruster) -> str:
     d2 = zd.delta_zero_sq
-    if not zd.kappa1_ok:
-        return zd.kappa1_reason
+    if not zd.valid:
+        return zd.invalid_reason
     if not 0.0 < d2 < 1.0:
         return f"delta_zero^2 = {d2:.6g} is not in (0, 1): no stable fixed point to move"
     a = _coefficients(zd, knots, mode, thruster)
@@ -305,8 +305,8 @@ def _cumulative(zd: ZeroDynamics, mode: str, thruster: int | None) -> Callable:
 
 def _monotone(zd: ZeroDynamics, mode: str, thruster: int | None) -> str:
     """'' if the cumulative coordinate is strictly monotone over the step, else a reason."""
-    if not zd.kappa1_ok:
-        return zd.kappa1_reason
+    if not zd.valid:
+        return zd.invalid_reason
     if mode == "generalized":
         return ""
     a = np.linspace(zd.alpha_i, zd.alpha_f, 801)

@@ -34,9 +34,8 @@ from .constraints import GaitMaps, gait_maps
 from .quadrature import ChebSeries, cumulative_with_error, integrate, lobatto
 
 RTOL = 1e-9
-
-
 MAX_NODES = 4097
+INVARIANCE_TOL = 1e-8  # [rad], [1]: impact residuals above this: the gait is not invariant
 
 
 @dataclass(frozen=True)
@@ -113,6 +112,29 @@ class ZeroDynamics:
     delta_zero: float
     kappa1_ok: bool
     kappa1_reason: str
+
+    @property
+    def invariant(self) -> bool:
+        """The impact maps Z into Z (SPEC 2): both residuals within ``INVARIANCE_TOL``."""
+        return (self.maps.position_residual <= INVARIANCE_TOL
+                and self.maps.velocity_residual <= INVARIANCE_TOL)
+
+    @property
+    def valid(self) -> bool:
+        """The zero dynamics describe a walking orbit: hybrid-invariant, kappa_1 regular."""
+        return self.kappa1_ok and self.invariant
+
+    @property
+    def invalid_reason(self) -> str:
+        """Why the zero-dynamics orbit is not a walking orbit ('' when :attr:`valid`)."""
+        if not self.invariant:
+            mp = self.maps
+            return (f"the gait is not hybrid-invariant (impact residuals: position "
+                    f"{mp.position_residual:.3g} rad, velocity {mp.velocity_residual:.3g}, "
+                    f"tolerance {INVARIANCE_TOL:g}): after impact the walker leaves the "
+                    "zero-dynamics manifold, so no zero-dynamics orbit is a walking orbit; "
+                    "`invariance: auto` in the gait file computes columns 0 and 1 so that it is")
+        return self.kappa1_reason
 
     @property
     def alpha_i(self) -> float:
@@ -260,8 +282,8 @@ def _step_times(zd: ZeroDynamics, schedule: Schedule, zeta_plus: np.ndarray
 def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> list[LimitCycle]:
     """Fixed points, stability and orbits for a batch of thrust schedules (SPEC 3, 4).
 
-    Exists  <=>  kappa_1 keeps its sign, 0 < delta_zero^2 != 1, zeta* > 0 and
-    delta_zero^2 zeta* + min V_Z > 0. Stable  <=>  exists and delta_zero^2 < 1.
+    Exists  <=>  the gait is hybrid-invariant, kappa_1 keeps its sign, 0 < delta_zero^2 != 1,
+    zeta* > 0 and delta_zero^2 zeta* + min V_Z > 0. Stable  <=>  exists and delta_zero^2 < 1.
     The step time ``T = int dalpha / alpha'`` is integrated per knot interval (spectral, with a
     nested error estimate); alpha' = kappa_1 sigma_N, sigma_N = sgn sqrt(2 zeta).
     Everything is vectorised over the batch: a sweep costs little more than one orbit.
@@ -284,7 +306,7 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> li
     zeta = zp[:, None] + VZ
     jmin = np.argmin(zeta, axis=1)
     zmin = zeta[np.arange(len(Vf)), jmin]
-    candidates = zd.kappa1_ok and 0.0 < d2 != 1.0
+    candidates = zd.valid and 0.0 < d2 != 1.0
     live = np.nonzero((zstar > 0) & (zmin > 0))[0] if candidates else np.array([], int)
     T = np.full(len(Vf), np.nan)
     T_err = np.full(len(Vf), np.nan)
@@ -296,8 +318,8 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> li
     for i in range(len(Vf)):
         base = dict(delta_zero_sq=d2, V_f=float(Vf[i]))
         zs = float(zstar[i])
-        if not zd.kappa1_ok:
-            out.append(LimitCycle(False, False, zd.kappa1_reason, **base))
+        if not zd.valid:
+            out.append(LimitCycle(False, False, zd.invalid_reason, **base))
         elif d2 == 1.0 or d2 <= 0.0:
             out.append(LimitCycle(False, False,
                                   f"delta_zero^2 = {d2:.6g}: no isolated fixed point", **base))

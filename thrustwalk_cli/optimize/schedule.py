@@ -408,8 +408,8 @@ def optimize(model: CompiledModel, zd: ZeroDynamics, fractions: np.ndarray, *,
     target = ({"zeta_star": target_zeta} if target_zeta is not None
               else {"speed": target_speed})
     d2 = zd.delta_zero_sq
-    if not zd.kappa1_ok or not 0.0 < d2 < 1.0:
-        why = zd.kappa1_reason or f"delta_zero^2 = {d2:.6g} is not in (0, 1)"
+    if not zd.valid or not 0.0 < d2 < 1.0:
+        why = zd.invalid_reason or f"delta_zero^2 = {d2:.6g} is not in (0, 1)"
         return _infeasible(prob, target, fr, ("orbit",), f"no stable periodic orbit: {why}",
                            removal=False)
     if not prob.impact_ok:

@@ -64,7 +64,7 @@ def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
                   thrusters: list[str] | None, *, schedule: Schedule | None = None,
                   **kw) -> Scenario:
     """Validate parameters into a :class:`Scenario`; :class:`InputError` names the parameter
-    (``thrust_model``, ``f_ss`` for ``values``, ``thruster``, ``f0``, ``wn``, ``xi``, ``tau``).
+    (``thrust_model``, ``thrust`` for ``values``, ``thruster``, ``f0``, ``wn``, ``xi``, ``tau``).
     ``schedule``: the piecewise schedule (from the gait's ``thrust:`` section), required for
     ``kind == "piecewise"``."""
     robot = zd.model.robot
@@ -74,7 +74,7 @@ def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
                                f"{', '.join(THRUST_MODELS)})")
     if kind == "piecewise":
         if values is not None:
-            raise InputError.param("f_ss", "not used with the piecewise thrust model (the "
+            raise InputError.param("thrust", "not used with the piecewise thrust model (the "
                                    "schedule comes from the gait's thrust: section)")
         if thrusters:
             raise InputError.param("thruster", "not used with the piecewise thrust model")
@@ -92,7 +92,7 @@ def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
             for v in list(values or []) + [kw.get("f0", 0.0)]:
                 if not lo <= v <= hi:
                     problems.append(param_problem(
-                        ("f_ss", "f0"), f"{v:g} N is outside the limits [{lo:g}, {hi:g}] N of "
+                        ("thrust", "f0"), f"{v:g} N is outside the limits [{lo:g}, {hi:g}] N of "
                         f"thruster {robot.thruster_names[j]}"))
     for key, unit in (("wn", "rad/s"), ("xi", ""), ("tau", "s")):
         if key in kw and not kw[key] > 0:

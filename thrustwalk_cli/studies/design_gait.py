@@ -21,6 +21,7 @@ from ..hzd.constraints import apply_invariance
 from ..hzd.zero_dynamics import Schedule, limit_cycles, zero_dynamics
 from ..model.compiled import CompiledModel
 from ..walker import Walker
+from .records import SCHEMA_VERSION, units
 
 
 # ------------------------------------------------------------------------------ records
@@ -47,10 +48,9 @@ def report_record(res: DesignResult) -> dict:
                   "high": s.thrust_range[2]},
                  "starts": s.starts, "seed": s.seed, "max_iter": s.max_iter,
                  "nodes": s.nodes},
-        "units": {"speed": "m/s", "step_length": "m", "clearance": "m", "force": "N",
-                  "torque": "N m", "zeta": "kg^2 m^4/s^2", "sigma": "kg m^2/s",
-                  "angle": "rad", "time": "s", "thrust": "N",
-                  "margins": "SI units of each quantity; >= 0 when satisfied"},
+        "units": units("speed", "step_length", "force", "torque", "zeta", "sigma_N", "angle",
+                       "time", "thrust", clearance="m", effort="N^2 m s"),
+        "margins_note": "margins are in the SI unit of each quantity; >= 0 when satisfied",
         "thrust": list(res.thrust),
         "fixed_point": r.get("orbit"),
         "margins": r.get("margins"),
@@ -210,8 +210,9 @@ class DesignGaitResult:
     def document(self) -> dict:
         """The JSON body of ``NAME.report.json`` (provenance is added by the command)."""
         rob = self.robot
-        doc = {"robot": {"name": rob.name, "file": rob.source_file},
-               **report_record(self.design)}
+        doc = {"schema_version": SCHEMA_VERSION,
+               "robot": {"name": rob.name, "file": rob.source_file},
+               "thrusters": rob.thruster_names, **report_record(self.design)}
         if self.compare is not None:
             doc["compare"] = self.compare
         return doc

@@ -23,15 +23,11 @@ from ..files.gait_file import load_gait
 from ..hzd.schedule import schedule_from_gait
 from ..hzd.zero_dynamics import Schedule
 from ..walker import Walker
-from .records import fmt
+from .records import SCHEMA_VERSION, fmt, units
 
-UNITS = {
-    "force": "N", "impulse": "N s", "torque": "N m", "alpha": "rad", "thrust": "N",
-    "zeta": "kg^2 m^4 / s^2", "velocity": "m / s", "height": "m",
-    "Lambda_0": "N", "Lambda_1": "N per (kg^2 m^4/s^2)", "Lambda_2": "N per N",
-    "Lambda_T": "N per N m (generalised couple)", "friction_ratio": "1 (|F^h| / F^v)",
-    "impulse_per_sigma": "N s per (kg m^2/s)",
-}
+UNITS = units("force", "impulse", "torque", "alpha", "thrust", "zeta", "velocity", "height",
+              "Lambda_0", "Lambda_1", "Lambda_2", "Lambda_T", "friction_ratio",
+              "impulse_per_sigma")
 
 
 # ------------------------------------------------------------------------------ records
@@ -158,6 +154,7 @@ class FeasibilityResult:
         fp = region.scale[region.fixed_point_feasible]
         mu = self.mu
         return {
+            "schema_version": SCHEMA_VERSION,
             "robot": {"name": rob.name, "file": rob.source_file,
                       "coordinates": rob.coordinate_names, "thrusters": rob.thruster_names,
                       "total_mass": rob.total_mass, "gravity": rob.gravity},
@@ -166,13 +163,17 @@ class FeasibilityResult:
             "units": UNITS,
             "thruster": self.thruster,
             "mode": "constant" if self.schedule is None else "schedule",
-            "mu": mu, "eps": self.eps, "friction_cone": FRICTION_NOTE,
-            "verdict": self.verdict,
+            "schedule_source": self.schedule_source,
+            "mu": mu, "min_vertical_force": self.eps, "friction_cone": FRICTION_NOTE,
+            "verdict": self.verdict, "success": self.success, "reason": self.reason,
+            "warnings": list(w.warnings),
             "impact": impact_record(rep.impact, mu),
             "swing_foot": {**sw, "window_s": list(SWING_WINDOW), "scuff_tolerance": SCUFF_TOL,
                            "note": "swing-foot height [m] above the stance foot; min_height "
                                    "over s in window_s (it is 0 at lift-off and touch-down); "
-                                   "deepest = most negative height strictly inside the step"},
+                                   "deepest = most negative height strictly inside the step; "
+                                   "scuffs (deeper than scuff_tolerance) makes every case "
+                                   "infeasible"},
             "fits": fit_rec,
             "cases": cases,
             "region": {
@@ -195,7 +196,7 @@ class FeasibilityResult:
     def tables(self) -> dict:
         return {}
 
-    def figures(self) -> dict:
+    def figures(self, titles: bool = False) -> dict:
         """``grf`` (ground force, friction ratio, torques and swing foot along the step) and
         ``feasible_region``."""
         from ..plots.feasibility import grf_figure, region_figure
@@ -207,10 +208,11 @@ class FeasibilityResult:
             "grf": grf_figure([c.profile for c in rep.cases], values,
                               value_label=self.scale_label, mu=self.mu, eps=self.eps,
                               swing=rep.swing, joint_names=joints,
-                              title=f"{w.name}: stance phase"),
+                              title=f"{w.name}: stance phase" if titles else ""),
             "feasible_region": region_figure(self.region, scale_label=self.scale_label,
                                              mu=self.mu, eps=self.eps, cases=self.case_points,
-                                             title=f"{w.name}: feasible region"),
+                                             title=f"{w.name}: feasible region" if titles
+                                             else ""),
         }
 
     def attachments(self, doc: dict) -> dict[str, str]:
@@ -242,20 +244,26 @@ DEFAULT_THRUST = (0.0, -10.0, -20.0, -30.0, -40.0, -50.0)
 
 def feasibility(walker: Walker, thrust: Sequence[float] | None = None, *,
                 schedule: str | ThrustSchedule | None = None, schedule_where: Where = "schedule",
-                thruster: str | None = None, mu: float | None = None, eps: float = 0.0,
-                degree: int | None = None, fit_tol: float = 1e-3,
-                region_shape: tuple[int, int] = (61, 81)) -> FeasibilityResult:
+                thruster: str | None = None, mu: float | None = None,
+                min_vertical_force: float = 0.0, degree: int | None = None,
+                fit_tol: float = 1e-3, region_shape: tuple[int, int] = (61, 81)
+                ) -> FeasibilityResult:
     """Contact feasibility (SPEC 5) of ``walker`` for constant ``thrust`` values [N] on
-    ``thruster`` (default 0 to -50 N in steps of 10, on the first thruster), or for one
-    piecewise ``schedule`` (a gait-format file path, or a :class:`ThrustSchedule` whose problems
-    are reported at ``schedule_where``). ``mu`` [-] defaults to the gait's; ``eps`` [N] is the
-    minimum vertical force; ``degree``/``fit_tol`` set the polynomial fits L_k."""
+    ``thruster`` (default: the first), or for one piecewise ``schedule`` (a gait-format file
+    path, or a :class:`ThrustSchedule` whose problems are reported at ``schedule_where``);
+    with neither, the gait's own ``thrust:`` schedule, else 0 to -50 N in steps of 10.
+    ``mu`` [-] defaults to the gait's; ``min_vertical_force`` [N] is the least F^v allowed;
+    ``degree``/``fit_tol`` set the polynomial fits L_k."""
     if thrust is not None and schedule is not None:
         raise InputError.param(("thrust", "schedule"), "give one of them, not both")
     model, zd = walker.model, walker.zd
     mu = walker.gait.mu if mu is None else float(mu)
+    eps = float(min_vertical_force)
     check_options(mu, eps, degree, fit_tol)
     source = None
+    if thrust is None and schedule is None and walker.gait.thrust is not None:
+        source = walker.gait.source_file
+        schedule, schedule_where = walker.gait.thrust, walker.where
     if isinstance(schedule, str):
         source = schedule
         schedule, schedule_where = load_schedule(schedule)
@@ -330,7 +338,8 @@ def markdown(doc: dict) -> str:
         f"(sha256 {p['robot']['sha256'][:12]}), gait `{p['gait']['file']}` "
         f"(sha256 {p['gait']['sha256'][:12]}); command `{p['command']}`.",
         "",
-        f"**Verdict: {doc['verdict']}** (mu = {doc['mu']:g}, eps = {doc['eps']:g} N"
+        f"**Verdict: {doc['verdict']}** (mu = {doc['mu']:g}, minimum vertical force "
+        f"{doc['min_vertical_force']:g} N"
         + (f", thruster `{doc['thruster']}`" if doc["thruster"] else "") + ").",
         "",
         f"Friction: {doc['friction_cone']}.",
@@ -378,9 +387,9 @@ def markdown(doc: dict) -> str:
         f"{1e3 * sw['min_height']:.4g} mm at alpha = {sw['alpha_at_min_height']:.4g} rad; "
         f"maximum {1e3 * sw['max_height']:.4g} mm.",
         ("" if not sw["scuffs"] else
-         f"**Warning:** the swing foot goes {1e6 * -sw['deepest']:.3g} um below the ground near "
-         f"alpha = {sw['alpha_at_deepest']:.4g} rad (tolerance {1e6 * sw['scuff_tolerance']:g} "
-         "um); not part of the verdict."),
+         f"**Infeasible:** the swing foot goes {1e6 * -sw['deepest']:.3g} um below the ground "
+         f"near alpha = {sw['alpha_at_deepest']:.4g} rad (tolerance "
+         f"{1e6 * sw['scuff_tolerance']:g} um): every case is infeasible."),
         "",
         "## Polynomial fits of Lambda_0..2",
         "",

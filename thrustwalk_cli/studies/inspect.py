@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 from ..errors import InputError
 from ..model.compiled import CompiledModel
+from .records import SCHEMA_VERSION, units
 
 
 def _vector(value: str | Sequence[float], param: str, n: int, names: list[str]) -> list[float]:
@@ -32,7 +34,12 @@ def inspect_state(model: CompiledModel, q: str | Sequence[float],
     by the robot-model issue)."""
     names = model.robot.coordinate_names
     qv = _vector(q, "q", model.n, names)
-    doc: dict = {"coordinates": names, "q": qv}
+    doc: dict = {"schema_version": SCHEMA_VERSION,
+                 "units": units("q", "q_dot", "D", "C_dq", "G", "B_F", "impulse", "velocity",
+                                "energy", "thrust", swing_foot="m", com="m"),
+                 "coordinates": names, "q": qv,
+                 "warnings": [f"{n} = {v:g} is beyond +-pi: angles are in radians"
+                              for n, v in zip(names, qv) if abs(v) > math.pi]}
     doc.update(model.evaluate_state(
         qv,
         None if dq is None else _vector(dq, "dq", model.n, names),

@@ -1,10 +1,11 @@
-"""The ``limit-cycle`` study: zero-dynamics limit cycles over a constant-thrust sweep
-(SPEC 3, 4).
+"""The ``limit-cycle`` study: zero-dynamics limit cycles over a constant-thrust sweep, or for the
+gait's own thrust schedule (SPEC 3, 4).
 
-For every thrust value [N] of one thruster: the Poincare fixed point
-``zeta* = V_Z(alpha_f) / (1 - delta_zero^2)`` [kg^2 m^4/s^2], stability (``delta_zero^2``), the
-step time [s], step length [m], speed [m/s], ``sigma_N^+/-`` [kg m^2/s], ``alpha'^+/-`` [rad/s]
-and the point of minimum ``|alpha'|``. The sweep is vectorised: 1,000 values cost a few orbits.
+For every case: the Poincare fixed point ``zeta* = V_Z(alpha_f) / (1 - delta_zero^2)``
+[kg^2 m^4/s^2], stability (``delta_zero^2``), the step time [s], step length [m], speed [m/s],
+``sigma_N^+/-`` [kg m^2/s], ``alpha'^+/-`` [rad/s] and the point of minimum ``|alpha'|``, and a
+verdict: ``walkable`` only when the orbit exists, is stable, the gait is hybrid-invariant and the
+swing foot stays above the ground. The sweep is vectorised: 1,000 values cost a few orbits.
 """
 
 from __future__ import annotations
@@ -14,26 +15,38 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..contact.terms import scuff_reason
 from ..errors import InputError
+from ..hzd.schedule import schedule_from_gait
 from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
 from ..walker import Walker
-from .records import Table, constant_thrust, gait_record, robot_record
+from .records import (
+    SCHEMA_VERSION,
+    Table,
+    col,
+    constant_thrust,
+    gait_record,
+    robot_record,
+    units,
+)
 
-UNITS = {
-    "thrust": "N", "zeta": "kg^2 m^4 / s^2 (zeta = sigma_N^2 / 2)", "sigma_N": "kg m^2 / s",
-    "alpha": "rad", "alpha_dot": "rad / s", "step_time": "s", "step_length": "m",
-    "speed": "m / s", "invariance_residual": "rad (position), 1 (velocity direction)",
-}
+DEFAULT_THRUST = (0.0, -10.0, -20.0, -30.0, -40.0, -50.0)  # [N] the paper's sweep
+ORBIT_SAMPLES = 201  # samples of each orbit in the CSV table
+ROW_BYTES = 120  # about the size of one CSV row, for the output-size estimate
+MAX_OUTPUT = 100e6  # [bytes] default limit of the CSV table
 
 
-def cycle_record(lc: LimitCycle, thrust: float, zd: ZeroDynamics) -> dict:
-    """One JSON entry per thrust value (keys fixed by the limit-cycle issue; SI units)."""
+def cycle_record(lc: LimitCycle, thrust: float | None, zd: ZeroDynamics, verdict: str,
+                 walkable: bool) -> dict:
+    """One JSON entry per case (keys fixed by the limit-cycle issue; SI units)."""
     return {
         "thrust": thrust,
         "delta_zero_sq": lc.delta_zero_sq,
         "zeta_star": lc.zeta_star,
         "exists": lc.exists,
         "stable": lc.stable,
+        "walkable": walkable,
+        "verdict": verdict,
         "reason": lc.reason,
         "step_time": lc.step_time,
         "step_time_error_estimate": lc.step_time_error,
@@ -53,66 +66,108 @@ def cycle_record(lc: LimitCycle, thrust: float, zd: ZeroDynamics) -> dict:
 
 @dataclass(frozen=True)
 class LimitCycleResult:
-    """Limit cycles of one walker for constant thrust values of one thruster (SPEC 3, 4).
+    """Limit cycles of one walker for constant thrust values of one thruster, or for the
+    gait's own schedule (``source == "gait"``) (SPEC 3, 4).
 
-    ``cycles[i]`` belongs to ``thrust[i]`` [N]; each says whether its orbit ``exists``, is
-    ``stable``, and why not (``reason``). ``success`` is true when every value has a stable
-    periodic orbit; ``reason`` summarises.
+    ``cycles[i]`` belongs to ``thrust[i]`` [N] (None for a piecewise gait schedule); each says
+    whether its orbit ``exists``, is ``stable``, and why not (``reason``). ``walkable[i]``
+    adds the gait's validity (hybrid invariance) and the swing foot's clearance; ``verdict``
+    says it in words. ``success``: every case is walkable.
     """
 
     walker: Walker = field(repr=False)
-    thrust: tuple[float, ...]
-    thruster: int
+    thrust: tuple[float | None, ...]
+    thruster: int | None
     cycles: tuple[LimitCycle, ...]
+    source: str = "values"
+    schedule: Schedule | None = field(default=None, repr=False)
 
     name = "limit_cycles"
 
     @property
-    def thruster_name(self) -> str:
-        return self.walker.robot.thruster_names[self.thruster]
+    def thruster_name(self) -> str | None:
+        return None if self.thruster is None else self.walker.robot.thruster_names[self.thruster]
+
+    def _verdict(self, lc: LimitCycle) -> tuple[str, bool]:
+        if not lc.exists:
+            return f"no periodic orbit: {lc.reason}", False
+        if not lc.stable:
+            return lc.reason, False
+        sw = self.walker.swing
+        if sw["scuffs"]:
+            return f"not walkable: {scuff_reason(sw)}", False
+        return "walkable: stable periodic orbit", True
+
+    @property
+    def walkable(self) -> tuple[bool, ...]:
+        return tuple(self._verdict(c)[1] for c in self.cycles)
+
+    @property
+    def verdicts(self) -> tuple[str, ...]:
+        return tuple(self._verdict(c)[0] for c in self.cycles)
 
     @property
     def success(self) -> bool:
-        return all(c.stable for c in self.cycles)
+        return all(self.walkable)
 
     @property
     def reason(self) -> str:
-        n = sum(c.stable for c in self.cycles)
+        n = sum(self.walkable)
         if n == len(self.cycles):
-            return f"a stable periodic orbit for every thrust value ({n})"
-        return f"a stable periodic orbit for {n} of {len(self.cycles)} thrust values"
+            return f"a walkable periodic orbit for every case ({n})"
+        bad = next(v for v, ok in zip(self.verdicts, self.walkable) if not ok)
+        return f"a walkable periodic orbit for {n} of {len(self.cycles)} cases; first: {bad}"
 
     def document(self) -> dict:
         """The JSON body of ``limit_cycles.json`` (SI units, see ``units``)."""
-        zd, j = self.walker.zd, self.thruster
+        zd = self.walker.zd
         d2 = zd.delta_zero_sq
         af = np.array(zd.alpha_f)
+        j = self.thruster
+        sw = {k: v for k, v in self.walker.swing.items() if k not in ("alpha", "height")}
+        gamma = None if j is None else float(zd.Gamma(af)[j])
         return {
-            "units": UNITS,
+            "schema_version": SCHEMA_VERSION,
+            "units": units("thrust", "zeta", "sigma_N", "alpha", "alpha_dot", "step_time",
+                           "step_length", "speed", "height", "delta_zero_sq",
+                           "invariance_residual"),
             "robot": robot_record(zd),
             "gait": gait_record(zd),
+            "source": self.source,
             "thruster": self.thruster_name,
+            "success": self.success,
+            "reason": self.reason,
+            "warnings": list(self.walker.warnings),
+            "swing_foot": sw,
             "zero_dynamics": {
                 "delta_zero": zd.delta_zero, "delta_zero_sq": d2,
                 "quadrature_nodes": zd.nodes, "integral_error_estimate": zd.integral_error,
                 "integral_relative_error_estimate": zd.integral_error / zd.integral_scale,
                 "kappa1_ok": zd.kappa1_ok, "kappa1_reason": zd.kappa1_reason,
+                "hybrid_invariant": zd.invariant,
                 "fixed_point_formula": "zeta* = V_Z(alpha_f) / (1 - delta_zero^2)",
-                "Gamma_alpha_f": float(zd.Gamma(af)[j]),
+                "Gamma_alpha_f": gamma,
                 "V0_alpha_f": float(zd.V0(af)),
                 "zeta_star_at_zero_thrust": (float(zd.V0(af)) / (1.0 - d2)
                                              if d2 != 1.0 else None),
-                "zeta_star_per_newton": (float(zd.Gamma(af)[j]) / (1.0 - d2)
-                                         if d2 != 1.0 else None),
+                "zeta_star_per_newton": (gamma / (1.0 - d2)
+                                         if d2 != 1.0 and gamma is not None else None),
             },
-            "cycles": [cycle_record(lc, v, zd) for lc, v in zip(self.cycles, self.thrust)],
+            "gait_schedule": (None if self.source != "gait" else {
+                "knots_alpha": self.schedule.knots.tolist(),
+                "force": {n: self.schedule.force[0, :, t].tolist()
+                          for t, n in enumerate(self.walker.robot.thruster_names)},
+                "generalized": self.schedule.generalized[0].tolist()}),
+            "cycles": [cycle_record(lc, v, zd, verdict, ok) for lc, v, verdict, ok in
+                       zip(self.cycles, self.thrust, self.verdicts, self.walkable)],
         }
 
     def tables(self) -> dict[str, Table]:
         """``limit_cycles.csv``: the sampled orbits (stance samples, then the impact jump)."""
         zd = self.walker.zd
-        header = ["thrust_N", "exists", "segment", "alpha_rad", "alpha_dot_rad_s",
-                  "sigma_kg_m2_s", "zeta", "reason"]
+        header = [col("thrust", "N"), "exists", "segment", col("alpha", "rad"),
+                  col("alpha_dot", "rad/s"), col("sigma", "kg m^2/s"),
+                  col("zeta", "kg^2 m^4/s^2"), "reason"]
         rows: list[list] = []
         for lc, v in zip(self.cycles, self.thrust):
             if not lc.exists:
@@ -126,16 +181,17 @@ class LimitCycleResult:
             rows.append([v, "true", "impact", zd.alpha_i, lc.alpha_dot_plus, lc.sigma_plus,
                          lc.zeta_plus, ""])
         return {"limit_cycles": Table(header, rows, [
-            f"thrustwalk limit cycles: robot {zd.model.robot.name}, gait {zd.gait.name}, "
-            f"thruster {self.thruster_name}",
-            "units: thrust N, alpha rad, alpha_dot rad/s, sigma kg m^2/s, zeta kg^2 m^4/s^2",
-            "segment 'impact' rows: pre-impact state then post-impact state (the jump)",
+            "one row per orbit sample; segment 'impact' rows: the pre-impact state, then the "
+            "post-impact state (the jump)",
+            "thrust_N empty: the gait's piecewise schedule (gait_schedule in the JSON)",
         ])}
 
-    def figures(self) -> dict:
-        """``limit_cycles`` (the phase portrait, black every 10 N) and ``fixed_point_shift``
-        (zeta* and speed versus thrust with the exact affine law)."""
+    def figures(self, titles: bool = False) -> dict:
+        """``limit_cycles`` (the phase portrait, black lines at round thrust values of a fine
+        sweep) and ``fixed_point_shift`` (zeta* and speed versus thrust with the exact affine
+        law; for constant thrust only)."""
         from ..plots.limit_cycle import fixed_point_shift, phase_portrait
+        from ..plots.style import black_step
 
         zd, w = self.walker.zd, self.walker
         orbits, jumps = [], []
@@ -147,28 +203,64 @@ class LimitCycleResult:
             o = lc.orbit
             orbits.append({"alpha": o["alpha"], "alpha_dot": o["alpha_dot"], "sigma": o["sigma"]})
             jumps.append((zd.alpha_f, lc.alpha_dot_minus, zd.alpha_i, lc.alpha_dot_plus))
-        doc = self.document()["zero_dynamics"]
-        return {
-            "limit_cycles": phase_portrait(
-                list(self.thrust), orbits, jumps,
-                value_label=f"thrust {self.thruster_name} [N]", black_every=10.0,
-                title=f"{w.name}: zero-dynamics limit cycles"),
-            "fixed_point_shift": fixed_point_shift(
-                list(self.thrust), [c.zeta_star if c.exists else None for c in self.cycles],
+        values = [0.0 if v is None else v for v in self.thrust]
+        label = (f"thrust {self.thruster_name} [N]" if self.thruster is not None
+                 else "gait thrust schedule")
+        out = {"limit_cycles": phase_portrait(
+            values, orbits, jumps, value_label=label, black_every=black_step(values, "N"),
+            title=f"{w.name}: zero-dynamics limit cycles" if titles else "")}
+        if self.thruster is not None and all(v is not None for v in self.thrust):
+            doc = self.document()["zero_dynamics"]
+            out["fixed_point_shift"] = fixed_point_shift(
+                values, [c.zeta_star if c.exists else None for c in self.cycles],
                 [c.speed for c in self.cycles], doc["zeta_star_per_newton"],
                 doc["zeta_star_at_zero_thrust"], thruster=self.thruster_name,
-                title=f"{w.name}: fixed-point shift"),
-        }
+                title=f"{w.name}: fixed-point shift" if titles else "")
+        return out
 
 
-def limit_cycle(walker: Walker, thrust: Sequence[float] = (0.0,),
-                thruster: str | None = None) -> LimitCycleResult:
-    """Limit cycles for constant thrust ``thrust`` [N] on ``thruster`` (default: the first)
-    (SPEC 3, 4): one vectorised evaluation of the whole sweep."""
-    values = tuple(float(v) for v in thrust)
+def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
+                thruster: str | None = None, max_output: float = MAX_OUTPUT
+                ) -> LimitCycleResult:
+    """Limit cycles for constant thrust values ``thrust`` [N] on ``thruster`` (default: the
+    first) (SPEC 3, 4), in one vectorised evaluation. Without ``thrust``: the gait's own
+    ``thrust:`` schedule when it has one, else the paper's sweep 0 to -50 N.
+
+    ``max_output`` [bytes]: a sweep whose CSV table would be larger is refused before any work.
+    """
+    zd = walker.zd
+    gait_thrust = walker.gait.thrust
+    if thrust is None and gait_thrust is not None:
+        if thruster is not None:
+            raise InputError.param("thruster", "the gait's thrust: section names its "
+                                               "thrusters; give `thrust` values to sweep one")
+        sched = schedule_from_gait(zd, gait_thrust, walker.where, pad=True)[0]
+        j, value = _constant_part(walker, sched)
+        cycles = limit_cycles(zd, sched)
+        return LimitCycleResult(walker, (value,), j, tuple(cycles), "gait", sched)
+    values = tuple(float(v) for v in (DEFAULT_THRUST if thrust is None else thrust))
     if not values:
         raise InputError.param("thrust", "no thrust values")
-    zd = walker.zd
+    size = len(values) * (ORBIT_SAMPLES + 2) * ROW_BYTES
+    if size > max_output:
+        raise InputError.param("max_output", f"{len(values)} thrust values make a CSV table of "
+                                             f"about {size / 1e6:.0f} MB, above the limit of "
+                                             f"{max_output / 1e6:g} MB: sweep fewer values or "
+                                             "raise the limit")
     j = walker.robot.thruster_index(thruster)
-    cycles = limit_cycles(zd, Schedule.constant(zd, constant_thrust(zd, values, j)))
-    return LimitCycleResult(walker, values, j, tuple(cycles))
+    sched = Schedule.constant(zd, constant_thrust(zd, values, j))
+    cycles = limit_cycles(zd, sched)
+    return LimitCycleResult(walker, values, j, tuple(cycles), "values", sched)
+
+
+def _constant_part(walker: Walker, sched: Schedule) -> tuple[int | None, float | None]:
+    """(thruster, value) when a schedule is one constant thrust on one thruster, else
+    (None, None)."""
+    F = sched.force[0]
+    if np.any(sched.generalized) or not np.all(F == F[0]):
+        return None, None
+    used = np.flatnonzero(F[0])
+    if len(used) > 1:
+        return None, None
+    j = int(used[0]) if len(used) else 0
+    return j, float(F[0, j])

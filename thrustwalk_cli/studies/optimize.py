@@ -16,6 +16,7 @@ from ..hzd.zero_dynamics import LimitCycle, Schedule, limit_cycles
 from ..model.compiled import CompiledModel
 from ..optimize.schedule import OptimalSchedule, describe, optimize
 from ..walker import Walker
+from .records import SCHEMA_VERSION, units
 
 
 def result_record(res: OptimalSchedule, model: CompiledModel) -> dict:
@@ -69,6 +70,9 @@ def check_options(*, fractions: list[float], target_zeta: float | None,
         raise err("target_zeta", f"zeta* must be > 0 kg^2 m^4/s^2 (got {target_zeta:g})")
     if target_speed is not None and not (np.isfinite(target_speed) and target_speed > 0):
         raise err("target_speed", f"the speed must be > 0 m/s (got {target_speed:g})")
+    if any(v is None for v in fractions):
+        raise err("knots", "free knots (?) are solved only by shape-only shaping (the shape "
+                           "command); give every knot")
     fr = np.asarray(fractions, float)
     if (len(fr) < 2 or abs(fr[0]) > 1e-9 or abs(fr[-1] - 1.0) > 1e-9
             or np.any(np.diff(fr) <= 0)):
@@ -149,6 +153,7 @@ class OptimizeResult:
     mu: float
     eps: float
     zeta_min: float | None
+    weights: str = "alpha"
     nominal: LimitCycle | None = None
 
     name = "optimal_schedule"
@@ -176,16 +181,23 @@ class OptimizeResult:
     def document(self) -> dict:
         """The JSON body of ``optimal_schedule.json`` (SI units)."""
         w = self.walker
-        return {"robot": {"name": w.robot.name, "file": w.robot.source_file},
+        unit = "N" if self.schedule.problem.mode == "force" else "N m"
+        weight = "rad" if self.weights == "alpha" else "s"
+        return {"schema_version": SCHEMA_VERSION,
+                "units": units("zeta", "speed", "step_time", "alpha", "force",
+                               "friction_ratio", values=unit, objective=f"{unit}^2 {weight}"),
+                "robot": {"name": w.robot.name, "file": w.robot.source_file},
                 "gait": {"name": w.gait.name, "file": w.gait.source_file},
-                "mu": self.mu, "eps": self.eps,
+                "success": self.success, "reason": self.reason,
+                "warnings": list(w.warnings),
+                "mu": self.mu, "min_vertical_force": self.eps,
                 "zeta_min": self.zeta_min if self.zeta_min is not None else "1 % of zeta*",
                 **result_record(self.schedule, w.model), "files": self.files}
 
     def tables(self) -> dict:
         return {}
 
-    def figures(self) -> dict:
+    def figures(self, titles: bool = False) -> dict:
         """``optimal_orbit``: nominal vs optimal orbit, the schedule and the contact margins."""
         if not self.success:
             return {}
@@ -204,7 +216,7 @@ class OptimizeResult:
         return {"optimal_orbit": optimal_figure(
             orbit(self.nominal), orbit(res.cycle), res.problem.knots, res.values, unit=unit,
             profile=res.contact.profile, mu=self.mu,
-            title=f"{self.walker.name}: optimal schedule")}
+            title=f"{self.walker.name}: optimal schedule" if titles else "")}
 
     def attachments(self, doc: dict) -> dict[str, str]:
         """The gait file with the optimal schedule as its ``thrust:`` section."""
@@ -217,16 +229,18 @@ class OptimizeResult:
 def optimize_schedule(walker: Walker, *, knots: list[float] = (0.0, 0.25, 0.5, 0.75, 1.0),
                       target_zeta: float | None = None, target_speed: float | None = None,
                       max_thrust: float | None = None, mu: float | None = None,
-                      eps: float = 0.0, zeta_min: float | None = None,
+                      min_vertical_force: float = 0.0, zeta_min: float | None = None,
                       thruster: str | None = None, mode: str = "force",
                       weights: str = "alpha") -> OptimizeResult:
     """The minimum-effort schedule (SPEC 6) on ``knots`` (fractions of the step) reaching
     ``target_zeta`` [kg^2 m^4/s^2] or ``target_speed`` [m/s], with ``|x_j| <= max_thrust``
     [N, or N m in generalized mode], the friction cone ``mu`` (default: the gait's), vertical
-    force ``>= eps`` [N] and ``zeta >= zeta_min`` (default 1 % of zeta*). An infeasible problem
-    is a result with ``success`` false and the violated constraint families."""
+    force ``>= min_vertical_force`` [N] and ``zeta >= zeta_min`` (default 1 % of zeta*). An
+    infeasible problem is a result with ``success`` false and the violated constraint
+    families."""
     model, zd = walker.model, walker.zd
     mu = walker.gait.mu if mu is None else float(mu)
+    eps = float(min_vertical_force)
     check_options(fractions=list(knots), target_zeta=target_zeta, target_speed=target_speed,
                   max_thrust=max_thrust, mu=mu, eps=eps, zeta_min=zeta_min, mode=mode)
     j = model.robot.thruster_index(thruster) if mode == "force" else 0
@@ -239,4 +253,4 @@ def optimize_schedule(walker: Walker, *, knots: list[float] = (0.0, 0.25, 0.5, 0
     if res.feasible:
         m = model.n_thrusters
         nominal = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, m))))[0]
-    return OptimizeResult(walker, res, mu, eps, zeta_min, nominal)
+    return OptimizeResult(walker, res, mu, eps, zeta_min, weights, nominal)

@@ -15,6 +15,40 @@ import numpy as np
 
 from ..hzd.zero_dynamics import ZeroDynamics
 
+SCHEMA_VERSION = 1  # of every result document; bumped when a key changes meaning or goes
+
+# The one spelling of every unit in result documents (SI; "1" = dimensionless).
+UNITS = {
+    "thrust": "N", "generalized_thrust": "N m", "force": "N", "impulse": "N s",
+    "torque": "N m", "alpha": "rad", "alpha_dot": "rad/s", "angle": "rad", "q": "rad",
+    "q_dot": "rad/s", "sigma_N": "kg m^2/s", "zeta": "kg^2 m^4/s^2", "time": "s",
+    "step_time": "s", "step_length": "m", "speed": "m/s", "height": "m", "length": "m",
+    "velocity": "m/s", "energy": "J", "mass": "kg", "gravity": "m/s^2",
+    "inertia": "kg m^2", "friction_ratio": "1", "delta_zero_sq": "1", "output_y": "rad",
+    "output_rate": "rad/s", "b_F": "kg m^2 rad", "Gamma_j": "kg m^3 rad", "T_j": "N m",
+    "F_j": "N", "Lambda_0": "N", "Lambda_1": "N s^2/(kg^2 m^4)", "Lambda_2": "1",
+    "Lambda_T": "1/m", "impulse_per_sigma": "1/m", "wn": "rad/s", "tau": "s",
+    "effort": "N^2 m s", "C_dq": "N m", "G": "N m", "B_F": "m", "D": "kg m^2",
+    "invariance_residual": "rad", "frequency": "rad/s",
+}
+
+
+def units(*keys: str, **extra: str) -> dict[str, str]:
+    """The ``units`` block of a document: the canonical unit of each quantity named."""
+    return {**{k: UNITS[k] for k in keys}, **extra}
+
+
+def col(name: str, unit: str = "") -> str:
+    """A CSV column name with its unit as suffix, one rule for every file:
+    ``col("zeta", "kg^2 m^4/s^2") == "zeta_kg2m4_s2"``, ``col("alpha_dot", "rad/s") ==
+    "alpha_dot_rad_s"``, ``col("thrust", "N") == "thrust_N"``; no suffix for "1" or ""."""
+    if unit in ("", "1"):
+        return name
+    num, _, den = unit.partition("/")
+    def part(u: str) -> str:
+        return u.replace("^", "").replace(" ", "").replace("(", "").replace(")", "")
+    return f"{name}_{part(num)}" + (f"_{part(den)}" if den else "")
+
 
 @dataclass(frozen=True)
 class Table:

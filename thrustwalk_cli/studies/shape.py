@@ -40,7 +40,7 @@ from ..hzd.shaping import (
 )
 from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
 from ..walker import Walker
-from .records import Table, gait_record, robot_record
+from .records import SCHEMA_VERSION, Table, col, gait_record, robot_record, units
 
 
 # ---------------------------------------------------------------------------- pattern
@@ -125,6 +125,7 @@ class ShapeStudy:
     field_label: str | None = None
     field_schedule: Schedule | None = None
     field_cycle: LimitCycle | None = None
+    base: Schedule | None = field(default=None, repr=False)
 
     name = "shape"
 
@@ -136,7 +137,7 @@ class ShapeStudy:
         """``shape.csv``: nominal and shaped orbits (none when ``success`` is false)."""
         return {"shape": shape_records(self.walker.zd, self)[1]} if self.success else {}
 
-    def figures(self) -> dict:
+    def figures(self, titles: bool = False) -> dict:
         """``shape`` (shaped limit cycles, black every 10) and ``vector_field`` (nominal vs
         shaped zero-dynamics field, the paper's figures 4 and 5); none when ``success`` is
         false."""
@@ -163,14 +164,15 @@ class ShapeStudy:
         portrait = shape_portrait(
             self.values, self.labels, [c[0] for c in curves], [c[1] for c in curves],
             curve(self.nominal), knots, value_label=f"k ({what})",
-            title=f"{w.name}: shaped limit cycles ({len(knots)} knots)")
+            title=f"{w.name}: shaped limit cycles ({len(knots)} knots)" if titles else "")
         fc = self.field_cycle
         note = "" if fc.exists else f"no shaped orbit: {fc.reason}"
         planes = ("alpha_dot", "sigma")
         field = vector_field_figure(
             study_fields(zd, self), {k: curve(self.nominal, k) for k in planes},
             {k: curve(fc, k) for k in planes}, knots, shaped_label=self.field_label,
-            note=note, title=f"{w.name}: zero-dynamics vector field, nominal vs shaped")
+            note=note, title=f"{w.name}: zero-dynamics vector field, nominal vs shaped"
+            if titles else "")
         return {"shape": portrait, "vector_field": field}
 
 
@@ -179,9 +181,21 @@ def default_ks() -> tuple[float, ...]:
     return tuple(float(k) for k in range(0, 51, 2))
 
 
-def resolve(zd: ZeroDynamics, req: ShapeRequest) -> tuple[str, str, int | None]:
+def gait_base(walker: Walker) -> Schedule | None:
+    """The gait's thrust when it is constant over the whole step (one interval, e.g. a gait
+    designed with a constant thrust): patterns are shaped around it. None otherwise."""
+    ts = walker.gait.thrust
+    if ts is None or len(ts.knots) != 2:
+        return None
+    sched = schedule_from_gait(walker.zd, ts, walker.where)[0]
+    return sched if len(sched.knots) == 2 else None
+
+
+def resolve(zd: ZeroDynamics, req: ShapeRequest, base: Schedule | None = None
+            ) -> tuple[str, str, int | None]:
     """Source, mode and driven thruster of a request; :class:`InputError` on the parameter
-    when parameters conflict."""
+    when parameters conflict. With a constant gait thrust ``base`` the gait's schedule is the
+    base of the patterns, not a schedule to show by itself."""
     err = InputError.param
     if req.target_zeta is not None and req.target_speed is not None:
         raise err("target_speed", "give either `target_zeta` or `target_speed`, not both")
@@ -194,7 +208,7 @@ def resolve(zd: ZeroDynamics, req: ShapeRequest) -> tuple[str, str, int | None]:
     if req.mode is not None and req.mode not in MODES:
         raise err("mode", f"must be one of {', '.join(MODES)}, got {req.mode!r}")
     target = req.target_zeta is not None or req.target_speed is not None
-    gait_thrust = zd.gait.thrust
+    gait_thrust = zd.gait.thrust if base is None else None
     if target:
         name = "target_zeta" if req.target_zeta is not None else "target_speed"
         for opt, v in (("pattern", req.pattern), ("k", req.ks), ("field_k", req.field_k)):
@@ -243,7 +257,7 @@ def _cycles(zd: ZeroDynamics, schedule: Schedule,
 
 def schedule_count(walker: Walker, req: ShapeRequest) -> int:
     """How many shaped schedules :func:`shape` computes (for a progress bar)."""
-    if resolve(walker.zd, req)[0] == "pattern":
+    if resolve(walker.zd, req, gait_base(walker))[0] == "pattern":
         return len(req.ks if req.ks is not None else default_ks())
     return 1
 
@@ -256,7 +270,10 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
     file. Raises :class:`InputError` for bad parameters; solver failures come back as
     ``success = False`` with a reason."""
     zd = walker.zd
-    source, mode, th = resolve(zd, req)
+    base = gait_base(walker)
+    source, mode, th = resolve(zd, req, base)
+    if source != "pattern":
+        base = None  # a target's minimum-norm thrust is the whole thrust
     m = zd.model.n_thrusters
     knots_req = req.knots
     if source == "gait":
@@ -284,7 +301,7 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
                                   knot_solution=ksol)
             fr = list(ksol.fractions)
         knots = knots_alpha(zd, np.array(fr, float))
-        sched = make_schedule(zd, knots, P[:-1], mode, th)
+        sched = _around(make_schedule(zd, knots, P[:-1], mode, th), base)
         labels, values, P_field, target = tuple(f"k = {k:g}" for k in ks), ks, P[-1:], None
     elif source != "gait":
         pattern = None
@@ -301,30 +318,36 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
         sched = make_schedule(zd, knots, target.values[None, :], mode, th)
     else:
         pattern = None
-    nominal = limit_cycles(zd, nominal_schedule(knots, m))[0]
+    nom_sched = _around(nominal_schedule(knots, m), base)
+    nominal = limit_cycles(zd, nom_sched)[0]
     cycles = _cycles(zd, sched, progress)
     if P_field is not None:
-        fsched = make_schedule(zd, knots, P_field, mode, th)
+        fsched = _around(make_schedule(zd, knots, P_field, mode, th), base)
         flabel = f"k = {fk:g}"
     else:
         fsched, flabel = sched, labels[0]
     fcycle = limit_cycles(zd, fsched)[0]
+    one_step = one_step_change(zd, sched) - one_step_change(zd, nom_sched)[0]
     return ShapeStudy(walker, True, "shaped limit cycles computed", source, mode, th, pattern,
                       nominal, labels, values, ksol, target, intervals(zd, knots), sched, cycles,
-                      one_step_change(zd, sched), true_shift(zd, sched), flabel, fsched, fcycle)
+                      one_step, one_step / (1.0 - zd.delta_zero_sq), flabel, fsched, fcycle,
+                      base)
+
+
+def _around(sched: Schedule, base: Schedule | None) -> Schedule:
+    """``sched`` plus the constant gait thrust ``base`` (none: unchanged)."""
+    if base is None:
+        return sched
+    return Schedule(sched.knots, sched.force + base.force[:, :1, :],
+                    sched.generalized + base.generalized[:, :1])
 
 
 # --------------------------------------------------------------------------- records
-SHAPE_UNITS = {
-    "alpha": "rad", "alpha_dot": "rad / s", "sigma_N": "kg m^2 / s",
-    "zeta": "kg^2 m^4 / s^2 (zeta = sigma_N^2 / 2)", "T_j": "N m (generalised force on q_N)",
-    "F_j": "N (physical thrust per thruster)", "b_F": "kg m^2 rad (int dalpha / kappa_1)",
-    "Gamma_j": "kg m^3 rad (int beta / kappa_1 dalpha)", "q": "rad", "q_dot": "rad / s",
-    "step_time": "s", "speed": "m / s", "shift": "kg^2 m^4 / s^2",
-}
+SHAPE_UNITS = units("alpha", "alpha_dot", "sigma_N", "zeta", "T_j", "F_j", "b_F", "Gamma_j",
+                    "q", "q_dot", "step_time", "speed", shift="kg^2 m^4/s^2")
 
 
-ERRATUM = ("SPEC 4 erratum: the paper writes zeta* = zeta_0* + sum_j b_F T_j; that sum is the "
+ERRATUM = ("Erratum: the paper writes zeta* = zeta_0* + sum_j b_F T_j; that sum is the "
            "change of zeta^- in ONE step for a fixed zeta^+ (paper_one_step_shift). The fixed "
            "point moves by true_fixed_point_shift = sum_j b_F T_j / (1 - delta_zero^2). Both "
            "vanish exactly when sum_j b_F T_j = 0 (shape-only shaping).")
@@ -367,10 +390,17 @@ def shape_records(zd: ZeroDynamics, study: ShapeStudy) -> tuple[dict, Table]:
     nom = study.nominal
     ks = study.knot_solution
     doc: dict = {
+        "schema_version": SCHEMA_VERSION,
         "units": SHAPE_UNITS,
         "robot": robot_record(zd),
         "gait": gait_record(zd),
-        "success": study.success, "reason": study.reason, "source": study.source,
+        "success": study.success, "reason": study.reason,
+        "warnings": list(study.walker.warnings), "source": study.source,
+        "base_thrust": None if study.base is None else {
+            "force": dict(zip(r.thruster_names, study.base.force[0, 0].tolist())),
+            "generalized": float(study.base.generalized[0, 0]),
+            "note": "the gait's constant thrust: the patterns are added to it and the nominal "
+                    "orbit is the gait's own"},
         "mode": study.mode, "pattern": study.pattern,
         "thruster": None if study.thruster is None else r.thruster_names[study.thruster],
         "zero_dynamics": {"delta_zero": zd.delta_zero, "delta_zero_sq": zd.delta_zero_sq,
@@ -406,8 +436,9 @@ def shape_records(zd: ZeroDynamics, study: ShapeStudy) -> tuple[dict, Table]:
     doc["Gamma_j"] = None if iv is None else {
         n: iv.Gamma[:, t].tolist() for t, n in enumerate(r.thruster_names)}
     rows: list[list] = []
-    header = ["schedule", "k", "exists", "segment", "alpha_rad", "alpha_dot_rad_s",
-              "sigma_kg_m2_s", "zeta", "reason"]
+    header = ["schedule", "k", "exists", "segment", col("alpha", "rad"),
+              col("alpha_dot", "rad/s"), col("sigma", "kg m^2/s"),
+              col("zeta", "kg^2 m^4/s^2"), "reason"]
 
     def orbit_rows(label: str, k: float | None, lc: LimitCycle) -> None:
         if not lc.exists:
@@ -450,7 +481,9 @@ def shape_records(zd: ZeroDynamics, study: ShapeStudy) -> tuple[dict, Table]:
                                **_values(zd, study, study.field_schedule, 0),
                                **_cycle_summary(fc),
                                "shift": {"true_fixed_point_shift": float(
-                                   true_shift(zd, study.field_schedule)[0])}}
+                                   true_shift(zd, study.field_schedule)[0]
+                                   - (0.0 if study.base is None else
+                                      true_shift(zd, study.base)[0]))}}
     csv = Table(header, rows, [
         f"thrustwalk shape: robot {r.name}, gait {zd.gait.name}, mode {study.mode}, "
         f"source {study.source}" + (f", pattern {study.pattern}" if study.pattern else ""),
@@ -473,7 +506,8 @@ def field_range(orbits: Sequence[LimitCycle], key: str) -> tuple[float, float]:
 def study_fields(zd: ZeroDynamics, study: ShapeStudy) -> dict[str, tuple[VectorField, ...]]:
     """Nominal and shaped vector fields in both planes, sized to hold both limit cycles."""
     out = {}
-    nom_s = nominal_schedule(study.field_schedule.knots, zd.model.n_thrusters)
+    nom_s = _around(nominal_schedule(study.field_schedule.knots, zd.model.n_thrusters),
+                    study.base)
     for plane, key in (("alpha_dot", "alpha_dot"), ("sigma", "sigma")):
         rng = field_range([study.nominal, study.field_cycle], key)
         out[plane] = (vector_field(zd, nom_s, plane, rng),

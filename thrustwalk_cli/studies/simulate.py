@@ -22,15 +22,11 @@ from ..simulation.closed_loop import SimConfig, predicted_cycle
 from ..simulation.full_order import Start
 from ..simulation.scenario import Outcome, Scenario, make_scenario, run_scenario
 from ..walker import Walker
-from .records import Table, gait_record, robot_record
+from .records import SCHEMA_VERSION, Table, col, gait_record, robot_record, units
 
-UNITS = {
-    "time": "s", "thrust": "N", "generalized_thrust": "N m", "alpha": "rad",
-    "alpha_dot": "rad/s", "sigma_N": "kg m^2/s", "zeta": "kg^2 m^4/s^2 (zeta = sigma_N^2/2)",
-    "impulse": "N s", "force": "N", "torque": "N m", "output_y": "rad", "output_rate": "rad/s",
-    "energy": "J", "orbit_distance": "rad (q), rad/s (dq), max norm", "wn": "rad/s",
-    "tau": "s", "velocity": "m/s",
-}
+UNITS = units("time", "thrust", "generalized_thrust", "alpha", "alpha_dot", "sigma_N", "zeta",
+              "impulse", "force", "torque", "output_y", "output_rate", "energy", "wn", "tau",
+              "velocity", orbit_distance="rad")
 
 
 CSV_ROW_LIMIT = 20000  # trajectories with more samples go to .npz
@@ -79,8 +75,27 @@ def step_entries(zd: ZeroDynamics, outcomes: list[Outcome]) -> list[dict]:
     return out
 
 
-def run_entries(zd: ZeroDynamics, outcomes: list[Outcome]) -> list[dict]:
-    """The ``runs`` list: status, prediction and final agreement of every run."""
+def _steps_text(steps: list[int]) -> str:
+    return (f"step {steps[0]}" if len(steps) == 1 else
+            f"steps {steps[0]}-{steps[-1]} ({len(steps)} steps)")
+
+
+def run_status(success: bool, failure: str | None, reason: str, flags: dict[str, list[int]]
+               ) -> str:
+    """One line for a run: ``ok``, ``ok (slips at step 9)``, ``ok (torque saturated at steps
+    2-5 (4 steps))``, or the failure with its step: a run is never plain ok when a step left
+    the friction cone or saturated a torque."""
+    if not success:
+        return f"{failure}: {reason}"
+    notes = [f"{what} at {_steps_text(steps)}" for what, steps in flags.items() if steps]
+    return "ok" + (f" ({'; '.join(notes)})" if notes else "")
+
+
+def run_entries(zd: ZeroDynamics, outcomes: list[Outcome], mu: float | None = None
+                ) -> list[dict]:
+    """The ``runs`` list: status, prediction and final agreement of every run. ``mu`` (default:
+    the gait's) is the friction cone the steps are checked against."""
+    mu = zd.gait.mu if mu is None else mu
     runs = []
     for i, oc in enumerate(outcomes):
         full, red = oc.full, oc.reduced
@@ -88,15 +103,21 @@ def run_entries(zd: ZeroDynamics, outcomes: list[Outcome]) -> list[dict]:
         primary = full if full is not None else red
         last = primary.steps[-1] if primary.steps else None
         warn = []
+        flags: dict[str, list[int]] = {"slips": [], "impact outside the friction cone": [],
+                                       "torque saturated": []}
         if full is not None:
-            mu = zd.gait.mu
             for st in full.steps:
                 stance = st.max_friction_ratio
+                if stance is not None and stance > mu:
+                    flags["slips"].append(st.step)
+                if st.impulse_friction_ratio > mu:
+                    flags["impact outside the friction cone"].append(st.step)
                 if (stance is not None and stance > mu) or st.impulse_friction_ratio > mu:
                     warn.append(f"step {st.step}: friction cone mu = {mu:g} violated (stance "
                                 f"{stance if stance is None else format(stance, '.3g')}, "
                                 f"impact {st.impulse_friction_ratio:.3g})")
                 if st.torque_saturated:
+                    flags["torque saturated"].append(st.step)
                     warn.append(f"step {st.step}: joint torques saturated")
         sched = oc.thrust.schedule if oc.thrust.kind == "piecewise" else Schedule.constant(
             zd, np.asarray(oc.thrust.target, float)[None, :])
@@ -105,7 +126,9 @@ def run_entries(zd: ZeroDynamics, outcomes: list[Outcome]) -> list[dict]:
         runs.append({
             "run": i, "f_ss": oc.value, "model": "full-order" if full is not None else "reduced",
             "success": primary.success, "failure": primary.failure or None,
-            "reason": primary.reason, "steps_completed": len(primary.steps),
+            "reason": primary.reason,
+            "status": run_status(primary.success, primary.failure, primary.reason, flags),
+            "steps_completed": len(primary.steps),
             "wall_time": primary.wall_time, "rhs_evaluations": primary.nfev,
             "predicted": {
                 "exists": lc.exists, "stable": lc.stable, "reason": lc.reason,
@@ -113,7 +136,7 @@ def run_entries(zd: ZeroDynamics, outcomes: list[Outcome]) -> list[dict]:
                 "step_time": lc.step_time, "speed": lc.speed,
                 "paper_one_step_value": (None if z0 is None else
                                          z0 + float(paper_one_step_shift(zd, sched)[0])),
-                "note": "zeta* = V_Z(alpha_f)/(1 - delta_zero^2) (SPEC 4); "
+                "note": "zeta* = V_Z(alpha_f)/(1 - delta_zero^2); "
                         "paper_one_step_value = zeta*_0 + sum_j b_F T_j, the paper's formula "
                         "without 1/(1 - delta_zero^2) (erratum)",
             },
@@ -134,14 +157,17 @@ def _zeta_star(zd: ZeroDynamics, sched: Schedule) -> float | None:
     return lc.zeta_star if lc.exists else None
 
 
-def simulation_document(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome]) -> dict:
+def simulation_document(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
+                        mu: float | None = None, warnings: tuple[str, ...] = ()) -> dict:
     """The body of simulation.json (provenance is added by the command)."""
-    runs = run_entries(zd, outcomes)
+    runs = run_entries(zd, outcomes, mu)
     bad = [r for r in runs if not r["success"]]
     r = zd.model.robot
     cfg = sc.config
     return {
+        "schema_version": SCHEMA_VERSION,
         "units": UNITS,
+        "warnings": list(warnings),
         "robot": robot_record(zd),
         "gait": gait_record(zd),
         "zero_dynamics": {"delta_zero": zd.delta_zero, "delta_zero_sq": zd.delta_zero_sq,
@@ -157,6 +183,7 @@ def simulation_document(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome])
             "reduced_only": sc.reduced_only, "steps": cfg.steps, "rtol": cfg.rtol,
             "atol": cfg.atol, "method": cfg.method, "torque_limit": cfg.torque_limit,
             "kp": zd.gait.kp, "kd": zd.gait.kd, "scuff_tolerance": cfg.scuff_tol,
+            "mu": zd.gait.mu if mu is None else mu,
             "guard": f"swing-foot height crosses 0 downward for s > {cfg.guard_s:g}",
         },
         "success": not bad,
@@ -168,17 +195,21 @@ def simulation_document(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome])
     }
 
 
-STEP_COLUMNS = ["run", "f_ss", "model", "step", "t_start", "step_time", "s_minus",
-                "zeta_start", "sigma_minus", "zeta_minus", "sigma_plus", "zeta_plus",
-                "impulse_x", "impulse_y", "min_vertical_force", "max_friction_ratio",
-                "max_abs_output", "max_abs_torque", "impact_energy_loss",
-                "predicted_zeta_minus", "relative_error", "zeta_star", "reduced_zeta_minus",
-                "orbit_distance_q", "orbit_distance_dq"]
+_Z, _S = "kg^2 m^4/s^2", "kg m^2/s"
+STEP_COLUMNS = ["run", col("f_ss", "N"), "model", "step", col("t_start", "s"),
+                col("step_time", "s"), "s_minus", col("zeta_start", _Z), col("sigma_minus", _S),
+                col("zeta_minus", _Z), col("sigma_plus", _S), col("zeta_plus", _Z),
+                col("impulse_x", "N s"), col("impulse_y", "N s"),
+                col("min_vertical_force", "N"), "max_friction_ratio",
+                col("max_abs_output", "rad"), col("max_abs_torque", "N m"),
+                col("impact_energy_loss", "J"), col("predicted_zeta_minus", _Z),
+                "relative_error", col("zeta_star", _Z), col("reduced_zeta_minus", _Z),
+                col("orbit_distance_q", "rad"), col("orbit_distance_dq", "rad/s")]
 
 
 def steps_table(doc: dict, thruster_names: list[str]) -> Table:
     """steps.csv (header, rows, comments) from the document's ``steps`` list."""
-    header = STEP_COLUMNS + [f"thrust_{n}" for n in thruster_names]
+    header = STEP_COLUMNS + [col(f"thrust_{n}", "N") for n in thruster_names]
     rows = []
     for e in doc["steps"]:
         p = e.get("prediction") or {}
@@ -209,26 +240,26 @@ def trajectory_arrays(zd: ZeroDynamics, outcomes: list[Outcome]) -> dict[str, np
         if not tr:
             continue
         n = tr["t"].size
-        base = {"run": np.full(n, i), "f_ss": np.full(n, np.nan if oc.value is None
-                                                        else oc.value),
-                "step": tr["step"], "t": tr["t"], "alpha": tr["alpha"],
-                "alpha_dot": tr["alpha_dot"], "sigma": tr["sigma"],
-                "zeta": 0.5 * tr["sigma"] ** 2}
+        base = {"run": np.full(n, i), col("f_ss", "N"): np.full(
+                    n, np.nan if oc.value is None else oc.value),
+                "step": tr["step"], col("t", "s"): tr["t"], col("alpha", "rad"): tr["alpha"],
+                col("alpha_dot", "rad/s"): tr["alpha_dot"], col("sigma", _S): tr["sigma"],
+                col("zeta", _Z): 0.5 * tr["sigma"] ** 2}
         for j, name in enumerate(r.thruster_names):
-            base[f"thrust_{name}"] = tr["F"][:, j]
-        base["generalized_T"] = tr["T"]
+            base[col(f"thrust_{name}", "N")] = tr["F"][:, j]
+        base[col("generalized_T", "N m")] = tr["T"]
         if oc.full is not None:
             act = [c.name for c in r.coordinates if c.actuated]
             for j, name in enumerate(r.coordinate_names):
-                base[f"q_{name}"] = tr["q"][:, j]
-                base[f"dq_{name}"] = tr["dq"][:, j]
+                base[col(f"q_{name}", "rad")] = tr["q"][:, j]
+                base[col(f"dq_{name}", "rad/s")] = tr["dq"][:, j]
             for j, name in enumerate(act):
-                base[f"u_{name}"] = tr["u"][:, j]
-                base[f"y_{name}"] = tr["y"][:, j]
-            base["F1_x"], base["F1_y"] = tr["F1"][:, 0], tr["F1"][:, 1]
-            base["swing_height"] = tr["swing_height"]
-            base["stance_foot_x"] = tr["foot_x"]
-            base["energy"] = tr["energy"]
+                base[col(f"u_{name}", "N m")] = tr["u"][:, j]
+                base[col(f"y_{name}", "rad")] = tr["y"][:, j]
+            base[col("F1_x", "N")], base[col("F1_y", "N")] = tr["F1"][:, 0], tr["F1"][:, 1]
+            base[col("swing_height", "m")] = tr["swing_height"]
+            base[col("stance_foot_x", "m")] = tr["foot_x"]
+            base[col("energy", "J")] = tr["energy"]
         for k, v in base.items():
             cols.setdefault(k, []).append(np.asarray(v, float))
     return {k: np.concatenate(v) for k, v in cols.items()}
@@ -242,7 +273,7 @@ def trajectory_output(zd: ZeroDynamics, outcomes: list[Outcome],
     arrays = trajectory_arrays(zd, outcomes)
     if not arrays:
         return "csv", Table(["t"], [], ["no samples"])
-    n = arrays["t"].size
+    n = arrays[col("t", "s")].size
     if n > CSV_ROW_LIMIT:
         buf = io.BytesIO()
         extra = {} if provenance is None else {"provenance": np.array(json.dumps(provenance))}
@@ -331,11 +362,14 @@ class SimulationResult:
     walker: Walker = field(repr=False)
     scenario: Scenario
     outcomes: tuple[Outcome, ...]
+    mu: float | None = None
 
     name = "simulation"
 
-    def _runs(self) -> list[dict]:
-        return run_entries(self.walker.zd, list(self.outcomes))
+    def runs(self) -> list[dict]:
+        """Per run: status (``ok``, ``ok (slips at step 9)``, or the failure), prediction and
+        final agreement."""
+        return run_entries(self.walker.zd, list(self.outcomes), self.mu)
 
     @property
     def success(self) -> bool:
@@ -343,7 +377,7 @@ class SimulationResult:
 
     @property
     def reason(self) -> str:
-        return simulation_document(self.walker.zd, self.scenario, list(self.outcomes))["reason"]
+        return self.document()["reason"]
 
     @property
     def tool_failure(self) -> bool:
@@ -357,8 +391,9 @@ class SimulationResult:
         """The JSON body of ``simulation.json``."""
         zd = self.walker.zd
         kind = "npz" if trajectory_arrays(zd, list(self.outcomes)).get(
-            "t", np.zeros(0)).size > CSV_ROW_LIMIT else "csv"
-        return {**simulation_document(zd, self.scenario, list(self.outcomes)),
+            col("t", "s"), np.zeros(0)).size > CSV_ROW_LIMIT else "csv"
+        return {**simulation_document(zd, self.scenario, list(self.outcomes), self.mu,
+                                      self.walker.warnings),
                 "trajectory_file": f"trajectory.{kind}"}
 
     def tables(self) -> dict[str, Table]:
@@ -375,37 +410,44 @@ class SimulationResult:
         kind, traj = self._trajectory(doc.get("provenance"))
         return {"trajectory.npz": traj} if kind == "npz" else {}
 
-    def figures(self) -> dict:
+    def figures(self, titles: bool = False) -> dict:
         """``thrust_time`` (the paper's figure 1) and ``phase_portrait`` (figure 2)."""
         from ..plots.simulate import phase_portrait, thrust_time
 
         data = figure_data(self.walker.zd, self.scenario, list(self.outcomes))
         name = self.walker.name
-        return {"thrust_time": thrust_time(data, title=f"{name}: thrust"),
-                "phase_portrait": phase_portrait(data, title=f"{name}: limit cycles")}
+        return {"thrust_time": thrust_time(data, title=f"{name}: thrust" if titles else ""),
+                "phase_portrait": phase_portrait(
+                    data, title=f"{name}: limit cycles" if titles else "")}
 
-    def animation(self) -> bytes:
-        """A GIF of the last run (the stick figure walking, thrust vectors drawn)."""
+    def animation(self) -> bytes | None:
+        """A GIF of the last full-order run with samples (the stick figure walking, thrust
+        vectors drawn), or None when no run has anything to animate."""
         from ..plots.simulate import animate
 
-        return animate(animation_frames(self.walker.zd, self.outcomes[-1]))
+        runs = [oc for oc in self.outcomes if oc.full is not None and oc.full.trajectory]
+        return animate(animation_frames(self.walker.zd, runs[-1])) if runs else None
 
 
-def simulate(walker: Walker, *, steps: int = 30, thrust_model: str = "second-order",
-             f_ss: Sequence[float] | None = None, wn: float = 2.0, xi: float = 1.0,
+def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None,
+             thrust: Sequence[float] | None = None, wn: float = 2.0, xi: float = 1.0,
              tau: float = 0.5, f0: float = 0.0, thruster: Sequence[str] | None = None,
              perturb: float = 0.0, zeta0: float | None = None,
              q0: Sequence[float] | None = None, dq0: Sequence[float] | None = None,
              start: str = "predicted", torque_limit: float | None = None, rtol: float = 1e-9,
              atol: float = 1e-9, method: str = "DOP853", samples: int = 80,
-             scuff_tol: float = 1e-4, reduced: bool = False,
+             scuff_tol: float = 1e-4, reduced: bool = False, mu: float | None = None,
              progress: Callable[[int], None] | None = None) -> SimulationResult:
     """Simulate ``steps`` steps of the full-order closed loop (SPEC 7) for each steady thrust
-    ``f_ss`` [N] (default 0 to -50 N in steps of 10; not with ``thrust_model="piecewise"``,
+    ``thrust`` [N] (default 0 to -50 N in steps of 10; not with ``thrust_model="piecewise"``,
     which uses the gait's ``thrust:`` section) on ``thruster`` (default: the first).
 
     Thrust models: ``constant``, ``first-order`` (``tau`` [s]), ``second-order`` (``wn``
-    [rad/s], ``xi``), ``piecewise``; ``f0`` [N] is the thrust at t = 0 of the dynamic models.
+    [rad/s], ``xi``), ``piecewise``; default: ``piecewise`` when the gait has a ``thrust:``
+    section and no ``thrust`` is given (the walker starts on that schedule's orbit), else
+    ``second-order``. ``f0`` [N] is the thrust at t = 0 of the dynamic models. ``mu`` (default:
+    the gait's) is the friction cone every step is checked against: a run that leaves it or
+    saturates a torque is never plain ``ok``.
     The start is just after an impact on the predicted orbit (``start="predicted"``) or the
     zero-thrust one (``"nominal"``), with ``zeta^-`` scaled by ``1 + perturb`` or given as
     ``zeta0`` [kg^2 m^4/s^2], or the explicit state ``q0`` [rad], ``dq0`` [rad/s].
@@ -417,7 +459,10 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str = "second-ord
     if q0 is not None and (zeta0 is not None or perturb != 0.0):
         raise InputError.param(("q0", "dq0"), "replace `zeta0`/`perturb`: give one kind of "
                                               "start")
-    values = None if f_ss is None else [float(v) for v in f_ss]
+    values = None if thrust is None else [float(v) for v in thrust]
+    if thrust_model is None:
+        thrust_model = ("piecewise" if walker.gait.thrust is not None and values is None
+                        else "second-order")
     if values is None and thrust_model != "piecewise":
         values = [0.0, -10.0, -20.0, -30.0, -40.0, -50.0]
     st = Start(zeta_minus=zeta0, perturb=perturb, q=None if q0 is None else list(q0),
@@ -434,4 +479,4 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str = "second-ord
     sc = make_scenario(zd, thrust_model, values, list(thruster) if thruster else None,
                        schedule=schedule, wn=wn, xi=xi, tau=tau, f0=f0, start=st,
                        config=config, reduced_only=reduced)
-    return SimulationResult(walker, sc, tuple(run_scenario(zd, sc, progress)))
+    return SimulationResult(walker, sc, tuple(run_scenario(zd, sc, progress)), mu)
