@@ -28,21 +28,51 @@ EXPECTED = [
 ]
 
 
+def _make(fig: Path, *extra: str) -> None:
+    cmd = ["make", "-j2", "figures", f"FIG={fig}", f"TW={sys.executable} -m thrustwalk_cli",
+           "TW_DEP=", "LC_THRUST=0:-50:-25", "SHAPE_K=0:50:25", "FIELD_K=60",
+           "FEAS_THRUST=0:-50:-25", "SIM_STEPS=3", "SIM_THRUST=0:-50:-25", *extra]
+    res = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+
+
 @pytest.fixture(scope="module")
 def pipeline(tmp_path_factory) -> Path:
     if shutil.which("make") is None:
         pytest.skip("make is not installed")
     fig = tmp_path_factory.mktemp("figures")
-    cmd = ["make", "-j2", "figures", f"FIG={fig}", f"TW={sys.executable} -m thrustwalk_cli",
-           "TW_DEP=", "LC_THRUST=0:-50:-25", "SHAPE_K=0:50:25", "FIELD_K=60",
-           "FEAS_THRUST=0:-50:-25", "SIM_STEPS=3", "SIM_THRUST=0:-50:-25",
-           *PIPELINE_OVERRIDES]
-    res = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=600)
-    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    _make(fig)
     return fig
 
 
-PIPELINE_OVERRIDES: list[str] = []
+def _files(folder: Path) -> dict[str, bytes]:
+    return {p.relative_to(folder).as_posix(): p.read_bytes()
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_rerunning_the_pipeline_rewrites_every_file_byte_for_byte(pipeline):
+    """`make figures` leaves `git status` clean: result files record the source date
+    (SOURCE_DATE_EPOCH), not the clock, and nothing else varies between runs."""
+    first = _files(pipeline)
+    _make(pipeline, "-B")
+    second = _files(pipeline)
+    assert sorted(first) == sorted(second)
+    changed = [name for name in first if first[name] != second[name]]
+    assert not changed, changed
+
+
+def test_pdfs_are_ieee_ready(pipeline):
+    """Every PDF embeds TrueType (Type 42, as Type0/CIDFontType2) fonts, never Type 3, and is
+    one (3.5 in = 252 pt) or two (7.16 in = 515.52 pt) IEEE columns wide."""
+    pdfs = sorted(pipeline.rglob("*.pdf"))
+    assert len(pdfs) >= len(EXPECTED)
+    for pdf in pdfs:
+        data = pdf.read_bytes()
+        assert b"/Type3" not in data, f"{pdf.name}: Type 3 font"
+        assert re.search(rb"/Subtype\s*/(Type0|TrueType)", data), pdf.name
+        box = re.search(rb"/MediaBox\s*\[\s*0\s+0\s+([\d.]+)\s+([\d.]+)\s*\]", data)
+        width = float(box.group(1))
+        assert min(abs(width - 252.0), abs(width - 515.52)) < 0.5, (pdf.name, width)
 
 
 def test_every_figure_exists_and_is_valid(pipeline):

@@ -35,7 +35,7 @@ app = typer.Typer(
         "folder). Results go to an output folder as JSON, CSV and figures."
     ),
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,
     rich_markup_mode=None,
     pretty_exceptions_enable=False,
 )

@@ -18,6 +18,47 @@ from ..errors import ComputationError, InputError, Problem
 _MENTION = re.compile(r"`([A-Za-z_][A-Za-z0-9_]*)`")
 
 
+def number_column(table, header: str) -> None:
+    """A numeric column: never wrapped (a number is never split across lines), right-aligned,
+    at least as wide as its header's longest line (the unit stays visible)."""
+    from rich.markup import escape
+
+    table.add_column(escape(header), no_wrap=True, justify="right",
+                     min_width=max(len(line) for line in header.split("\n")))
+
+
+def show_table(title: str, columns: list[tuple[str, bool]], rows: list[list]) -> None:
+    """Print a summary table (``columns``: (header with its unit, numeric?)). Numeric columns
+    never wrap; text columns fold. When the terminal is too narrow for the numeric columns,
+    the rows are printed as ``header: value`` lines instead, so no number is ever split."""
+    from rich.markup import escape
+    from rich.table import Table
+
+    con = console()
+    t = Table(title=escape(title))
+    for header, numeric in columns:
+        if numeric:
+            number_column(t, header)
+        else:
+            t.add_column(escape(header), overflow="fold")
+    for row in rows:
+        t.add_row(*(escape(str(v)) for v in row))
+    def least(j: int, numeric: bool) -> int:  # narrowest the column can be without a split
+        cells = [str(r[j]) for r in rows] + columns[j][0].split("\n")
+        if not numeric:
+            cells = [w for c in cells for w in c.split()] or [""]
+        return max(len(c) for c in cells)
+
+    need = sum(least(j, num) + 3 for j, (_, num) in enumerate(columns)) + 1
+    if need <= con.width:
+        con.print(t)
+        return
+    con.print(title, markup=False)
+    for row in rows:
+        con.print("; ".join(f"{h.replace(chr(10), ' ')}: {v}" for (h, _), v in zip(columns, row)),
+                  markup=False)
+
+
 def console(stderr: bool = False):  # -> rich.console.Console
     from rich.console import Console
 

@@ -13,6 +13,7 @@ from .common import (
     load_walker,
     parse_formats,
     parse_values,
+    show_table,
     warn,
     write_result,
 )
@@ -75,23 +76,17 @@ def run_feasibility(robot: str | None, gait: str | None, *, thrust: list[float] 
 
 
 def _table(doc: dict) -> None:
-    from rich.table import Table
-
     from ..studies.feasibility import thrust_text
     from ..studies.records import fmt
 
-    t = Table(title=f"feasibility: {doc['robot']['name']} / {doc['gait']['name']} "
-                    f"(mu = {doc['mu']:g}, verdict: {doc['verdict']})")
-    t.add_column("thrust [N]", overflow="fold")
-    t.add_column("verdict", no_wrap=True)
-    for col in ("min F^v [N]", "max |F^h|/F^v", "lift-off [m/s]"):
-        t.add_column(col, no_wrap=True, justify="right")
-    for c in doc["cases"]:
-        t.add_row(thrust_text(c["thrust"]), "feasible" if c["feasible"] else "INFEASIBLE",
-                  fmt(c["min_vertical_force"]), fmt(c["max_friction_ratio"]),
-                  fmt(c["liftoff_velocity"]))
+    rows = [[thrust_text(c["thrust"]), "feasible" if c["feasible"] else "INFEASIBLE",
+             fmt(c["min_vertical_force"]), fmt(c["max_friction_ratio"]),
+             fmt(c["liftoff_velocity"])] for c in doc["cases"]]
+    show_table(f"feasibility: {doc['robot']['name']} / {doc['gait']['name']} "
+               f"(mu = {doc['mu']:g}, verdict: {doc['verdict']})",
+               [("thrust [N]", False), ("verdict", False), ("min F^v\n[N]", True),
+                ("max |F^h|/F^v\n[-]", True), ("lift-off\n[m/s]", True)], rows)
     con = console()
-    con.print(t)
     for c in doc["cases"]:
         if not c["feasible"]:
             con.print(f"{thrust_text(c['thrust'])}: {c['reason']}", markup=False)

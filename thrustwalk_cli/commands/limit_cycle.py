@@ -12,6 +12,7 @@ from .common import (
     load_walker,
     parse_formats,
     parse_values,
+    show_table,
     warn,
     write_result,
 )
@@ -67,22 +68,19 @@ def run_limit_cycle(robot: str | None, gait: str | None, thrust: list[float] | N
 
 
 def _table(doc: dict) -> None:
-    from rich.table import Table
-
     from ..studies.records import fmt
 
     zd = doc["zero_dynamics"]
-    t = Table(title=f"limit cycles: {doc['robot']['name']} / {doc['gait']['name']} "
-                    f"(delta_zero^2 = {zd['delta_zero_sq']:.4f})")
-    for col in ("thrust [N]", "zeta* [kg^2 m^4/s^2]", "T [s]", "speed [m/s]",
-                "min|α'| [rad/s]"):
-        t.add_column(col, no_wrap=True, justify="right")
-    t.add_column("verdict", overflow="fold")
-    for c in doc["cycles"]:
-        t.add_row("gait" if c["thrust"] is None else fmt(c["thrust"]), fmt(c["zeta_star"]),
-                  fmt(c["step_time"]), fmt(c["speed"]), fmt(c["min_abs_alpha_dot"]),
-                  c["verdict"])
-    console().print(t)
+    rows = [["gait" if c["thrust"] is None else fmt(c["thrust"]), fmt(c["zeta_star"]),
+             fmt(c["step_time"]), fmt(c["speed"]), fmt(c["min_abs_alpha_dot"]),
+             c["verdict"].split(":")[0]] for c in doc["cycles"]]
+    show_table(f"limit cycles: {doc['robot']['name']} / {doc['gait']['name']} "
+               f"(delta_zero^2 = {zd['delta_zero_sq']:.4f})",
+               [("thrust\n[N]", True), ("zeta*\n[kg^2 m^4/s^2]", True), ("T\n[s]", True),
+                ("speed\n[m/s]", True), ("min|α'|\n[rad/s]", True), ("verdict", False)], rows)
+    con = console()
+    for verdict in dict.fromkeys(c["verdict"] for c in doc["cycles"] if not c["walkable"]):
+        con.print(verdict, markup=False)
 
 
 def register(app: typer.Typer) -> None:

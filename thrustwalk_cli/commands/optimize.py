@@ -7,7 +7,15 @@ from typing import Annotated
 
 import typer
 
-from .common import cli_errors, console, load_walker, parse_formats, parse_knots, write_result
+from .common import (
+    cli_errors,
+    console,
+    load_walker,
+    parse_formats,
+    parse_knots,
+    show_table,
+    write_result,
+)
 from .options import (
     FormatsOpt,
     GaitArg,
@@ -65,8 +73,6 @@ def run_optimize(robot: str | None, gait: str | None, *, knots: list[float | Non
 
 
 def _summary(doc: dict) -> None:
-    from rich.table import Table
-
     c = console()
     if not doc["feasible"]:
         c.print(f"INFEASIBLE — {doc['reason']}", markup=False)
@@ -74,13 +80,10 @@ def _summary(doc: dict) -> None:
     c.print(f"optimal schedule ({doc['mode']} mode): objective {doc['objective']:.4g}, "
             f"zeta* = {doc['zeta_star']:.6g} kg^2 m^4/s^2, speed {doc['speed']:.4g} m/s",
             markup=False)
-    t = Table()
-    t.add_column("interval [fraction of step]", no_wrap=True)
-    t.add_column(f"thrust [{doc['unit']}]", no_wrap=True, justify="right")
     k = doc["knots_fraction"]
-    for i, v in enumerate(doc["values"]):
-        t.add_row(f"{k[i]:g} – {k[i + 1]:g}", f"{v:.4g}")
-    c.print(t)
+    show_table("thrust per knot interval",
+               [("interval\n[fraction of step]", False), (f"thrust\n[{doc['unit']}]", True)],
+               [[f"{k[i]:g} – {k[i + 1]:g}", f"{v:.4g}"] for i, v in enumerate(doc["values"])])
     act = doc["active_constraints"]
     c.print(f"active constraints: {len(act)}"
             + ("" if not act else " (" + ", ".join(sorted({a['family'] for a in act})) + ")"),

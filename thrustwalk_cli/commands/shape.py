@@ -16,6 +16,7 @@ from .common import (
     parse_knots,
     parse_values,
     progress,
+    show_table,
     warn,
     write_result,
 )
@@ -93,8 +94,6 @@ def _values_text(s: dict) -> str:
 
 
 def _table(doc: dict) -> None:
-    from rich.table import Table
-
     from ..studies.records import fmt
 
     c = console()
@@ -122,22 +121,20 @@ def _table(doc: dict) -> None:
         shown = [r for r in rows if r["k"] is not None and abs(r["k"] / 10 - round(r["k"] / 10))
                  < 1e-9] or rows[:: max(1, len(rows) // 10)]
     nom = doc["nominal"]
-    t = Table(title=f"shaping: {doc['robot']['name']} / {doc['gait']['name']}, {doc['mode']} "
-                    f"mode (nominal zeta* = {fmt(nom['zeta_star'])}, delta_zero^2 = "
-                    f"{doc['zero_dynamics']['delta_zero_sq']:.4f})")
-    t.add_column("schedule", no_wrap=True)
-    t.add_column(f"values [{unit}]", overflow="fold")
-    for col in ("zeta* shaped", "true shift", "paper one-step", "zeta+ shaped"):
-        t.add_column(f"{col} [kg^2 m^4/s^2]", no_wrap=True, justify="right")
-    t.add_column("speed [m/s]", no_wrap=True, justify="right")
-    t.add_column("stable", overflow="fold")
-    for r in shown:
-        t.add_row(r["label"], _values_text(r), fmt(r["zeta_star"]["shaped"]),
-                  fmt(r["shift"]["true_fixed_point_shift"], ".3g"),
-                  fmt(r["shift"]["paper_one_step_shift"], ".3g"),
-                  fmt(r["post_impact"]["shaped"]["zeta"]), fmt(r["speed"]),
-                  "yes" if r["stable"] else ("no" if r["exists"] else r["reason"]))
-    c.print(t)
+    z = "\n[kg^2 m^4/s^2]"
+    show_table(f"shaping: {doc['robot']['name']} / {doc['gait']['name']}, {doc['mode']} mode "
+               f"(nominal zeta* = {fmt(nom['zeta_star'])}, delta_zero^2 = "
+               f"{doc['zero_dynamics']['delta_zero_sq']:.4f})",
+               [("schedule", False), (f"values\n[{unit}]", False),
+                ("zeta* shaped" + z, True), ("true shift" + z, True),
+                ("paper one-step" + z, True), ("zeta+ shaped" + z, True),
+                ("speed\n[m/s]", True), ("stable", False)],
+               [[r["label"], _values_text(r), fmt(r["zeta_star"]["shaped"]),
+                 fmt(r["shift"]["true_fixed_point_shift"], ".3g"),
+                 fmt(r["shift"]["paper_one_step_shift"], ".3g"),
+                 fmt(r["post_impact"]["shaped"]["zeta"]), fmt(r["speed"]),
+                 "yes" if r["stable"] else ("no" if r["exists"] else r["reason"])]
+                for r in shown])
     if len(shown) < len(rows):
         c.print(f"({len(rows) - len(shown)} more rows in shape.json)", markup=False)
     c.print("zeta in kg^2 m^4/s^2. true shift = one-step / (1 - delta_zero^2); the paper's "

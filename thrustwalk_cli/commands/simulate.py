@@ -15,6 +15,7 @@ from .common import (
     parse_formats,
     parse_values,
     progress,
+    show_table,
     warn,
     write_result,
 )
@@ -107,24 +108,17 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
 
 
 def _table(doc: dict) -> None:
-    from rich.table import Table
-
     from ..studies.records import fmt
 
-    t = Table(title=f"simulate: {doc['robot']['name']} / {doc['gait']['name']} "
-                    f"({doc['settings']['thrust_model']}, delta_zero^2 = "
-                    f"{doc['zero_dynamics']['delta_zero_sq']:.4f})")
-    t.add_column("F_ss [N]", no_wrap=True, justify="right")
-    t.add_column("steps", no_wrap=True, justify="right")
-    for col in ("final ζ⁻", "predicted ζ*"):
-        t.add_column(f"{col} [kg^2 m^4/s^2]", no_wrap=True, justify="right")
-    t.add_column("rel. error", no_wrap=True, justify="right")
-    t.add_column("status", overflow="fold")
-    for r in doc["runs"]:
-        t.add_row(fmt(r["f_ss"]), str(r["steps_completed"]), fmt(r["final_zeta_minus"]),
-                  fmt(r["predicted"]["zeta_star"]), fmt(r["final_relative_error"], ".2e"),
-                  r["status"])
-    console().print(t)
+    rows = [[fmt(r["f_ss"]), str(r["steps_completed"]), fmt(r["final_zeta_minus"]),
+             fmt(r["predicted"]["zeta_star"]), fmt(r["final_relative_error"], ".2e"),
+             r["status"]] for r in doc["runs"]]
+    show_table(f"simulate: {doc['robot']['name']} / {doc['gait']['name']} "
+               f"({doc['settings']['thrust_model']}, delta_zero^2 = "
+               f"{doc['zero_dynamics']['delta_zero_sq']:.4f})",
+               [("F_ss\n[N]", True), ("steps", True), ("final ζ⁻\n[kg^2 m^4/s^2]", True),
+                ("predicted ζ*\n[kg^2 m^4/s^2]", True), ("rel. error\n[-]", True),
+                ("status", False)], rows)
 
 
 def register(app: typer.Typer) -> None:

@@ -38,6 +38,7 @@ class Region:
     fixed_point_valid: np.ndarray
     fixed_point_feasible: np.ndarray
     impact_ok: bool
+    min_zeta: np.ndarray | None = None  # (ns, nz) [kg^2 m^4/s^2]: completes <=> > 0
 
 
 def feasible_region(model: CompiledModel, zd: ZeroDynamics, unit: Schedule,
@@ -72,4 +73,5 @@ def feasible_region(model: CompiledModel, zd: ZeroDynamics, unit: Schedule,
         F1fp = scale[:, None, None] * per_s + t.L1 * zfp[..., None] + t.L0
         fp_feas = (valid & (F1fp[..., 1].min(-1) >= eps) & (friction_ratio(F1fp).max(-1) <= mu)
                    & imp_ok)
-    return Region(scale, zeta, minv, maxr, completes, feas, zs, valid, fp_feas, imp_ok)
+    return Region(scale, zeta, minv, maxr, completes, feas, zs, valid, fp_feas, imp_ok,
+                  z.min(axis=-1))

@@ -10,7 +10,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.lines import Line2D
 
-from .style import corner_note, style
+from .style import COLUMN, PAGE, corner_note, style
 
 MAX_LINES = 12
 
@@ -24,16 +24,19 @@ def _pick(n: int, limit: int = MAX_LINES) -> list[int]:
 
 def grf_figure(profiles: Sequence[dict | None], values: Sequence[float] | None, *,
                value_label: str, mu: float, eps: float, swing: dict, joint_names: list[str],
-               title: str = ""):
-    """Ground reaction force, friction ratio, joint torques and swing-foot height along the step.
+               impacts: Sequence[dict] | None = None, title: str = ""):
+    """Stance phase along the step, two columns wide: ground reaction force, friction ratio
+    (clipped where F^v -> 0 so the curves stay readable; the clipped part is marked), joint
+    torques, swing-foot height, and the impact impulse per case with its friction ratio.
 
     ``profiles[i]``: dict with ``alpha`` [rad], ``F1`` (g, 2) [N], ``ratio`` (g,), ``torque``
     (g, N-1) [N m] or None (no orbit). ``values``: the swept thrust [N] (colour bar) or None for
-    a single schedule.
+    a single schedule. ``impacts[i]``: ``{"impulse": (h, v) [N s] or None, "ratio": float or
+    None}``.
     """
     with style():
-        fig, axs = plt.subplots(2, 2, figsize=(7.0, 4.6), sharex=True)
-        (a_f, a_r), (a_u, a_h) = axs
+        fig, axs = plt.subplots(3, 2, figsize=(PAGE, 6.2), layout="constrained")
+        (a_f, a_r), (a_u, a_h), (a_i, a_k) = axs
         idx = [i for i in _pick(len(profiles)) if profiles[i] is not None]
         sweep = values is not None and len(values) > 1
         if sweep:
@@ -44,13 +47,16 @@ def grf_figure(profiles: Sequence[dict | None], values: Sequence[float] | None, 
         else:
             colour = ["C0"] * len(profiles)
         dashes = ["-", "--", ":", "-."]
+        top = 2.5 * mu  # the friction-ratio axis ends here
+        clipped = False
         for i in idx:
             p = profiles[i]
             a = p["alpha"]
             a_f.plot(a, p["F1"][:, 1], color=colour[i], lw=0.8)
             a_f.plot(a, p["F1"][:, 0], color=colour[i], lw=0.8, ls="--")
             r = np.where(np.isfinite(p["ratio"]), p["ratio"], np.nan)
-            a_r.plot(a, r, color=colour[i], lw=0.8)
+            clipped |= bool(np.nanmax(r, initial=0.0) > top) or bool(np.isnan(r).any())
+            a_r.plot(a, np.where(r > top, np.nan, r), color=colour[i], lw=0.8)
             for j in range(p["torque"].shape[1]):
                 a_u.plot(a, p["torque"][:, j], color=colour[i], lw=0.8,
                          ls=dashes[j % len(dashes)])
@@ -58,15 +64,18 @@ def grf_figure(profiles: Sequence[dict | None], values: Sequence[float] | None, 
         a_f.set_ylabel(r"ground force $F_1$ [N]")
         a_f.legend([Line2D([], [], color="k", lw=0.8), Line2D([], [], color="k", ls="--", lw=0.8),
                     Line2D([], [], color="firebrick", ls=":", lw=0.6)],
-                   [r"vertical $F_1^v$", r"horizontal $F_1^h$", rf"$\varepsilon$ = {eps:g} N"],
+                   [r"vertical $F_1^v$", r"horizontal $F_1^h$", rf"minimum $F_1^v$ = {eps:g} N"],
                    loc="best")
         a_r.axhline(mu, color="firebrick", lw=0.8)
         a_r.axhline(mu / np.sqrt(2), color="firebrick", lw=0.6, ls=":")
+        a_r.set_ylim(0.0, top)
         a_r.set_ylabel(r"friction ratio $|F_1^h|/F_1^v$ [-]")
+        labels = ["along the step", rf"cone $\mu$ = {mu:g}",
+                  r"inscribed pyramid $\mu/\sqrt{2}$ (not used)"]
+        if clipped:
+            labels[0] += rf" (clipped at {top:g})"
         a_r.legend([Line2D([], [], color="k", lw=0.8), Line2D([], [], color="firebrick", lw=0.8),
-                    Line2D([], [], color="firebrick", ls=":", lw=0.6)],
-                   ["along the step", rf"cone $\mu$ = {mu:g}",
-                    r"inscribed pyramid $\mu/\sqrt{2}$ (not used)"], loc="best")
+                    Line2D([], [], color="firebrick", ls=":", lw=0.6)], labels, loc="best")
         a_u.set_ylabel(r"joint torque $u$ [N m]")
         a_u.legend([Line2D([], [], color="k", ls=dashes[j % len(dashes)], lw=0.8)
                     for j in range(len(joint_names))], joint_names, loc="best")
@@ -74,11 +83,12 @@ def grf_figure(profiles: Sequence[dict | None], values: Sequence[float] | None, 
         a_h.axhline(0.0, color="firebrick", lw=0.6, ls=":", label="ground")
         a_h.set_ylabel("swing-foot height [mm]")
         a_h.legend(loc="best")
-        for ax in (a_u, a_h):
+        for ax in (a_f, a_r, a_u, a_h):
             ax.set_xlabel(r"$\alpha$ [rad]")
+        _impact_panels(a_i, a_k, impacts or [], values, colour, mu)
         if sweep:
             sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
-            cb = fig.colorbar(sm, ax=axs, pad=0.02, fraction=0.04)
+            cb = fig.colorbar(sm, ax=axs, pad=0.01, fraction=0.03, aspect=40)
             cb.set_label(value_label)
         if title:
             fig.suptitle(title)
@@ -88,35 +98,79 @@ def grf_figure(profiles: Sequence[dict | None], values: Sequence[float] | None, 
     return fig
 
 
+def _impact_panels(a_i, a_k, impacts, values, colour, mu) -> None:
+    """Impact impulse F_2 [N s] (horizontal, vertical) and its friction ratio per case."""
+    x = (np.asarray(values, float) if values is not None and len(values) == len(impacts)
+         else np.arange(len(impacts), dtype=float))
+    have = [i for i, imp in enumerate(impacts) if imp.get("impulse") is not None]
+    for i in have:
+        h, v = impacts[i]["impulse"]
+        a_i.plot([x[i]], [v], "o", ms=3.5, color=colour[i], mec="k", mew=0.3)
+        a_i.plot([x[i]], [h], "s", ms=3.0, color=colour[i], mec="k", mew=0.3)
+    a_i.axhline(0.0, color="0.5", lw=0.5)
+    a_i.set_ylabel(r"impact impulse $F_2$ [N s]")
+    a_i.legend([Line2D([], [], marker="o", ls="none", color="0.6", mec="k", ms=3.5),
+                Line2D([], [], marker="s", ls="none", color="0.6", mec="k", ms=3.0)],
+               [r"vertical $F_2^v$", r"horizontal $F_2^h$"], loc="best")
+    ratios = [(x[i], impacts[i]["ratio"]) for i in have if impacts[i].get("ratio") is not None]
+    if ratios:
+        a_k.plot(*zip(*ratios), "o-", ms=3.0, color="k", lw=0.6)
+    a_k.axhline(mu, color="firebrick", lw=0.8, label=rf"cone $\mu$ = {mu:g}")
+    a_k.set_ylim(0.0, max([mu * 1.3] + [r for _, r in ratios]))
+    a_k.set_ylabel(r"impact $|F_2^h|/F_2^v$ [-]")
+    a_k.legend(loc="best")
+    xl = "thrust [N]" if values is not None and len(values) == len(impacts) else "case"
+    for ax in (a_i, a_k):
+        ax.set_xlabel(xl)
+        if not have:
+            ax.text(0.5, 0.5, "no periodic orbit", transform=ax.transAxes, ha="center",
+                    color="firebrick")
+
+
 def region_figure(region, *, scale_label: str, mu: float, eps: float,
                   cases: Sequence[tuple[float, float | None]] = (), title: str = ""):
-    """Feasible region over (scale, zeta^-): colour = worst friction ratio where the step
-    completes with ``F^v > 0``; black contour = boundary of the feasible set; the limit-cycle
-    fixed-point curve (solid where feasible) and the nominal point (scale 0); ``cases``:
-    (scale, zeta*) of the evaluated cases."""
+    """Feasible region over (scale, zeta^-), one column wide: colour = worst friction ratio
+    along the step where it completes with F^v > 0 (colour bar extended beyond its top);
+    grey = the walker stops; hatched = unilateral contact lost (F^v <= 0); cyan = the boundary
+    of each contact condition (contours of continuous fields, no grid staircase); the
+    fixed-point curve (solid where feasible), the nominal point and the evaluated cases. The
+    legend sits below the axes, off the data."""
     with style():
-        fig, ax = plt.subplots(figsize=(4.6, 3.2))
+        fig, ax = plt.subplots(figsize=(COLUMN, 3.6))
         S, Z = np.meshgrid(region.scale, region.zeta, indexing="ij")
-        ratio = np.where(region.completes & np.isfinite(region.max_ratio), region.max_ratio,
-                         np.nan)
+        minz = (region.min_zeta if region.min_zeta is not None
+                else np.where(region.completes, 1.0, -1.0))
+        lost = region.min_vertical <= 0
+        # the colour field is continuous everywhere (no masked cells, so no white staircase);
+        # the regions where it does not apply are painted over it
+        ratio = np.where(np.isfinite(region.max_ratio), region.max_ratio, np.inf)
         vmax = max(1.5 * mu, 1e-3)
-        mesh = ax.pcolormesh(S, Z, np.ma.masked_invalid(ratio), cmap="magma_r", vmin=0,
-                             vmax=vmax, shading="auto", rasterized=True)
-        cb = fig.colorbar(mesh, ax=ax, pad=0.02)
+        levels = np.linspace(0.0, vmax, 16)
+        cs = ax.contourf(S, Z, np.minimum(ratio, vmax * 1.2), levels=levels, cmap="magma_r",
+                         extend="max")
+        cb = fig.colorbar(cs, ax=ax, pad=0.02)
         cb.set_label(r"worst friction ratio $|F_1^h|/F_1^v$ [-]")
         cb.ax.axhline(mu, color="c", lw=1.0)
-        stop = np.where(region.completes, np.nan, 1.0)
-        ax.pcolormesh(S, Z, np.ma.masked_invalid(stop), cmap="Greys", vmin=0, vmax=2,
-                      shading="auto", rasterized=True)
-        handles = [matplotlib.patches.Patch(color=matplotlib.colormaps["Greys"](0.5),
-                                            label="walker stops"),
-                   matplotlib.patches.Patch(facecolor="white", edgecolor="k",
-                                            label="unilateral contact lost")]
-        if region.feasible.any() and not region.feasible.all():
-            ax.contour(S, Z, region.feasible.astype(float), levels=[0.5], colors="c",
-                       linewidths=1.2)
-        handles.append(Line2D([], [], color="c", lw=1.2, label=rf"feasible boundary ($\mu$ = "
-                              rf"{mu:g}, $\varepsilon$ = {eps:g} N)"))
+        grey = matplotlib.colormaps["Greys"](0.45)
+        pale = "#d6e6f4"
+        if lost.any():
+            fv = region.min_vertical
+            ax.contourf(S, Z, fv, levels=[fv.min() - 1.0, 0.0], colors=[pale])
+            ax.contourf(S, Z, fv, levels=[fv.min() - 1.0, 0.0], colors="none",
+                        hatches=["////"])
+        if (minz <= 0).any():
+            ax.contourf(S, Z, minz, levels=[minz.min() - 1.0, 0.0], colors=[grey])
+        handles = [matplotlib.patches.Patch(color=grey, label="walker stops"),
+                   matplotlib.patches.Patch(facecolor=pale, edgecolor="0.3", hatch="////",
+                                            label="contact lost ($F_1^v \\leq 0$)")]
+        ok = minz > 0
+        for field_, level in ((np.where(ok, region.max_ratio, np.nan), mu),
+                              (np.where(ok, region.min_vertical, np.nan), eps)):
+            f = np.ma.masked_invalid(np.where(np.isfinite(field_), field_, np.nan))
+            if f.count() and f.min() < level < f.max():
+                ax.contour(S, Z, f, levels=[level], colors="c", linewidths=1.2)
+        handles.append(Line2D([], [], color="c", lw=1.2, label=rf"contact limits ($\mu$ = "
+                              rf"{mu:g}, $F_1^v \geq$ {eps:g} N)"))
         v = region.fixed_point_valid
         if v.any():
             zs = np.where(v, region.fixed_point, np.nan)
@@ -142,8 +196,8 @@ def region_figure(region, *, scale_label: str, mu: float, eps: float,
         ax.set_xlim(region.scale.min(), region.scale.max())
         ax.set_ylim(region.zeta.min(), region.zeta.max())
         ax.grid(False)
-        ax.legend(handles=handles, loc="upper left", fontsize=6, frameon=True,
-                  framealpha=0.85)
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2,
+                  fontsize=6)
         if not region.impact_ok:
             ax.text(0.5, 0.02, "impact inadmissible everywhere", transform=ax.transAxes,
                     ha="center", color="firebrick", fontsize=7)

@@ -9,7 +9,7 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 
-from .style import corner_note, is_multiple, style
+from .style import COLUMN, corner_note, is_multiple, style
 
 
 def phase_portrait(
@@ -32,7 +32,7 @@ def phase_portrait(
     ylabel = {"alpha_dot": r"$\dot\alpha$ [rad/s]",
               "sigma": r"$\sigma_N$ [kg m$^2$/s]"}[y]
     with style():
-        fig, ax = plt.subplots(figsize=(3.5, 2.7))
+        fig, ax = plt.subplots(figsize=(COLUMN, 2.7))
         vals = np.asarray(values, float)
         lo, hi = (vals.min(), vals.max()) if vals.size else (0.0, 1.0)
         norm = matplotlib.colors.Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1)
@@ -54,9 +54,12 @@ def phase_portrait(
         cb.set_label(value_label)
         ax.set_xlabel(r"$\alpha$ [rad]")
         ax.set_ylabel(ylabel)
-        handles = [matplotlib.lines.Line2D([], [], color="k", lw=0.9),
+        handles = [matplotlib.lines.Line2D([], [], color="k" if black_every else cmap(0.5),
+                                           lw=0.9),
                    matplotlib.lines.Line2D([], [], color="gray", ls="--", lw=0.5)]
-        labels = [f"every {black_every:g}" if black_every else "orbit", "impact"]
+        unit = (value_label.rsplit("[", 1)[1][:-1] if value_label.endswith("]") else "")
+        labels = [f"every {black_every:g} {unit}".rstrip() if black_every else "orbit",
+                  "impact"]
         ax.legend(handles, labels, loc="best")
         if title:
             ax.set_title(title)
@@ -79,7 +82,7 @@ def fixed_point_shift(values: Sequence[float], zeta_star: Sequence[float | None]
     vals = np.asarray(values, float)
     ok = np.array([z is not None for z in zeta_star])
     with style():
-        fig, ax = plt.subplots(figsize=(3.5, 2.6))
+        fig, ax = plt.subplots(figsize=(COLUMN, 2.6))
         if zeta0 is not None:
             grid = np.linspace(vals.min(), vals.max(), 200)
             ax.plot(grid, zeta0 + slope * grid, color="0.6", lw=0.8,

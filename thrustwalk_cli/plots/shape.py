@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from .limit_cycle import phase_portrait
-from .style import corner_note, style
+from .style import PAGE, black_step, corner_note, style
 
 YLABEL = {"alpha_dot": r"$\dot\alpha$ [rad/s]", "sigma": r"$\sigma_N$ [kg m$^2$/s]"}
 
@@ -49,7 +49,7 @@ def shape_portrait(values: Sequence[float] | None, labels: Sequence[str],
     """
     if values is not None:
         fig = phase_portrait(values, orbits, jumps, value_label=value_label, y=y,
-                             black_every=10.0, title=title, note=note)
+                             black_every=black_step(values), title=title, note=note)
         ax = fig.axes[0]
         with style():
             _knot_lines(ax, knots)
@@ -82,46 +82,59 @@ def shape_portrait(values: Sequence[float] | None, labels: Sequence[str],
     return fig
 
 
+DELTA_LABEL = {"alpha_dot": r"change of $\ddot\alpha$ [rad/s$^2$]",
+               "sigma": r"change of $\dot\sigma_N$ [N m]"}
+
+
 def vector_field_figure(fields: dict, nominal: dict, shaped: dict, knots: Sequence[float], *,
                         shaped_label: str, title: str = "", note: str = ""):
-    """Zero-dynamics vector field, nominal (left) vs shaped (right), limit cycles on top
-    (the paper's figure 5, k = 60). Rows: (alpha, alpha') and (alpha, sigma_N).
+    """Zero-dynamics vector field under shaping (the paper's figure 5, k = 60), two columns
+    wide. Left: the shaped field (grey streamlines) with the nominal (black) and shaped (red)
+    limit cycles. Right: what the thrust changes, the shaped minus the nominal field's
+    acceleration component (a diverging colour map with its colour bar; the velocity component
+    alpha' is the same in both), with both cycles and the knots. Rows: (alpha, alpha') and
+    (alpha, sigma_N).
 
     ``fields[plane] = (nominal VectorField, shaped VectorField)`` for plane "alpha_dot" and
-    "sigma"; streamlines (grey) follow the flow, each component scaled by the axis extent.
-    ``nominal[plane]`` / ``shaped[plane]``: (orbit dict or None, impact jump or None).
+    "sigma"; ``nominal[plane]`` / ``shaped[plane]``: (orbit dict or None, impact jump or None).
     """
     planes = [p for p in ("alpha_dot", "sigma") if p in fields]
     with style():
-        fig, axes = plt.subplots(len(planes), 2, figsize=(7.0, 2.6 * len(planes)),
+        fig, axes = plt.subplots(len(planes), 2, figsize=(PAGE, 2.5 * len(planes) + 0.4),
                                  squeeze=False, sharex=True)
         for r, plane in enumerate(planes):
-            for c, (vf, name) in enumerate(zip(fields[plane], ("nominal", shaped_label))):
-                ax = axes[r, c]
-                # normalise both components by the grid extent so arrows show directions
-                sa = np.ptp(vf.alpha) or 1.0
-                sy = np.ptp(vf.y) or 1.0
-                ax.streamplot(vf.alpha, vf.y, vf.d_alpha / sa, vf.d_y / sy, color="0.6",
-                              density=1.0, linewidth=0.5, arrowsize=0.6)
-                _cycle(ax, *nominal[plane], plane, "k", 1.0, "nominal cycle")
-                if c == 1:
-                    _cycle(ax, *shaped[plane], plane, "tab:red", 1.1,
-                           f"shaped cycle ({shaped_label})", zorder=4)
-                _knot_lines(ax, knots)
-                ax.set_xlim(vf.alpha.min(), vf.alpha.max())
-                ax.set_ylim(vf.y.min(), vf.y.max())
-                ax.set_ylabel(YLABEL[plane])
+            vn, vs = fields[plane]
+            ax, ad = axes[r, 0], axes[r, 1]
+            sa = np.ptp(vs.alpha) or 1.0
+            sy = np.ptp(vs.y) or 1.0
+            ax.streamplot(vs.alpha, vs.y, vs.d_alpha / sa, vs.d_y / sy, color="0.65",
+                          density=1.0, linewidth=0.5, arrowsize=0.6)
+            delta = vs.d_y - vn.d_y
+            lim = float(np.abs(delta).max()) or 1.0
+            mesh = ad.pcolormesh(vs.alpha, vs.y, delta, cmap="RdBu_r", vmin=-lim, vmax=lim,
+                                 shading="nearest", rasterized=True)
+            cb = fig.colorbar(mesh, ax=ad, pad=0.02)
+            cb.set_label(DELTA_LABEL[plane])
+            for a in (ax, ad):
+                _cycle(a, *nominal[plane], plane, "k", 1.0, "nominal cycle")
+                _cycle(a, *shaped[plane], plane, "tab:red", 1.1,
+                       f"shaped cycle ({shaped_label})", zorder=4)
+                _knot_lines(a, knots)
+                a.set_xlim(vs.alpha.min(), vs.alpha.max())
+                a.set_ylim(vs.y.min(), vs.y.max())
+                a.grid(False)
                 if r == len(planes) - 1:
-                    ax.set_xlabel(r"$\alpha$ [rad]")
-                if r == 0:
-                    ax.set_title(name)
-        # one legend for the figure (loc="best" over streamlines is very slow)
-        handles, labels = axes[0, 1].get_legend_handles_labels()
+                    a.set_xlabel(r"$\alpha$ [rad]")
+            ax.set_ylabel(YLABEL[plane])
+            if r == 0:
+                ax.set_title(f"shaped field ({shaped_label})")
+                ad.set_title("change made by the thrust (shaped minus nominal)")
+        handles, labels = axes[0, 0].get_legend_handles_labels()
         fig.legend(handles, labels, loc="lower center", ncol=len(labels),
                    bbox_to_anchor=(0.5, 0.0))
         if title:
             fig.suptitle(title)
         if note:
             fig.text(0.01, 0.005, note, fontsize=6, color="firebrick", va="bottom")
-        fig.tight_layout(rect=(0, 0.05, 1, 1))
+        fig.tight_layout(rect=(0, 0.06, 1, 1))
     return fig

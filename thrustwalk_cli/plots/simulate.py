@@ -9,7 +9,7 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 
-from .style import is_multiple, style
+from .style import COLUMN, black_step, is_multiple, style
 
 
 def _sweep_colors(values: list[float | None], black_every: float | None):
@@ -24,13 +24,21 @@ def _sweep_colors(values: list[float | None], black_every: float | None):
     return norm, cmap, colors
 
 
-def thrust_time(data: dict, *, black_every: float | None = 10.0, title: str = ""):
-    """F_T(t) of every run [N vs s] (the paper's slow-thruster figure): one line per F_ss,
-    black at multiples of ``black_every``, a colour bar for the sweep. Piecewise thrust: one
-    line per thruster, or the generalised force T [N m] in generalised mode."""
+def _black(data: dict, black_every: float | None | str) -> float | None:
+    if black_every == "auto":
+        return black_step([r["value"] for r in data["runs"]])
+    return black_every
+
+
+def thrust_time(data: dict, *, black_every: float | None | str = "auto", title: str = ""):
+    """F_T(t) of every run [N vs s] (the paper's slow-thruster figure 1): one line per F_ss,
+    coloured by it (colour bar), black at round values of a fine sweep (``black_every``:
+    ``"auto"`` picks it from the sweep's spacing). Piecewise thrust: one line per thruster, or
+    the generalised force T [N m] in generalised mode."""
     runs = data["runs"]
+    black_every = _black(data, black_every)
     with style():
-        fig, ax = plt.subplots(figsize=(3.5, 2.6))
+        fig, ax = plt.subplots(figsize=(COLUMN, 2.6))
         unit = "N"
         if data["kind"] == "piecewise" and data.get("generalized"):
             r = runs[0]
@@ -52,97 +60,128 @@ def thrust_time(data: dict, *, black_every: float | None = 10.0, title: str = ""
             sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
             cb = fig.colorbar(sm, ax=ax, pad=0.02)
             cb.set_label(r"$F_{ss}$ [N]")
-            handles = [matplotlib.lines.Line2D([], [], color="k", lw=0.9)]
-            labels = [f"every {black_every:g} N" if black_every else "run"]
+            handles, labels = [], []
+            if black_every:
+                handles.append(matplotlib.lines.Line2D([], [], color="k", lw=0.9))
+                labels.append(f"every {black_every:g} N")
             if any(r["failed"] for r in runs):
                 handles.append(matplotlib.lines.Line2D([], [], color="gray", ls=":", lw=0.7))
                 labels.append("run stopped (see simulation.json)")
-            ax.legend(handles, labels, loc="best")
+            if handles:
+                ax.legend(handles, labels, loc="best")
         driven = ", ".join(data["driven"]) or "schedule"
         ax.set_xlabel("time $t$ [s]")
         ax.set_ylabel(f"thrust $F_T$ ({driven}) [{unit}]" if unit == "N"
                       else f"schedule $T$ [{unit}]")
-        ax.set_title(title or f"thrust history ({data['kind']})")
+        if title:
+            ax.set_title(title)
         fig.tight_layout()
     return fig
 
 
-def phase_portrait(data: dict, *, black_every: float | None = 10.0, title: str = ""):
-    """alpha' vs alpha [rad/s vs rad] over all steps of every run (impacts dashed), with the
-    zero-dynamics limit cycle each run should converge to (grey dotted)."""
+def phase_portrait(data: dict, *, black_every: float | None | str = "auto", title: str = "",
+                   settled: int = 3):
+    """alpha' vs alpha [rad/s vs rad] of every run (the paper's figure 2): each run in the
+    colour of its F_ss (black at round values of a fine sweep), the transient faint and the
+    last ``settled`` steps solid, so the convergence shows; the zero-dynamics limit cycle of
+    each F_ss dashed in the same colour; impacts as thin lines."""
     runs = data["runs"]
+    black_every = _black(data, black_every)
     with style():
-        fig, ax = plt.subplots(figsize=(3.5, 2.7))
+        fig, ax = plt.subplots(figsize=(COLUMN, 2.9))
         norm, cmap, colors = _sweep_colors([r["value"] for r in runs], black_every)
         for r, col in zip(runs, colors):
+            steps = r["steps"]
+            n = len(steps)
             if r["predicted"] is not None:
-                ax.plot(r["predicted"]["alpha"], r["predicted"]["alpha_dot"], color="0.55",
-                        ls=":", lw=0.8, zorder=1)
+                ax.plot(r["predicted"]["alpha"], r["predicted"]["alpha_dot"], color=col,
+                        ls=(0, (3, 2)), lw=0.7, zorder=4)
             prev = None
-            for st in r["steps"]:
+            for k, st in enumerate(steps):
+                last = k >= n - settled
                 ax.plot(st["alpha"], st["alpha_dot"], color=col,
-                        lw=0.8 if col == "k" else 0.6, zorder=3 if col == "k" else 2)
-                if prev is not None:
+                        lw=0.9 if last else 0.5, alpha=1.0 if last else 0.18,
+                        zorder=3 if last else 1)
+                if prev is not None and last:
                     ax.plot([prev[0], st["alpha"][0]], [prev[1], st["alpha_dot"][0]],
-                            color=col, ls="--", lw=0.4, alpha=0.5, zorder=1)
+                            color=col, lw=0.4, alpha=0.6, zorder=2)
                 prev = (st["alpha"][-1], st["alpha_dot"][-1])
         if data["kind"] != "piecewise":
             sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
             cb = fig.colorbar(sm, ax=ax, pad=0.02)
             cb.set_label(r"$F_{ss}$ [N]")
-        handles = [matplotlib.lines.Line2D([], [], color="k", lw=0.8),
-                   matplotlib.lines.Line2D([], [], color="gray", ls="--", lw=0.4),
-                   matplotlib.lines.Line2D([], [], color="0.55", ls=":", lw=0.8)]
-        labels = [f"{data['model']} simulation", "impact", "zero-dynamics orbit at $F_{ss}$"]
-        ax.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=3,
-                  fontsize=6, handlelength=1.5, columnspacing=1.0)
+        handles = [matplotlib.lines.Line2D([], [], color="0.3", lw=0.5, alpha=0.3),
+                   matplotlib.lines.Line2D([], [], color="0.3", lw=0.9),
+                   matplotlib.lines.Line2D([], [], color="0.3", ls=(0, (3, 2)), lw=0.7)]
+        labels = ["transient", f"last {settled} steps", "zero-dynamics orbit"]
+        if black_every:
+            handles.append(matplotlib.lines.Line2D([], [], color="k", lw=0.9))
+            labels.append(f"every {black_every:g} N")
+        ax.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.2),
+                  ncol=len(labels), fontsize=6, handlelength=1.6, columnspacing=0.8)
         ax.set_xlabel(r"$\alpha$ [rad]")
         ax.set_ylabel(r"$\dot\alpha$ [rad/s]")
-        ax.set_title(title or "limit cycles under the thrust history")
+        if title:
+            ax.set_title(title)
         fig.tight_layout()
     return fig
 
 
-def animate(frames: dict, fps: float = 20.0) -> bytes:
-    """Stick-figure GIF of the walker [m] with thrust arrows (the largest thrust drawn 0.3 m
-    long; the scale is in the title); needs Pillow (a matplotlib dependency). Returns the
-    GIF bytes (rendered in memory, frame by frame, as matplotlib's PillowWriter does)."""
+ROLE_COLOURS = {"stance": "tab:blue", "swing": "tab:red", "body": "k"}
+
+
+def animate(frames: dict, fps: float = 20.0, width_px: int = 960) -> bytes:
+    """Stick-figure GIF of the walker [m], ``width_px`` wide (at least 800 px): the camera
+    follows the hip, stance-leg links blue, swing-leg links red, the body black, thrust arrows
+    (the largest thrust drawn 0.3 m long; the scale in the caption). Needs Pillow (a
+    matplotlib dependency). Returns the GIF bytes, rendered in memory frame by frame."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from PIL import Image
 
     links, pts, vec = frames["links"], frames["points"], frames["thrust"]
+    roles = frames.get("roles") or ["body"] * links.shape[1]
+    hip = frames.get("hip")
+    if hip is None:
+        hip = links[..., 0].mean(axis=(1, 2))[:, None] * np.array([1.0, 0.0])
     big = float(np.abs(vec).max()) if vec.size else 0.0
     scale = 0.3 / big if big > 0 else 0.0  # m per N
-    xs = np.concatenate([links[..., 0].ravel(), (pts[..., 0] + scale * vec[..., 0]).ravel()])
     ys = np.concatenate([links[..., 1].ravel(), (pts[..., 1] + scale * vec[..., 1]).ravel()])
+    rel = links[..., 0] - hip[:, None, None, 0]
+    half = max(float(np.abs(rel).max()) + 0.3, 0.8)  # half the window width [m]
+    dpi = 100
     with style():
-        fig, ax = plt.subplots(figsize=(5.0, 2.8))
+        fig, ax = plt.subplots(figsize=(width_px / dpi, 0.42 * width_px / dpi), dpi=dpi)
         ax.set_aspect("equal")
-        ax.set_xlim(xs.min() - 0.2, xs.max() + 0.2)
-        ax.set_ylim(min(ys.min(), 0.0) - 0.1, ys.max() + 0.2)
-        ax.axhline(0.0, color="0.3", lw=0.8)
+        y0, y1 = min(ys.min(), 0.0) - 0.1, ys.max() + 0.15
+        ax.set_ylim(y0, y1)
+        half = max(half, 0.5 * (y1 - y0) * 2.1)  # fill the wide frame (aspect about 2.4)
+        ax.axhline(0.0, color="0.3", lw=1.0)
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
-        lines = [ax.plot([], [], color="k", lw=1.6, solid_capstyle="round")[0]
-                 for _ in range(links.shape[1])]
+        lines = [ax.plot([], [], color=ROLE_COLOURS[role], lw=2.4, solid_capstyle="round",
+                         zorder=3)[0] for role in roles]
+        ticks = ax.plot([], [], "|", color="0.4", ms=6)[0]
         arrows = [ax.annotate("", xy=(0, 0), xytext=(0, 0),
-                              arrowprops={"arrowstyle": "->", "color": "tab:red", "lw": 1.2})
+                              arrowprops={"arrowstyle": "->", "color": "darkorange", "lw": 1.6})
                   for _ in range(pts.shape[1])]
-        label = ax.text(0.01, 0.97, "", transform=ax.transAxes, va="top", fontsize=7)
-        ax.set_title(f"{frames['title']} (thrust arrows: {100 * scale:.3g} cm per N)"
-                     if scale else frames["title"])
+        label = ax.text(0.01, 0.96, "", transform=ax.transAxes, va="top", fontsize=8)
+        caption = frames["title"] + (f"; thrust arrows {100 * scale:.3g} cm per N"
+                                     if scale else "")
+        ax.set_title(caption + "; stance leg blue, swing leg red", fontsize=8)
         fig.tight_layout()
 
         def draw(i):
+            cx = float(hip[i, 0])
+            ax.set_xlim(cx - half, cx + half)
+            marks = np.arange(np.floor(cx - half), np.ceil(cx + half) + 0.01, 0.25)
+            ticks.set_data(marks, np.zeros_like(marks))
             for ln, seg in zip(lines, links[i]):
                 ln.set_data(seg[:, 0], seg[:, 1])
             for ar, p, v in zip(arrows, pts[i], vec[i]):
                 ar.xy = (p[0] + scale * v[0], p[1] + scale * v[1])
                 ar.set_position((p[0], p[1]))
             label.set_text(f"t = {frames['t'][i]:.2f} s")
-            return lines + arrows + [label]
 
-        fig.set_dpi(80)
         canvas = FigureCanvasAgg(fig)
         images = []
         try:

@@ -208,6 +208,9 @@ class FeasibilityResult:
             "grf": grf_figure([c.profile for c in rep.cases], values,
                               value_label=self.scale_label, mu=self.mu, eps=self.eps,
                               swing=rep.swing, joint_names=joints,
+                              impacts=[{"impulse": c.impact_impulse,
+                                        "ratio": c.impact_friction_ratio if c.cycle.exists
+                                        else None} for c in rep.cases],
                               title=f"{w.name}: stance phase" if titles else ""),
             "feasible_region": region_figure(self.region, scale_label=self.scale_label,
                                              mu=self.mu, eps=self.eps, cases=self.case_points,

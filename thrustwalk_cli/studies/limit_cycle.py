@@ -90,7 +90,8 @@ class LimitCycleResult:
 
     def _verdict(self, lc: LimitCycle) -> tuple[str, bool]:
         if not lc.exists:
-            return f"no periodic orbit: {lc.reason}", False
+            return (lc.reason if lc.reason.startswith("no periodic orbit")
+                    else f"no periodic orbit: {lc.reason}"), False
         if not lc.stable:
             return lc.reason, False
         sw = self.walker.swing

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..design.problem import legs
 from ..errors import InputError
 from ..hzd.schedule import schedule_from_gait
 from ..hzd.zero_dynamics import Schedule, ZeroDynamics, limit_cycles, paper_one_step_shift
@@ -129,7 +130,7 @@ def run_entries(zd: ZeroDynamics, outcomes: list[Outcome], mu: float | None = No
             "reason": primary.reason,
             "status": run_status(primary.success, primary.failure, primary.reason, flags),
             "steps_completed": len(primary.steps),
-            "wall_time": primary.wall_time, "rhs_evaluations": primary.nfev,
+            "rhs_evaluations": primary.nfev,
             "predicted": {
                 "exists": lc.exists, "stable": lc.stable, "reason": lc.reason,
                 "zeta_star": lc.zeta_star, "sigma_minus": lc.sigma_minus,
@@ -144,7 +145,7 @@ def run_entries(zd: ZeroDynamics, outcomes: list[Outcome], mu: float | None = No
             "final_relative_error": ((last.zeta_minus - lc.zeta_star) / lc.zeta_star
                                      if last and lc.exists else None),
             "reduced": {"success": red.success, "reason": red.reason,
-                        "steps_completed": len(red.steps), "wall_time": red.wall_time,
+                        "steps_completed": len(red.steps),
                         "final_zeta_minus": red.steps[-1].zeta_minus if red.steps else None},
             "warnings": warn,
         })
@@ -343,8 +344,12 @@ def animation_frames(zd: ZeroDynamics, outcome: Outcome, fps: float = 20.0,
     pts = np.swapaxes(model.thruster_points(q), -1, -2) + off[:, None, :]
     dirs = np.swapaxes(model.thruster_dirs(q), -1, -2)
     vec = dirs * tr["F"][idx][:, :, None]
-    return {"t": t[idx], "links": lp, "points": pts, "thrust": vec,
-            "thruster_names": model.robot.thruster_names,
+    lg = legs(model)
+    roles = ["stance" if i in lg.stance else "swing" if i in lg.swing else "body"
+             for i in range(model.n)]
+    hip = lp[:, lg.hip, 0, :]  # the hip: origin of the first link past the stance leg
+    return {"t": t[idx], "links": lp, "points": pts, "thrust": vec, "roles": roles,
+            "hip": hip, "thruster_names": model.robot.thruster_names,
             "title": f"{model.robot.name} / {zd.gait.name}"
                      + (f", F_ss = {outcome.value:g} N" if outcome.value is not None else "")}
 

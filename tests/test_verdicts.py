@@ -1,0 +1,314 @@
+"""Verdicts a user can trust and outputs that fit their tools: a corpus of user mistakes with
+the exact first line of each message, invalid gaits never called good, the gait's own thrust
+used by default, plain CSV files, documents with units, tables that never split a number."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+GAIT = (REPO / "gaits" / "three_link_walk.yaml").read_text()
+
+
+def _write(tmp_path: Path, name: str, text: str) -> str:
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(text.replace("name: three_link_walk", f"name: {name}"))
+    return str(path)
+
+
+def _degrees(text: str) -> str:
+    """The gait as a user who typed degrees would write it."""
+    head, body = text.split("bezier:", 1)
+    body = re.sub(r"-?\d+\.\d+", lambda m: f"{math.degrees(float(m.group(0))):.2f}", body)
+    return head.replace("af: 0.2669080288119819", "af: 15.29") + "bezier:" + body
+
+
+def _line_of(path: str, key: str) -> int:
+    """1-based line of the first line that starts with ``key`` (after indentation)."""
+    for i, line in enumerate(Path(path).read_text().splitlines(), 1):
+        if line.strip().startswith(key):
+            return i
+    raise AssertionError(key)
+
+
+def _position_residual() -> float:
+    """max |a_0 - H_0 q^+| of NOT_INVARIANT, by hand: q^- from the last Bezier column and
+    alpha_f (q1 = theta_torso - theta_stance, q2 = theta_swing - theta_torso, q3 = theta_stance
+    = -alpha_f), then the legs swap their absolute angles and the torso keeps its own."""
+    q1, q2, q3 = 0.039547914228207505, 0.49426814341686387, -0.2669080288119819
+    th_stance, th_torso, th_swing = q3, q3 + q1, q3 + q1 + q2
+    q1p, q2p = th_torso - th_swing, th_stance - th_torso  # the new stance leg is the old swing
+    return max(abs(0.2 - q1p), abs(0.3 - q2p))
+
+
+NOT_INVARIANT = (GAIT.replace("invariance: auto", "invariance: given")
+                 .replace("[~, ~, -0.428", "[0.2, -0.1, -0.428")
+                 .replace("[~, ~, 0.1187", "[0.3, 0.2, 0.1187"))
+SCUFFING = GAIT.replace("0.2445021030062819, 0.4729868829529832",
+                        "0.1045021030062819, 0.3729868829529832")
+THRUSTED = GAIT + ("thrust:   # designed constant thrust [N]\n  mode: force\n  knots: [0, 1]\n"
+                   "  fractions: true\n  values: {hip_x: [-12.5], torso_back: [0.0]}\n")
+
+
+# ---------------------------------------------------------------------- the mistakes corpus
+def test_corpus_of_user_mistakes_first_lines(tmp_path, cli):
+    deg = _write(tmp_path, "degrees", _degrees(GAIT))
+    flip = _write(tmp_path, "flipped", GAIT.replace("c: {q3: -1}", "c: {q3: 1}"))
+    ni = _write(tmp_path, "not_invariant", NOT_INVARIANT)
+    cases = [
+        (["limit-cycle", "three_link", deg], 2,
+         f"error: {deg}:{_line_of(deg, 'final:')}: alpha.final: the swing foot is 0.004013 m "
+         "above the ground at impact; angles are in radians (15.29 > pi)"),
+        (["limit-cycle", "three_link", flip], 2,
+         f"error: {flip}:{_line_of(flip, 'final:')}: alpha.final: the swing foot is 0.2684 m "
+         "above the ground at impact: alpha_f = c q^- must be reached with the swing foot on "
+         "the ground (check the sign of alpha.c and alpha.final)"),
+        (["limit-cycle", "three_link", ni], 0,
+         f"warning: the gait is not hybrid-invariant (impact residuals: position "
+         f"{_position_residual():.3g} rad, velocity 3.79, tolerance 1e-08): after impact the "
+         "walker leaves the zero-dynamics manifold, so no zero-dynamics orbit is a walking "
+         "orbit; `invariance: auto` in the gait file computes columns 0 and 1 so that it is"),
+        (["limit-cycle", "rabbit", "three_link_walk"], 2,
+         f"error: {REPO / 'gaits' / 'three_link_walk.yaml'}:{_line_of(str(REPO / 'gaits' / 'three_link_walk.yaml'), 'robot:')}: "  # noqa: E501
+         "robot: gait 'three_link_walk' is for robot 'three_link', not 'rabbit'"),
+        (["limit-cycle", "--thrust", "0:-50:10"], 2,
+         "error: option --thrust: the step must be non-zero and point from start to stop "
+         "(got '0:-50:10'; use e.g. 0:-50:-10 or 0,-10)"),
+    ]
+    for args, code, first in cases:
+        res = cli(*args, "--out", tmp_path / "out", "-q")
+        assert res.exit_code == code, (args, res.output)
+        assert res.stderr.splitlines()[0] == first, (args, res.stderr)
+        assert "Traceback" not in res.output
+
+
+def test_degrees_below_the_ground_point_at_the_coefficient(tmp_path):
+    """A gait in degrees whose foot ends under the ground names the first value beyond pi."""
+    from thrustwalk_cli.errors import InputError
+    from thrustwalk_cli.walker import load_walker
+
+    text = _degrees(GAIT).replace("af: 15.29", "af: 0.2669080288119819")
+    path = _write(tmp_path, "deg2", text)
+    with pytest.raises(InputError) as exc:
+        load_walker("three_link", path)
+    msg = str(exc.value)
+    assert "bezier.coefficients.q1[2]" in msg and "angles are in radians (-24.55 > pi)" in msg
+
+
+# ------------------------------------------------------------------ never call invalid good
+def test_not_invariant_gait_has_no_walking_orbit_anywhere(tmp_path, cli):
+    ni = _write(tmp_path, "not_invariant", NOT_INVARIANT)
+    res = cli("limit-cycle", "three_link", ni, "--thrust", "0,-10", "--out", tmp_path / "lc",
+              "-q")
+    assert res.exit_code == 0
+    doc = json.loads((tmp_path / "lc" / "limit_cycles.json").read_text())
+    assert not doc["success"] and doc["zero_dynamics"]["hybrid_invariant"] is False
+    for c in doc["cycles"]:
+        assert not c["exists"] and not c["walkable"] and "invariance: auto" in c["reason"]
+    res = cli("feasibility", "three_link", ni, "--thrust", "0", "--out", tmp_path / "fe", "-q")
+    fe = json.loads((tmp_path / "fe" / "feasibility.json").read_text())
+    assert fe["verdict"] == "infeasible" and "hybrid-invariant" in fe["cases"][0]["reason"]
+
+
+def test_scuffing_is_part_of_every_verdict(tmp_path, cli):
+    sc = _write(tmp_path, "scuffing", SCUFFING)
+    cli("limit-cycle", "three_link", sc, "--thrust", "0", "--out", tmp_path / "lc", "-q")
+    lc = json.loads((tmp_path / "lc" / "limit_cycles.json").read_text())
+    c = lc["cycles"][0]
+    assert c["exists"] and c["stable"] and not c["walkable"]
+    assert c["verdict"].startswith("not walkable: the swing foot goes 1.494 mm below")
+    assert lc["swing_foot"]["scuffs"] and lc["swing_foot"]["deepest"] < -1e-3
+    cli("feasibility", "three_link", sc, "--thrust", "0", "--out", tmp_path / "fe", "-q")
+    fe = json.loads((tmp_path / "fe" / "feasibility.json").read_text())
+    assert not fe["cases"][0]["feasible"] and "scuffing" in fe["cases"][0]["reason"]
+    md = (tmp_path / "fe" / "feasibility.md").read_text()
+    assert "**Infeasible:** the swing foot goes" in md and "not part of the verdict" not in md
+
+
+def test_simulate_never_plain_ok_when_the_cone_is_left(tmp_path, cli):
+    res = cli("simulate", "--steps", "2", "--thrust", "0", "--thrust-model", "constant",
+              "--mu", "0.3", "--samples", "10", "--out", tmp_path, "-q")
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "simulation.json").read_text())
+    run = doc["runs"][0]
+    assert run["success"] and run["status"].startswith("ok (slips at steps 1-2")
+    assert "warning: run 0 (F_ss = 0.0): ok (slips at steps 1-2" in res.stderr
+    res = cli("simulate", "--steps", "2", "--thrust", "0", "--thrust-model", "constant",
+              "--samples", "10", "--out", tmp_path / "b", "-q")
+    assert json.loads((tmp_path / "b" / "simulation.json").read_text())["runs"][0][
+        "status"] == "ok"
+
+
+def test_animate_with_nothing_to_animate_writes_results_and_says_so(tmp_path, cli):
+    res = cli("simulate", "--reduced", "--steps", "1", "--thrust", "0", "--animate",
+              "--samples", "5", "--out", tmp_path, "-q")
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "simulation.json").exists() and not (tmp_path / "walker.gif").exists()
+    assert "warning: nothing to animate" in res.stderr
+
+
+# -------------------------------------------------------------- the gait's thrust by default
+def test_gait_thrust_is_the_default_everywhere(tmp_path, cli, walker3):
+    g = _write(tmp_path, "thrusted", THRUSTED)
+    res = cli("limit-cycle", "three_link", g, "--out", tmp_path / "lc")
+    assert "the gait's own thrust: schedule is analysed" in res.stderr
+    lc = json.loads((tmp_path / "lc" / "limit_cycles.json").read_text())
+    assert lc["source"] == "gait" and lc["thruster"] == "hip_x"
+    assert [c["thrust"] for c in lc["cycles"]] == [-12.5]
+    from thrustwalk_cli.studies.limit_cycle import limit_cycle
+
+    ref = limit_cycle(walker3, [-12.5]).cycles[0]  # the same thrust, given explicitly
+    assert lc["cycles"][0]["zeta_star"] == pytest.approx(ref.zeta_star, rel=1e-12)
+    cli("feasibility", "three_link", g, "--out", tmp_path / "fe", "-q")
+    fe = json.loads((tmp_path / "fe" / "feasibility.json").read_text())
+    assert fe["mode"] == "schedule" and fe["cases"][0]["thrust"]["values"] == {"hip_x": [-12.5]}
+    assert fe["cases"][0]["zeta_star"] == pytest.approx(ref.zeta_star, rel=1e-12)
+    res = cli("simulate", "three_link", g, "--steps", "2", "--samples", "10", "--out",
+              tmp_path / "si", "-q")
+    si = json.loads((tmp_path / "si" / "simulation.json").read_text())
+    assert si["settings"]["thrust_model"] == "piecewise"
+    assert si["steps"][0]["zeta_minus"] == pytest.approx(ref.zeta_star, rel=1e-7)
+    cli("shape", "three_link", g, "--k", "0,10", "--out", tmp_path / "sh", "-q")
+    sh = json.loads((tmp_path / "sh" / "shape.json").read_text())
+    assert sh["base_thrust"]["force"]["hip_x"] == -12.5
+    assert sh["nominal"]["zeta_star"] == pytest.approx(ref.zeta_star, rel=1e-9)
+    k0 = sh["schedules"][0]
+    assert k0["k"] == 0.0 and k0["zeta_star"]["shaped"] == pytest.approx(ref.zeta_star, rel=1e-9)
+    assert k0["shift"]["true_fixed_point_shift"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_robot_alone_picks_its_bundled_gait(tmp_path, cli):
+    res = cli("limit-cycle", "rabbit", "--thrust", "0", "--out", tmp_path, "-q")
+    assert res.exit_code == 0, res.output
+    assert json.loads((tmp_path / "limit_cycles.json").read_text())["gait"]["name"] == \
+        "rabbit_walk"
+
+
+# --------------------------------------------------------------------------- outputs that fit
+@pytest.fixture(scope="module")
+def outputs(tmp_path_factory, cli):
+    """One run of every command that writes files, into one folder per command."""
+    root = tmp_path_factory.mktemp("outputs")
+    runs = {
+        "limit_cycle": ["limit-cycle", "--thrust", "0,-20,40"],
+        "shape": ["shape", "--k", "0,20"],
+        "feasibility": ["feasibility", "--thrust", "0,-20"],
+        "optimize": ["optimize", "--target-zeta", "1500", "--knots", "0,0.5,1"],
+        "simulate": ["simulate", "--steps", "2", "--thrust", "0,-10", "--samples", "20"],
+    }
+    for name, args in runs.items():
+        res = cli(*args, "--out", root / name, "-q")
+        assert res.exit_code == 0, (name, res.output)
+    res = cli("inspect", "three_link", "--q", "0.1,0.2,-0.3", "--dq", "0,1,-1", "--json",
+              root / "inspect.json", "-q")
+    assert res.exit_code == 0, res.output
+    return root
+
+
+@pytest.mark.slow
+def test_every_csv_loads_with_pandas_and_numpy_without_options(outputs):
+    import pandas as pd
+
+    csvs = sorted(outputs.rglob("*.csv"))
+    assert len(csvs) >= 4
+    unit_suffix = re.compile(r"_(N|Nm|Ns|rad|rad_s|s|m|m_s|J|kg2m4_s2|kgm2_s)$")
+    for path in csvs:
+        frame = pd.read_csv(path)
+        arr = np.genfromtxt(path, names=True, delimiter=",", dtype=None, encoding="utf-8")
+        assert len(frame) == arr.shape[0] > 0, path.name
+        assert list(frame.columns) == path.read_text().splitlines()[0].split(","), path.name
+        named = [c for c in frame.columns if unit_suffix.search(c)]
+        assert named, (path.name, list(frame.columns))
+        doc = json.loads(next(path.parent.glob("*.json")).read_text())
+        assert doc["tables"][path.name]["columns"] == list(frame.columns)
+
+
+UNIT_WORDS = {"N", "m", "s", "rad", "kg", "J", "1"}
+
+
+@pytest.mark.slow
+def test_every_json_has_units_and_a_schema_version(outputs):
+    from thrustwalk_cli.studies.records import UNITS
+
+    canonical = set(UNITS.values())
+    docs = sorted(outputs.rglob("*.json"))
+    assert len(docs) >= 6
+    for path in docs:
+        doc = json.loads(path.read_text())
+        assert doc["schema_version"] == 1, path
+        assert doc["units"], path
+        for key, unit in doc["units"].items():
+            spelled = unit in canonical or set(re.findall(r"[A-Za-z]+", unit)) <= UNIT_WORDS
+            assert spelled and " / " not in unit and "per" not in unit, (path.name, key, unit)
+
+
+def test_json_to_stdout_is_the_document(tmp_path, cli):
+    res = cli("limit-cycle", "--thrust", "0", "--out", tmp_path, "--json", "-")
+    assert res.exit_code == 0
+    piped = json.loads(res.stdout)
+    written = json.loads((tmp_path / "limit_cycles.json").read_text())
+    assert piped == written
+
+
+def test_out_naming_a_file_is_one_line_exit_2(tmp_path, cli):
+    target = tmp_path / "taken"
+    target.write_text("x")
+    for cmd in (["limit-cycle"], ["feasibility"], ["simulate", "--steps", "1"]):
+        res = cli(*cmd, "--out", target, "-q")
+        assert res.exit_code == 2, (cmd, res.output)
+        assert res.stderr.strip() == f"error: option --out: {target} is a file, not a folder"
+    assert target.read_text() == "x"
+
+
+def test_max_output_refuses_huge_sweeps_before_any_work(tmp_path, cli):
+    res = cli("limit-cycle", "--thrust", "0:-99:-0.001", "--max-output", "100", "--out",
+              tmp_path, "-q")
+    assert res.exit_code == 2
+    assert res.stderr.startswith("error: option --max-output: 99001 thrust values make a CSV")
+    assert not list(tmp_path.iterdir())
+
+
+def test_tables_never_split_a_number(tmp_path, cli, monkeypatch):
+    """At a narrow terminal every number of the table is still whole on its line."""
+    monkeypatch.setenv("COLUMNS", "50")
+    res = cli("limit-cycle", "--thrust", "0,-12.345678,40", "--out", tmp_path)
+    assert res.exit_code == 0
+    doc = json.loads((tmp_path / "limit_cycles.json").read_text())
+    from thrustwalk_cli.studies.records import fmt
+
+    for c in doc["cycles"]:
+        for key in ("thrust", "zeta_star", "step_time", "speed"):
+            if c[key] is not None:
+                assert fmt(c[key]) in res.stdout, (key, fmt(c[key]))
+    assert "[kg^2 m^4/s^2]" in res.stdout  # headers carry units
+
+
+def test_progress_lines_when_standard_error_is_not_a_terminal(tmp_path, cli):
+    res = cli("simulate", "--steps", "2", "--thrust", "0", "--samples", "10", "--out", tmp_path)
+    lines = [ln for ln in res.stderr.splitlines() if ln.startswith("simulating steps:")]
+    assert [ln.split(" (")[0] for ln in lines] == ["simulating steps: 1/2",
+                                                    "simulating steps: 2/2"]
+    assert all("eta" in ln for ln in lines)
+
+
+def test_help_cites_no_internal_document_and_completion_is_on(cli):
+    from thrustwalk_cli.cli import COMMANDS
+
+    assert "--install-completion" in cli("--help").output
+    for module in COMMANDS:
+        name = module.__name__.rsplit(".", 1)[1].replace("_", "-")
+        text = cli(name, "--help").output
+        assert "SPEC" not in text, name
+
+
+def test_inspect_warns_on_angles_beyond_pi_and_prints_a_table(cli):
+    res = cli("inspect", "three_link", "--q", "0.1,4.0,-0.3")
+    assert res.exit_code == 0
+    assert "warning: q2 = 4 is beyond +-pi: angles are in radians" in res.stderr
+    assert "potential energy" in res.stdout and "[[" not in res.stdout
