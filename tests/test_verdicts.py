@@ -271,6 +271,9 @@ def test_max_output_refuses_huge_sweeps_before_any_work(tmp_path, cli):
               tmp_path, "-q")
     assert res.exit_code == 2
     assert res.stderr.startswith("error: option --max-output: 99001 thrust values make a CSV")
+    res = cli("shape", "--k", "0:99999:1", "--max-output", "10", "--out", tmp_path, "-q")
+    assert res.exit_code == 2
+    assert res.stderr.startswith("error: option --max-output: 100000 values of k make a CSV")
     assert not list(tmp_path.iterdir())
 
 

@@ -20,7 +20,16 @@ from .common import (
     warn,
     write_result,
 )
-from .options import FormatsOpt, GaitArg, JsonOpt, OutOpt, QuietOpt, RobotArg, TitlesOpt
+from .options import (
+    FormatsOpt,
+    GaitArg,
+    JsonOpt,
+    MaxOutputOpt,
+    OutOpt,
+    QuietOpt,
+    RobotArg,
+    TitlesOpt,
+)
 
 if TYPE_CHECKING:
     from ..studies.shape import ShapeRequest
@@ -62,7 +71,7 @@ def _number(text: str | None, option: str, unit: str) -> float | None:
 
 def run_shape(robot: str | None, gait: str | None, request: ShapeRequest, out: Path,
               quiet: bool, *, json: str | None = None, formats: set[str] | None = None,
-              titles: bool = False) -> dict:
+              titles: bool = False, max_output: float = 100.0) -> dict:
     """Plain function behind the command; returns the JSON document it wrote.
 
     Exit 1 (after writing shape.json with the reason) when no shape-only knots exist or a
@@ -73,7 +82,7 @@ def run_shape(robot: str | None, gait: str | None, request: ShapeRequest, out: P
 
     walker = load_walker(robot, gait)
     with progress("shaped limit cycles", schedule_count(walker, request), quiet) as advance:
-        result = shape(walker, request, progress=advance)
+        result = shape(walker, request, progress=advance, max_output=max_output * 1e6)
     if result.base is not None and not quiet:
         warn(["the gait has a constant thrust: the patterns are shaped around it and the "
               "nominal orbit is the gait's own"])
@@ -178,6 +187,7 @@ def register(app: typer.Typer) -> None:
         json: JsonOpt = None,
         formats: FormatsOpt = "csv,png,pdf",
         titles: TitlesOpt = False,
+        max_output: MaxOutputOpt = 100.0,
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
@@ -192,7 +202,8 @@ def register(app: typer.Typer) -> None:
                 target_zeta=_number(target_zeta, "--target-zeta", "kg^2 m^4/s^2"),
                 target_speed=_number(target_speed, "--target-speed", "m/s"))
             doc = run_shape(robot, gait, req, out, quiet, json=json,
-                            formats=parse_formats(formats), titles=titles)
+                            formats=parse_formats(formats), titles=titles,
+                            max_output=max_output)
             if not doc["success"]:
                 import sys
 

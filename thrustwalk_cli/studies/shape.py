@@ -263,12 +263,23 @@ def schedule_count(walker: Walker, req: ShapeRequest) -> int:
 
 
 def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
-          progress: Callable[[int], None] | None = None) -> ShapeStudy:
+          progress: Callable[[int], None] | None = None, max_output: float = 100e6
+          ) -> ShapeStudy:
     """Shape the limit cycle of ``walker`` (SPEC 4): resolve the schedule family, solve knots or
     targets, compute nominal and shaped limit cycles and the shifts. ``progress(n)`` is called
     as schedules finish. Problems in the gait's ``thrust:`` section are located in the gait
     file. Raises :class:`InputError` for bad parameters; solver failures come back as
-    ``success = False`` with a reason."""
+    ``success = False`` with a reason. ``max_output`` [bytes]: a sweep whose CSV table would
+    be larger is refused before any work."""
+    from .limit_cycle import ORBIT_SAMPLES, ROW_BYTES
+
+    n = len(req.ks) if req.ks is not None else 1
+    size = (n + 1) * (ORBIT_SAMPLES + 2) * ROW_BYTES
+    if size > max_output:
+        raise InputError.param("max_output", f"{n} values of k make a CSV table of about "
+                                             f"{size / 1e6:.0f} MB, above the limit of "
+                                             f"{max_output / 1e6:g} MB: sweep fewer values or "
+                                             "raise the limit")
     zd = walker.zd
     base = gait_base(walker)
     source, mode, th = resolve(zd, req, base)
