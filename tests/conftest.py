@@ -79,3 +79,20 @@ def _close_figures():
     import matplotlib.pyplot as plt
 
     plt.close("all")
+
+
+@pytest.fixture(scope="session")
+def cli_subprocess(_cache_dir):
+    """Run ``python -m thrustwalk_cli ARGS...`` in a fresh process (for what in-process runs
+    cannot show: tracebacks on stderr, signals, environment). Keyword arguments override
+    environment variables; returns the ``subprocess.CompletedProcess``."""
+    import subprocess
+    import sys
+
+    def run(args, timeout: float = 300, cwd=None, **env):
+        full = dict(os.environ)
+        full.update(env)
+        return subprocess.run([sys.executable, "-m", "thrustwalk_cli", *map(str, args)],
+                              capture_output=True, text=True, timeout=timeout, env=full,
+                              cwd=cwd)
+    return run

@@ -160,10 +160,10 @@ def test_gait_robot_mismatch_and_bad_gait(tmp_path, cli):
     bad = tmp_path / "g.yaml"
     bad.write_text(gait.replace("robot: three_link", f"robot: {REPO}/robots/three_link.yaml")
                    .replace("c: {q3: -1}", "c: {q1: 1}"))
-    res = cli("limit-cycle", "three_link", str(bad), "--out", str(tmp_path))
+    res = cli("limit-cycle", "three_link", str(bad), "--out", str(tmp_path / "out"))
     assert res.exit_code == 2 and "alpha.c" in res.output and "unactuated" in res.output
     bad.write_text(gait.replace("q1: [~, ~,", "q1: [0.1, ~,"))
-    res = cli("limit-cycle", "three_link", str(bad), "--out", str(tmp_path))
+    res = cli("limit-cycle", "three_link", str(bad), "--out", str(tmp_path / "out"))
     assert res.exit_code == 2 and "bezier.coefficients.q1[0]" in res.output
 
 

@@ -436,7 +436,7 @@ def test_cli_gait_thrust_errors_name_file_line(tmp_path, cli):
     gait = tmp_path / "g.yaml"
     gait.write_text(text + "thrust:\n  mode: generalized\n  knots: [0, 0.5, 1]\n"
                     "  values:\n    T: [1, 2, 3]\n")
-    res = cli("shape", "three_link", str(gait), "--out", str(tmp_path), "-q")
+    res = cli("shape", "three_link", str(gait), "--out", str(tmp_path / "out"), "-q")
     assert res.exit_code == 2, res.output
     line = _one_error_line(res)
     assert re.match(rf"error: {re.escape(str(gait))}:\d+: thrust\.values\.T: expected 2 values",

@@ -369,13 +369,13 @@ def test_cli_falling_walker_exit_0_with_reason(tmp_path, cli):
 
 @pytest.mark.slow
 def test_cli_reduced_preview_and_npz(tmp_path, cli):
-    res = cli("simulate", "--reduced", "--steps", "2", "--thrust", "0",
-                              "--samples", "10001", "--quiet", "--out", str(tmp_path))
+    res = cli("simulate", "--reduced", "--steps", "3", "--thrust", "0",
+              "--samples", "7001", "--quiet", "--out", str(tmp_path))
     assert res.exit_code == 0, res.output
     doc = json.loads((tmp_path / "simulation.json").read_text())
     assert doc["trajectory_file"] == "trajectory.npz" and doc["steps"][0]["model"] == "reduced"
     data = np.load(tmp_path / "trajectory.npz")
-    assert data["t_s"].size == 20002
+    assert data["t_s"].size == 21003
     assert {"alpha_rad", "sigma_kgm2_s", "thrust_hip_x_N"} <= set(data.files)
 
 

@@ -21,7 +21,7 @@ from .contact.terms import scuff_reason, swing_clearance
 from .description.gait import Gait
 from .description.robot import Robot
 from .errors import InputError, Where
-from .files.bundled import bundled_names
+from .files.bundled import bundled_names, resolve
 from .files.gait_file import GaitSource, bind_gait, load_gait, same_robot_file
 from .files.robot_file import load_robot
 from .hzd.constraints import apply_invariance, gait_maps
@@ -89,6 +89,11 @@ def check_impact_posture(model: CompiledModel, gait: Gait, source: GaitSource) -
     a gait written in degrees, or with the wrong sign of alpha, puts it under or above the
     ground. Raises :class:`InputError` at the gait file's line."""
     maps = gait_maps(model, gait)
+    if not abs(maps.span) > 1e-6:
+        raise InputError(source.where(("alpha", "c"), (
+            f"alpha does not change over the step (alpha_i = {maps.alpha_i:.6g}, alpha_f = "
+            f"{maps.alpha_f:.6g} rad): choose c so that alpha = c q runs monotonically from "
+            "the post-impact to the pre-impact posture")))
     h = float(model.p_swing(maps.q_minus)[1])
     if abs(h) <= FOOT_TOL:
         return
@@ -133,6 +138,10 @@ def load_walker(robot: str | None = None, gait: str | None = None) -> Walker:
                 raise InputError(source.where(("robot",), f"gait '{g.name}' is for robot "
                                                           f"'{own}', not '{rob.name}'"))
     else:
+        try:
+            resolve(g.robot, "robots")
+        except InputError as exc:  # name the gait file's line: that is where to fix it
+            raise InputError(source.where(("robot",), str(exc))) from None
         rob = load_robot(g.robot)
     g = bind_gait(g, source, rob)
     model = load_model(rob)

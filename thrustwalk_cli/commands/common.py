@@ -87,12 +87,35 @@ def render_problem(p: Problem, flags: dict[str, str]) -> str:
     return str(replace(p, message=msg))
 
 
+LARGEST = 1e9  # a number option beyond this (in SI units) is a typo, not a request
+
+
+def check_numbers(ctx: typer.Context | None) -> None:
+    """Every number option of the command is finite and sane: ``nan``, ``inf`` and values
+    beyond ``LARGEST`` are refused with the option's name before any work."""
+    if ctx is None:
+        return
+    names = flags(ctx)
+    for name, value in ctx.params.items():
+        if isinstance(value, float) and not (abs(value) <= LARGEST):
+            raise InputError(f"option {names.get(name, name)}: {value:g} is not a usable "
+                             f"number (finite, at most {LARGEST:g} in size)")
+
+
 @contextlib.contextmanager
 def cli_errors(ctx: typer.Context | None = None) -> Iterator[None]:
-    """Bad input -> one line per problem on stderr, exit 2; tool failure -> exit 1.
-    ``ctx``: the running command, whose flags name the parameters in messages."""
+    """Bad input -> one line per problem on stderr, exit 2; a failed computation or an
+    environment problem (a file that cannot be written) -> one line, exit 1; never a traceback
+    (set THRUSTWALK_DEBUG=1 to see one for an unexpected error). ``ctx``: the running command,
+    whose flags name the parameters in messages."""
+    import os
+    import warnings
+
     try:
-        yield
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # overflow etc. are checked
+            check_numbers(ctx)
+            yield
     except InputError as exc:
         names = flags(ctx)
         for p in exc.problems:
@@ -101,6 +124,24 @@ def cli_errors(ctx: typer.Context | None = None) -> Iterator[None]:
     except ComputationError as exc:
         sys.stderr.write(f"error: computation failed: {exc}\n")
         raise typer.Exit(1) from None
+    except (typer.Exit, typer.Abort):
+        raise
+    except KeyboardInterrupt:
+        sys.stderr.write("error: interrupted\n")
+        raise typer.Exit(130) from None
+    except OSError as exc:
+        what = exc.filename if exc.filename else ""
+        sys.stderr.write(f"error: {what + ': ' if what else ''}{exc.strerror or exc}\n")
+        raise typer.Exit(1) from None
+    except Exception as exc:
+        if os.environ.get("THRUSTWALK_DEBUG"):
+            raise
+        sys.stderr.write(f"error: internal error ({type(exc).__name__}: {exc}); please report "
+                         "it with the command line (THRUSTWALK_DEBUG=1 shows the traceback)\n")
+        raise typer.Exit(1) from None
+
+
+MAX_VALUES = 10_000  # values in one sweep option
 
 
 def parse_values(text: str, option: str, unit: str = "") -> list[float]:
@@ -120,19 +161,23 @@ def parse_values(text: str, option: str, unit: str = "") -> list[float]:
             if len(parts) != 3:
                 raise bad("a range has the form start:stop:step")
             start, stop, step = parts
+            if not all(abs(v) <= LARGEST for v in parts):
+                raise bad(f"values must be finite and at most {LARGEST:g} in size")
             if step == 0 or (stop - start) * step < 0:
                 raise bad("the step must be non-zero and point from start to stop")
             count = int(abs((stop - start) / step) + 1e-9) + 1
-            if count > 100000:
-                raise bad("more than 100000 values")
+            if count > MAX_VALUES:
+                raise bad(f"{count} values: the limit is {MAX_VALUES}")
             return [start + i * step for i in range(count)]
         values = [float(p) for p in text.split(",") if p.strip()]
     except ValueError:
         raise bad("not a number, list or range") from None
     if not values:
         raise bad("no values")
-    if any(v != v or v in (float("inf"), float("-inf")) for v in values):
-        raise bad("values must be finite")
+    if len(values) > MAX_VALUES:
+        raise bad(f"{len(values)} values: the limit is {MAX_VALUES}")
+    if not all(abs(v) <= LARGEST for v in values):
+        raise bad(f"values must be finite and at most {LARGEST:g} in size")
     return values
 
 
@@ -180,14 +225,26 @@ def load_walker(robot: str | None, gait: str | None):
     from ..walker import load_walker as _load
 
     walker = _load(robot, gait)
+    warn(walker.model.notes)
     warn(walker.warnings)
     return walker
 
 
-def check_out(out: Path) -> None:
-    """An output folder must be a folder (or not exist yet)."""
-    if out.exists() and not out.is_dir():
-        raise InputError.param("out", f"{out} is a file, not a folder")
+def load_model(robot: str, rebuild: bool = False):
+    """:func:`thrustwalk_cli.studies.compile.compile_robot`, with cache notes printed."""
+    from ..studies.compile import compile_robot
+
+    model = compile_robot(robot, rebuild)
+    warn(model.notes)
+    return model
+
+
+def check_out(out: Path, *, whole: bool = True) -> None:
+    """Check the output folder before any work (:func:`thrustwalk_cli.files.output.check_target`;
+    ``whole``: the command replaces the folder as a whole)."""
+    from ..files.output import check_target
+
+    check_target(out, whole=whole)
 
 
 @contextlib.contextmanager
@@ -227,38 +284,45 @@ def progress(description: str, total: int, quiet: bool) -> Iterator:
 
 
 def write_result(result, out: Path, provenance: dict, *, json: str | None = None,
-                 formats: set[str] | None = None, titles: bool = False) -> dict:
-    """Write a study result into the folder ``out``: ``<name>.json`` (provenance first), its
-    CSV tables, its attachments and its figures (PNG and PDF), each kind only when in
-    ``formats`` (default: all), every file atomically; with ``json`` also the document to that
-    path, or to standard output for ``-``. Returns the JSON document written."""
+                 formats: set[str] | None = None, titles: bool = False,
+                 extra: dict[str, bytes] | None = None) -> dict:
+    """Write a study result as the folder ``out``, as a whole (a killed run leaves the previous
+    folder or none, never a mix): ``<name>.json`` (provenance first), its CSV tables, its
+    attachments, ``extra`` files and its figures (PNG and PDF), each kind only when in
+    ``formats`` (default: all); with ``json`` also the document to that path, or to standard
+    output for ``-``. Returns the JSON document written."""
     import json as _json
 
     from ..files import output
 
-    check_out(out)
     kinds = {"csv", "png", "pdf", "md", "yaml", "npz", "gif"} if formats is None else formats
-    tables = result.tables() if "csv" in kinds else {}
-    doc = {"provenance": provenance, **result.document()}
-    if tables:
-        doc["tables"] = {f"{name}.csv": {"columns": t.header, "notes": t.comments}
-                         for name, t in tables.items()}
-    out.mkdir(parents=True, exist_ok=True)
-    output.write_json(out / f"{result.name}.json", doc)
-    for name, t in tables.items():
-        output.write_csv(out / f"{name}.csv", t.header, t.rows)
-    attach = getattr(result, "attachments", None)
-    for name, data in (attach(doc) if attach else {}).items():
-        needs = {"md": "md", "npz": "csv"}.get(name.rsplit(".", 1)[-1])
-        if needs and needs not in kinds:
-            continue
-        if isinstance(data, bytes):
-            output.write_bytes_atomic(out / name, data)
-        else:
-            output.write_text_atomic(out / name, data)
-    figure_kinds = [k for k in ("png", "pdf") if k in kinds]
-    if figure_kinds:
-        save_figures(result.figures(titles=titles), out, figure_kinds)
+    folder = output.ResultFolder(out)
+    try:
+        tables = result.tables() if "csv" in kinds else {}
+        doc = {"provenance": provenance, **result.document()}
+        if tables:
+            doc["tables"] = {f"{name}.csv": {"columns": t.header, "notes": t.comments}
+                             for name, t in tables.items()}
+        output.write_json(folder.path(f"{result.name}.json"), doc)
+        for name, t in tables.items():
+            output.write_csv(folder.path(f"{name}.csv"), t.header, t.rows)
+        attach = getattr(result, "attachments", None)
+        files = {**(attach(doc) if attach else {}), **(extra or {})}
+        for name, data in files.items():
+            needs = {"md": "md", "npz": "csv"}.get(name.rsplit(".", 1)[-1])
+            if needs and needs not in kinds:
+                continue
+            if isinstance(data, bytes):
+                output.write_bytes_atomic(folder.path(name), data)
+            else:
+                output.write_text_atomic(folder.path(name), data)
+        figure_kinds = [k for k in ("png", "pdf") if k in kinds]
+        if figure_kinds:
+            save_figures(result.figures(titles=titles), folder.tmp, figure_kinds)
+        folder.commit(provenance)
+    except BaseException:
+        folder.abort()
+        raise
     if json == "-":
         sys.stdout.write(_json.dumps(output.jsonable(doc), indent=2) + "\n")
     elif json:

@@ -19,9 +19,9 @@ EPILOG = "Example: thrustwalk compile rabbit --rebuild"
 
 
 def run_compile(robot: str, rebuild: bool = False) -> dict:
-    from ..studies.compile import compile_robot
+    from .common import load_model
 
-    return compile_robot(robot, rebuild).summary()
+    return load_model(robot, rebuild).summary()
 
 
 def register(app: typer.Typer) -> None:

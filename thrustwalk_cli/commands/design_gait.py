@@ -81,15 +81,14 @@ def run_design_gait(robot: str, out: Path, *, speed: float | None, step_length: 
     whether the gait file was written)."""
     from ..design.spec import DesignSpec
     from ..files import output
-    from ..studies.compile import compile_robot
     from ..studies.design_gait import design_gait, reload_check, robot_reference
-    from .common import check_out, load_walker
+    from .common import check_out, load_model, load_walker
 
-    check_out(out)
+    check_out(out, whole=False)
     if out.suffix in (".yaml", ".yml"):
         raise InputError(f"option --out: a folder is expected (the gait goes to "
                          f"DIR/NAME.yaml, NAME from --name), got {out}")
-    model = compile_robot(robot)
+    model = load_model(robot)
     rob = model.robot
     gait_name = name or f"{rob.name}_designed"
     if not gait_name.replace("_", "").replace("-", "").isalnum():

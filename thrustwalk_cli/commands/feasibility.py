@@ -8,6 +8,7 @@ from typing import Annotated
 import typer
 
 from .common import (
+    check_out,
     cli_errors,
     console,
     load_walker,
@@ -61,6 +62,7 @@ def run_feasibility(robot: str | None, gait: str | None, *, thrust: list[float] 
     from ..files.output import provenance
     from ..studies.feasibility import feasibility
 
+    check_out(out)
     walker = load_walker(robot, gait)
     result = feasibility(walker, thrust, schedule=schedule, thruster=thruster, mu=mu,
                          min_vertical_force=min_vertical_force, degree=degree, fit_tol=fit_tol)

@@ -87,11 +87,10 @@ def register(app: typer.Typer) -> None:
         with cli_errors(ctx):
             if not q:
                 raise InputError("option --q: required (one angle per coordinate, in rad)")
-            from ..studies.compile import compile_robot
             from ..studies.inspect import inspect_state
-            from .common import warn
+            from .common import load_model, warn
 
-            model = compile_robot(robot)
+            model = load_model(robot)
             doc = inspect_state(model, q, dq, thrust)
             warn(doc["warnings"])
             if json_file is not None:

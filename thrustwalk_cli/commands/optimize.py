@@ -8,6 +8,7 @@ from typing import Annotated
 import typer
 
 from .common import (
+    check_out,
     cli_errors,
     console,
     load_walker,
@@ -58,6 +59,7 @@ def run_optimize(robot: str | None, gait: str | None, *, knots: list[float | Non
     from ..files.output import provenance
     from ..studies.optimize import optimize_schedule
 
+    check_out(out)
     walker = load_walker(robot, gait)
     result = optimize_schedule(
         walker, knots=knots, target_zeta=target_zeta, target_speed=target_speed,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -33,6 +34,10 @@ def register(app: typer.Typer) -> None:
 
             if not folder.is_dir():
                 raise InputError(f"{folder}: not a folder")
-            output.write_text_atomic(folder / "index.md", build_index(folder, title))
+            problems: list[str] = []
+            text = build_index(folder, title, problems)
+            for line in problems:
+                sys.stderr.write(f"warning: {line}\n")
+            output.write_text_atomic(folder / "index.md", text)
             if not quiet:
                 console().print(f"wrote {folder / 'index.md'}")

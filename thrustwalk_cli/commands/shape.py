@@ -9,6 +9,7 @@ import typer
 
 from ..errors import InputError
 from .common import (
+    check_out,
     cli_errors,
     console,
     load_walker,
@@ -80,6 +81,7 @@ def run_shape(robot: str | None, gait: str | None, request: ShapeRequest, out: P
     from ..files.output import provenance
     from ..studies.shape import schedule_count, shape
 
+    check_out(out)
     walker = load_walker(robot, gait)
     with progress("shaped limit cycles", schedule_count(walker, request), quiet) as advance:
         result = shape(walker, request, progress=advance, max_output=max_output * 1e6)

@@ -9,6 +9,7 @@ from typing import Annotated
 import typer
 
 from .common import (
+    check_out,
     cli_errors,
     console,
     load_walker,
@@ -74,6 +75,7 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
 
     values = _floats(thrust, "--thrust")
     q, dq = _floats(q0, "--q0"), _floats(dq0, "--dq0")
+    check_out(out)
     walker = load_walker(robot, gait)
     gait_schedule = thrust_model is None and values is None and walker.gait.thrust is not None
     if gait_schedule and not quiet:
@@ -88,18 +90,19 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
             start=start_orbit, torque_limit=torque_limit, rtol=rtol, atol=atol,
             method=method, samples=samples, scuff_tol=scuff_tol, reduced=reduced, mu=mu,
             progress=advance)
-    doc = write_result(result, out, output.provenance(walker.robot, walker.gait), json=json,
-                       formats=formats, titles=titles)
-    for r in doc["runs"]:
-        if r["status"] != "ok":
-            warn([f"run {r['run']} (F_ss = {r['f_ss']}): {r['status']}"] + r["warnings"])
+    extra = {}
     if animate:
         gif = result.animation()
         if gif is None:
             warn(["nothing to animate: no full-order run has samples (every run failed at "
                   "its start, or --reduced)"])
         else:
-            output.write_bytes_atomic(out / "walker.gif", gif)
+            extra["walker.gif"] = gif
+    doc = write_result(result, out, output.provenance(walker.robot, walker.gait), json=json,
+                       formats=formats, titles=titles, extra=extra)
+    for r in doc["runs"]:
+        if r["status"] != "ok":
+            warn([f"run {r['run']} (F_ss = {r['f_ss']}): {r['status']}"] + r["warnings"])
     if not quiet and json != "-":
         _table(doc)
         console().print(f"wrote {out}/simulation.json, steps.csv, {doc['trajectory_file']} "

@@ -34,6 +34,9 @@ from .schema import (
 from .yamlio import format_path, load_yaml, load_yaml_text
 
 # ------------------------------------------------------------------------------ gait schema
+MAX_BEZIER_ORDER = 20  # columns M + 1 <= 21; design-gait itself stays at 3..12
+MAX_KNOTS = 256  # thrust-schedule intervals
+
 GAIT_SCHEMA = mapping(
     field("name", string(), "gait name"),
     field("description", string(nonempty=False), "free text (how the gait was made)",
@@ -49,7 +52,8 @@ GAIT_SCHEMA = mapping(
         field("invariance", choice("auto", "given"), "auto: columns 0 and 1 are computed for "
               "hybrid invariance (write them as ~); given: all columns as written",
               default="auto"),
-        field("coefficients", dict_of(list_of(null_or(number("rad")), min_len=4),
+        field("coefficients", dict_of(list_of(null_or(number("rad")), min_len=4,
+                                              max_len=MAX_BEZIER_ORDER + 1),
                                       key_name="coordinate"),
               "one row of M+1 values per actuated coordinate: column 0 at s = 0 (after "
               "impact) ... column M at s = 1 (before impact)"),
@@ -62,10 +66,11 @@ GAIT_SCHEMA = mapping(
     field("thrust", null_or(mapping(
         field("mode", choice("force", "generalized"), "force: newtons per thruster; "
               "generalized: T_j on q_N in N m", default="force"),
-        field("knots", vector(min_len=2), "knots as fractions of the step (0 ... 1) or alpha "
-              "values (see `fractions`)"),
+        field("knots", vector(min_len=2, max_len=MAX_KNOTS + 1),
+              "knots as fractions of the step (0 ... 1) or alpha values (see `fractions`)"),
         field("fractions", boolean(), "knots are fractions of the step", default=True),
-        field("values", dict_of(vector(unit="N or N m"), key_name="thruster"),
+        field("values", dict_of(vector(unit="N or N m", max_len=MAX_KNOTS),
+                                key_name="thruster"),
               "per thruster (force mode) or `T` (generalized mode): one value per interval"),
     )), "optional piecewise-constant thrust schedule (SPEC 4)", default=None),
 )
@@ -161,7 +166,7 @@ def bind_gait(gait: Gait, source: GaitSource, robot: Robot) -> Gait:
             problems.append(res.problem(("alpha", "c", k), f"unknown coordinate '{k}' "
                                         f"(robot {robot.name} has: {', '.join(names)})"))
     c = np.array([source.c.get(nm, 0.0) for nm in names], float)
-    if c[-1] == 0.0:
+    if not abs(c[-1]) > 1e-9 * max(1.0, float(np.abs(c).max())):
         problems.append(res.problem(("alpha", "c"), f"alpha must depend on the unactuated "
                                     f"coordinate '{names[-1]}' (H = [H_0; c] is singular)"))
     for k in source.rows:

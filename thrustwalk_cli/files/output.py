@@ -1,21 +1,33 @@
-"""Result files: atomic writes (temp file, then rename), provenance, NaN-free JSON."""
+"""Result files: atomic writes, result folders written as a whole, provenance, NaN-free JSON.
+
+A single file is written to a temporary name and renamed over the target. A command's result
+folder is written as a whole (:class:`ResultFolder`): every file goes into a fresh temporary
+folder beside the target, a manifest (``.thrustwalk-run.json``: the command and the SHA-256
+of every file) is written last, and the folder is swapped in at the end. A killed run or a full
+disk therefore leaves the previous folder (or none), never a folder that mixes two runs;
+temporaries of dead runs are removed by the next run.
+"""
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import io
 import json
 import math
 import os
 import platform
 import shlex
+import shutil
 import sys
 import tempfile
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
 from .._version import __version__
+from ..errors import ComputationError, InputError
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
@@ -41,17 +53,164 @@ def write_text_atomic(path: Path, text: str) -> Path:
     return write_bytes_atomic(path, text.encode())
 
 
-def jsonable(obj: Any) -> Any:
-    """Plain JSON values: numpy scalars/arrays to Python, non-finite floats refused."""
+MANIFEST = ".thrustwalk-run.json"
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def clean_stale(target: Path) -> list[Path]:
+    """Remove the temporaries that runs killed while writing ``target`` left beside it
+    (``.NAME.tmp-PID-*`` and ``.NAME.old-PID-*`` of processes that no longer exist)."""
+    removed = []
+    parent = target.parent
+    if not parent.is_dir():
+        return removed
+    for p in parent.glob(f".{target.name}.*-*-*"):
+        kind, _, rest = p.name[len(target.name) + 2:].partition("-")
+        pid = rest.split("-", 1)[0]
+        if kind in ("tmp", "old") and pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
+            removed.append(p)
+    return removed
+
+
+def written_by_thrustwalk(folder: Path) -> bool:
+    """A result folder thrustwalk wrote: it has a manifest, or (written before manifests
+    existed) a JSON result whose ``provenance.tool`` is ``thrustwalk``."""
+    if (folder / MANIFEST).is_file():
+        return True
+    for p in folder.glob("*.json"):
+        try:
+            if p.stat().st_size > 50e6:
+                continue
+            doc = json.loads(p.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        if isinstance(doc, dict) and isinstance(doc.get("provenance"), dict) and \
+                doc["provenance"].get("tool") == "thrustwalk":
+            return True
+    return False
+
+
+def check_target(target: Path, *, whole: bool) -> None:
+    """Refuse an output folder that cannot work, before any computation: an existing file, a
+    path under a file, a read-only place, and (``whole``: a result folder replaced as a whole)
+    a non-empty folder that thrustwalk did not write. :class:`InputError` on ``out``."""
+    t = Path(target)
+    if t.exists() and not t.is_dir():
+        raise InputError.param("out", f"{t} is a file, not a folder")
+    for anc in t.parents:
+        if anc.exists():
+            if not anc.is_dir():
+                raise InputError.param("out", f"cannot create {t}: {anc} is a file")
+            break
+    else:  # pragma: no cover - relative paths always reach '.'
+        anc = Path(".")
+    place = t if t.is_dir() else anc
+    if not os.access(place, os.W_OK | os.X_OK):
+        raise InputError.param("out", f"cannot write in {place}: permission denied or a "
+                                      "read-only file system")
+    if whole and t.is_dir() and any(t.iterdir()) and not written_by_thrustwalk(t):
+        raise InputError.param("out", f"{t} is a folder with files that thrustwalk did not "
+                                      "write; give a new or empty folder (its contents "
+                                      "would be replaced)")
+
+
+@contextlib.contextmanager
+def _folder_lock(folder: Path) -> Iterator[None]:
+    """An exclusive advisory lock on ``folder`` (``flock`` on the folder itself: no lock file
+    is left behind). Serialises the swap of two runs writing the same target; a no-op where
+    ``fcntl`` does not exist (Windows)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows
+        yield
+        return
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # closing releases the lock
+
+
+class ResultFolder:
+    """One run's result folder, written as a whole (see the module docstring).
+
+    ``folder = ResultFolder(target)`` checks the target (an existing file, a non-empty folder
+    that thrustwalk did not write, or a path that cannot be created is an :class:`InputError`
+    on the parameter ``out``), ``folder.path(name)`` is where to write each file, and
+    ``folder.commit(provenance)`` writes the manifest and swaps the folder in;
+    ``folder.abort()`` discards everything."""
+
+    def __init__(self, target: Path):
+        self.target = Path(target)
+        t = self.target
+        check_target(t, whole=True)
+        try:
+            t.parent.mkdir(parents=True, exist_ok=True)
+        except (FileExistsError, NotADirectoryError):
+            raise InputError.param("out", f"cannot create {t}: a part of the path is a "
+                                          "file") from None
+        clean_stale(t)
+        self.tmp = Path(tempfile.mkdtemp(prefix=f".{t.name}.tmp-{os.getpid()}-",
+                                         dir=t.parent))
+        os.chmod(self.tmp, 0o777 & ~_UMASK)
+
+    def path(self, name: str) -> Path:
+        return self.tmp / name
+
+    def commit(self, provenance: dict | None = None) -> Path:
+        """Write the manifest last, then swap the folder in (the old one, if any, is moved
+        aside and removed)."""
+        files = {p.relative_to(self.tmp).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+                 for p in sorted(self.tmp.rglob("*")) if p.is_file()}
+        manifest = {"tool": "thrustwalk", "version": __version__, "files": files}
+        if provenance is not None:
+            manifest["command"] = provenance.get("command")
+        write_json(self.tmp / MANIFEST, manifest)
+        with _folder_lock(self.target.parent):  # two runs writing the same target
+            old = None
+            if self.target.exists():
+                old = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.old-{os.getpid()}-",
+                                            dir=self.target.parent))
+                os.rename(self.target, old / "run")
+            try:
+                os.rename(self.tmp, self.target)
+            except OSError:
+                if old is not None:  # put the previous run back
+                    os.rename(old / "run", self.target)
+                    shutil.rmtree(old, ignore_errors=True)
+                raise
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+        return self.target
+
+    def abort(self) -> None:
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+
+def jsonable(obj: Any, path: str = "") -> Any:
+    """Plain JSON values: numpy scalars/arrays to Python. A non-finite float is a
+    :class:`ComputationError` naming its key path (results never hold NaN or infinity)."""
     if isinstance(obj, dict):
-        return {str(k): jsonable(v) for k, v in obj.items()}
+        return {str(k): jsonable(v, f"{path}.{k}" if path else str(k)) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [jsonable(v) for v in obj]
+        return [jsonable(v, f"{path}[{i}]") for i, v in enumerate(obj)]
     if hasattr(obj, "tolist") and not isinstance(obj, (str, bytes)):
-        return jsonable(obj.tolist())
+        return jsonable(obj.tolist(), path)
     if isinstance(obj, float):
         if not math.isfinite(obj):
-            raise ValueError("refusing to write a non-finite number to JSON")
+            raise ComputationError(f"the result {path or 'value'} is {obj} (an overflow: are the "
+                                   "inputs physically sensible?)")
         return obj
     if obj is None or isinstance(obj, (bool, int, str)):
         return obj
@@ -76,7 +235,8 @@ def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) 
             return "true" if v else "false"
         if isinstance(v, float):
             if not math.isfinite(v):
-                raise ValueError("refusing to write a non-finite number to CSV")
+                raise ComputationError(f"a non-finite number ({v}) in the table {path.name} (an "
+                                       "overflow: are the inputs physically sensible?)")
             return repr(v)
         return str(v).replace(",", ";").replace("\n", " ").replace("\r", " ").replace('"', "'")
 

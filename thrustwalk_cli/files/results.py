@@ -18,17 +18,31 @@ class ResultFile:
     figures: tuple[tuple[str, str | None], ...]
 
 
-def read_results(folder: Path) -> list[ResultFile]:
-    """Every ``*.json`` below ``folder`` (sorted) that is a result document (a mapping with
-    ``provenance``); unreadable or other JSON files are skipped."""
+def read_results(folder: Path, problems: list[str] | None = None) -> list[ResultFile]:
+    """Every ``*.json`` below ``folder`` (sorted) that is a result document (a mapping with a
+    ``provenance`` mapping). Other JSON files are skipped; a file that looks like a result but
+    cannot be read (not UTF-8, not JSON, a ``provenance`` that is not a mapping) is skipped
+    with one line in ``problems``."""
     folder = Path(folder)
     out = []
     for js in sorted(folder.rglob("*.json")):
+        if js.name.startswith("."):
+            continue  # run manifests and temporaries
         try:
-            doc = json.loads(js.read_text())
-        except (OSError, json.JSONDecodeError):
+            doc = json.loads(js.read_bytes().decode("utf-8"))
+        except UnicodeDecodeError:
+            _note(problems, js, "not UTF-8 text")
+            continue
+        except json.JSONDecodeError as exc:
+            _note(problems, js, f"not JSON ({exc.msg}, line {exc.lineno})")
+            continue
+        except OSError as exc:
+            _note(problems, js, f"cannot be read ({exc.strerror or exc})")
             continue
         if not isinstance(doc, dict) or "provenance" not in doc:
+            continue
+        if not isinstance(doc["provenance"], dict):
+            _note(problems, js, "its provenance is not a mapping")
             continue
         figs = []
         for fig in sorted(js.parent.glob("*.png")):
@@ -37,3 +51,8 @@ def read_results(folder: Path) -> list[ResultFile]:
                          pdf.relative_to(folder).as_posix() if pdf.exists() else None))
         out.append(ResultFile(js.relative_to(folder).as_posix(), doc, tuple(figs)))
     return out
+
+
+def _note(problems: list[str] | None, path: Path, why: str) -> None:
+    if problems is not None:
+        problems.append(f"{path}: skipped, {why}")

@@ -97,6 +97,9 @@ _THRUSTER = mapping(
 )
 
 
+MAX_LINKS = 20  # compiling takes ~35 s at 17 links and grows ~n^3: refuse larger robots
+MAX_THRUSTERS = 16
+
 ROBOT_SCHEMA = mapping(
     field("name", string(), "robot name (used for caches and outputs)"),
     field("description", string(nonempty=False), "free text", default=""),
@@ -104,8 +107,8 @@ ROBOT_SCHEMA = mapping(
           "`r/2`; arithmetic + - * / ** ( ), sin, cos, sqrt, pi", default={}),
     field("gravity", number("m/s^2", gt=0), "gravitational acceleration (along -y)",
           default=9.81),
-    field("links", list_of(_LINK, min_len=2), "rigid links forming a tree rooted at the stance "
-          "foot"),
+    field("links", list_of(_LINK, min_len=2, max_len=MAX_LINKS),
+          "rigid links forming a tree rooted at the stance foot"),
     field("coordinates", mapping(
         field("actuated", list_of(_COORD_ACT, min_len=1), "q_b: one relative angle per joint, "
               "in order [rad]"),
@@ -123,7 +126,8 @@ ROBOT_SCHEMA = mapping(
               default=None),
         field("b", null_or(vector(unit="rad")), "offset in q+ = R q- + b", default=None),
     ), "leg relabelling at impact: q+ = R q- + b, q'+ = R q'-"),
-    field("thrusters", list_of(_THRUSTER), "thrusters (may be empty)", default=[]),
+    field("thrusters", list_of(_THRUSTER, max_len=MAX_THRUSTERS), "thrusters (may be empty)",
+          default=[]),
 )
 
 
@@ -210,7 +214,11 @@ def load_robot(ref: str) -> Robot:
         problems.append(res.problem(("coordinates",), "coordinate names must be unique"))
     for key in ("stance", "swing"):
         need_link(d["feet"][key]["link"], ("feet", key, "link"))
+    tnames = [t["name"] for t in d["thrusters"]]
     for i, t in enumerate(d["thrusters"]):
+        if tnames.index(t["name"]) != i:
+            problems.append(res.problem(("thrusters", i, "name"),
+                                        f"duplicate thruster name '{t['name']}'"))
         need_link(t["link"], ("thrusters", i, "link"))
         if np.hypot(*t["direction"]) < 1e-12:
             problems.append(res.problem(("thrusters", i, "direction"), "direction is zero"))

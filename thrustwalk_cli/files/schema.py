@@ -47,6 +47,9 @@ _TYPE_NAMES = {type(None): "null", bool: "a boolean", int: "an integer", float: 
                list: "a list", dict: "a mapping"}
 
 
+LARGEST = 1e9  # [SI] a number beyond this in a robot or gait file is a typo
+
+
 def _type_name(value: Any) -> str:
     if isinstance(value, str):
         return f"a string {value!r}" if len(value) <= 40 else "a string"
@@ -77,8 +80,8 @@ class _Ctx:
     """Validation state: the document, parameters in scope, problems collected so far."""
 
     def __init__(self, doc: Document, params: Mapping[str, float],
-                 problems: list[Problem] | None = None):
-        self.doc, self.params = doc, params
+                 problems: list[Problem] | None = None, broken: frozenset[str] = frozenset()):
+        self.doc, self.params, self.broken = doc, params, broken
         self.problems = [] if problems is None else problems
 
     def report(self, path: KeyPath, message: str) -> None:
@@ -127,6 +130,8 @@ def _check_number(value: Any, path: KeyPath, ctx: _Ctx, bounds: Bounds,
             v = (value if isinstance(value, Expr) else parse_expr(value)).evaluate(ctx.params)
         except ExprError as exc:
             m = re.match(r"unknown name '(\w+)'", exc.message)
+            if m and m.group(1) in ctx.broken:
+                return None  # the parameter's own problem is reported once, at its definition
             hint = "" if not m else _suggest(m.group(1), sorted(ctx.params)) or (
                 "" if ctx.params else "; no parameters are defined")
             col = exc.column + 1
@@ -138,6 +143,9 @@ def _check_number(value: Any, path: KeyPath, ctx: _Ctx, bounds: Bounds,
         v = float(value) if isinstance(value, float) or abs(value) < 1e308 else math.inf
     if not math.isfinite(v):
         return ctx.report(path, f"must be finite, got {v}")
+    if abs(v) > LARGEST:
+        return ctx.report(path, f"{_fmt(v)}{source} is beyond any physical value in SI units "
+                                f"(at most {_fmt(LARGEST)} in size)")
     bad = bounds.violation(v)
     if bad:
         return ctx.report(path, bad + source)
@@ -180,6 +188,7 @@ class Kind:
     n: int | None = None  # vector length / matrix rows
     m: int | None = None  # matrix columns
     min_len: int = 0  # list/vector minimum length; string: 1 = must not be blank
+    max_len: int | None = None  # list/vector maximum length (a sanity limit, named in errors)
     key_name: str = "name"  # dict_of: what the free keys are
 
     def label(self) -> str:
@@ -203,7 +212,8 @@ class Kind:
         each = own and not own.startswith("each") and self.tag in ("vector", "matrix", "list_of")
         own = f"each {own}" if each else own
         size = f"length >= {self.min_len}" if self.min_len and self.tag != "string" else ""
-        return "; ".join(p for p in (own, size) if p)
+        most = f"length <= {self.max_len}" if self.max_len is not None else ""
+        return "; ".join(p for p in (own, size, most) if p)
 
     def check(self, v: Any, path: KeyPath, ctx: _Ctx) -> Any:
         """Convert plain value ``v`` found at ``path``; report problems; None if invalid."""
@@ -229,6 +239,8 @@ class Kind:
             return v if v.strip() or not self.min_len else ctx.report(path, "must not be empty")
         if t in ("vector", "list_of") and self.n is not None and len(v) != self.n:
             return ctx.report(path, f"expected {self.n} values, got {len(v)}")
+        if t in ("vector", "list_of") and self.max_len is not None and len(v) > self.max_len:
+            return ctx.report(path, f"{len(v)} items: the limit is {self.max_len}")
         if t in ("vector", "list_of") and len(v) < self.min_len:
             ctx.report(path, f"expected at least {self.min_len} item(s), got {len(v)}")
             if t == "vector":
@@ -309,9 +321,10 @@ def null_or(kind: Kind) -> Kind:
     return Kind("null_or", kind.unit, item=kind)
 
 
-def vector(n: int | None = None, unit: str = "", *, min_len: int = 0, **bounds: float) -> Kind:
+def vector(n: int | None = None, unit: str = "", *, min_len: int = 0,
+           max_len: int | None = None, **bounds: float) -> Kind:
     """A list of numbers (exactly ``n`` if given); bounds apply to every element."""
-    return Kind("vector", unit, Bounds(**bounds), n=n, min_len=min_len)
+    return Kind("vector", unit, Bounds(**bounds), n=n, min_len=min_len, max_len=max_len)
 
 
 def matrix(shape: tuple[int, int] | None = None, unit: str = "", **bounds: float) -> Kind:
@@ -325,9 +338,9 @@ def mapping(*fields: Field) -> Kind:
     return Kind("mapping", fields=tuple(fields))
 
 
-def list_of(item: Kind, min_len: int = 0) -> Kind:
-    """A list of items of kind ``item``, at least ``min_len`` long."""
-    return Kind("list_of", item.unit, item=item, min_len=min_len)
+def list_of(item: Kind, min_len: int = 0, max_len: int | None = None) -> Kind:
+    """A list of items of kind ``item``, ``min_len`` to ``max_len`` long."""
+    return Kind("list_of", item.unit, item=item, min_len=min_len, max_len=max_len)
 
 
 def dict_of(value: Kind, key_name: str = "name") -> Kind:
@@ -448,11 +461,13 @@ class ValidationResult:
 
 
 def validate(
-    doc: Document, schema: Kind, params: Mapping[str, float] | None = None
+    doc: Document, schema: Kind, params: Mapping[str, float] | None = None,
+    broken: frozenset[str] = frozenset(),
 ) -> ValidationResult:
-    """Check ``doc.data`` against ``schema`` with ``params`` in scope of every expression."""
+    """Check ``doc.data`` against ``schema`` with ``params`` in scope of every expression
+    (``broken``: parameters whose own definition failed; their uses are not reported again)."""
     params = dict(params or {})
-    ctx = _Ctx(doc, params)
+    ctx = _Ctx(doc, params, broken=broken)
     data = schema.check(doc.data, (), ctx)
     return ValidationResult(doc, data, ctx.problems, params)
 
@@ -462,7 +477,10 @@ def check(
 ) -> ValidationResult:
     """:func:`resolve_parameters` then :func:`validate`; problems sorted by line."""
     params, problems = resolve_parameters(doc, parameters_path) if parameters_path else ({}, [])
-    result = validate(doc, schema, params)
+    declared = doc.data.get(parameters_path[0]) if parameters_path and isinstance(
+        doc.data, dict) else None
+    broken = frozenset(declared) - set(params) if isinstance(declared, dict) else frozenset()
+    result = validate(doc, schema, params, broken)
     result.problems = sorted(problems + result.problems, key=lambda p: p.line or 0)
     return result
 

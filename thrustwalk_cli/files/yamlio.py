@@ -22,6 +22,7 @@ PathKey = str | int
 KeyPath = tuple[PathKey, ...]
 
 MAX_NODES = 1_000_000  # guards against alias bombs ("billion laughs")
+MAX_DEPTH = 64  # nesting levels; the composer and converter recurse once per level
 
 _TAG = "tag:yaml.org,2002:"
 _PLAIN_TAGS = {_TAG + t for t in ("null", "bool", "int", "float", "str")}
@@ -201,11 +202,29 @@ def _syntax_problem(file: str, text: str, exc: yaml.YAMLError) -> Problem:
     return Problem(file, None, "", f"YAML error: {str(exc).splitlines()[0]}")
 
 
+def _check_depth(text: str, file: str) -> None:
+    """Refuse nesting deeper than ``MAX_DEPTH`` (before composing: the composer would
+    overflow Python's stack on, say, 500 nested lists). Scanning is iterative."""
+    depth = 0
+    starts = (yaml.BlockMappingStartToken, yaml.BlockSequenceStartToken,
+              yaml.FlowMappingStartToken, yaml.FlowSequenceStartToken)
+    ends = (yaml.BlockEndToken, yaml.FlowMappingEndToken, yaml.FlowSequenceEndToken)
+    for tok in yaml.scan(text, Loader=yaml.SafeLoader):
+        if isinstance(tok, starts):
+            depth += 1
+            if depth > MAX_DEPTH:
+                raise InputError([Problem(file, tok.start_mark.line + 1, "",
+                                          f"nesting deeper than {MAX_DEPTH} levels")])
+        elif isinstance(tok, ends):
+            depth -= 1
+
+
 def load_yaml_text(text: str, file: str = "<string>", *, raw: bytes | None = None) -> Document:
     """Parse YAML ``text``; raises :class:`InputError` listing every problem found."""
     raw = text.encode("utf-8") if raw is None else raw
     digest = hashlib.sha256(raw).hexdigest()
     try:
+        _check_depth(text, file)
         root = yaml.compose(text, Loader=yaml.SafeLoader)
     except yaml.YAMLError as exc:
         raise InputError([_syntax_problem(file, text, exc)]) from None

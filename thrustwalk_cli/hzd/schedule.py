@@ -170,3 +170,21 @@ def schedule_from_gait(zd: ZeroDynamics, thrust: ThrustSchedule, where: Where,
         force = np.concatenate([force, np.zeros((1, 1, len(names)))], axis=1)
         gen = np.concatenate([gen, np.zeros((1, 1))], axis=1)
     return Schedule(knots_alpha(zd, np.array(s)), force, gen), [float(v) for v in s]
+
+
+def check_limits(zd: ZeroDynamics, schedule: Schedule, where: Where,
+                 key: tuple = ("thrust", "values")) -> None:
+    """Every thrust of ``schedule`` [N] within its thruster's ``limits`` from the robot file;
+    :class:`InputError` at ``where`` (one problem per thruster) otherwise."""
+    problems = []
+    for t, th in enumerate(zd.model.robot.thrusters):
+        lo, hi = th.limits
+        F = schedule.force[..., t]
+        bad = F[(F < lo) | (F > hi)]
+        if bad.size:
+            worst = bad[np.argmax(np.abs(bad))]
+            problems.append(locate(where, key + (th.name,),
+                                   f"{worst:g} N is outside the limits [{lo:g}, {hi:g}] N of "
+                                   f"thruster {th.name} (the robot file's `limits`)"))
+    if problems:
+        raise InputError(problems)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import os
+import sys
 import tempfile
 from pathlib import Path
 from types import ModuleType
@@ -18,19 +19,62 @@ from types import ModuleType
 MAGIC = "# thrustwalk-model"
 
 
+class NoCacheDir(Exception):
+    """There is no sensible place for the cache (no home directory and no override)."""
+
+
+def _home() -> Path | None:
+    """The user's home: ``$HOME`` if set to an absolute path, else the password database's.
+    ``None`` when neither gives a real directory (never ``/``: an empty ``HOME`` must not
+    make the cache land in ``/.cache``)."""
+    home = os.environ.get("HOME", "")
+    if not (home and os.path.isabs(home)):
+        home = ""
+        try:
+            import pwd
+
+            home = pwd.getpwuid(os.getuid()).pw_dir
+        except (ImportError, KeyError, OSError):
+            home = os.environ.get("USERPROFILE", "") if sys.platform == "win32" else ""
+    if not home or not os.path.isabs(home) or Path(home) == Path(Path(home).anchor):
+        return None
+    return Path(home)
+
+
 def cache_dir() -> Path:
-    """``$THRUSTWALK_CACHE_DIR``, else ``$XDG_CACHE_HOME/thrustwalk``, else
-    ``~/.cache/thrustwalk``."""
+    """Where compiled models live, following the platform's conventions:
+
+    ``$THRUSTWALK_CACHE_DIR`` if set; on Windows ``%LOCALAPPDATA%\\thrustwalk\\Cache``; on
+    macOS ``~/Library/Caches/thrustwalk``; elsewhere ``$XDG_CACHE_HOME/thrustwalk`` (only an
+    absolute ``XDG_CACHE_HOME`` counts, as the XDG specification says) or
+    ``~/.cache/thrustwalk``. Raises :class:`NoCacheDir` when there is no home directory.
+    """
     env = os.environ.get("THRUSTWALK_CACHE_DIR")
     if env:
-        return Path(env)
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".cache") / "thrustwalk"
+        return Path(env).expanduser()
+    if sys.platform == "win32":
+        local = os.environ.get("LOCALAPPDATA", "")
+        if local and os.path.isabs(local):
+            return Path(local) / "thrustwalk" / "Cache"
+    xdg = os.environ.get("XDG_CACHE_HOME", "")
+    if sys.platform != "darwin" and xdg and os.path.isabs(xdg):
+        return Path(xdg) / "thrustwalk"
+    home = _home()
+    if home is None:
+        raise NoCacheDir("no home directory (HOME is unset or empty); set "
+                         "THRUSTWALK_CACHE_DIR to keep compiled models between runs")
+    if sys.platform == "darwin":
+        return home / "Library" / "Caches" / "thrustwalk"
+    return home / ".cache" / "thrustwalk"
+
+
+def entry_name(name: str, key: str) -> str:
+    safe = "".join(ch if ch.isalnum() or ch in "_-" else "_" for ch in name)[:40]
+    return f"{safe}-{key[:20]}.py"
 
 
 def entry_path(name: str, key: str) -> Path:
-    safe = "".join(ch if ch.isalnum() or ch in "_-" else "_" for ch in name)[:40]
-    return cache_dir() / f"{safe}-{key[:20]}.py"
+    return cache_dir() / entry_name(name, key)
 
 
 def _digest(body: str) -> str:
@@ -73,10 +117,22 @@ def verify_entry(path: Path, key: str) -> str | None:
 
 
 def import_entry(path: Path, key: str) -> ModuleType:
-    """Import a verified entry as a private module (not registered in ``sys.modules``)."""
+    """Import a verified entry as a private module (not registered in ``sys.modules``).
+
+    Any failure (a syntax error behind a valid checksum, a missing function) propagates: the
+    caller rebuilds the entry.
+    """
     spec = importlib.util.spec_from_file_location(f"thrustwalk_model_{key[:20]}", path)
     if spec is None or spec.loader is None:
         raise ImportError(f"cannot import {path}")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
+    return module
+
+
+def module_from_source(source: str, key: str, label: str = "<memory>") -> ModuleType:
+    """Build the model module in memory, without touching the disk (cache fallback)."""
+    module = ModuleType(f"thrustwalk_model_{key[:20]}")
+    module.__file__ = label
+    exec(compile(source, label, "exec"), module.__dict__)  # our own generated code
     return module

@@ -70,11 +70,14 @@ class CompiledModel:
     The description is immutable; per-run buffers never live here.
     """
 
-    def __init__(self, robot: Robot, module: ModuleType, path: Path, key: str,
-                 cache_hit: bool, seconds: float):
+    def __init__(self, robot: Robot, module: ModuleType, path: Path | None, key: str,
+                 cache_hit: bool, seconds: float, notes: tuple[str, ...] = ()):
         self.robot = robot
         self._m = module
+        #: the cache entry, or None when the model lives only in memory (see ``notes``)
         self.cache_path = path
+        #: one-line remarks about the cache (an entry rebuilt, the cache unusable)
+        self.notes = tuple(notes)
         self.key = key
         self.cache_hit = cache_hit
         self.load_seconds = seconds
@@ -166,7 +169,8 @@ class CompiledModel:
             "total_mass": r.total_mass,
             "thrusters": r.thruster_names,
             "gravity": r.gravity,
-            "cache_entry": str(self.cache_path),
+            "cache_entry": str(self.cache_path) if self.cache_path else "in memory",
+            "notes": list(self.notes),
             "cache_hit": self.cache_hit,
             "seconds": self.load_seconds,
         }

@@ -11,6 +11,7 @@ import hashlib
 import json
 import time
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 
@@ -72,31 +73,86 @@ def generate_source(robot: Robot, key: str) -> str:
 def load_model(robot: Robot, *, rebuild: bool = False) -> CompiledModel:
     """Load the compiled model from the cache, or compile it (SPEC 1) and cache it.
 
-    A cache entry that is missing, stale, corrupted or partially written is rebuilt.
+    A cache entry that is missing, stale, corrupted, partially written or that fails to import
+    (a syntax error behind a valid checksum) is rebuilt. When the cache cannot be used at all
+    (no home directory, the cache path is a file, a read-only or full disk, an entry replaced
+    by a directory) the model is compiled in memory for this process and
+    :attr:`CompiledModel.notes` says why in one line; nothing raises for cache trouble.
     Compile-time checks: D symmetric positive definite, dD/dq_N = 0, R invertible and mapping
     the swing foot to the stance foot (``InputError`` naming the file and key otherwise).
     """
     t0 = time.perf_counter()
     key = model_key(robot)
-    path = cache.entry_path(robot.name, key)
-    memo = _LOADED.get(str(path))
-    if not rebuild and memo is not None and memo[0] == _signature(path) and \
+    notes: list[str] = []
+    try:
+        path: Path | None = cache.entry_path(robot.name, key)
+    except cache.NoCacheDir as exc:
+        path = None
+        notes.append(f"model cache unavailable: {exc}; compiling in memory")
+    entry, memo_key = path, str(path) if path else "memory:" + key
+    memo = _LOADED.get(memo_key)
+    if not rebuild and memo is not None and memo[0] == _signature(entry) and \
             memo[1].key == key and memo[1].robot == robot:
         # already imported in this process and the entry is untouched: no re-import
         m = memo[1]
-        return CompiledModel(m.robot, m._m, path, key, True, time.perf_counter() - t0)
-    hit = not rebuild and cache.verify_entry(path, key) is None
-    if not hit:
+        return CompiledModel(m.robot, m._m, m.cache_path, key, True,
+                             time.perf_counter() - t0, m.notes)
+    module = None
+    hit = False
+    if path is not None and not rebuild and cache.verify_entry(path, key) is None:
+        try:
+            module = cache.import_entry(path, key)
+            missing = [f for f in FUNCTIONS if not hasattr(module, f)]
+            if missing:
+                raise ImportError(f"functions missing: {', '.join(missing)}")
+            hit = True
+        except Exception as exc:  # noqa: BLE001 - any broken entry is rebuilt
+            notes.append(f"model cache entry {path} could not be loaded "
+                         f"({exc.__class__.__name__}); rebuilt")
+            module = None
+    if module is None:
         source = generate_source(robot, key)
-        cache.write_entry(path, key, source)
-        if cache.verify_entry(path, key) is not None:  # pragma: no cover - disk trouble
-            raise OSError(f"cache entry {path} could not be written")
-    module = cache.import_entry(path, key)
-    model = CompiledModel(robot, module, path, key, hit, time.perf_counter() - t0)
+        module, path, note = _store(path, key, source)
+        if note:
+            notes.append(note)
+    model = CompiledModel(robot, module, path, key, hit, time.perf_counter() - t0,
+                          tuple(notes))
     if not hit:
         check_model(model)
-    _LOADED[str(path)] = (_signature(path), model)
+    _LOADED[memo_key] = (_signature(entry), model)
     return model
+
+
+def _store(path: Path | None, key: str, source: str) -> tuple[ModuleType, Path | None, str]:
+    """Write a fresh entry and import it; on any disk trouble build the module in memory.
+
+    Returns (module, entry path or None, one-line note or '')."""
+    if path is None:
+        return cache.module_from_source(source, key), None, ""
+    try:
+        cache.write_entry(path, key, source)
+        why = cache.verify_entry(path, key)
+        if why is not None:
+            raise OSError(f"entry reads back {why}")
+        return cache.import_entry(path, key), path, ""
+    except (OSError, ImportError, SyntaxError) as exc:
+        return (cache.module_from_source(source, key), None,
+                f"model cache unusable: {_why_unusable(path, exc)}; compiled model kept in "
+                f"memory for this run")
+
+
+def _why_unusable(path: Path, exc: BaseException) -> str:
+    """One line on why ``path`` cannot hold a cache entry."""
+    if path.is_dir():
+        return f"entry {path} is a folder"
+    for anc in path.parents:
+        if anc.exists():
+            if not anc.is_dir():
+                return f"{anc} is a file, not a folder"
+            break
+    reason = getattr(exc, "strerror", None) or str(exc) or exc.__class__.__name__
+    where = getattr(exc, "filename", None) or path.parent
+    return f"{where}: {reason}"
 
 
 # Models imported in this process, by cache entry: (entry mtime and size, model). A rewritten
@@ -104,7 +160,9 @@ def load_model(robot: Robot, *, rebuild: bool = False) -> CompiledModel:
 _LOADED: dict[str, tuple[tuple[int, int] | None, CompiledModel]] = {}
 
 
-def _signature(path: Path) -> tuple[int, int] | None:
+def _signature(path: Path | None) -> tuple[int, int] | None:
+    if path is None:
+        return None
     try:
         st = path.stat()
     except OSError:
@@ -140,5 +198,6 @@ def check_model(model: CompiledModel, samples: int = 16, seed: int = 0) -> None:
                 f"{err_foot:.3g} m and the centre of mass {err_com:.3g} m away from where the "
                 f"leg swap puts them (check R, b or the declared symmetry)"))
     if problems:
-        model.cache_path.unlink(missing_ok=True)
+        if model.cache_path is not None:
+            model.cache_path.unlink(missing_ok=True)
         raise InputError(problems)

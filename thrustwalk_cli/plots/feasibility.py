@@ -10,7 +10,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.lines import Line2D
 
-from .style import COLUMN, PAGE, corner_note, style
+from .style import COLUMN, PAGE, corner_note, missing_note, style
 
 MAX_LINES = 12
 
@@ -94,7 +94,7 @@ def grf_figure(profiles: Sequence[dict | None], values: Sequence[float] | None, 
             fig.suptitle(title)
         missing = [i for i in range(len(profiles)) if profiles[i] is None]
         if missing and values is not None:
-            corner_note(a_f, "no orbit for " + ", ".join(f"{values[i]:g}" for i in missing))
+            corner_note(a_f, missing_note([values[i] for i in missing]))
     return fig
 
 

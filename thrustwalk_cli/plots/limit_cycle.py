@@ -9,7 +9,7 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 
-from .style import COLUMN, corner_note, is_multiple, style
+from .style import COLUMN, corner_note, is_multiple, missing_note, style
 
 
 def phase_portrait(
@@ -65,7 +65,7 @@ def phase_portrait(
             ax.set_title(title)
         text = note
         if missing:
-            text += ("\n" if text else "") + "no orbit for " + ", ".join(f"{m:g}" for m in missing)
+            text += ("\n" if text else "") + missing_note(missing, unit)
         corner_note(ax, text)
         fig.tight_layout()
     return fig

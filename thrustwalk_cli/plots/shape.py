@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from .limit_cycle import phase_portrait
-from .style import PAGE, black_step, corner_note, style
+from .style import PAGE, black_step, corner_note, missing_note, style
 
 YLABEL = {"alpha_dot": r"$\dot\alpha$ [rad/s]", "sigma": r"$\sigma_N$ [kg m$^2$/s]"}
 
@@ -76,7 +76,7 @@ def shape_portrait(values: Sequence[float] | None, labels: Sequence[str],
             ax.set_title(title)
         text = note + ("\n" if note and missing else "")
         if missing:
-            text += "no orbit for " + ", ".join(missing)
+            text += missing_note(missing)
         corner_note(ax, text)
         fig.tight_layout()
     return fig

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+from collections.abc import Sequence
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -41,6 +42,18 @@ def corner_note(ax, text: str) -> None:
     if text:
         ax.text(0.01, 0.01, text, transform=ax.transAxes, fontsize=6, va="bottom",
                 color="firebrick")
+
+
+def missing_note(labels: Sequence, unit: str = "") -> str:
+    """``no orbit for -3, -4`` for a few values; ``no orbit for 812 values (-3 ... -100 N)``
+    for many, so a long sweep never floods a figure."""
+    texts = [f"{v:g}" if isinstance(v, (int, float)) else str(v) for v in labels]
+    if not texts:
+        return ""
+    if len(texts) <= 6:
+        return "no orbit for " + ", ".join(texts)
+    unit = f" {unit}" if unit else ""
+    return f"no orbit for {len(texts)} values ({texts[0]} ... {texts[-1]}{unit})"
 
 
 def is_multiple(value: float, every: float) -> bool:

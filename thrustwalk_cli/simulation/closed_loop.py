@@ -37,6 +37,9 @@ from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
 
 THRUST_MODELS = ("constant", "first-order", "second-order", "piecewise")
 METHODS = ("DOP853", "RK45", "Radau", "LSODA", "BDF")
+MAX_STEPS = 10_000  # steps per run
+MAX_SAMPLES = 10_000  # output samples per step
+MAX_TOTAL_STEPS = 20_000  # runs x steps in one call (about 70 ms per step with SciPy)
 
 
 # ----------------------------------------------------------------------------- thrust
@@ -174,15 +177,16 @@ class SimConfig:
 
     def validate(self) -> None:
         problems = []
-        if self.steps < 1:
-            problems.append(param_problem("steps", "must be at least 1"))
+        if not 1 <= self.steps <= MAX_STEPS:
+            problems.append(param_problem("steps", f"must be 1..{MAX_STEPS} (got {self.steps})"))
         if not (0 < self.rtol < 0.1) or not (0 < self.atol < 0.1):
             problems.append(param_problem(("rtol", "atol"), "tolerances must lie in (0, 0.1)"))
         if self.method not in METHODS:
             problems.append(param_problem("method", f"unknown integrator {self.method!r} "
                                                     f"(choose from {', '.join(METHODS)})"))
-        if self.samples_per_step < 2:
-            problems.append(param_problem("samples", "at least 2 samples per step"))
+        if not 2 <= self.samples_per_step <= MAX_SAMPLES:
+            problems.append(param_problem("samples", f"must be 2..{MAX_SAMPLES} samples per "
+                                                     f"step (got {self.samples_per_step})"))
         if self.torque_limit is not None and not self.torque_limit > 0:
             problems.append(param_problem("torque_limit", "must be > 0 N m"))
         if problems:

@@ -20,7 +20,7 @@ from ..contact.terms import SCUFF_TOL, SWING_WINDOW, Fits, ImpactData, fit_terms
 from ..description.gait import ThrustSchedule
 from ..errors import InputError, Problem, Where
 from ..files.gait_file import load_gait
-from ..hzd.schedule import schedule_from_gait
+from ..hzd.schedule import check_limits, schedule_from_gait
 from ..hzd.zero_dynamics import Schedule
 from ..walker import Walker
 from .records import SCHEMA_VERSION, fmt, units
@@ -279,6 +279,7 @@ def feasibility(walker: Walker, thrust: Sequence[float] | None = None, *,
         F = np.zeros((len(values), m))
         F[:, j] = values
         sched = Schedule.constant(zd, F)
+        check_limits(zd, sched, "thrust", ())
         e = np.zeros((1, m))
         e[0, j] = 1.0
         unit = Schedule.constant(zd, e)
@@ -290,6 +291,7 @@ def feasibility(walker: Walker, thrust: Sequence[float] | None = None, *,
         thruster_name = names[j]
     else:
         sched = schedule_from_gait(zd, schedule, schedule_where, pad=True)[0]
+        check_limits(zd, sched, schedule_where)
         unit = sched
         lo, hi, pad = 0.0, 1.0, 0.5
         scale_label = "schedule scale factor [-] (1 = the given schedule)"

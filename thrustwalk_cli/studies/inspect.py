@@ -23,6 +23,9 @@ def _vector(value: str | Sequence[float], param: str, n: int, names: list[str]) 
     if len(vals) != n:
         raise InputError.param(param, f"expected {n} values ({', '.join(names)}), "
                                       f"got {len(vals)}")
+    if not all(abs(v) <= 1e6 for v in vals):
+        raise InputError.param(param, f"values must be finite and at most 1e+06 in size (got "
+                                      f"{', '.join(f'{v:g}' for v in vals)})")
     return vals
 
 

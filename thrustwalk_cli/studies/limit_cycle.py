@@ -17,7 +17,7 @@ import numpy as np
 
 from ..contact.terms import scuff_reason
 from ..errors import InputError
-from ..hzd.schedule import schedule_from_gait
+from ..hzd.schedule import check_limits, schedule_from_gait
 from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
 from ..walker import Walker
 from .records import (
@@ -236,6 +236,7 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
             raise InputError.param("thruster", "the gait's thrust: section names its "
                                                "thrusters; give `thrust` values to sweep one")
         sched = schedule_from_gait(zd, gait_thrust, walker.where, pad=True)[0]
+        check_limits(zd, sched, walker.where)
         j, value = _constant_part(walker, sched)
         cycles = limit_cycles(zd, sched)
         return LimitCycleResult(walker, (value,), j, tuple(cycles), "gait", sched)
@@ -250,6 +251,7 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
                                              "raise the limit")
     j = walker.robot.thruster_index(thruster)
     sched = Schedule.constant(zd, constant_thrust(zd, values, j))
+    check_limits(zd, sched, "thrust", ())
     cycles = limit_cycles(zd, sched)
     return LimitCycleResult(walker, values, j, tuple(cycles), "values", sched)
 

@@ -114,6 +114,8 @@ def render_index(results: list[ResultFile], title: str = "thrustwalk figures") -
     return "\n".join(out) + "\n"
 
 
-def build_index(folder: Path, title: str = "thrustwalk figures") -> str:
-    """Markdown index of every result JSON (with provenance) below ``folder``."""
-    return render_index(read_results(folder), title)
+def build_index(folder: Path, title: str = "thrustwalk figures",
+                problems: list[str] | None = None) -> str:
+    """Markdown index of every result JSON (with provenance) below ``folder``; files that
+    cannot be read are skipped with a line in ``problems``."""
+    return render_index(read_results(folder, problems), title)

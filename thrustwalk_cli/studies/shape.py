@@ -17,6 +17,7 @@ from ..files import expr
 from ..hzd.schedule import (
     MODES,
     check_knots,
+    check_limits,
     knots_alpha,
     make_schedule,
     nominal_schedule,
@@ -205,6 +206,9 @@ def resolve(zd: ZeroDynamics, req: ShapeRequest, base: Schedule | None = None
         raise err("target_speed", f"must be > 0 [m/s], got {req.target_speed:g}")
     if req.n_knots < 2:
         raise err("n_knots", f"need at least 2 knots, got {req.n_knots}")
+    if req.pattern is not None and not req.pattern.strip():
+        raise err("pattern", "empty: give interval values as arithmetic in j and k, e.g. "
+                             "'k*(j-2)'")
     if req.mode is not None and req.mode not in MODES:
         raise err("mode", f"must be one of {', '.join(MODES)}, got {req.mode!r}")
     target = req.target_zeta is not None or req.target_speed is not None
@@ -289,6 +293,7 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
     knots_req = req.knots
     if source == "gait":
         sched, fr = schedule_from_gait(zd, zd.gait.thrust, walker.where)
+        check_limits(zd, sched, walker.where)
         knots = sched.knots
         labels, values, P_field, ksol, target = ("gait thrust",), None, None, None, None
     else:
@@ -313,6 +318,7 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
             fr = list(ksol.fractions)
         knots = knots_alpha(zd, np.array(fr, float))
         sched = _around(make_schedule(zd, knots, P[:-1], mode, th), base)
+        check_limits(zd, sched, "pattern", ())
         labels, values, P_field, target = tuple(f"k = {k:g}" for k in ks), ks, P[-1:], None
     elif source != "gait":
         pattern = None
@@ -327,6 +333,12 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
             return ShapeStudy(walker, False, target.reason, source, mode, th, None, nominal,
                               target=target)
         sched = make_schedule(zd, knots, target.values[None, :], mode, th)
+        try:
+            check_limits(zd, sched, "the minimum-norm thrust", ())
+        except InputError as exc:
+            nominal = limit_cycles(zd, nominal_schedule(knots, m))[0]
+            return ShapeStudy(walker, False, f"the target needs more thrust than the thruster "
+                              f"gives: {exc}", source, mode, th, None, nominal, target=target)
     else:
         pattern = None
     nom_sched = _around(nominal_schedule(knots, m), base)
@@ -334,6 +346,7 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
     cycles = _cycles(zd, sched, progress)
     if P_field is not None:
         fsched = _around(make_schedule(zd, knots, P_field, mode, th), base)
+        check_limits(zd, fsched, "field_k", ())
         flabel = f"k = {fk:g}"
     else:
         fsched, flabel = sched, labels[0]

@@ -17,9 +17,9 @@ import numpy as np
 
 from ..design.problem import legs
 from ..errors import InputError
-from ..hzd.schedule import schedule_from_gait
+from ..hzd.schedule import check_limits, schedule_from_gait
 from ..hzd.zero_dynamics import Schedule, ZeroDynamics, limit_cycles, paper_one_step_shift
-from ..simulation.closed_loop import SimConfig, predicted_cycle
+from ..simulation.closed_loop import MAX_TOTAL_STEPS, SimConfig, predicted_cycle
 from ..simulation.full_order import Start
 from ..simulation.scenario import Outcome, Scenario, make_scenario, run_scenario
 from ..walker import Walker
@@ -470,6 +470,12 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
                         else "second-order")
     if values is None and thrust_model != "piecewise":
         values = [0.0, -10.0, -20.0, -30.0, -40.0, -50.0]
+    runs = 1 if thrust_model == "piecewise" or not values else len(values)
+    if runs * steps > MAX_TOTAL_STEPS:
+        raise InputError.param(("thrust", "steps"),
+                               f"{runs} runs x {steps} steps = {runs * steps} steps, above the "
+                               f"limit of {MAX_TOTAL_STEPS} per command: simulate fewer values "
+                               f"or fewer steps")
     st = Start(zeta_minus=zeta0, perturb=perturb, q=None if q0 is None else list(q0),
                dq=None if dq0 is None else list(dq0), orbit=start)
     config = SimConfig(steps=steps, rtol=rtol, atol=atol, method=method,
@@ -481,6 +487,7 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
             raise InputError(walker.where(("thrust",), "the gait has no thrust schedule "
                                                        "(needed by the piecewise thrust model)"))
         schedule = schedule_from_gait(zd, walker.gait.thrust, walker.where, pad=True)[0]
+        check_limits(zd, schedule, walker.where)
     sc = make_scenario(zd, thrust_model, values, list(thruster) if thruster else None,
                        schedule=schedule, wn=wn, xi=xi, tau=tau, f0=f0, start=st,
                        config=config, reduced_only=reduced)

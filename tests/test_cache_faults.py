@@ -1,0 +1,273 @@
+"""Model cache faults (issue 18): a bad entry is rebuilt, an unusable cache falls back to an
+in-memory model with one warning line, the cache follows the platform's conventions, and
+concurrent compiles of a new robot leave one valid entry. Numbers are always compared with
+the session's normally compiled model, bit for bit."""
+
+from __future__ import annotations
+
+import errno
+import hashlib
+import json
+import os
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from thrustwalk_cli.model import cache
+from thrustwalk_cli.model import compiler as compiler_mod
+from thrustwalk_cli.model.compiler import load_model
+
+Q = np.array([[0.1, -0.2, 0.3], [0.4, 0.1, -0.5]])
+DQ = np.array([[1.0, 0.5, -0.3], [-0.2, 0.3, 0.7]])
+
+
+@pytest.fixture
+def fresh_cache(tmp_path, monkeypatch) -> Path:
+    """An empty cache for one test; the in-process memo is cleared before and after."""
+    path = tmp_path / "cache"
+    monkeypatch.setenv("THRUSTWALK_CACHE_DIR", str(path))
+    compiler_mod._LOADED.clear()
+    yield path
+    compiler_mod._LOADED.clear()
+
+
+def _same_numbers(model, reference) -> None:
+    """The model gives exactly the reference's numbers (D, G, swing foot, impact)."""
+    np.testing.assert_array_equal(model.D(Q), reference.D(Q))
+    np.testing.assert_array_equal(model.G(Q), reference.G(Q))
+    np.testing.assert_array_equal(model.p_swing(Q), reference.p_swing(Q))
+    np.testing.assert_array_equal(model.impact(Q[0], DQ[0]).dq_plus,
+                                  reference.impact(Q[0], DQ[0]).dq_plus)
+
+
+def _seed(reference) -> Path:
+    path = cache.entry_path(reference.robot.name, reference.key)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(reference.cache_path.read_bytes())
+    return path
+
+
+def _rewrite_body(path: Path, edit) -> None:
+    """Change the entry's body and give it a *valid* checksum (a well-formed lie)."""
+    head, _, body = path.read_text().partition("\n")
+    body = edit(body)
+    key = next(f for f in head.split() if f.startswith("key="))
+    digest = hashlib.sha256(body.encode()).hexdigest()
+    path.write_text(f"{cache.MAGIC} {key} sha256={digest}\n{body}")
+
+
+# -- bad entries are rebuilt ------------------------------------------------------------------
+@pytest.mark.parametrize("edit, error", [
+    (lambda body: body + "\ndef broken(:\n", "SyntaxError"),
+    (lambda body: body.replace("def D(", "def D_gone(", 1), "ImportError"),
+    (lambda body: "raise RuntimeError('boom')\n" + body, "RuntimeError"),
+    (lambda body: body + "\nimport thrustwalk_no_such_module\n", "ModuleNotFoundError"),
+], ids=["syntax-error", "function-missing", "raises-on-import", "bad-import"])
+def test_entry_with_valid_checksum_that_fails_to_load_is_rebuilt(edit, error, fresh_cache,
+                                                                 three_link):
+    path = _seed(three_link)
+    _rewrite_body(path, edit)
+    assert cache.verify_entry(path, three_link.key) is None, "the checksum must look valid"
+    model = load_model(three_link.robot)
+    assert not model.cache_hit
+    assert model.cache_path == path
+    assert len(model.notes) == 1 and error in model.notes[0] and "rebuilt" in model.notes[0]
+    assert cache.verify_entry(path, three_link.key) is None
+    assert "broken(" not in path.read_text() and "boom" not in path.read_text()
+    _same_numbers(model, three_link)
+    compiler_mod._LOADED.clear()
+    again = load_model(three_link.robot)
+    assert again.cache_hit and again.notes == (), "the rebuilt entry must be used next time"
+
+
+# -- an unusable cache falls back to memory -----------------------------------------------------
+def _entry_is_a_folder(cache_dir: Path, reference) -> tuple[str, Path]:
+    path = cache.entry_path(reference.robot.name, reference.key)
+    (path / "inside").mkdir(parents=True)
+    return f"entry {path} is a folder", path
+
+
+def _cache_path_is_a_file(cache_dir: Path, reference) -> tuple[str, Path]:
+    cache_dir.parent.mkdir(parents=True, exist_ok=True)
+    cache_dir.write_text("not a folder\n")
+    return f"{cache_dir} is a file, not a folder", cache_dir
+
+
+def _cache_under_a_file(cache_dir: Path, reference) -> tuple[str, Path]:
+    cache_dir.parent.mkdir(parents=True, exist_ok=True)
+    cache_dir.write_text("not a folder\n")
+    os.environ["THRUSTWALK_CACHE_DIR"] = str(cache_dir / "deeper" / "still")
+    return f"{cache_dir} is a file, not a folder", cache_dir
+
+
+@pytest.mark.parametrize("setup", [_entry_is_a_folder, _cache_path_is_a_file,
+                                   _cache_under_a_file],
+                         ids=["entry-is-folder", "cache-is-file", "cache-under-file"])
+def test_unusable_cache_path_falls_back_to_memory(setup, fresh_cache, three_link, monkeypatch):
+    monkeypatch.setenv("THRUSTWALK_CACHE_DIR", str(fresh_cache))
+    expected, untouched = setup(fresh_cache, three_link)
+    before = sorted(p.name for p in untouched.rglob("*")) if untouched.is_dir() else \
+        untouched.read_bytes()
+    model = load_model(three_link.robot)
+    assert model.cache_path is None and not model.cache_hit
+    assert len(model.notes) == 1, model.notes
+    assert expected in model.notes[0] and "in memory" in model.notes[0]
+    _same_numbers(model, three_link)
+    after = sorted(p.name for p in untouched.rglob("*")) if untouched.is_dir() else \
+        untouched.read_bytes()
+    assert after == before, "the user's file or folder must not be touched"
+    assert model.summary()["cache_entry"] == "in memory"
+    again = load_model(three_link.robot)  # same process: reused, same note
+    assert again._m is model._m and again.notes == model.notes
+
+
+@pytest.mark.parametrize("err, where", [
+    (errno.ENOSPC, "fsync"), (errno.EROFS, "mkstemp"), (errno.EACCES, "mkstemp"),
+    (errno.EDQUOT, "fsync"),
+], ids=["disk-full", "read-only-fs", "permission", "quota"])
+def test_write_failures_fall_back_to_memory_and_leave_no_temporary(err, where, fresh_cache,
+                                                                   three_link, monkeypatch):
+    """Injected at the system call the real failure happens in; the real cleanup runs."""
+    def fail(*args, **kwargs):
+        raise OSError(err, os.strerror(err))
+
+    if where == "fsync":
+        monkeypatch.setattr(cache.os, "fsync", fail)
+    else:
+        monkeypatch.setattr(cache.tempfile, "mkstemp", fail)
+    model = load_model(three_link.robot)
+    assert model.cache_path is None
+    assert len(model.notes) == 1 and os.strerror(err) in model.notes[0], model.notes
+    _same_numbers(model, three_link)
+    left = [p.name for p in fresh_cache.iterdir()] if fresh_cache.exists() else []
+    assert left == [], f"temporary files left behind: {left}"
+
+
+@pytest.mark.skipif(hasattr(os, "geteuid") and os.geteuid() == 0,
+                    reason="root ignores directory permissions")
+def test_read_only_cache_directory_for_real(fresh_cache, three_link):
+    fresh_cache.mkdir()
+    fresh_cache.chmod(0o500)
+    try:
+        model = load_model(three_link.robot)
+    finally:
+        fresh_cache.chmod(0o700)
+    assert model.cache_path is None and len(model.notes) == 1
+    _same_numbers(model, three_link)
+
+
+# -- where the cache lives ---------------------------------------------------------------------
+class _Pw:
+    def __init__(self, home: str):
+        self.pw_dir = home
+
+
+@pytest.fixture
+def no_overrides(monkeypatch):
+    for var in ("THRUSTWALK_CACHE_DIR", "XDG_CACHE_HOME", "LOCALAPPDATA"):
+        monkeypatch.delenv(var, raising=False)
+    monkeypatch.setattr(cache.sys, "platform", "linux")
+    return monkeypatch
+
+
+@pytest.mark.parametrize("home", [None, ""], ids=["HOME-unset", "HOME-empty"])
+def test_home_unset_or_empty_uses_the_password_database(home, no_overrides, tmp_path):
+    import pwd
+
+    if home is None:
+        no_overrides.delenv("HOME", raising=False)
+    else:
+        no_overrides.setenv("HOME", home)
+    no_overrides.setattr(pwd, "getpwuid", lambda uid: _Pw(str(tmp_path / "me")))
+    assert cache.cache_dir() == tmp_path / "me" / ".cache" / "thrustwalk"
+
+
+@pytest.mark.parametrize("pw_home", ["/", "", "relative/home"])
+def test_no_home_at_all_compiles_in_memory_never_in_root(pw_home, no_overrides, three_link):
+    import pwd
+
+    no_overrides.setenv("HOME", "")
+    no_overrides.setattr(pwd, "getpwuid", lambda uid: _Pw(pw_home))
+    with pytest.raises(cache.NoCacheDir, match="THRUSTWALK_CACHE_DIR"):
+        cache.cache_dir()
+    compiler_mod._LOADED.clear()
+    model = load_model(three_link.robot)
+    assert model.cache_path is None
+    assert len(model.notes) == 1 and "HOME" in model.notes[0]
+    _same_numbers(model, three_link)
+    compiler_mod._LOADED.clear()
+
+
+def test_platform_conventions(no_overrides, tmp_path):
+    no_overrides.setenv("HOME", str(tmp_path))
+    assert cache.cache_dir() == tmp_path / ".cache" / "thrustwalk"
+    no_overrides.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert cache.cache_dir() == tmp_path / "xdg" / "thrustwalk"
+    no_overrides.setenv("XDG_CACHE_HOME", "relative/xdg")  # not absolute: ignored (XDG spec)
+    assert cache.cache_dir() == tmp_path / ".cache" / "thrustwalk"
+    no_overrides.setattr(cache.sys, "platform", "darwin")
+    assert cache.cache_dir() == tmp_path / "Library" / "Caches" / "thrustwalk"
+    no_overrides.setattr(cache.sys, "platform", "win32")
+    no_overrides.setenv("LOCALAPPDATA", str(tmp_path / "AppData" / "Local"))
+    assert cache.cache_dir() == tmp_path / "AppData" / "Local" / "thrustwalk" / "Cache"
+    no_overrides.setenv("THRUSTWALK_CACHE_DIR", str(tmp_path / "mine"))
+    assert cache.cache_dir() == tmp_path / "mine"
+
+
+# -- through the command line -----------------------------------------------------------------
+def test_cli_with_unusable_cache_warns_once_and_still_writes_results(tmp_path, cli_subprocess):
+    blocker = tmp_path / "cache-file"
+    blocker.write_text("x\n")
+    out = tmp_path / "run"
+    res = cli_subprocess(["limit-cycle", "--out", str(out), "--quiet", "--formats", "csv"],
+                         THRUSTWALK_CACHE_DIR=str(blocker))
+    assert res.returncode == 0, res.stderr
+    lines = res.stderr.splitlines()
+    assert lines[0] == (f"warning: model cache unusable: {blocker} is a file, not a folder; "
+                        "compiled model kept in memory for this run")
+    assert "Traceback" not in res.stderr
+    assert json.loads((out / "limit_cycles.json").read_text())["success"] is True
+    assert blocker.read_text() == "x\n"
+
+
+# -- concurrency -------------------------------------------------------------------------------
+def test_four_processes_compiling_a_new_robot_leave_one_valid_entry(tmp_path, fresh_cache):
+    """Four processes compile the same never-seen robot into one empty cache at once: all
+    succeed with identical numbers and exactly one valid entry remains (no temporaries)."""
+    src = Path(__file__).parents[1] / "robots" / "three_link.yaml"
+    robot_file = tmp_path / "three_link_heavy.yaml"
+    robot_file.write_text(src.read_text().replace("name: three_link", "name: three_link_heavy")
+                          .replace("gravity: 9.8", "gravity: 9.81"))
+    go = tmp_path / "go"
+    script = textwrap.dedent(f"""
+        import json, os, time
+        from thrustwalk_cli.model.compiler import load_model
+        from thrustwalk_cli.files.robot_file import load_robot
+        robot = load_robot({str(robot_file)!r})
+        while not os.path.exists({str(go)!r}):
+            time.sleep(0.005)
+        m = load_model(robot)
+        q = [0.1, -0.2, 0.3]
+        print(json.dumps({{"notes": list(m.notes), "key": m.key,
+                          "D": m.D(q).tolist(), "G": m.G(q).tolist()}}))
+    """)
+    env = dict(os.environ, THRUSTWALK_CACHE_DIR=str(fresh_cache))
+    procs = [subprocess.Popen([sys.executable, "-c", script], env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(4)]
+    time.sleep(0.3)
+    go.touch()
+    results = []
+    for i, p in enumerate(procs):
+        out, err = p.communicate(timeout=180)
+        assert p.returncode == 0, f"process {i} failed:\n{err}"
+        results.append(json.loads(out))
+    assert all(r["notes"] == [] for r in results), [r["notes"] for r in results]
+    assert all(r["D"] == results[0]["D"] and r["G"] == results[0]["G"] for r in results)
+    files = sorted(x.name for x in fresh_cache.iterdir())
+    assert len(files) == 1 and files[0].startswith("three_link_heavy-"), files
+    assert cache.verify_entry(fresh_cache / files[0], results[0]["key"]) is None
