@@ -213,3 +213,62 @@ def test_equivalent_coordinate_choices_give_same_physics(walk3, tmp_path):
                         "zeta_star", "min_abs_alpha_dot"):
                 assert getattr(b, key) == pytest.approx(getattr(a, key), rel=1e-9), (
                     path.name, key)
+
+
+def _abs_alpha_dot(zd, sched, i, zeta_plus):
+    """|alpha'(alpha)| = |kappa_1| sqrt(2 (zeta^+ + V_Z)) of schedule ``i`` (alpha a scalar or
+    an array), from ``zd.terms`` and ``zd.V_Z`` (not the stacked series the polishing uses)."""
+    def f(a):
+        x = np.atleast_1d(np.asarray(a, float))
+        z = zeta_plus + zd.V_Z(x, sched)[i]
+        v = np.abs(zd.terms(x)["kappa1"]) * np.sqrt(2.0 * z)
+        return v if np.ndim(a) else float(v[0])
+    return f
+
+
+def test_orbit_extrema_are_exact_not_grid_limited(walk3):
+    """min |alpha'|, max |alpha'| and min zeta equal a bounded scalar optimiser (xatol 1e-13)
+    on an independent evaluation, to 1e-11 relative, for constant thrust and for a piecewise
+    (generalised) schedule with kinks at its knots. The 201-point grid was up to ~1e-5 off."""
+    from scipy.optimize import minimize_scalar
+
+    model, _, zd = walk3
+    span = zd.alpha_f - zd.alpha_i
+    knots = zd.alpha_i + span * np.array([0.0, 0.3, 0.7, 1.0])
+    F = np.zeros((3, 1, model.n_thrusters))
+    F[:, 0, 0] = [0.0, -20.0, -50.0]
+    scheds = [Schedule.constant(zd, F[:, 0, :]),
+              Schedule(knots, np.zeros((1, 3, model.n_thrusters)),
+                       np.array([[-40.0, 0.0, 40.0]]))]
+    grid = np.linspace(zd.alpha_i, zd.alpha_f, 201)
+    for sched in scheds:
+        for i, lc in enumerate(limit_cycles(zd, sched)):
+            assert lc.exists, lc.reason
+            f = _abs_alpha_dot(zd, sched, i, lc.zeta_plus)
+            lo, hi = sorted((zd.alpha_i, zd.alpha_f))
+            ref_min = minimize_scalar(f, bounds=(lo, hi), method="bounded",
+                                      options={"xatol": 1e-13}).fun
+            ref_min = min(ref_min, f(lc.alpha_at_min))  # the bounded search may stop short
+            assert lc.min_abs_alpha_dot == pytest.approx(ref_min, rel=1e-11), i
+            assert f(lc.alpha_at_min) == pytest.approx(lc.min_abs_alpha_dot, rel=1e-12)
+            fine = np.linspace(lo, hi, 20001)
+            assert lc.max_abs_alpha_dot >= f(fine).max() - 1e-12
+            assert f(lc.alpha_at_max) == pytest.approx(lc.max_abs_alpha_dot, rel=1e-12)
+            z = lc.zeta_plus + zd.V_Z(fine, sched)[i]
+            # a 20001-point grid is within ~3e-9 relative of the true minimum, never below it
+            assert lc.min_zeta <= z.min() and lc.min_zeta == pytest.approx(z.min(), rel=1e-8)
+            assert lc.min_abs_alpha_dot <= f(grid).min() + 1e-15
+
+
+def test_touchdown_velocity_is_the_swing_foot_velocity(walk3):
+    """touchdown_velocity = d/dt of the swing-foot height just before impact, by a central
+    difference of the height along q_Z(alpha) times alpha'^- (independent of E_2)."""
+    model, _, zd = walk3
+    thrust = np.zeros((2, model.n_thrusters))
+    thrust[1, 0] = -30.0
+    for lc in limit_cycles(zd, Schedule.constant(zd, thrust)):
+        h = 1e-6
+        y = [model.p_swing(zd.maps.q_Z(np.array(zd.alpha_f + d)))[1] for d in (-h, h)]
+        dy_dalpha = (y[1] - y[0]) / (2 * h)
+        assert lc.touchdown_velocity == pytest.approx(dy_dalpha * lc.alpha_dot_minus, rel=1e-7)
+        assert lc.touchdown_velocity < -0.1  # the bundled gait strikes the ground

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.polynomial import chebyshev as C
 
+from ..hzd.extrema import polish_max, polish_min
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..model.compiled import CompiledModel
 
@@ -242,16 +243,24 @@ def impact_data(model: CompiledModel, zd: ZeroDynamics) -> ImpactData:
 
 def swing_clearance(model: CompiledModel, zd: ZeroDynamics, points: int = 801) -> dict:
     """Swing-foot height along the step [m]: minimum for s in ``SWING_WINDOW`` (away from
-    lift-off and touch-down, where it is 0 by construction) and the deepest penetration
-    anywhere strictly inside the step."""
+    lift-off and touch-down, where it is 0 by construction), the maximum, and the deepest
+    penetration anywhere strictly inside the step; each located on ``points`` samples and
+    polished by golden section between the neighbouring samples (exact, not grid-limited)."""
     a = np.linspace(zd.alpha_i, zd.alpha_f, points)
-    h = model.p_swing(zd.maps.q_Z(a))[..., 1]
+
+    def height(x):
+        return model.p_swing(zd.maps.q_Z(x))[..., 1]
+
+    h = height(a)
     s = np.linspace(0.0, 1.0, points)
     win = (s >= SWING_WINDOW[0]) & (s <= SWING_WINDOW[1])
-    j = int(np.argmin(np.where(win, h, np.inf)))
-    inner = h[1:-1]
-    k = int(np.argmin(inner)) + 1
-    return {"min_height": float(h[j]), "alpha_at_min_height": float(a[j]),
-            "max_height": float(h.max()), "deepest": float(min(h[k], 0.0)),
-            "alpha_at_deepest": float(a[k]), "scuffs": bool(h[k] < -SCUFF_TOL),
+    a_min, h_min = polish_min(height, a, np.where(win, h, np.inf)[None], win.astype(int))
+    inner = np.zeros(points, int)
+    inner[1:-1] = 1
+    a_deep, h_deep = polish_min(height, a, np.where(inner == 1, h, np.inf)[None], inner)
+    _, h_max = polish_max(height, a, h[None])
+    deepest = float(min(h_deep[0], 0.0))
+    return {"min_height": float(h_min[0]), "alpha_at_min_height": float(a_min[0]),
+            "max_height": float(h_max[0]), "deepest": deepest,
+            "alpha_at_deepest": float(a_deep[0]), "scuffs": bool(deepest < -SCUFF_TOL),
             "alpha": a, "height": h}

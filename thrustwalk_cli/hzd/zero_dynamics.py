@@ -19,7 +19,9 @@ SPEC 4 erratum: the paper's ``zeta* = zeta_0* + sum_j b_F T_j`` omits ``1/(1 - d
 this module implements the true fixed point (``paper_one_step_shift`` gives the paper's value).
 
 Integrals are spectral (Chebyshev-Lobatto, :mod:`quadrature`); the node count doubles until the
-nested error estimate is below ``rtol`` relative, and the estimate is reported.
+nested error estimate is below ``rtol`` relative, and the estimate is reported. Extrema along
+the orbit (minimum and maximum ``|alpha'|``, minimum ``zeta``) are located on a grid and polished
+by golden-section search (:mod:`extrema`), so they are exact to about 1e-12, not grid-limited.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ import numpy as np
 from ..description.gait import Gait
 from ..model.compiled import CompiledModel
 from .constraints import GaitMaps, gait_maps
+from .extrema import polish_max, polish_min
 from .quadrature import ChebSeries, cumulative_with_error, integrate, lobatto
 
 RTOL = 1e-9
@@ -75,6 +78,11 @@ class LimitCycle:
     Every number is SI: zeta [kg^2 m^4/s^2], sigma [kg m^2/s], alpha' [rad/s], step time [s],
     step length [m], speed [m/s]. Fields are ``None`` when ``exists`` is false; ``reason``
     says why. ``orbit`` holds the sampled phase-plane curve (alpha, alpha', sigma_N).
+    ``min_abs_alpha_dot``/``alpha_at_min`` (the potential-energy barrier),
+    ``max_abs_alpha_dot``/``alpha_at_max`` and ``min_zeta``/``alpha_at_min_zeta`` [rad] are the
+    exact extrema along the step (grid, then golden section). ``touchdown_velocity``: vertical
+    velocity of the swing foot just before impact [m/s], negative when it moves down; near 0
+    the foot grazes the ground and a full-order simulation can miss the strike.
     """
 
     exists: bool
@@ -94,6 +102,11 @@ class LimitCycle:
     speed: float | None = None
     min_abs_alpha_dot: float | None = None
     alpha_at_min: float | None = None
+    max_abs_alpha_dot: float | None = None
+    alpha_at_max: float | None = None
+    min_zeta: float | None = None
+    alpha_at_min_zeta: float | None = None
+    touchdown_velocity: float | None = None
     orbit: dict[str, np.ndarray] | None = field(default=None, repr=False)
 
 
@@ -161,11 +174,43 @@ class ZeroDynamics:
         kn = np.asarray(knots, float)
         return np.diff(self.B(kn)), np.diff(self.Gamma(kn), axis=0)
 
+    def touchdown_velocity(self, alpha_dot_minus: float) -> float:
+        """Vertical swing-foot velocity just before impact [m/s] on Z:
+        ``E_2y(q^-) Phi(alpha_f) alpha'^-`` (negative: the foot moves down onto the ground)."""
+        q = self.maps.q_minus
+        phi = self.maps.Phi(np.array(self.alpha_f))
+        return float(self.model.E_swing(q)[1] @ phi * alpha_dot_minus)
+
     def poincare(self, zeta_minus: np.ndarray, schedule: Schedule) -> np.ndarray:
         """``rho(zeta^-) = delta_zero^2 zeta^- + V_Z(alpha_f)`` (SPEC 3); NaN-free, unchecked
         domain: see :func:`limit_cycles` for the existence conditions."""
         return self.delta_zero_sq * np.asarray(zeta_minus) + self.V_Z(
             np.array(self.alpha_f), schedule)
+
+
+class ZetaAt:
+    """``zeta_i(alpha_i) = zeta^+_i + V_Z(alpha_i; schedule i)`` for ONE alpha per schedule of a
+    batch (a search that moves each schedule's point on its own), with V_0, Gamma and b_F
+    stacked into one Chebyshev series (one evaluation per call) [kg^2 m^4/s^2]."""
+
+    def __init__(self, zd: ZeroDynamics, sched: Schedule):
+        self.sched = sched
+        self.m = zd.Gamma.coef.shape[1]
+        coef = np.column_stack([zd.V0.coef, zd.Gamma.coef, zd.B.coef])
+        self.series = ChebSeries(zd.V0.a, zd.V0.b, coef)
+        kn = sched.knots
+        self.lo, self.hi = np.minimum(kn[:-1], kn[1:]), np.maximum(kn[:-1], kn[1:])
+        self.at_knots = self.series(kn)  # (n+1, 2+m)
+
+    def __call__(self, zeta_plus: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+        pts = np.vstack([alpha[None, :],
+                         np.clip(alpha[None, :], self.lo[:, None], self.hi[:, None])])
+        v = self.series(pts)  # (1+n, k, 2+m)
+        m = self.m
+        dG = v[1:, :, 1:1 + m] - self.at_knots[:-1, None, 1:1 + m]  # (n, k, m)
+        dB = v[1:, :, -1] - self.at_knots[:-1, None, -1]  # (n, k)
+        return (zeta_plus + v[0, :, 0] + np.einsum("jkm,kjm->k", dG, self.sched.force)
+                + np.einsum("jk,kj->k", dB, self.sched.generalized))
 
 
 def zero_dynamics_terms(model: CompiledModel, maps: GaitMaps, alpha: np.ndarray) -> dict:
@@ -292,6 +337,9 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> li
     if live.size:
         sub = Schedule(kn, schedule.force[live], schedule.generalized[live])
         T[live], T_err[live], T_ok[live] = _step_times(zd, sub, zp[live])
+    ext = _orbit_extrema(zd, Schedule(kn, schedule.force[live], schedule.generalized[live]),
+                         zp[live], grid, k1, zeta[live]) if live.size else {}
+    pos = {int(i): r for r, i in enumerate(live)}
     out = []
     for i in range(len(Vf)):
         base = dict(delta_zero_sq=d2, V_f=float(Vf[i]))
@@ -322,7 +370,7 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> li
         else:
             sigma = sgn * np.sqrt(2.0 * zeta[i])
             adot = k1 * sigma
-            jm = int(np.argmin(np.abs(adot)))
+            r = pos[i]
             s_minus = sgn * np.sqrt(2.0 * zs)
             s_plus = zd.delta_zero * s_minus
             stable = d2 < 1.0
@@ -334,10 +382,33 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> li
                 alpha_dot_minus=float(k1[-1] * s_minus), alpha_dot_plus=float(k1[0] * s_plus),
                 step_time=float(T[i]), step_time_error=float(T_err[i]),
                 step_length=step_length, speed=step_length / float(T[i]),
-                min_abs_alpha_dot=float(abs(adot[jm])), alpha_at_min=float(grid[jm]),
+                min_abs_alpha_dot=float(ext["min_adot"][r]), alpha_at_min=float(ext["a_min"][r]),
+                max_abs_alpha_dot=float(ext["max_adot"][r]), alpha_at_max=float(ext["a_max"][r]),
+                min_zeta=float(ext["min_zeta"][r]), alpha_at_min_zeta=float(ext["a_zeta"][r]),
+                touchdown_velocity=zd.touchdown_velocity(float(k1[-1] * s_minus)),
                 orbit={"alpha": grid, "alpha_dot": adot, "sigma": sigma, "zeta": zeta[i]},
                 **base))
     return out
+
+
+def _orbit_extrema(zd: ZeroDynamics, sched: Schedule, zeta_plus: np.ndarray, grid: np.ndarray,
+                   k1: np.ndarray, zeta: np.ndarray) -> dict[str, np.ndarray]:
+    """Exact min/max of ``|alpha'| = |kappa_1| sqrt(2 zeta)`` and min of ``zeta`` along the step
+    for a batch of orbits (``zeta``: (k, g) on ``grid``), by grid + golden section."""
+    zeta_at = ZetaAt(zd, sched)
+
+    def zeta_of(a):
+        return zeta_at(zeta_plus, a)
+
+    def speed(a):
+        return np.abs(zd.terms(a)["kappa1"]) * np.sqrt(2.0 * np.maximum(zeta_of(a), 0.0))
+
+    adot = np.abs(k1)[None, :] * np.sqrt(2.0 * np.maximum(zeta, 0.0))
+    a_min, v_min = polish_min(speed, grid, adot)
+    a_max, v_max = polish_max(speed, grid, adot)
+    a_z, z_min = polish_min(zeta_of, grid, zeta)
+    return {"a_min": a_min, "min_adot": v_min, "a_max": a_max, "max_adot": v_max,
+            "a_zeta": a_z, "min_zeta": z_min}
 
 
 def paper_one_step_shift(zd: ZeroDynamics, schedule: Schedule) -> np.ndarray:
