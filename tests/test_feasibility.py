@@ -408,3 +408,30 @@ def test_max_abs_torque_and_swing_extremes_are_polished(walk3):
     assert sw["max_height"] >= h.max() - 1e-15
     assert sw["max_height"] == pytest.approx(h.max(), abs=1e-10)
     assert sw["deepest"] == pytest.approx(min(h[1:-1].min(), 0.0), abs=1e-10)
+
+
+@pytest.mark.slow
+def test_tangential_touchdown_is_not_a_strike(tmp_path, walker_rabbit, cli):
+    """A swing foot that reaches the ground at vertical velocity 0 does not strike it (the
+    impact of the hybrid model needs a transversal crossing): feasibility says so, reports the
+    touchdown velocity per case and warns; the bundled gaits strike (touchdown < 0)."""
+    from pathlib import Path
+
+    from thrustwalk_cli.walker import load_walker
+
+    data = Path(__file__).resolve().parent / "data"
+    w = load_walker(None, str(data / "rabbit_tangent.yaml"))
+    imp = CT.impact_data(w.model, w.zd)
+    assert not imp.strikes and not imp.admissible(10.0)
+    assert any("not a strike" in r for r in imp.reasons(10.0))
+    res = cli("feasibility", "rabbit", data / "rabbit_tangent.yaml", "--thrust", "0", "--mu",
+              "2", "-q", "--out", tmp_path)
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "feasibility.json").read_text())
+    case = doc["cases"][0]
+    assert not case["feasible"] and "not a strike" in case["reason"]
+    assert case["touchdown_velocity"] == pytest.approx(0.0, abs=1e-12)
+    assert doc["warnings"] and "grazing" in (tmp_path / "feasibility.md").read_text()
+    for walker in (load_walker(None, "three_link_walk"), load_walker(None, "rabbit_walk")):
+        imp = CT.impact_data(walker.model, walker.zd)
+        assert imp.strikes and imp.touchdown_per_sigma < 0

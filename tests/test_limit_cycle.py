@@ -8,6 +8,7 @@ model functions.
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 from pathlib import Path
 
@@ -272,3 +273,23 @@ def test_touchdown_velocity_is_the_swing_foot_velocity(walk3):
         dy_dalpha = (y[1] - y[0]) / (2 * h)
         assert lc.touchdown_velocity == pytest.approx(dy_dalpha * lc.alpha_dot_minus, rel=1e-7)
         assert lc.touchdown_velocity < -0.1  # the bundled gait strikes the ground
+
+
+@pytest.mark.slow
+def test_cli_reports_touchdown_velocity_and_warns_when_grazing(tmp_path, walker_rabbit, cli):
+    """limit-cycle writes each orbit's touchdown velocity; a gait whose swing foot reaches the
+    ground tangentially (tests/data/rabbit_tangent.yaml) gets a grazing warning in the JSON and
+    on stderr; the bundled gait does not."""
+    data = Path(__file__).resolve().parent / "data"
+    res = cli("limit-cycle", "rabbit", data / "rabbit_tangent.yaml", "--thrust", "0",
+              "--out", tmp_path / "t")
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "t" / "limit_cycles.json").read_text())
+    assert doc["cycles"][0]["touchdown_velocity"] == pytest.approx(0.0, abs=1e-12)
+    assert len(doc["warnings"]) == 1 and "grazing touchdown" in doc["warnings"][0]
+    assert "warning: thrust 0 N: grazing touchdown" in res.output
+    res = cli("limit-cycle", "rabbit", "rabbit_walk", "--thrust", "0", "-q", "--out",
+              tmp_path / "w")
+    doc = json.loads((tmp_path / "w" / "limit_cycles.json").read_text())
+    assert doc["warnings"] == [] and doc["cycles"][0]["touchdown_velocity"] < -0.3
+

@@ -15,9 +15,11 @@ HELP = """Is this gait, with this thrust, physically walkable?
 For each constant thrust value [N] (or one piecewise schedule from a gait-format YAML file):
 the exact ground reaction force F_1(alpha) = Lambda_2 F + Lambda_1 zeta + Lambda_0 [N] along the
 periodic orbit, joint torques [N m], swing-foot height [m], and the impact impulse [N s] with
-the trailing foot's lift-off velocity [m/s]. Feasible when a periodic orbit exists,
-F_1^v >= eps, |F_1^h| <= mu F_1^v (the exact planar cone; an inscribed pyramid mu/sqrt(2) is
-about 29 % too strict), the impact impulse lies in the cone and the trailing foot lifts off.
+the trailing foot's lift-off velocity [m/s] and the swing foot's touchdown velocity [m/s].
+Feasible when a periodic orbit exists, F_1^v >= eps, |F_1^h| <= mu F_1^v (the exact planar
+cone; an inscribed pyramid mu/sqrt(2) is about 29 % too strict), the impact impulse lies in the
+cone, the trailing foot lifts off and the swing foot moves down at touchdown (a strike, not a
+grazing contact). For a robot without thrusters the only thrust is 0 (the default).
 Polynomial fits L_0, L_1, L_2 of the Lambdas give a second verdict beside the exact one.
 An infeasible gait is a valid answer (exit 0); bad input exits 2, a tool failure 1.
 
@@ -45,6 +47,8 @@ def run_feasibility(robot: str, gait: str, *, thrust: list[float] | None, schedu
     doc = write_result(result, out, provenance(walker.robot, walker.gait, schedule=schedule))
     if not quiet:
         _table(doc)
+    for w in doc["warnings"]:
+        console(stderr=True).print(f"warning: {w}", markup=False)
     return doc
 
 
@@ -56,12 +60,13 @@ def _table(doc: dict) -> None:
 
     t = Table(title=f"feasibility: {doc['robot']['name']} / {doc['gait']['name']} "
                     f"(mu = {doc['mu']:g}, verdict: {doc['verdict']})")
-    for col in ("thrust [N]", "verdict", "min F^v [N]", "max |F^h|/F^v", "lift-off [m/s]"):
+    for col in ("thrust [N]", "verdict", "min F^v [N]", "max |F^h|/F^v", "lift-off [m/s]",
+                "touchdown [m/s]"):
         t.add_column(col, overflow="fold")
     for c in doc["cases"]:
         t.add_row(thrust_text(c["thrust"]), "feasible" if c["feasible"] else "INFEASIBLE",
                   fmt(c["min_vertical_force"]), fmt(c["max_friction_ratio"]),
-                  fmt(c["liftoff_velocity"]))
+                  fmt(c["liftoff_velocity"]), fmt(c["touchdown_velocity"]))
     con = console()
     con.print(t)
     for c in doc["cases"]:
@@ -77,7 +82,8 @@ def register(app: typer.Typer) -> None:
         gait: GaitArg = "three_link_walk",
         thrust: Annotated[str | None, typer.Option(
             "--thrust", help=f"Constant thrust values [N]: start:stop:step or a comma list "
-                             f"(default {DEFAULT_THRUST}).")] = None,
+                             f"(default {DEFAULT_THRUST}; 0 for a robot without thrusters).")
+        ] = None,
         schedule: Annotated[str | None, typer.Option(
             "--schedule", help="Gait-format YAML file whose `thrust:` section (piecewise in "
                                "alpha, per thruster [N] or generalised [N m]) is evaluated "

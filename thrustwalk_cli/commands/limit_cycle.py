@@ -13,9 +13,11 @@ from .options import GaitArg, OutOpt, QuietOpt, RobotArg, ThrusterOpt
 HELP = """Limit cycles of the hybrid zero dynamics for constant thrust values.
 
 For every thrust value: Poincare fixed point zeta* [kg^2 m^4/s^2], stability (delta_zero^2),
-step time [s], step length [m], speed [m/s], sigma_N^+/- [kg m^2/s], alpha'^+/- [rad/s] and
-the point of minimum |alpha'|. Thrust is in newtons; with the bundled robots negative thrust
-pushes forward (the paper's convention).
+step time [s], step length [m], speed [m/s], sigma_N^+/- [kg m^2/s], alpha'^+/- [rad/s], the
+exact minimum and maximum of |alpha'| and the swing foot's touchdown velocity [m/s] (near 0:
+a grazing touchdown). Thrust is in newtons; with the bundled robots negative thrust pushes
+forward (the paper's convention). For a robot without thrusters the only thrust is 0 (the
+default); a non-zero value is an error.
 
 Writes DIR/limit_cycles.json, DIR/limit_cycles.csv, DIR/limit_cycles.png and .pdf, and
 DIR/fixed_point_shift.png and .pdf (zeta* and speed versus thrust, with the affine law).
@@ -25,18 +27,26 @@ EPILOG = ("Example: thrustwalk limit-cycle three_link three_link_walk --thrust 0
           "--out out/lc")
 
 
-def run_limit_cycle(robot: str, gait: str, thrust: list[float], thruster: str | None,
+DEFAULT_THRUST = "0:-50:-10"  # [N]; 0 for a robot without thrusters
+
+
+def run_limit_cycle(robot: str, gait: str, thrust: list[float] | None, thruster: str | None,
                     out: Path, quiet: bool) -> dict:
-    """Plain function behind the command; returns the JSON document it wrote."""
+    """Plain function behind the command; returns the JSON document it wrote. ``thrust``
+    None: 0:-50:-10 N, or 0 for a robot without thrusters."""
     from ..files.output import provenance
     from ..studies.limit_cycle import limit_cycle
     from ..walker import load_walker
 
     walker = load_walker(robot, gait)
+    if thrust is None:
+        thrust = parse_values(DEFAULT_THRUST, "--thrust") if walker.robot.thrusters else [0.0]
     doc = write_result(limit_cycle(walker, thrust, thruster), out,
                        provenance(walker.robot, walker.gait))
     if not quiet:
         _table(doc)
+    for w in doc["warnings"]:
+        console(stderr=True).print(f"warning: {w}", markup=False)
     return doc
 
 
@@ -49,13 +59,13 @@ def _table(doc: dict) -> None:
     t = Table(title=f"limit cycles: {doc['robot']['name']} / {doc['gait']['name']} "
                     f"(delta_zero^2 = {zd['delta_zero_sq']:.4f})")
     for col in ("thrust [N]", "zeta*", "stable", "T [s]", "speed [m/s]", "min|α'| [rad/s]",
-                "reason"):
+                "touchdown [m/s]", "reason"):
         t.add_column(col, overflow="fold")
     for c in doc["cycles"]:
         t.add_row(fmt(c["thrust"]), fmt(c["zeta_star"]),
                   "yes" if c["stable"] else ("no" if c["exists"] else "no orbit"),
                   fmt(c["step_time"]), fmt(c["speed"]), fmt(c["min_abs_alpha_dot"]),
-                  "" if c["stable"] else c["reason"])
+                  fmt(c["touchdown_velocity"]), "" if c["stable"] else c["reason"])
     console().print(t)
 
 
@@ -65,14 +75,15 @@ def register(app: typer.Typer) -> None:
         ctx: typer.Context,
         robot: RobotArg = "three_link",
         gait: GaitArg = "three_link_walk",
-        thrust: Annotated[str, typer.Option(
-            "--thrust", help="Thrust values [N]: start:stop:step or a comma list.")] = "0:-50:-10",
+        thrust: Annotated[str | None, typer.Option(
+            "--thrust", help=f"Thrust values [N]: start:stop:step or a comma list (default "
+                             f"{DEFAULT_THRUST}; 0 for a robot without thrusters).")] = None,
         thruster: ThrusterOpt = None,
         out: OutOpt = Path("out/limit_cycle"),
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
-            values = parse_values(thrust, "--thrust", "N")
+            values = None if thrust is None else parse_values(thrust, "--thrust", "N")
             run_limit_cycle(robot, gait, values, thruster, out, quiet)
             if not quiet:
                 console().print(f"wrote {out}/limit_cycles.json, .csv, .png, .pdf and "

@@ -48,14 +48,14 @@ def run_simulate(robot: str, gait: str, *, steps: int, thrust_model: str, f_ss: 
                  quiet: bool) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files import output
-    from ..studies.simulate import simulate
+    from ..studies.simulate import default_f_ss, simulate
     from ..walker import load_walker
 
     values = _floats(f_ss, "--f-ss")
     q, dq = _floats(q0, "--q0"), _floats(dq0, "--dq0")
     walker = load_walker(robot, gait)
     n_runs = max(1, len(values)) if values is not None else (
-        1 if thrust_model == "piecewise" else 6)
+        1 if thrust_model == "piecewise" else len(default_f_ss(walker)))
     with progress("simulating steps", n_runs * steps, quiet) as advance:
         result = simulate(
             walker, steps=steps, thrust_model=thrust_model, f_ss=values, wn=wn, xi=xi, tau=tau,
@@ -99,7 +99,8 @@ def register(app: typer.Typer) -> None:
             help="constant | first-order | second-order | piecewise.")] = "second-order",
         f_ss: Annotated[str | None, typer.Option(
             "--f-ss", help="Steady thrust F_ss [N], one run per value: start:stop:step or a "
-                           "comma list (default 0:-50:-10; not with piecewise).")] = None,
+                           "comma list (default 0:-50:-10, or 0 for a robot without "
+                           "thrusters; not with piecewise).")] = None,
         wn: Annotated[float, typer.Option(
             "--wn", help="Second-order thruster natural frequency [rad/s].")] = 2.0,
         xi: Annotated[float, typer.Option(

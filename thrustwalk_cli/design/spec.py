@@ -84,12 +84,14 @@ class DesignSpec:
             bad("objective", f"unknown objective {self.objective!r} (choose from "
                              f"{', '.join(OBJECTIVES)})")
         if self.thrust_design and model.n_thrusters == 0:
-            bad("thrust_design", "the robot has no thruster")
+            bad("thrust_design", f"robot {model.robot.name} has no thruster")
         if self.thrust_range is not None:
             name, lo, hi = self.thrust_range
-            if name not in model.robot.thruster_names:
+            names = model.robot.thruster_names
+            if name not in names:
                 bad("thrust_range", f"unknown thruster {name!r} (robot {model.robot.name} has: "
-                                    f"{', '.join(model.robot.thruster_names)})")
+                                    f"{', '.join(names)})" if names else
+                    f"robot {model.robot.name} has no thruster")
             if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
                 bad("thrust_range", "need finite NAME:LOW:HIGH with LOW <= HIGH [N]")
         if self.thrust_weight < 0:

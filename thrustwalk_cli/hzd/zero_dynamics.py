@@ -38,6 +38,8 @@ from .quadrature import ChebSeries, cumulative_with_error, integrate, lobatto
 
 RTOL = 1e-9
 
+GRAZING_VELOCITY = 0.01  # [m/s] a touchdown slower than this is reported as grazing
+
 
 MAX_NODES = 4097
 
@@ -409,6 +411,18 @@ def _orbit_extrema(zd: ZeroDynamics, sched: Schedule, zeta_plus: np.ndarray, gri
     a_z, z_min = polish_min(zeta_of, grid, zeta)
     return {"a_min": a_min, "min_adot": v_min, "a_max": a_max, "max_adot": v_max,
             "a_zeta": a_z, "min_zeta": z_min}
+
+
+def grazing_warning(lc: LimitCycle) -> str | None:
+    """A warning when the orbit's swing foot moves down onto the ground slower than
+    ``GRAZING_VELOCITY`` at touchdown (or not at all): the strike is (nearly) tangential and a
+    full-order simulation can miss it. None otherwise (or without an orbit)."""
+    v = lc.touchdown_velocity
+    if v is None or v < -GRAZING_VELOCITY:
+        return None
+    return (f"grazing touchdown: the swing foot reaches the ground at vertical velocity "
+            f"{v:.3g} m/s (moving down slower than {GRAZING_VELOCITY:g} m/s); a full-order "
+            "simulation can miss the strike")
 
 
 def paper_one_step_shift(zd: ZeroDynamics, schedule: Schedule) -> np.ndarray:

@@ -414,7 +414,7 @@ class ClosedLoop:
         seg = np.broadcast_to(np.asarray(seg, int), X.shape[:1])
         N, nb, m, mod = self.N, self.nb, self.m, self.model
         q, dq, z = X[:, :N], X[:, N:2 * N], X[:, 2 * N:]
-        F = np.array([self.force(zz, j) for zz, j in zip(z, seg)], float).reshape(-1, m)
+        F = np.array([self.force(zz, j) for zz, j in zip(z, seg)], float).reshape(len(X), m)
         T = np.array([self.generalized(j) for j in seg], float)
         D = mod.D(q)
         rhs = -mod.h(q, dq)

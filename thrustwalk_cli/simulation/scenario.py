@@ -65,6 +65,7 @@ def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
                   **kw) -> Scenario:
     """Validate parameters into a :class:`Scenario`; :class:`InputError` names the parameter
     (``thrust_model``, ``f_ss`` for ``values``, ``thruster``, ``f0``, ``wn``, ``xi``, ``tau``).
+    For a robot without thrusters ``values`` and ``f0`` must be 0 (no thruster is driven).
     ``schedule``: the piecewise schedule (from the gait's ``thrust:`` section), required for
     ``kind == "piecewise"``."""
     robot = zd.model.robot
@@ -82,6 +83,12 @@ def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
             raise InputError.param("thrust_model", "piecewise thrust needs a schedule")
         idx: tuple[int, ...] = ()
         values = []
+    elif not robot.thrusters:  # thrust options refer to no thruster: only 0 is possible
+        if thrusters:
+            robot.driven_thruster(thrusters[0])
+        robot.check_no_thrust(values or [], "f_ss")
+        robot.check_no_thrust([kw.get("f0", 0.0)], "f0")
+        idx = ()
     else:
         names = thrusters or [None]
         idx = tuple(robot.thruster_index(n) for n in names)

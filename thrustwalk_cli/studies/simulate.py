@@ -278,6 +278,7 @@ def figure_data(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome]) -> dict
             "value": oc.value,
             "t": tr["t"] if tr else np.zeros(0),
             "thrust": (tr["F"][:, j] if (tr and j is not None) else
+                       np.zeros(tr["t"].size) if (tr and sc.kind != "piecewise") else
                        (tr["F"] if tr else np.zeros((0, zd.model.n_thrusters)))),
             "T": tr["T"] if tr else np.zeros(0),
             "steps": steps,
@@ -391,6 +392,12 @@ class SimulationResult:
         return animate(animation_frames(self.walker.zd, self.outcomes[-1]))
 
 
+def default_f_ss(walker: Walker) -> tuple[float, ...]:
+    """Steady thrust values [N] run by default: 0 to -50 N in steps of 10, or only 0 for a
+    robot without thrusters."""
+    return (0.0, -10.0, -20.0, -30.0, -40.0, -50.0) if walker.robot.thrusters else (0.0,)
+
+
 def simulate(walker: Walker, *, steps: int = 30, thrust_model: str = "second-order",
              f_ss: Sequence[float] | None = None, wn: float = 2.0, xi: float = 1.0,
              tau: float = 0.5, f0: float = 0.0, thruster: Sequence[str] | None = None,
@@ -401,8 +408,9 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str = "second-ord
              scuff_tol: float = 1e-4, reduced: bool = False,
              progress: Callable[[int], None] | None = None) -> SimulationResult:
     """Simulate ``steps`` steps of the full-order closed loop (SPEC 7) for each steady thrust
-    ``f_ss`` [N] (default 0 to -50 N in steps of 10; not with ``thrust_model="piecewise"``,
-    which uses the gait's ``thrust:`` section) on ``thruster`` (default: the first).
+    ``f_ss`` [N] (default 0 to -50 N in steps of 10, only 0 for a robot without thrusters; not
+    with ``thrust_model="piecewise"``, which uses the gait's ``thrust:`` section) on
+    ``thruster`` (default: the first).
 
     Thrust models: ``constant``, ``first-order`` (``tau`` [s]), ``second-order`` (``wn``
     [rad/s], ``xi``), ``piecewise``; ``f0`` [N] is the thrust at t = 0 of the dynamic models.
@@ -419,7 +427,7 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str = "second-ord
                                               "start")
     values = None if f_ss is None else [float(v) for v in f_ss]
     if values is None and thrust_model != "piecewise":
-        values = [0.0, -10.0, -20.0, -30.0, -40.0, -50.0]
+        values = list(default_f_ss(walker))
     st = Start(zeta_minus=zeta0, perturb=perturb, q=None if q0 is None else list(q0),
                dq=None if dq0 is None else list(dq0), orbit=start)
     config = SimConfig(steps=steps, rtol=rtol, atol=atol, method=method,
