@@ -33,6 +33,13 @@ def flags(ctx: typer.Context | None) -> dict[str, str]:
     return out
 
 
+def render_mentions(text: str, ctx: typer.Context | None) -> str:
+    """``text`` with parameters mentioned in backquotes (`` `max_iter` ``) written as the
+    running command's flags (``--max-iter``); unknown names stay as they are."""
+    names = flags(ctx)
+    return _MENTION.sub(lambda m: names.get(m.group(1), m.group(0)), text)
+
+
 def render_problem(p: Problem, flags: dict[str, str]) -> str:
     """One line for a problem: a parameter problem names the command's flag(s)
     (``option --mu: ...``); parameters mentioned in backquotes become flags too."""
