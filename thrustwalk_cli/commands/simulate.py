@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from .common import cli_errors, console, parse_values, progress, write_result
+from .common import cli_errors, console, parse_values, progress, render_mentions, write_result
 from .options import GaitArg, OutOpt, QuietOpt, RobotArg
 
 HELP = """Full-order hybrid simulation of the closed loop with thruster dynamics.
@@ -24,8 +24,12 @@ alpha (the gait's thrust: section). The start is just after an impact on the pre
 1 + --perturb, or --zeta0 [kg^2 m^4/s^2], or an explicit state --q0/--dq0.
 
 A walker that falls (stance leg past horizontal, alpha reversing, negative vertical ground
-force), scuffs or has an infeasible impact is reported in simulation.json (success, reason)
-with exit 0; an integrator or controller failure exits 1 (files are still written).
+force), scuffs (a strike before s = --min-impact-s, 0.75, counts as a scuff) or has an
+infeasible impact, and a steady thrust without a periodic orbit to start on, are reported in
+simulation.json (success, reason) with exit 0 (the other values still run); an integrator or
+controller failure exits 1 (files are still written). A completed run whose impacts are
+farther than --impact-s-tol from s = 1 or whose zeta^- leaves the zero-dynamics prediction by
+more than --zeta-tol (a grazing or missed touchdown) has status "warning", with the reason.
 
 Writes DIR/simulation.json, DIR/steps.csv, DIR/trajectory.csv (.npz above 20000 samples),
 DIR/thrust_time.png/.pdf, DIR/phase_portrait.png/.pdf and, with --animate, DIR/walker.gif.
@@ -45,7 +49,8 @@ def run_simulate(robot: str, gait: str, *, steps: int, thrust_model: str, f_ss: 
                  start_orbit: str,
                  torque_limit: float | None, rtol: float, atol: float, method: str,
                  samples: int, scuff_tol: float, reduced: bool, animate: bool, out: Path,
-                 quiet: bool) -> dict:
+                 quiet: bool, min_impact_s: float = 0.75, impact_s_tol: float = 1e-3,
+                 zeta_tol: float = 1e-3) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files import output
     from ..studies.simulate import default_f_ss, simulate
@@ -61,7 +66,8 @@ def run_simulate(robot: str, gait: str, *, steps: int, thrust_model: str, f_ss: 
             walker, steps=steps, thrust_model=thrust_model, f_ss=values, wn=wn, xi=xi, tau=tau,
             f0=f0, thruster=thrusters, perturb=perturb, zeta0=zeta0, q0=q, dq0=dq,
             start=start_orbit, torque_limit=torque_limit, rtol=rtol, atol=atol, method=method,
-            samples=samples, scuff_tol=scuff_tol, reduced=reduced, progress=advance)
+            samples=samples, scuff_tol=scuff_tol, min_impact_s=min_impact_s,
+            impact_s_tol=impact_s_tol, zeta_tol=zeta_tol, reduced=reduced, progress=advance)
     doc = write_result(result, out, output.provenance(walker.robot, walker.gait))
     if animate:
         output.write_bytes_atomic(out / "walker.gif", result.animation())
@@ -81,9 +87,12 @@ def _table(doc: dict) -> None:
     for col in ("F_ss [N]", "steps", "final ζ⁻", "predicted ζ*", "rel. error", "status"):
         t.add_column(col, overflow="fold")
     for r in doc["runs"]:
+        status = {"ok": "ok", "warning": "warning (off the prediction)"
+                  if r["deviations"] else "warning"}.get(
+            r["status"], f"{r['failure']} ({r['reason'].split(':')[0]})")
         t.add_row(fmt(r["f_ss"]), str(r["steps_completed"]), fmt(r["final_zeta_minus"]),
                   fmt(r["predicted"]["zeta_star"]), fmt(r["final_relative_error"], ".2e"),
-                  "ok" if r["success"] else f"{r['failure']} ({r['reason'].split(':')[0]})")
+                  status)
     console().print(t)
 
 
@@ -138,6 +147,15 @@ def register(app: typer.Typer) -> None:
             "--samples", help="Stored trajectory samples per step.")] = 80,
         scuff_tol: Annotated[float, typer.Option(
             "--scuff-tol", help="Depth the swing foot may dip before mid-step [m].")] = 1e-4,
+        min_impact_s: Annotated[float, typer.Option(
+            "--min-impact-s", help="Early-strike threshold [1]: a swing-foot strike before this "
+                                   "s counts as a scuff (0.5 <= value < 1).")] = 0.75,
+        impact_s_tol: Annotated[float, typer.Option(
+            "--impact-s-tol", help="Warn when a step's impact is farther than this from s = 1 "
+                                   "[1].")] = 1e-3,
+        zeta_tol: Annotated[float, typer.Option(
+            "--zeta-tol", help="Warn when a step's zeta^- differs from the zero-dynamics "
+                               "prediction by more than this [1, relative].")] = 1e-3,
         reduced: Annotated[bool, typer.Option(
             "--reduced", help="Fast preview: the reduced cascade (zero dynamics plus thruster "
                               "states) only.")] = False,
@@ -152,12 +170,14 @@ def register(app: typer.Typer) -> None:
                 tau=tau, f0=f0, thrusters=thruster, perturb=perturb, zeta0=zeta0, q0=q0,
                 dq0=dq0, start_orbit=start, torque_limit=torque_limit, rtol=rtol,
                 atol=atol, method=method, samples=samples, scuff_tol=scuff_tol,
-                reduced=reduced, animate=animate, out=out, quiet=quiet)
+                reduced=reduced, animate=animate, out=out, quiet=quiet,
+                min_impact_s=min_impact_s, impact_s_tol=impact_s_tol, zeta_tol=zeta_tol)
         tool = [r for r in doc["runs"] if r["failure"] in ("integrator", "controller")]
         for r in doc["runs"]:
-            if not r["success"]:
+            if r["status"] != "ok":
+                text = r["reason"] if not r["success"] else "; ".join(r["warnings"])
                 sys.stderr.write(f"warning: run {r['run']} (F_ss = {r['f_ss']}): "
-                                 f"{r['reason']}\n")
+                                 f"{render_mentions(text, ctx)}\n")
         if not quiet:
             console().print(f"wrote {out}/simulation.json, steps.csv, "
                             f"{doc['trajectory_file']}, thrust_time.png/.pdf, "
