@@ -335,3 +335,22 @@ def test_cdc2003_published_gait_is_reproduced(_cache_dir):
     assert abs(grid - CDC2003["min_abs_alpha_dot"][0]) > 10 * CDC2003["min_abs_alpha_dot"][1]
     # the published gait touches down tangentially (2 dq1 + dq2 = 0 at q1 + q2 = -q1)
     assert lc.touchdown_velocity == pytest.approx(0.0, abs=1e-12)
+
+
+def test_series_helpers_of_the_extrema_polishing(walk3):
+    """The pieces the Newton polishing of orbit extrema relies on: ``1/kappa_1`` interpolated on
+    the quadrature nodes equals the model to 1e-12 relative; ``at_few`` (cosine form) equals
+    Clenshaw's evaluation for one point, a (k, p) block and more than 256 points; the series
+    derivative equals a central difference of the series."""
+    _, _, zd = walk3
+    a = np.linspace(zd.alpha_i, zd.alpha_f, 2001)
+    E = zd.terms(a)["eDPhi"]
+    assert np.abs(zd.E(a) - E).max() <= 1e-12 * np.abs(E).max()
+    S = zd.extrema_series()
+    for x in (a[:1], a[:300].reshape(20, 15), a):
+        assert np.allclose(S.at_few(x), S(x), rtol=0, atol=1e-12 * np.abs(S(a)).max())
+    h = 1e-6
+    V = zd.V0
+    dV = V.derivative(1)
+    num = (V(a[1:-1] + h) - V(a[1:-1] - h)) / (2 * h)
+    assert np.allclose(dV(a[1:-1]), num, rtol=1e-7, atol=1e-7 * np.abs(num).max())

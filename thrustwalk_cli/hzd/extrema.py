@@ -15,7 +15,7 @@ from collections.abc import Callable
 import numpy as np
 
 GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
-ITERATIONS = 60  # bracket shrinks by 0.618^60 ~ 3e-13 of two grid spacings
+ITERATIONS = 40  # bracket shrinks by 0.618^40 ~ 4e-9 of two grid spacings (~1e-11 rad)
 
 
 def golden_min(f: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray,
