@@ -353,6 +353,8 @@ def test_compass_walker_blocked_without_thrust_and_the_hint_helps(tmp_path, cli)
     line = next(ln for ln in res.output.splitlines() if ln.startswith("infeasible:"))
     assert "blocked by orbit" in line and "violated:" in line
     assert "try --design-thrust" in line and "`" not in line, line
+    report = json.loads((tmp_path / "c.report.json").read_text())
+    assert set(report["failed_check_details"]) == set(report["failed_checks"]), report
     assert cli(*args, "--design-thrust", "-q").exit_code == 0
 
 

@@ -56,6 +56,7 @@ def report_record(res: DesignResult) -> dict:
         "fixed_point": r.get("orbit"),
         "margins": r.get("margins"),
         "failed_checks": r.get("failed"),
+        "failed_check_details": r.get("failure_details"),
         "cost": r.get("cost"),
         "contact": r.get("contact"),
         "swing_foot": r.get("swing"),
