@@ -21,7 +21,8 @@ this module implements the true fixed point (``paper_one_step_shift`` gives the 
 Integrals are spectral (Chebyshev-Lobatto, :mod:`quadrature`); the node count doubles until the
 nested error estimate is below ``rtol`` relative, and the estimate is reported. Extrema along
 the orbit (minimum and maximum ``|alpha'|``, minimum ``zeta``) are located on a grid and polished
-by golden-section search (:mod:`extrema`), so they are exact to about 1e-12, not grid-limited.
+by Newton iterations on their stationarity conditions (:func:`_orbit_extrema`), so they are exact
+to about 1e-12, not grid-limited.
 """
 
 from __future__ import annotations
@@ -82,7 +83,7 @@ class LimitCycle:
     says why. ``orbit`` holds the sampled phase-plane curve (alpha, alpha', sigma_N).
     ``min_abs_alpha_dot``/``alpha_at_min`` (the potential-energy barrier),
     ``max_abs_alpha_dot``/``alpha_at_max`` and ``min_zeta``/``alpha_at_min_zeta`` [rad] are the
-    exact extrema along the step (grid, then golden section). ``touchdown_velocity``: vertical
+    exact extrema along the step (grid, then Newton). ``touchdown_velocity``: vertical
     velocity of the swing foot just before impact [m/s], negative when it moves down; near 0
     the foot grazes the ground and a full-order simulation can miss the strike.
     """
