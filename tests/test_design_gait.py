@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -286,3 +287,104 @@ def test_simulated_rabbit_gait_settles_on_the_predicted_fixed_point(rabbit):
     assert abs(err[-1]) < 1e-3 * zs
     ratio = err[2:8] / err[1:7]
     assert ratio == pytest.approx(zd.delta_zero_sq, abs=0.02)
+
+
+# ----------------------------------------------------- touchdown, tolerances and messages
+DATA = Path(__file__).resolve().parent / "data"
+
+
+@pytest.mark.slow
+def test_designed_gait_meets_the_touchdown_velocity_bound(tmp_path, three_link, cli):
+    """--min-touchdown-velocity 0.6 (the default design touches down at -0.2 m/s): the designed
+    gait's swing foot moves down at >= 0.6 m/s just before impact, by the limit-cycle code and
+    by a central difference of the swing-foot height along q_Z (independent of E_2); the foot
+    is on the ground at impact to 1e-12 m (polished, not just to the solver's tolerance)."""
+    out = tmp_path / "td.yaml"
+    res = cli("design-gait", "three_link", "--target-speed", str(SPEED), "--clearance", "0",
+              "--starts", "1", "--min-touchdown-velocity", "0.6", "--out", tmp_path, "--name",
+              "td", "-q")
+    assert res.exit_code == 0, res.output
+    report = json.loads(out.with_name("td.report.json").read_text())
+    assert report["spec"]["min_touchdown_velocity"] == 0.6
+    gait, zd, sched, lc = _orbit(three_link, out)
+    assert lc.touchdown_velocity <= -0.6, lc.touchdown_velocity
+    h = 1e-6
+    y = [swing_foot(three_link.robot, zd.maps.q_Z(np.array(zd.alpha_f + d)))[1] for d in (-h, h)]
+    assert (y[1] - y[0]) / (2 * h) * lc.alpha_dot_minus == pytest.approx(lc.touchdown_velocity,
+                                                                         rel=1e-6)
+    assert report["margins"]["touchdown_velocity"] >= 0
+    assert abs(swing_foot(three_link.robot, zd.maps.q_minus)[1]) < 1e-12
+    assert "touches down at -0.6" in out.read_text()
+
+
+def test_polish_puts_the_swing_foot_exactly_on_the_ground(three_link):
+    """Problem.polish: Newton on q_N of q^- removes a 1e-6 rad foot-placement error to 1e-13 m
+    (the re-check demands 1e-9 m; the solver alone reaches about its 1e-5 tolerance)."""
+    prob = Problem(three_link, DesignSpec(speed=SPEED, clearance=0.0))
+    x = prob.start(None)
+    x[three_link.n - 1] += 1e-6
+    assert abs(three_link.p_swing(x[:three_link.n])[1]) > 1e-7
+    xp = prob.polish(x)
+    assert abs(three_link.p_swing(xp[:three_link.n])[1]) < 1e-13
+    assert np.array_equal(xp[three_link.n:], x[three_link.n:])
+
+
+def test_recheck_prints_the_digits_that_show_a_violation(walker3):
+    """delta_zero^2 just above the bound: the re-check fails "stability" and its message shows
+    enough digits to see it (not "0.7578 > 0.7578"); a bound just above it passes."""
+    from thrustwalk_cli.design.verify import check_gait, show
+
+    assert show(0.9000002, 0.9) == ("0.9000002", "0.9")
+    assert show(1.5, 1.5) == ("1.5", "1.5")
+    d2 = walker3.zd.delta_zero_sq
+    spec = DesignSpec(speed=SPEED, clearance=0.0, max_delta_sq=d2 - 2e-7,
+                      min_vertical_force=40.0)
+    chk = check_gait(walker3.model, walker3.gait, spec)
+    assert "stability" in chk["failed"]
+    text = chk["failure_details"]["stability"]
+    lhs, rhs = (float(v) for v in text.split("= ")[1].split(" > "))
+    assert lhs > rhs and lhs == pytest.approx(d2, abs=1e-6)
+    assert rhs == pytest.approx(spec.max_delta_sq, abs=1e-6)
+    ok = check_gait(walker3.model, walker3.gait, replace(spec, max_delta_sq=d2 + 2e-7))
+    assert "stability" not in ok["failed"]
+
+
+@pytest.mark.slow
+def test_compass_walker_blocked_without_thrust_and_the_hint_helps(tmp_path, cli):
+    """A compass walker on flat ground without thrust: design-gait exits 3 naming the violated
+    inequality with its numbers and suggesting --design-thrust; with it, a gait is found."""
+    args = ["design-gait", DATA / "compass.yaml", "--target-speed", "0.5", "--clearance", "0",
+            "--order", "4", "--starts", "1", "--max-iter", "40", "--out", tmp_path, "--name", "c"]
+    res = cli(*args)
+    assert res.exit_code == 3, res.output
+    line = next(ln for ln in res.output.splitlines() if ln.startswith("infeasible:"))
+    assert "blocked by orbit" in line and "violated:" in line
+    assert "try --design-thrust" in line and "`" not in line, line
+    report = json.loads((tmp_path / "c.report.json").read_text())
+    assert set(report["failed_check_details"]) == set(report["failed_checks"]), report
+    assert cli(*args, "--design-thrust", "-q").exit_code == 0
+
+
+def test_blocking_messages_state_the_violated_inequality():
+    """Every violated family's message at a start point of a compass walker states the
+    inequality and the numbers that show the violation; the hints name parameters (rendered
+    as flags by the command line), with a larger `max_iter` when starts hit the limit."""
+    from thrustwalk_cli.design.solver import StartResult, describe, suggestion
+    from thrustwalk_cli.files.robot_file import load_robot
+    from thrustwalk_cli.model.compiler import load_model
+
+    model = load_model(load_robot(str(DATA / "compass.yaml")))
+    prob = Problem(model, DesignSpec(speed=0.5, clearance=0.0, order=4))
+    ev = prob.evaluate(prob.start(None))
+    for fam in FAMILIES:
+        if fam in ev.violations():
+            text = describe(fam, ev, prob)
+            assert "violated" in text and "`" not in text, (fam, text)
+    d2 = ev.info["delta_zero_sq"]
+    spec = replace(prob.spec, max_delta_sq=0.5 * d2)
+    text = describe("stability", ev, Problem(model, spec))
+    a, b = (float(v) for v in text.split("violated: delta_zero^2 = ")[1].split(" > "))
+    assert a > b and a == pytest.approx(d2, rel=1e-3)
+    stuck = StartResult(0, np.zeros(1), "Iteration limit reached", 1.0, 1.0, 40, 1, 0.1)
+    hint = suggestion("orbit", prob, [stuck])
+    assert "`thrust_design`" in hint and "`max_iter` = 150" in hint, hint

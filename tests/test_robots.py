@@ -126,3 +126,94 @@ def test_shipped_rabbit_gait_claims(walker_rabbit):
     h = model.p_swing(q)[:, 1]
     assert h[(s > 0.02) & (s < 0.98)].min() > 0
     assert h[1000] >= 0.03
+
+
+# --------------------------------------------------------------- a robot without thrusters
+DATA = Path(__file__).resolve().parent / "data"
+BARE = str(DATA / "three_link_bare.yaml")  # robots/three_link.yaml with `thrusters: []`
+BARE_WALK = str(DATA / "three_link_bare_walk.yaml")  # gaits/three_link_walk.yaml's coefficients
+
+
+def _json(path: Path) -> dict:
+    import json
+
+    return json.loads(path.read_text())
+
+
+@pytest.mark.slow
+def test_robot_without_thrusters_through_every_analysis(tmp_path, walk3, cli):
+    """compile, inspect, limit-cycle, feasibility, shape (generalised mode), optimize
+    (generalised mode) and simulate run on a robot with `thrusters: []`; thrust options refer
+    to no thruster and default to 0. Thrusters do not enter D, C, G or the impact, so every
+    zero-thrust number equals the bundled 3-link robot's (an independent reference)."""
+    model3, _, zd3 = walk3
+    ref = limit_cycles(zd3, Schedule.constant(zd3, np.zeros((1, model3.n_thrusters))))[0]
+    res = cli("compile", BARE)
+    assert res.exit_code == 0 and "none" in res.output, res.output
+    res = cli("inspect", BARE, "--q", "0.1,0.2,0.1", "--json", tmp_path / "state.json")
+    assert res.exit_code == 0, res.output
+    assert _json(tmp_path / "state.json")["B_F"] == [[], [], []]
+    for args in ([], ["--thrust", "0"]):
+        res = cli("limit-cycle", BARE, BARE_WALK, *args, "-q", "--out", tmp_path / "lc")
+        assert res.exit_code == 0, res.output
+        doc = _json(tmp_path / "lc" / "limit_cycles.json")
+        assert doc["thruster"] is None and doc["robot"]["thrusters"] == []
+        (c,) = doc["cycles"]
+        assert c["thrust"] == 0.0 and c["stable"]
+        assert c["zeta_star"] == pytest.approx(ref.zeta_star, rel=1e-12)
+        assert c["touchdown_velocity"] == pytest.approx(ref.touchdown_velocity, rel=1e-12)
+    res = cli("feasibility", BARE, BARE_WALK, "-q", "--out", tmp_path / "fe")
+    assert res.exit_code == 0, res.output
+    doc = _json(tmp_path / "fe" / "feasibility.json")
+    assert doc["verdict"] == "feasible" and [c["thrust"] for c in doc["cases"]] == [0.0]
+    assert (tmp_path / "fe" / "feasible_region.png").stat().st_size > 0
+    res = cli("shape", BARE, BARE_WALK, "--k", "0:10:5", "-q", "--out", tmp_path / "sh")
+    assert res.exit_code == 0, res.output
+    assert _json(tmp_path / "sh" / "shape.json")["mode"] == "generalized"
+    res = cli("optimize", BARE, BARE_WALK, "--mode", "generalized", "--max-thrust", "20",
+              "--target-speed", "0.9", "-q", "--out", tmp_path / "op")
+    assert res.exit_code == 0, res.output
+    assert _json(tmp_path / "op" / "optimal_schedule.json")["feasible"]
+    res = cli("simulate", BARE, BARE_WALK, "--steps", "2", "--samples", "10", "-q",
+              "--out", tmp_path / "sim")
+    assert res.exit_code == 0, res.output
+    doc = _json(tmp_path / "sim" / "simulation.json")
+    (run,) = doc["runs"]
+    assert run["f_ss"] == 0.0 and run["success"] and doc["settings"]["thrusters"] == []
+    assert run["final_zeta_minus"] == pytest.approx(ref.zeta_star, rel=1e-6)
+
+
+@pytest.mark.parametrize("args, flag", [
+    (["limit-cycle", BARE, BARE_WALK, "--thrust", "0,-10"], "--thrust"),
+    (["limit-cycle", BARE, BARE_WALK, "--thruster", "hip_x"], "--thruster"),
+    (["feasibility", BARE, BARE_WALK, "--thrust", "-5"], "--thrust"),
+    (["inspect", BARE, "--q", "0,0,0", "--thrust", "3"], "--thrust"),
+    (["shape", BARE, BARE_WALK, "--mode", "force"], "--mode"),
+    (["optimize", BARE, BARE_WALK, "--target-speed", "0.9"], "--mode"),
+    (["simulate", BARE, BARE_WALK, "--thrust", "-10"], "--thrust"),
+    (["simulate", BARE, BARE_WALK, "--f0", "2"], "--f0"),
+    (["design-gait", BARE, "--target-speed", "0.8", "--design-thrust"], "--design-thrust"),
+    (["design-gait", BARE, "--target-speed", "0.8", "--thrust-range", "hip_x:-1:0"],
+     "--thrust-range"),
+])
+def test_thrust_for_a_robot_without_thrusters_is_one_line_exit_2(tmp_path, args, flag, cli):
+    extra = ["--out", str(tmp_path / "o")]
+    res = cli(*args, *([] if args[0] == "inspect" else extra))
+    assert res.exit_code == 2, res.output
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith(f"error: option {flag}"), res.output
+    assert "no thruster" in lines[0] and "Traceback" not in res.output
+
+
+@pytest.mark.slow
+def test_design_gait_for_a_robot_without_thrusters(tmp_path, cli):
+    """design-gait on the thruster-free 3-link robot: a feasible gait, written and reloaded."""
+    out = tmp_path / "bare.yaml"
+    res = cli("design-gait", BARE, "--target-speed", "0.8", "--clearance", "0", "--starts", "1",
+              "--out", tmp_path, "--name", "bare", "-q")
+    assert res.exit_code == 0, res.output
+    report = _json(tmp_path / "bare.report.json")
+    assert report["feasible"] and report["thrust"] == []
+    assert report["fixed_point"]["speed"] == pytest.approx(0.8, rel=1e-3)
+    res = cli("limit-cycle", BARE, out, "-q", "--out", tmp_path / "lc")
+    assert res.exit_code == 0, res.output

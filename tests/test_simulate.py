@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import replace
+from pathlib import Path
 
 import independent as ind
 import numpy as np
@@ -30,6 +31,7 @@ from thrustwalk_cli.simulation.full_order import Start, initial_state, simulate
 from thrustwalk_cli.simulation.reduced import ReducedModel, simulate_reduced
 
 TIGHT = SimConfig(steps=3, rtol=1e-10, atol=1e-10)
+DATA = Path(__file__).resolve().parent / "data"
 
 
 def schedule_from_gait(zd, ts):
@@ -292,17 +294,66 @@ def test_falling_walker_is_reported_with_reason(walk3, thrust, start, failure, w
     assert len(res.steps) < 6
 
 
-@pytest.mark.parametrize("dq2, words", [(0.2, "below the ground"), (-0.2, "before s = 0.75")])
-def test_swing_foot_scuff_is_reported(walk3, dq2, words):
-    """Swing leg swung down hard at the start: the foot starts below the ground, or it strikes
-    just after mid-step instead of at the end of the step."""
+def test_swing_foot_scuff_is_reported(walk3):
+    """Swing leg swung down hard at the start: the foot starts below the ground."""
     model, _, zd = walk3
     x0 = initial_state(zd, const(model), Start())
     res = simulate(zd, const(model), SimConfig(steps=2),
-                   Start(q=x0[:3] + np.array([0.0, dq2, 0.0]),
+                   Start(q=x0[:3] + np.array([0.0, 0.2, 0.0]),
                          dq=x0[3:6] + np.array([0.0, 3.0, 0.0])))
     assert not res.success and res.failure == "scuff", res.reason
-    assert "swing foot" in res.reason and words in res.reason
+    assert "swing foot" in res.reason and "below the ground" in res.reason
+
+
+def _dipping_gait(walker, depth_col=4, delta=-0.3):
+    """The bundled 3-link gait with its swing-leg column 4 lowered by 0.3 rad: on Z the swing
+    foot dips 4 mm below the ground at s = 0.74 (a gait that strikes early)."""
+    from thrustwalk_cli.hzd.constraints import apply_invariance
+    from thrustwalk_cli.walker import walker_from
+
+    A = np.array(walker.gait.A)
+    A[1, depth_col] += delta
+    gait = apply_invariance(walker.model, replace(walker.gait, A=tuple(map(tuple, A.tolist()))))
+    return walker_from(walker.model, gait).zd
+
+
+def test_early_strike_is_a_scuff_and_its_threshold_an_option(walker3):
+    """A gait whose swing foot goes 4 mm below the ground at s = 0.74 (checked on Z here):
+    with the default threshold (guard armed from s = 0.75) that is a scuff; with
+    min_impact_s = 0.5 the same crossing is the strike, before s = 0.75. A bad threshold is a
+    parameter error."""
+    from thrustwalk_cli.errors import InputError
+
+    zd = _dipping_gait(walker3)
+    model = zd.model
+    s = np.linspace(0.0, 1.0, 4001)
+    h = model.p_swing(zd.maps.q_Z(zd.alpha_i + s * zd.maps.span))[:, 1]
+    assert h.min() < -3e-3 and 0.6 < s[h.argmin()] < 0.75
+    res = simulate(zd, const(model), SimConfig(steps=1))
+    assert not res.success and res.failure == "scuff", res.reason
+    assert "min_impact_s" in res.reason and "scuff_tol" in res.reason
+    early = simulate(zd, const(model), SimConfig(steps=1, min_impact_s=0.5))
+    assert early.steps and 0.5 < early.steps[0].s_minus < 0.75, early.reason
+    assert model.p_swing(np.array(early.steps[0].q_minus))[1] == pytest.approx(0.0, abs=1e-9)
+    with pytest.raises(InputError, match="min_impact_s"):
+        simulate(zd, const(model), SimConfig(steps=1, min_impact_s=0.3))
+
+
+def test_slow_touchdown_is_struck_at_the_end_of_the_step(walker_rabbit):
+    """A RABBIT gait whose swing foot reaches the ground at only -0.26 mm/s (the grazing case
+    of a designed knee walker): the dip below the ground lasts less than one integrator step,
+    yet the strike is found at s = 1 and every step stays on the zero-dynamics prediction
+    (before the fix the strike was missed and the run ended in an integrator failure)."""
+    from thrustwalk_cli.walker import load_walker
+
+    zd = load_walker(None, str(DATA / "rabbit_grazing.yaml")).zd
+    lc = cycle(zd, np.zeros(zd.model.n_thrusters))
+    assert -1e-3 < lc.touchdown_velocity < 0, lc.touchdown_velocity
+    res = simulate(zd, const(zd.model), SimConfig(steps=3))
+    assert res.success, res.reason
+    for st in res.steps:
+        assert st.s_minus == pytest.approx(1.0, abs=1e-4), st.step
+        assert st.zeta_minus == pytest.approx(lc.zeta_star, rel=1e-3), st.step
 
 
 def test_integrator_failure_is_reported(walk3, monkeypatch):
@@ -406,3 +457,70 @@ def test_cli_bad_input_one_line_exit_2(tmp_path, args, words, cli):
     assert res.exit_code == 2, res.output
     lines = [ln for ln in res.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("error:") and words in lines[0], res.output
+
+
+def test_cli_tangential_touchdown_is_a_physical_failure(tmp_path, walker_rabbit, cli):
+    """The swing foot of tests/data/rabbit_tangent.yaml reaches the ground at vertical velocity
+    0: there is no strike to find. The run ends as a physical ``no-impact`` failure naming
+    the grazing touchdown (exit 0), not as an integrator failure of the tool (exit 1)."""
+    res = cli("simulate", "rabbit", DATA / "rabbit_tangent.yaml", "--steps", "2",
+              "--thrust-model", "constant", "--thrust", "0", "--quiet", "--out", tmp_path)
+    assert res.exit_code == 0, res.output
+    run = json.loads((tmp_path / "simulation.json").read_text())["runs"][0]
+    assert not run["success"] and run["status"] == "failed", run
+    assert run["failure"] == "no-impact" and "grazing" in run["reason"], run["reason"]
+    assert run["predicted"]["touchdown_velocity"] == pytest.approx(0.0, abs=1e-12)
+    assert "warning: run 0" in res.output
+
+
+def test_cli_one_value_without_orbit_does_not_spoil_the_list(tmp_path, cli):
+    """F_ss = 20 N pushes the 3-link walker backwards: no periodic orbit (zeta* < 0). The other
+    value still runs; the bad one is a failed run ``no-orbit`` with its reason; exit 0."""
+    res = cli("simulate", "--thrust-model", "constant", "--thrust", "0,20", "--steps", "2",
+              "--samples", "10", "--quiet", "--out", tmp_path)
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "simulation.json").read_text())
+    ok, bad = doc["runs"]
+    assert ok["success"] and ok["status"] == "ok" and ok["steps_completed"] == 2, ok
+    assert not bad["success"] and bad["failure"] == "no-orbit" and bad["steps_completed"] == 0
+    assert "no fixed point" in bad["reason"] and not bad["predicted"]["exists"]
+    assert not doc["success"] and doc["status"] == "failed" and "run 1 (F_ss = 20.0)" in \
+        doc["reason"]
+    assert {e["run"] for e in doc["steps"]} == {0}
+    assert "warning: run 1 (F_ss = 20.0)" in res.output
+    for name in ("thrust_time.png", "phase_portrait.png", "steps.csv", "trajectory.csv"):
+        assert (tmp_path / name).stat().st_size > 0, name
+
+
+def test_deviation_from_the_prediction_is_a_warning_with_reason(walker3, tmp_path, cli):
+    """Started off the zero-dynamics manifold (outputs not zero), the first step's zeta^-
+    misses the prediction by 0.7 %: the run completes but its status is ``warning`` and the
+    reason says which step and by how much, never plain success; steps on Z agree to 1e-6.
+    A tolerance on the impact's s flags the first impact (at s = 1 - 3e-7) the same way."""
+    import thrustwalk_cli as tw
+
+    th = ThrustModel("constant", np.zeros(walker3.model.n_thrusters))
+    x0 = initial_state(walker3.zd, th, Start())
+    q0 = (x0[:3] + np.array([0.01, -0.015, 0.0])).tolist()
+    dq0 = (x0[3:6] + np.array([0.05, -0.05, 0.0])).tolist()
+    res = tw.simulate(walker3, steps=3, thrust_model="constant", thrust=[0.0], q0=q0, dq0=dq0)
+    doc = res.document()
+    run = doc["runs"][0]
+    assert run["success"] and run["status"] == "warning" and res.status == "warning"
+    assert doc["status"] == "warning" and "off the zero-dynamics prediction" in doc["reason"]
+    assert "step 1" in run["deviations"][0] and "-0.729" in run["deviations"][0], run
+    errs = [e["prediction"]["relative_error"] for e in doc["steps"]]
+    assert abs(errs[0]) > 1e-3 and max(abs(e) for e in errs[1:]) < 1e-6
+    strict = tw.simulate(walker3, steps=1, thrust_model="constant", thrust=[0.0], q0=q0, dq0=dq0,
+                         impact_s_tol=1e-8, zeta_tol=0.5).document()["runs"][0]
+    assert strict["status"] == "warning" and "impact away from s = 1" in strict["reason"]
+    on_z = tw.simulate(walker3, steps=2, thrust_model="constant", thrust=[0.0]).document()
+    assert on_z["status"] == "ok" and on_z["runs"][0]["deviations"] == []
+    out = cli("simulate", "--thrust-model", "constant", "--thrust", "0", "--steps", "2",
+              "--q0", ",".join(map(str, q0)), "--dq0", ",".join(map(str, dq0)), "--out",
+              tmp_path)
+    assert out.exit_code == 0, out.output
+    assert "ok" not in out.output.split("rel. error")[-1].split("wrote")[0]  # status column
+    line = next(ln for ln in out.stderr.splitlines() if ln.startswith("warning: run 0"))
+    assert line.startswith("warning: run 0 (F_ss = 0.0): warning: ")
+    assert "zeta^- off the zero-dynamics prediction (worst" in line

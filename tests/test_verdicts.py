@@ -137,8 +137,9 @@ def test_simulate_never_plain_ok_when_the_cone_is_left(tmp_path, cli):
     assert res.exit_code == 0, res.output
     doc = json.loads((tmp_path / "simulation.json").read_text())
     run = doc["runs"][0]
-    assert run["success"] and run["status"].startswith("ok (slips at steps 1-2")
-    assert "warning: run 0 (F_ss = 0.0): ok (slips at steps 1-2" in res.stderr
+    assert run["success"] and run["status"] == "warning" and "(slips at steps 1-2" in run["reason"]
+    assert "warning: run 0 (F_ss = 0.0): warning: " in res.stderr
+    assert "(slips at steps 1-2" in res.stderr
     res = cli("simulate", "--steps", "2", "--thrust", "0", "--thrust-model", "constant",
               "--samples", "10", "--out", tmp_path / "b", "-q")
     assert json.loads((tmp_path / "b" / "simulation.json").read_text())["runs"][0][

@@ -72,6 +72,12 @@ class Walker:
         return tuple(out)
 
 
+def walker_from(model: CompiledModel, gait: Gait, where: Where = "gait") -> Walker:
+    """A walker from a compiled model and a complete gait already in memory (``A`` with
+    invariance applied), e.g. a gait just designed or edited in a script."""
+    return Walker(model.robot, gait, model, zero_dynamics(model, gait), where)
+
+
 def default_gait(robot: Robot | None) -> str:
     """The bundled gait for ``robot`` (the first, by name, whose ``robot:`` names its file),
     or the default gait when no robot is given."""

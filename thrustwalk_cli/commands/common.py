@@ -4,6 +4,7 @@ object, progress bars, value-list parsing."""
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import re
 import sys
 import time
@@ -59,6 +60,10 @@ def show_table(title: str, columns: list[tuple[str, bool]], rows: list[list]) ->
                   markup=False)
 
 
+_CTX: contextvars.ContextVar[typer.Context | None] = contextvars.ContextVar("ctx",
+                                                                          default=None)
+
+
 def console(stderr: bool = False):  # -> rich.console.Console
     from rich.console import Console
 
@@ -73,6 +78,13 @@ def flags(ctx: typer.Context | None) -> dict[str, str]:
         if p.name and longs:
             out[p.name] = longs[0]
     return out
+
+
+def render_mentions(text: str, ctx: typer.Context | None) -> str:
+    """``text`` with parameters mentioned in backquotes (`` `max_iter` ``) written as the
+    running command's flags (``--max-iter``); unknown names stay as they are."""
+    names = flags(ctx)
+    return _MENTION.sub(lambda m: names.get(m.group(1), m.group(0)), text)
 
 
 def render_problem(p: Problem, flags: dict[str, str]) -> str:
@@ -111,6 +123,7 @@ def cli_errors(ctx: typer.Context | None = None) -> Iterator[None]:
     import os
     import warnings
 
+    token = _CTX.set(ctx)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # overflow etc. are checked
@@ -139,6 +152,8 @@ def cli_errors(ctx: typer.Context | None = None) -> Iterator[None]:
         sys.stderr.write(f"error: internal error ({type(exc).__name__}: {exc}); please report "
                          "it with the command line (THRUSTWALK_DEBUG=1 shows the traceback)\n")
         raise typer.Exit(1) from None
+    finally:
+        _CTX.reset(token)
 
 
 MAX_VALUES = 10_000  # values in one sweep option
@@ -215,9 +230,11 @@ def parse_formats(text: str, allowed: tuple[str, ...] = ("csv", "png", "pdf")) -
 
 
 def warn(lines) -> None:
-    """Warnings on standard error, one line each (also with --quiet)."""
+    """Warnings on standard error, one line each (also with --quiet); parameters mentioned in
+    backquotes are written as the running command's flags."""
+    ctx = _CTX.get()
     for line in lines:
-        sys.stderr.write(f"warning: {line}\n")
+        sys.stderr.write(f"warning: {render_mentions(line, ctx)}\n")
 
 
 def load_walker(robot: str | None, gait: str | None):

@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 
 from ..errors import ComputationError, InputError
-from .common import cli_errors, console, progress
+from .common import cli_errors, console, progress, render_mentions
 from .options import JsonOpt, QuietOpt, RobotArg
 
 HELP = """Design a stable, hybrid-invariant Bezier gait by constrained optimisation.
@@ -21,13 +21,15 @@ constant thrust per thruster [N]. Objective on the zero-dynamics periodic orbit:
 periodic orbit with delta_zero^2 <= --max-delta-sq; target speed [m/s] and/or step length
 [m]; swing foot >= --clearance [m] at mid-step and >= 0 over the step; stance F_v >=
 --min-vertical-force [N] and |F_h| <= mu F_v; impact impulse in the friction cone and
-trailing foot lifting off; joint ranges [rad] and torque limits [N m] from the robot file.
+trailing foot lifting off; swing foot moving down at touchdown at >= --min-touchdown-velocity
+[m/s] (no grazing touchdown); joint ranges [rad] and torque limits [N m] from the robot file.
 
 Writes DIR/NAME.yaml (the gait; a header records how it was made) and DIR/NAME.report.json
 (objective, every constraint margin, fixed point, provenance). The written file is loaded back
 and its fixed point compared with the design before it is kept. Exit codes: 0 a feasible gait
 was written; 3 no feasible gait was found (only the report is written; it names the
-constraint family that blocks); 2 bad input; 1 computation failure.
+constraint family that blocks, the violated inequality with its numbers, and the option that
+usually helps); 2 bad input; 1 computation failure.
 """
 
 EPILOG = ("Example: thrustwalk design-gait rabbit --target-speed 0.53 --starts 8 "
@@ -76,7 +78,8 @@ def run_design_gait(robot: str, out: Path, *, speed: float | None, step_length: 
                     thrust_weight: float, thrust_range: str | None,
                     min_vertical_force: float | None, alpha: str | None,
                     max_iter: int, name: str | None, compare: str | None,
-                    quiet: bool, json: str | None = None) -> dict:
+                    quiet: bool, json: str | None = None,
+                    min_touchdown_velocity: float = 0.05) -> dict:
     """Plain function behind the command; returns the report it wrote (``feasible`` says
     whether the gait file was written)."""
     from ..design.spec import DesignSpec
@@ -96,7 +99,8 @@ def run_design_gait(robot: str, out: Path, *, speed: float | None, step_length: 
     gait_path = out / f"{gait_name}.yaml"
     spec = DesignSpec(speed=speed, step_length=step_length, mu=mu, order=order,
                       clearance=clearance, max_delta_sq=max_delta_sq,
-                      min_vertical_force=min_vertical_force, objective=objective,
+                      min_vertical_force=min_vertical_force,
+                      min_touchdown_velocity=min_touchdown_velocity, objective=objective,
                       thrust_design=design_thrust, thrust_weight=thrust_weight,
                       thrust_range=parse_thrust_range(thrust_range),
                       alpha_c=parse_alpha(alpha, rob.coordinate_names), starts=starts,
@@ -152,7 +156,7 @@ def _summary(doc: dict, out: Path, report: Path) -> None:
     rows += [(f"designed thrust {n} [N]", v)
              for n, v in zip(doc.get("thrusters") or [], doc.get("thrust") or [])]
     for key in ("clearance_mid_step", "min_swing_height", "vertical_force", "friction",
-                "impact_friction", "liftoff_velocity"):
+                "impact_friction", "liftoff_velocity", "touchdown_velocity"):
         rows.append((f"margin {key}", m.get(key)))
     for label, v in rows:
         t.add_row(escape(label), "—" if v is None else f"{v:.5g}")
@@ -204,6 +208,10 @@ def register(app: typer.Typer) -> None:
         min_vertical_force: Annotated[float | None, typer.Option(
             "--min-vertical-force", help="eps in F_v >= eps [N] (default 10 % of weight).")
         ] = None,
+        min_touchdown_velocity: Annotated[float, typer.Option(
+            "--min-touchdown-velocity", help="The swing foot moves down onto the ground at "
+                                             "least this fast just before impact [m/s] (0 "
+                                             "allows a grazing touchdown).")] = 0.05,
         alpha_c: Annotated[str | None, typer.Option(
             "--alpha", help="alpha = c q as name:value pairs [1], e.g. q_T:-1,q_sh:1,q_sk:0.5 "
                             "(default: minus the mean angle of the stance-leg links).")] = None,
@@ -224,7 +232,8 @@ def register(app: typer.Typer) -> None:
                 objective=objective, design_thrust=thrust_design, thrust_weight=thrust_weight,
                 thrust_range=thrust_range,
                 min_vertical_force=min_vertical_force, alpha=alpha_c, max_iter=max_iter,
-                name=name, compare=compare, quiet=quiet, json=json)
+                name=name, compare=compare, quiet=quiet, json=json,
+                min_touchdown_velocity=min_touchdown_velocity)
             if not doc["feasible"]:
-                sys.stderr.write(f"infeasible: {doc['reason']}\n")
+                sys.stderr.write(f"infeasible: {render_mentions(doc['reason'], ctx)}\n")
                 raise typer.Exit(INFEASIBLE_EXIT)

@@ -38,10 +38,12 @@ For each constant thrust value [N] (or one piecewise schedule from a gait-format
 the gait's own thrust: section when neither is given): the exact ground reaction force
 F_1(alpha) = Lambda_2 F + Lambda_1 zeta + Lambda_0 [N] along the periodic orbit, joint torques
 [N m], swing-foot height [m], and the impact impulse [N s] with the trailing foot's lift-off
-velocity [m/s]. Feasible when a periodic orbit exists, F_1^v >= the minimum vertical force,
-|F_1^h| <= mu F_1^v (the exact planar cone; an inscribed pyramid mu/sqrt(2) is about 29 % too
-strict), the impact impulse lies in the cone, the trailing foot lifts off and the swing foot
-stays above the ground. Polynomial fits L_0, L_1, L_2 of the Lambdas give a second verdict
+velocity [m/s] and the swing foot's touchdown velocity [m/s]. Feasible when a periodic orbit
+exists, F_1^v >= the minimum vertical force, |F_1^h| <= mu F_1^v (the exact planar cone; an
+inscribed pyramid mu/sqrt(2) is about 29 % too strict), the impact impulse lies in the cone,
+the trailing foot lifts off, the swing foot stays above the ground and moves down at touchdown
+(a strike, not a grazing contact). For a robot without thrusters the only thrust is 0 (the
+default). Polynomial fits L_0, L_1, L_2 of the Lambdas give a second verdict
 beside the exact one. An infeasible gait is a valid answer (exit 0); bad input exits 2, a tool
 failure 1.
 
@@ -74,6 +76,7 @@ def run_feasibility(robot: str | None, gait: str | None, *, thrust: list[float] 
         _table(doc)
         console().print(f"verdict: {doc['verdict']}; wrote {out}/feasibility.json, .md and "
                         "figures", markup=False)
+    warn([w for w in doc["warnings"] if w not in walker.warnings])  # the gait's: printed
     return doc
 
 
@@ -83,11 +86,12 @@ def _table(doc: dict) -> None:
 
     rows = [[thrust_text(c["thrust"]), "feasible" if c["feasible"] else "INFEASIBLE",
              fmt(c["min_vertical_force"]), fmt(c["max_friction_ratio"]),
-             fmt(c["liftoff_velocity"])] for c in doc["cases"]]
+             fmt(c["liftoff_velocity"]), fmt(c["touchdown_velocity"])] for c in doc["cases"]]
     show_table(f"feasibility: {doc['robot']['name']} / {doc['gait']['name']} "
                f"(mu = {doc['mu']:g}, verdict: {doc['verdict']})",
                [("thrust [N]", False), ("verdict", False), ("min F^v\n[N]", True),
-                ("max |F^h|/F^v\n[-]", True), ("lift-off\n[m/s]", True)], rows)
+                ("max |F^h|/F^v\n[-]", True), ("lift-off\n[m/s]", True),
+                ("touchdown\n[m/s]", True)], rows)
     con = console()
     for c in doc["cases"]:
         if not c["feasible"]:

@@ -33,11 +33,13 @@ from .options import (
 HELP = """Limit cycles of the hybrid zero dynamics for constant thrust values.
 
 For every thrust value: Poincare fixed point zeta* [kg^2 m^4/s^2], stability (delta_zero^2),
-step time [s], step length [m], speed [m/s], sigma_N^+/- [kg m^2/s], alpha'^+/- [rad/s] and
-the point of minimum |alpha'|, with a verdict: walkable only when the orbit exists and is
-stable, the gait is hybrid-invariant and the swing foot stays above the ground. Thrust is in
-newtons; with the bundled robots negative thrust pushes forward (the paper's convention).
-Without --thrust, a gait with a thrust: section is analysed with its own schedule.
+step time [s], step length [m], speed [m/s], sigma_N^+/- [kg m^2/s], alpha'^+/- [rad/s], the
+exact minimum and maximum of |alpha'| and the swing foot's touchdown velocity [m/s] (near 0: a
+grazing touchdown), with a verdict: walkable only when the orbit exists and is stable, the
+gait is hybrid-invariant and the swing foot stays above the ground. Thrust is in newtons; with
+the bundled robots negative thrust pushes forward (the paper's convention). Without --thrust,
+a gait with a thrust: section is analysed with its own schedule; for a robot without
+thrusters the only thrust is 0 (the default).
 
 Writes DIR/limit_cycles.json, DIR/limit_cycles.csv, DIR/limit_cycles.png and .pdf, and
 DIR/fixed_point_shift.png and .pdf (zeta* and speed versus thrust, with the affine law).
@@ -66,6 +68,7 @@ def run_limit_cycle(robot: str | None, gait: str | None, thrust: list[float] | N
         _table(doc)
         console().print(f"wrote {out}/limit_cycles.json and its CSV and figures",
                         markup=False)
+    warn([w for w in doc["warnings"] if w not in walker.warnings])  # the gait's: printed
     return doc
 
 
@@ -75,11 +78,12 @@ def _table(doc: dict) -> None:
     zd = doc["zero_dynamics"]
     rows = [["gait" if c["thrust"] is None else fmt(c["thrust"]), fmt(c["zeta_star"]),
              fmt(c["step_time"]), fmt(c["speed"]), fmt(c["min_abs_alpha_dot"]),
-             c["verdict"].split(":")[0]] for c in doc["cycles"]]
+             fmt(c["touchdown_velocity"]), c["verdict"].split(":")[0]] for c in doc["cycles"]]
     show_table(f"limit cycles: {doc['robot']['name']} / {doc['gait']['name']} "
                f"(delta_zero^2 = {zd['delta_zero_sq']:.4f})",
                [("thrust\n[N]", True), ("zeta*\n[kg^2 m^4/s^2]", True), ("T\n[s]", True),
-                ("speed\n[m/s]", True), ("min|α'|\n[rad/s]", True), ("verdict", False)], rows)
+                ("speed\n[m/s]", True), ("min|α'|\n[rad/s]", True),
+                ("touchdown\n[m/s]", True), ("verdict", False)], rows)
     con = console()
     for verdict in dict.fromkeys(c["verdict"] for c in doc["cycles"] if not c["walkable"]):
         con.print(verdict, markup=False)

@@ -44,10 +44,14 @@ when no --thrust is given). The start is just after an impact on the predicted o
 zeta* of the thrust at t = 0, or of zero thrust with --start nominal), scaled by 1 + --perturb,
 or --zeta0 [kg^2 m^4/s^2], or an explicit state --q0/--dq0.
 
-A run that leaves the friction cone (mu) or saturates a torque is reported as such, never as
-plain "ok". A walker that falls (stance leg past horizontal, alpha reversing, negative vertical
-ground force), scuffs or has an infeasible impact is reported in simulation.json (success,
-reason) with exit 0; an integrator or controller failure exits 1 (files are still written).
+A walker that falls (stance leg past horizontal, alpha reversing, negative vertical ground
+force), scuffs (a strike before s = --min-impact-s, 0.75, counts as a scuff) or has an
+infeasible impact, and a steady thrust without a periodic orbit to start on, are reported in
+simulation.json (success, reason) with exit 0 (the other values still run); an integrator or
+controller failure exits 1 (files are still written). A completed run whose impacts are
+farther than --impact-s-tol from s = 1 or whose zeta^- leaves the zero-dynamics prediction by
+more than --zeta-tol (a grazing or missed touchdown), or with a step out of the friction cone
+(mu) or a saturated torque, has status "warning" with the reason, never "ok".
 
 Writes DIR/simulation.json, DIR/steps.csv, DIR/trajectory.csv (.npz above 20000 samples),
 DIR/thrust_time.png/.pdf, DIR/phase_portrait.png/.pdf and, with --animate, DIR/walker.gif.
@@ -68,10 +72,12 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
                  torque_limit: float | None, rtol: float, atol: float, method: str,
                  samples: int, scuff_tol: float, reduced: bool, animate: bool, out: Path,
                  quiet: bool, mu: float | None = None, json: str | None = None,
-                 formats: set[str] | None = None, titles: bool = False) -> dict:
+                 formats: set[str] | None = None, titles: bool = False,
+                 min_impact_s: float = 0.75, impact_s_tol: float = 1e-3,
+                 zeta_tol: float = 1e-3) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files import output
-    from ..studies.simulate import simulate
+    from ..studies.simulate import default_f_ss, simulate
 
     values = _floats(thrust, "--thrust")
     q, dq = _floats(q0, "--q0"), _floats(dq0, "--dq0")
@@ -82,13 +88,14 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
         warn(["no --thrust or --thrust-model given: the walker runs on the gait's own thrust: "
               "schedule (piecewise), started on its orbit"])
     n_runs = (1 if gait_schedule or thrust_model == "piecewise" else
-              6 if values is None else max(1, len(values)))
+              len(default_f_ss(walker)) if values is None else max(1, len(values)))
     with progress("simulating steps", n_runs * steps, quiet) as advance:
         result = simulate(
             walker, steps=steps, thrust_model=thrust_model, thrust=values, wn=wn, xi=xi,
             tau=tau, f0=f0, thruster=thrusters, perturb=perturb, zeta0=zeta0, q0=q, dq0=dq,
             start=start_orbit, torque_limit=torque_limit, rtol=rtol, atol=atol,
-            method=method, samples=samples, scuff_tol=scuff_tol, reduced=reduced, mu=mu,
+            method=method, samples=samples, scuff_tol=scuff_tol, min_impact_s=min_impact_s,
+            impact_s_tol=impact_s_tol, zeta_tol=zeta_tol, reduced=reduced, mu=mu,
             progress=advance)
     extra = {}
     if animate:
@@ -102,7 +109,8 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
                        formats=formats, titles=titles, extra=extra)
     for r in doc["runs"]:
         if r["status"] != "ok":
-            warn([f"run {r['run']} (F_ss = {r['f_ss']}): {r['status']}"] + r["warnings"])
+            warn([f"run {r['run']} (F_ss = {r['f_ss']}): {r['status']}: {r['reason']}"] +
+                 [w for w in r["warnings"] if w not in r["deviations"]])
     if not quiet and json != "-":
         _table(doc)
         console().print(f"wrote {out}/simulation.json, steps.csv, {doc['trajectory_file']} "
@@ -113,9 +121,16 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
 def _table(doc: dict) -> None:
     from ..studies.records import fmt
 
+    def status(r: dict) -> str:
+        if r["status"] == "ok":
+            return "ok"
+        if r["status"] == "warning":
+            return "warning (off the prediction)" if r["deviations"] else "warning"
+        return f"{r['failure']} ({r['reason'].split(':')[0]})"
+
     rows = [[fmt(r["f_ss"]), str(r["steps_completed"]), fmt(r["final_zeta_minus"]),
              fmt(r["predicted"]["zeta_star"]), fmt(r["final_relative_error"], ".2e"),
-             r["status"]] for r in doc["runs"]]
+             status(r)] for r in doc["runs"]]
     show_table(f"simulate: {doc['robot']['name']} / {doc['gait']['name']} "
                f"({doc['settings']['thrust_model']}, delta_zero^2 = "
                f"{doc['zero_dynamics']['delta_zero_sq']:.4f})",
@@ -137,7 +152,8 @@ def register(app: typer.Typer) -> None:
                  "a gait with a thrust: section, else second-order).")] = None,
         thrust: Annotated[str | None, typer.Option(
             "--thrust", help="Steady thrust F_ss [N], one run per value: start:stop:step or "
-                             "a comma list (default 0:-50:-10; not with piecewise).")] = None,
+                             "a comma list (default 0:-50:-10, or 0 for a robot without "
+                             "thrusters; not with piecewise).")] = None,
         wn: Annotated[float, typer.Option(
             "--wn", help="Second-order thruster natural frequency [rad/s].")] = 2.0,
         xi: Annotated[float, typer.Option(
@@ -176,6 +192,15 @@ def register(app: typer.Typer) -> None:
             "--samples", help="Stored trajectory samples per step.")] = 80,
         scuff_tol: Annotated[float, typer.Option(
             "--scuff-tol", help="Depth the swing foot may dip before mid-step [m].")] = 1e-4,
+        min_impact_s: Annotated[float, typer.Option(
+            "--min-impact-s", help="Early-strike threshold [1]: a swing-foot strike before this "
+                                   "s counts as a scuff (0.5 <= value < 1).")] = 0.75,
+        impact_s_tol: Annotated[float, typer.Option(
+            "--impact-s-tol", help="Warn when a step's impact is farther than this from s = 1 "
+                                   "[1].")] = 1e-3,
+        zeta_tol: Annotated[float, typer.Option(
+            "--zeta-tol", help="Warn when a step's zeta^- differs from the zero-dynamics "
+                               "prediction by more than this [1, relative].")] = 1e-3,
         reduced: Annotated[bool, typer.Option(
             "--reduced", help="Fast preview: the reduced cascade (zero dynamics plus thruster "
                               "states) only.")] = False,
@@ -194,7 +219,8 @@ def register(app: typer.Typer) -> None:
                 dq0=dq0, start_orbit=start, torque_limit=torque_limit, rtol=rtol,
                 atol=atol, method=method, samples=samples, scuff_tol=scuff_tol,
                 reduced=reduced, animate=animate, out=out, quiet=quiet, mu=mu, json=json,
-                formats=parse_formats(formats), titles=titles)
+                formats=parse_formats(formats), titles=titles, min_impact_s=min_impact_s,
+                impact_s_tol=impact_s_tol, zeta_tol=zeta_tol)
         if any(r["failure"] in ("integrator", "controller") for r in doc["runs"]):
             sys.stderr.write("error: an integrator or controller failure ended a run (see "
                              f"{out}/simulation.json)\n")

@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..hzd.quadrature import ChebSeries
-from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
+from ..hzd.extrema import golden_min, neighbours
+from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, ZetaAt, limit_cycles
 from ..model.compiled import CompiledModel
 from .terms import (
     Fits,
@@ -30,8 +30,6 @@ from .terms import (
     swing_clearance,
 )
 
-GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
-
 
 # ------------------------------------------------------------------------- case evaluation
 def step_grid(knots: np.ndarray, points: int = 401) -> tuple[np.ndarray, np.ndarray]:
@@ -42,30 +40,6 @@ def step_grid(knots: np.ndarray, points: int = 401) -> tuple[np.ndarray, np.ndar
     per = max(41, points // n_int)
     al = [np.linspace(kn[j], kn[j + 1], per) for j in range(n_int)]
     return np.concatenate(al), np.repeat(np.arange(n_int), per)
-
-
-class _ZetaAt:
-    """``zeta_i(alpha_i) = zeta^+_i + V_Z(alpha_i; schedule i)`` for one alpha per schedule, with
-    V_0, Gamma and b_F stacked into one Chebyshev series (one evaluation per call)."""
-
-    def __init__(self, zd: ZeroDynamics, sched: Schedule):
-        self.sched = sched
-        self.m = zd.Gamma.coef.shape[1]
-        coef = np.column_stack([zd.V0.coef, zd.Gamma.coef, zd.B.coef])
-        self.series = ChebSeries(zd.V0.a, zd.V0.b, coef)
-        kn = sched.knots
-        self.lo, self.hi = np.minimum(kn[:-1], kn[1:]), np.maximum(kn[:-1], kn[1:])
-        self.at_knots = self.series(kn)  # (n+1, 2+m)
-
-    def __call__(self, zeta_plus: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-        pts = np.vstack([alpha[None, :],
-                         np.clip(alpha[None, :], self.lo[:, None], self.hi[:, None])])
-        v = self.series(pts)  # (1+n, k, 2+m)
-        m = self.m
-        dG = v[1:, :, 1:1 + m] - self.at_knots[:-1, None, 1:1 + m]  # (n, k, m)
-        dB = v[1:, :, -1] - self.at_knots[:-1, None, -1]  # (n, k)
-        return (zeta_plus + v[0, :, 0] + np.einsum("jkm,kjm->k", dG, self.sched.force)
-                + np.einsum("jk,kj->k", dB, self.sched.generalized))
 
 
 Provider = Callable[[np.ndarray], tuple[np.ndarray, ...]]
@@ -91,26 +65,6 @@ def friction_ratio(F1: np.ndarray) -> np.ndarray:
         return np.where(F1[..., 1] > 0, np.abs(F1[..., 0]) / F1[..., 1], np.inf)
 
 
-def _golden(f: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray,
-            iters: int = 45) -> tuple[np.ndarray, np.ndarray]:
-    """Vectorised golden-section minimisation of ``f`` on ``[lo_i, hi_i]`` (one bracket per
-    entry); returns (argmin, min) of the last bracket's interior points."""
-    a, b = lo.astype(float).copy(), hi.astype(float).copy()
-    c, d = b - GOLDEN * (b - a), a + GOLDEN * (b - a)
-    fc, fd = f(c), f(d)
-    for _ in range(iters):
-        left = fc <= fd
-        na, nb = np.where(left, a, c), np.where(left, d, b)
-        kx, kf = np.where(left, c, d), np.where(left, fc, fd)
-        x = np.where(left, nb - GOLDEN * (nb - na), na + GOLDEN * (nb - na))
-        fx = f(x)
-        c, fc = np.where(left, x, kx), np.where(left, fx, kf)
-        d, fd = np.where(left, kx, x), np.where(left, kf, fx)
-        a, b = na, nb
-    best = fc <= fd
-    return np.where(best, c, d), np.where(best, fc, fd)
-
-
 @dataclass(frozen=True)
 class StanceExtremes:
     """Worst points of the stance conditions for a batch of cases (SI units)."""
@@ -134,14 +88,9 @@ def _extremes(provider: Provider, zd: ZeroDynamics, sched: Schedule, zeta_plus: 
         return StanceExtremes(*out)
 
     def bracket(j):
-        same = idx[np.clip(j - 1, 0, len(idx) - 1)] == idx[j]
-        lo = np.where(same & (j > 0), alpha[np.clip(j - 1, 0, None)], alpha[j])
-        same = idx[np.clip(j + 1, 0, len(idx) - 1)] == idx[j]
-        hi = np.where(same & (j < len(idx) - 1), alpha[np.clip(j + 1, None, len(idx) - 1)],
-                      alpha[j])
-        return np.minimum(lo, hi), np.maximum(lo, hi)
+        return neighbours(alpha, j, idx)
 
-    zeta_at = _ZetaAt(zd, sched)
+    zeta_at = ZetaAt(zd, sched)
 
     def f1_at(a, interval):
         z = zeta_at(zeta_plus, a)
@@ -158,11 +107,39 @@ def _extremes(provider: Provider, zd: ZeroDynamics, sched: Schedule, zeta_plus: 
             val = F1a[:, col] if col is not None else friction_ratio(F1a)
             return np.where(np.isfinite(val), sign * val, 1e300)
 
-        xa, fa = _golden(obj, lo, hi)
+        xa, fa = golden_min(obj, lo, hi)
         better = np.isfinite(out[slot]) & (fa < sign * out[slot])
         out[slot] = np.where(better, sign * fa, out[slot])
         out[slot + 1] = np.where(better, xa, out[slot + 1])
     return StanceExtremes(*out)
+
+
+def _max_abs_torque(model: CompiledModel, zd: ZeroDynamics, sched: Schedule,
+                    zeta_plus: np.ndarray, alpha: np.ndarray, idx: np.ndarray, U: np.ndarray,
+                    polish: bool) -> np.ndarray:
+    """``max |u_p|`` over the step per case and joint, (k, N-1) [N m]: the grid maximum of each
+    (case, joint) polished by golden section inside its knot interval (u jumps at knots where
+    the thrust changes)."""
+    k, g, nb = U.shape
+    A = np.abs(U).transpose(0, 2, 1).reshape(k * nb, g)  # entry e = case * nb + joint
+    if not polish or A.size == 0:
+        return A.max(axis=1, initial=0.0).reshape(k, nb)
+    rows, joint = np.repeat(np.arange(k), nb), np.tile(np.arange(nb), k)
+    e = np.arange(rows.size)
+    rep = Schedule(sched.knots, sched.force[rows], sched.generalized[rows])
+    zeta_at, zp = ZetaAt(zd, rep), zeta_plus[rows]
+    j = np.argmax(A, axis=1)
+    F, T = rep.force[e, idx[j], :], rep.generalized[e, idx[j]]
+
+    def neg_abs_u(a):
+        t = stance_terms(model, zd.maps, a)
+        u = (np.einsum("eim,em->ei", t.U2, F) + t.U1 * zeta_at(zp, a)[:, None] + t.U0
+             + t.UT * T[:, None])
+        return -np.abs(u[e, joint])
+
+    lo, hi = neighbours(alpha, j, idx)
+    _, fa = golden_min(neg_abs_u, lo, hi)
+    return np.maximum(A[e, j], -fa).reshape(k, nb)
 
 
 @dataclass(frozen=True)
@@ -234,6 +211,7 @@ def evaluate(model: CompiledModel, zd: ZeroDynamics, sched: Schedule, *, mu: flo
          + exact.UT * T[..., None])
     ext = _extremes(_exact_provider(model, zd), zd, sched, zplus, alpha, idx, F1, polish)
     ext_p = _extremes(fits.force_terms, zd, sched, zplus, alpha, idx, F1p, polish)
+    umax = _max_abs_torque(model, zd, sched, zplus, alpha, idx, U, polish)
     fit_err = np.abs(F1p - F1).max(axis=(1, 2))
     imp_ok = imp.admissible(mu)
     cases = []
@@ -284,7 +262,7 @@ def evaluate(model: CompiledModel, zd: ZeroDynamics, sched: Schedule, *, mu: flo
             impact_impulse=(imp.impulse_per_sigma * sig).tolist(),
             impact_friction_ratio=imp.friction_ratio,
             liftoff_velocity=float(imp.liftoff_per_sigma * sig),
-            max_abs_torque=np.abs(U[i]).max(axis=0).tolist(),
+            max_abs_torque=umax[i].tolist(),
             poly={"feasible": pv, "agrees": pv == feasible,
                   "min_vertical_force": float(ext_p.min_vertical[i]),
                   "alpha_at_min_vertical_force": float(ext_p.alpha_min_vertical[i]),

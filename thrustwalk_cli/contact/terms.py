@@ -20,8 +20,9 @@ angle is q_N (no net force): it enters ``alpha''`` and ``u`` but adds no column 
 Conditions (SPEC 5): ``F_1^v >= eps`` and the exact planar friction cone
 ``|F_1^h| <= mu F_1^v`` (an inscribed pyramid ``mu / sqrt(2)`` would be about 29 % too strict).
 Impact: impulse ``F_2 = M_F q'^-`` proportional to ``sigma_N^-`` with ``F_2^v > 0``,
-``|F_2^h| <= mu F_2^v``, and the trailing (old stance) foot lifts off: its vertical velocity
-just after impact is > 0.
+``|F_2^h| <= mu F_2^v``, the trailing (old stance) foot lifts off: its vertical velocity
+just after impact is > 0, and the swing foot strikes: its vertical velocity just before impact
+is < 0 (a touchdown at vertical velocity 0 grazes the ground; the impact is not transversal).
 
 Worst points are found on a grid (knots included from both sides) and then polished by a
 vectorised golden-section search inside their knot interval, so margins are not grid-limited.
@@ -37,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.polynomial import chebyshev as C
 
+from ..hzd.extrema import polish_max, polish_min
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..model.compiled import CompiledModel
 
@@ -176,13 +178,13 @@ def fit_terms(model: CompiledModel, zd: ZeroDynamics, degree: int | None = None,
     xc = 2 * (ac - a) / (b - a) - 1
     out = {}
     for name in ("L0", "L1", "L2", "LT"):
-        yf, yc = getattr(tf, name), getattr(tc, name)
-        scale = float(np.abs(yc).max()) or 1.0
+        yf, yc = getattr(tf, name), getattr(tc, name)  # L2: (g, 2, 0) without thrusters
+        scale = float(np.abs(yc).max(initial=0.0)) or 1.0
         degrees = [degree] if degree is not None else range(1, max_degree + 1)
         for d in degrees:
             coef = C.chebfit(xf, yf.reshape(len(xf), -1), d)
             approx = C.chebval(xc, coef, tensor=True).T.reshape(yc.shape)
-            err = float(np.abs(approx - yc).max())
+            err = float(np.abs(approx - yc).max(initial=0.0))
             if degree is not None or err <= tol * scale:
                 break
         out[name] = TermFit(name, int(d), coef.reshape((d + 1,) + yf.shape[1:]), err,
@@ -197,7 +199,10 @@ class ImpactData:
 
     ``impulse_per_sigma``: ``F_2 / |sigma_N^-|`` [N s per kg m^2/s] (direction independent of
     speed); ``liftoff_per_sigma``: vertical velocity of the trailing foot just after impact per
-    ``|sigma_N^-|`` [m/s per kg m^2/s]; ``friction_ratio = |F_2^h| / F_2^v``.
+    ``|sigma_N^-|`` [m/s per kg m^2/s]; ``friction_ratio = |F_2^h| / F_2^v``;
+    ``touchdown_per_sigma``: vertical velocity of the swing foot just before impact per
+    ``|sigma_N^-|``; ``strikes``: it is < 0, so the swing foot crosses the ground transversally
+    (at 0 it only grazes the ground and the impact is not a strike).
     """
 
     impulse_per_sigma: np.ndarray
@@ -205,14 +210,16 @@ class ImpactData:
     friction_ratio: float | None
     admissible_vertical: bool
     liftoff: bool
+    touchdown_per_sigma: float = -1.0
+    strikes: bool = True
 
     @property
     def liftoff_per_sigma(self) -> float:
         return float(self.trailing_foot_velocity_per_sigma[1])
 
     def admissible(self, mu: float) -> bool:
-        return (self.admissible_vertical and self.liftoff and self.friction_ratio is not None
-                and self.friction_ratio <= mu)
+        return (self.admissible_vertical and self.liftoff and self.strikes
+                and self.friction_ratio is not None and self.friction_ratio <= mu)
 
     def reasons(self, mu: float) -> list[str]:
         out = []
@@ -225,35 +232,52 @@ class ImpactData:
             out.append("the trailing foot does not lift off after impact "
                        f"(vertical velocity {self.liftoff_per_sigma:.4g} m/s per unit "
                        "|sigma_N^-| <= 0)")
+        if not self.strikes:
+            out.append("the swing foot does not move down onto the ground at touchdown "
+                       f"(vertical velocity {self.touchdown_per_sigma:.3g} m/s per unit "
+                       "|sigma_N^-|, not < 0 beyond round-off): a grazing contact, not a "
+                       "strike")
         return out
 
 
 def impact_data(model: CompiledModel, zd: ZeroDynamics) -> ImpactData:
     """``F_2 = M_F Phi(alpha_f) kappa_1(alpha_f) sigma_N^-``; the trailing foot's velocity is the
-    last two components of ``q_u'^+ = M_u q'^-`` (SPEC 5). Thrust does not enter (not impulsive)."""
+    last two components of ``q_u'^+ = M_u q'^-``; the swing foot's touchdown velocity is
+    ``E_2y(q^-) q'^-`` (SPEC 5). Thrust does not enter (not impulsive)."""
     Mu, MF, _ = model.impact_maps(zd.maps.q_minus)
     t = zd.terms(np.array([zd.alpha_f]))
     dq = t["Phi"][0] * t["kappa1"][0] * zd.sigma_sign  # q'^- per unit |sigma_N^-|
     F2 = MF @ dq
     v = (Mu @ dq)[model.n:]
     ratio = float(abs(F2[0]) / F2[1]) if F2[1] > 0 else None
-    return ImpactData(F2, v, ratio, bool(F2[1] > 0), bool(v[1] > 0))
+    foot = model.E_swing(zd.maps.q_minus) @ dq  # swing-foot velocity per unit |sigma_N^-|
+    down = float(foot[1])
+    strikes = down < -1e-9 * float(np.linalg.norm(foot))  # not tangential up to round-off
+    return ImpactData(F2, v, ratio, bool(F2[1] > 0), bool(v[1] > 0), down, bool(strikes))
 
 
 def swing_clearance(model: CompiledModel, zd: ZeroDynamics, points: int = 801) -> dict:
     """Swing-foot height along the step [m]: minimum for s in ``SWING_WINDOW`` (away from
-    lift-off and touch-down, where it is 0 by construction) and the deepest penetration
-    anywhere strictly inside the step."""
+    lift-off and touch-down, where it is 0 by construction), the maximum, and the deepest
+    penetration anywhere strictly inside the step; each located on ``points`` samples and
+    polished by golden section between the neighbouring samples (exact, not grid-limited)."""
     a = np.linspace(zd.alpha_i, zd.alpha_f, points)
-    h = model.p_swing(zd.maps.q_Z(a))[..., 1]
+
+    def height(x):
+        return model.p_swing(zd.maps.q_Z(x))[..., 1]
+
+    h = height(a)
     s = np.linspace(0.0, 1.0, points)
     win = (s >= SWING_WINDOW[0]) & (s <= SWING_WINDOW[1])
-    j = int(np.argmin(np.where(win, h, np.inf)))
-    inner = h[1:-1]
-    k = int(np.argmin(inner)) + 1
-    return {"min_height": float(h[j]), "alpha_at_min_height": float(a[j]),
-            "max_height": float(h.max()), "deepest": float(min(h[k], 0.0)),
-            "alpha_at_deepest": float(a[k]), "scuffs": bool(h[k] < -SCUFF_TOL),
+    a_min, h_min = polish_min(height, a, np.where(win, h, np.inf)[None], win.astype(int))
+    inner = np.zeros(points, int)
+    inner[1:-1] = 1
+    a_deep, h_deep = polish_min(height, a, np.where(inner == 1, h, np.inf)[None], inner)
+    _, h_max = polish_max(height, a, h[None])
+    deepest = float(min(h_deep[0], 0.0))
+    return {"min_height": float(h_min[0]), "alpha_at_min_height": float(a_min[0]),
+            "max_height": float(h_max[0]), "deepest": deepest,
+            "alpha_at_deepest": float(a_deep[0]), "scuffs": bool(deepest < -SCUFF_TOL),
             "alpha": a, "height": h}
 
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError, Problem
+from ..errors import InputError
 
 Vec2 = tuple[float, float]
 
@@ -138,20 +138,41 @@ class Robot:
     def link_index(self, name: str) -> int:
         return self.link_names.index(name)
 
-    def thruster_index(self, name: str | None) -> int:
+    def thruster_index(self, name: str | None, param: str = "thruster") -> int:
         """Index of the thruster ``name`` (default: the first). :class:`InputError` on the
-        parameter ``thruster`` when the name is unknown, or at the robot file's ``thrusters``
-        key when the robot has none."""
+        parameter ``thruster`` when the name is unknown, and on ``param`` (the parameter that
+        needs a thruster) when the robot has none."""
         names = self.thruster_names
         if not names:
-            raise InputError(Problem(self.source_file, None, "thrusters",
-                                     "the robot has no thruster"))
+            raise InputError.param(param, f"robot {self.name} has no thruster (`thrusters: []` "
+                                          f"in {self.source_file})")
         if name is None:
             return 0
         if name not in names:
             raise InputError.param("thruster", f"unknown thruster {name!r} (robot {self.name} "
                                    f"has: {', '.join(names)})")
         return names.index(name)
+
+    def driven_thruster(self, name: str | None) -> int | None:
+        """The thruster that thrust values drive: ``name`` (default: the first), or None for a
+        robot without thrusters (then thrust options refer to no thruster; naming one is an
+        :class:`InputError` on ``thruster``)."""
+        if not self.thrusters:
+            if name is not None:
+                raise InputError.param("thruster", f"unknown thruster {name!r}: robot "
+                                                   f"{self.name} has no thruster")
+            return None
+        return self.thruster_index(name)
+
+    def check_no_thrust(self, values, param: str = "thrust") -> None:
+        """For a robot without thrusters every thrust value [N] must be 0: otherwise an
+        :class:`InputError` on ``param`` (one line). A no-op for a robot with thrusters."""
+        if self.thrusters:
+            return
+        bad = [float(v) for v in values if float(v) != 0.0]
+        if bad:
+            raise InputError.param(param, f"robot {self.name} has no thruster: thrust values "
+                                          f"must be 0 (got {bad[0]:g} N)")
 
     @property
     def total_mass(self) -> float:

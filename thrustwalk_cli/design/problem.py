@@ -35,13 +35,18 @@ delta_zero^2 > 0, kappa_1 regular, alpha monotonic), ``stability`` (delta_zero^2
 ``speed``, ``step_length``, ``foot_placement`` (swing foot on the ground ahead of the stance
 foot), ``clearance`` (height at mid-step ``s = 1/2``), ``scuffing`` (height >= 0 over the step),
 ``vertical_force`` (``F_1^v >= eps``), ``friction`` (``|F_1^h| <= mu F_1^v``), ``impact`` (impulse
-in the cone, trailing foot lifts off), ``joint_range`` and ``torque_limit`` (robot file).
+in the cone, trailing foot lifts off), ``touchdown`` (the swing foot moves down onto the ground
+at ``>= min_touchdown_velocity``: ``-E_2y(q^-) Phi(alpha_f) alpha'^-``; a grazing touchdown is a
+strike the full-order simulation can miss), ``joint_range`` and ``torque_limit`` (robot file).
 With a thrust range, stance, lift-off and torque constraints also hold on the orbits of its
 two end thrusts (F_1, u and zeta are affine in a constant thrust, so the whole range follows).
 
 Safety margins inside the solver (so that the re-check on finer grids passes): friction with
 ``mu - 0.005``, ``F_1^v >= eps + 0.5 %`` of the weight, joint ranges shrunk by 0.01 rad, torques
-within 99 % of their limits, ``zeta >= min_zeta_ratio zeta^-``, lift-off >= ``min_liftoff``. The
+within 99 % of their limits, ``zeta >= min_zeta_ratio zeta^-``, lift-off >= ``min_liftoff`` and
+touch-down >= ``min_touchdown_velocity`` (each + 1e-5 m/s), ``delta_zero^2 <= max_delta_sq - 1e-5``:
+a point the solver accepts (normalised violation <= 1e-5) then meets the bounds the re-check
+enforces exactly. The foot-placement equality is polished by Newton on q_N (:meth:`polish`). The
 swing-foot height is constrained on a dense uniform grid through :func:`cell_minima` (dips
 between grid points count), so straight legs may touch the ground (3-link: ``clearance = 0``).
 """
@@ -60,10 +65,11 @@ from ..hzd.constraints import apply_invariance, bezier, gait_maps
 from ..hzd.quadrature import ChebSeries, integrate, lobatto
 from ..hzd.zero_dynamics import zero_dynamics_terms
 from ..model.compiled import CompiledModel
-from .spec import DesignSpec
+from .spec import STABILITY_MARGIN, VELOCITY_MARGIN, DesignSpec
 
 FAMILIES = ("orbit", "stability", "speed", "step_length", "foot_placement", "clearance",
-            "scuffing", "vertical_force", "friction", "impact", "joint_range", "torque_limit")
+            "scuffing", "vertical_force", "friction", "impact", "touchdown", "joint_range",
+            "torque_limit")
 DIP = 0.0  # [m] dip allowed by the design constraint
 DENSE = 161  # uniform points in s for the height, range, stance-force and torque constraints
 
@@ -333,16 +339,18 @@ class Problem:
         dq = phi_f * k1[-1] * sgn
         F2 = MF @ dq * sig
         v_trail = (Mu @ dq)[N:] * sig
+        td_unit = float(model.E_swing(qm)[1] @ dq)  # touch-down velocity per unit |sigma^-|
         nF2 = max(float(np.linalg.norm(F2)), 1e-12)
         # constraints (scaled)
         eq: dict[str, list] = {k: [] for k in FAMILIES}
         iq: dict[str, list] = {k: [] for k in FAMILIES}
         eq["orbit"].append([((1.0 - d2) * zm - V[-1]) / self.zeta_ref])
-        iq["orbit"] += [(zeta - spec.min_zeta_ratio * zm) / self.zeta_ref,
-                        [(d2 - 1e-3) * 10.0],
-                        self.sign_E * E / self.E_ref - 0.2,
-                        [(self.direction * span - 0.05) / 0.05]]
-        iq["stability"].append([(spec.max_delta_sq - d2) * 10.0])
+        parts = {"fixed_point": abs(eq["orbit"][0][0]),
+                 "zeta": (zeta - spec.min_zeta_ratio * zm) / self.zeta_ref,
+                 "delta": (d2 - 1e-3) * 10.0, "kappa1": self.sign_E * E / self.E_ref - 0.2,
+                 "monotonic": (self.direction * span - 0.05) / 0.05}
+        iq["orbit"] += [parts["zeta"], [parts["delta"]], parts["kappa1"], [parts["monotonic"]]]
+        iq["stability"].append([(spec.max_delta_sq - STABILITY_MARGIN - d2) * 10.0])
         if spec.speed is not None:
             eq["speed"].append([(L / T - spec.speed) / spec.speed if T > 0 else 10.0])
         if spec.step_length is not None:
@@ -367,30 +375,39 @@ class Problem:
             return (np.einsum("gim,m->gi", Ld[2], Fk) + Ld[1] * zk[:, None] + Ld[0],
                     np.einsum("gim,m->gi", Ld[5], Fk) + Ld[4] * zk[:, None] + Ld[3])
 
-        cases = [(*on_dense(F, zeta), v_trail[1])]
+        cases = [(*on_dense(F, zeta), v_trail[1], td_unit * sig)]
+        range_zeta = []
         for Fk in self.range_cases(F):
             Vk = V + self.Q @ ((zt["beta"] @ (Fk - F)) * E) * (0.5 * span)
             zs_k = Vk[-1] / max(1.0 - d2, 1e-3)  # zeta* on that thrust's orbit
             zk = d2 * zs_k + Vk
-            iq["orbit"] += [[zs_k / self.zeta_ref - 1e-3],
-                            (zk - spec.min_zeta_ratio * zs_k) / self.zeta_ref]
-            cases.append((*on_dense(Fk, zk),
-                          v_trail[1] / max(sig, 1e-12) * np.sqrt(2.0 * max(zs_k, 0.0))))
-        for F1k, _, lift in cases:
+            range_zeta += [[zs_k / self.zeta_ref - 1e-3],
+                           (zk - spec.min_zeta_ratio * zs_k) / self.zeta_ref]
+            sig_k = np.sqrt(2.0 * max(zs_k, 0.0))
+            cases.append((*on_dense(Fk, zk), v_trail[1] / max(sig, 1e-12) * sig_k,
+                          td_unit * sig_k))
+        iq["orbit"] += range_zeta
+        parts["range"] = (np.concatenate([np.ravel(v) for v in range_zeta]) if range_zeta
+                          else np.zeros(0))
+        for F1k, _, lift, td in cases:
             iq["vertical_force"].append(
                 (F1k[:, 1] - self.eps - 0.005 * self.weight) / self.weight)
             iq["friction"] += [(mu_d * F1k[:, 1] - F1k[:, 0]) / self.weight,
                                (mu_d * F1k[:, 1] + F1k[:, 0]) / self.weight]
-            iq["impact"].append([(lift - spec.min_liftoff) / 0.1])
+            iq["impact"].append([(lift - spec.min_liftoff - VELOCITY_MARGIN) / 0.1])
+            iq["touchdown"].append([(-td - spec.min_touchdown_velocity - VELOCITY_MARGIN) / 0.1])
         q_all = q_d
+        range_margin = np.full(N, np.inf)  # [rad] worst margin to the range less 0.01 rad
         for i in range(N):
             if np.isfinite(self.lo[i]):
                 iq["joint_range"].append((q_all[:, i] - self.lo[i] - 0.01) / 0.1)
+                range_margin[i] = min(range_margin[i], float(iq["joint_range"][-1].min() * 0.1))
             if np.isfinite(self.hi[i]):
                 iq["joint_range"].append((self.hi[i] - 0.01 - q_all[:, i]) / 0.1)
+                range_margin[i] = min(range_margin[i], float(iq["joint_range"][-1].min() * 0.1))
         for i, lim in enumerate(self.torque_limit):
             if np.isfinite(lim):
-                for _, uk, _ in cases:
+                for _, uk, _, _ in cases:
                     iq["torque_limit"] += [(0.99 * lim - uk[:, i]) / lim,
                                            (0.99 * lim + uk[:, i]) / lim]
         eqd = {k: np.concatenate([np.ravel(v) for v in vs]) for k, vs in eq.items() if vs}
@@ -408,8 +425,27 @@ class Problem:
                     max_friction_ratio=float(ratio.max()),
                     impact_friction_ratio=float(abs(F2[0]) / F2[1]) if F2[1] > 0 else np.inf,
                     liftoff_velocity=float(min(c[2] for c in cases)), min_zeta=float(zeta.min()),
+                    touchdown_velocity=float(max(c[3] for c in cases)), V_f=float(V[-1]),
+                    span=float(span), orbit_parts=parts, joint_range_margin=range_margin,
                     max_abs_torque=np.max([np.abs(c[1]).max(axis=0) for c in cases], axis=0))
         return Evaluation(True, J, scaled, eqd, iqd, info)
+
+    def polish(self, x: np.ndarray, tol: float = 1e-13) -> np.ndarray:
+        """``x`` with the swing foot exactly on the ground at impact: Newton on the unactuated
+        coordinate of q^- (a rotation of the whole pre-impact posture about the stance foot),
+        so that the foot-placement equality holds to ``tol`` [m], not just to the solver's
+        tolerance. The other variables are unchanged."""
+        x = np.array(x, float)
+        N, model = self.N, self.model
+        for _ in range(30):
+            h = float(model.p_swing(x[:N])[1])
+            if abs(h) <= tol * self.ell:
+                break
+            dh = float(model.E_swing(x[:N])[1, N - 1])
+            if dh == 0.0:
+                break
+            x[N - 1] -= h / dh
+        return x
 
     def fix_shapes(self, ev: Evaluation) -> None:
         self.shapes = ({k: v.size for k, v in ev.eq.items()},

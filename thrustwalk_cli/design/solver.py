@@ -25,8 +25,8 @@ from scipy.optimize import minimize
 from ..description.gait import Gait
 from ..model.compiled import CompiledModel
 from .problem import FAMILIES, Evaluation, Problem
-from .spec import ELASTIC, FEAS_TOL, DesignSpec
-from .verify import verify
+from .spec import ELASTIC, FEAS_TOL, STABILITY_MARGIN, VELOCITY_MARGIN, DesignSpec
+from .verify import show, verify
 
 
 # ------------------------------------------------------------------------------- solver
@@ -192,22 +192,22 @@ def solve_design(model: CompiledModel, spec: DesignSpec,
             progress(k + 1, spec.starts, f"start {k}: objective {r.objective:.5g}, {ok}")
     order = sorted(runs, key=lambda r: (r.max_violation > FEAS_TOL, r.objective
                                         if r.max_violation <= FEAS_TOL else r.max_violation))
-    chosen, check = None, None
+    chosen, check, x = None, None, None
     for r in order:
         if r.max_violation > FEAS_TOL:
             break
-        g = prob.gait(r.x)
-        F = prob.unpack(r.x)[2]
-        chk = verify(model, g, spec, F, prob.eps)
+        xp = prob.polish(r.x)
+        chk = verify(model, prob.gait(xp), spec, prob.unpack(xp)[2], prob.eps)
         if chk["feasible"]:
-            chosen, check = r, chk
+            chosen, check, x = r, chk, xp
             break
         if check is None:
-            chosen, check = r, chk
+            chosen, check, x = r, chk, xp
     if chosen is None:
         chosen = order[0]
-        check = verify(model, prob.gait(chosen.x), spec, prob.unpack(chosen.x)[2], prob.eps)
-    ev = prob.evaluate(chosen.x)
+        x = prob.polish(chosen.x)
+        check = verify(model, prob.gait(x), spec, prob.unpack(x)[2], prob.eps)
+    ev = prob.evaluate(x)
     viol = ev.violations()
     feasible = bool(check["feasible"]) and chosen.max_violation <= FEAS_TOL
     blocking = None
@@ -215,51 +215,154 @@ def solve_design(model: CompiledModel, spec: DesignSpec,
         solver_bad = {k: v for k, v in viol.items() if v > FEAS_TOL}
         if solver_bad:
             blocking = max(solver_bad, key=solver_bad.get)
+            what = describe(blocking, ev, prob)
         else:
             blocking = check["failed"][0] if check["failed"] else "orbit"
+            what = "re-check: " + check.get("failure_details", {}).get(blocking, blocking)
         reason = (f"no feasible gait found in {spec.starts} start(s): blocked by {blocking} "
-                  f"({describe(blocking, ev, prob)}; normalised violation "
-                  f"{viol.get(blocking, 0.0):.3g} at the best point)")
+                  f"({what}; normalised violation {viol.get(blocking, 0.0):.3g} at the best "
+                  "point)")
         others = [k for k, v in sorted(viol.items(), key=lambda kv: -kv[1])
                   if v > FEAS_TOL and k != blocking]
         if others:
             reason += "; also violated: " + ", ".join(others)
         if check["failed"]:
-            reason += "; re-check failed: " + ", ".join(check["failed"])
+            details = check.get("failure_details", {})
+            reason += "; re-check failed: " + ", ".join(
+                f"{f} ({details[f]})" if f in details else f for f in check["failed"])
+        hint = suggestion(blocking, prob, runs)
+        if hint:
+            reason += f"; {hint}"
     else:
         reason = "feasible: every constraint re-checked on the periodic orbit"
-    F = prob.unpack(chosen.x)[2]
-    return DesignResult(feasible, reason, blocking, spec, prob.gait(chosen.x),
+    F = prob.unpack(x)[2]
+    return DesignResult(feasible, reason, blocking, spec, prob.gait(x),
                         tuple(map(float, F)) if prob.m else (), check.get("objective"),
                         chosen.objective, viol, check, tuple(runs), prob.evaluations,
                         time.perf_counter() - t0, tuple(prob.c.tolist()), prob.eps)
 
 
+ITERATION_LIMIT = "Iteration limit reached"  # SciPy SLSQP's message when max_iter is hit
+
+
+def suggestion(family: str, prob: Problem, runs: list[StartResult]) -> str:
+    """The option that usually helps when ``family`` blocks a design (parameters in
+    backquotes, rendered as flags by the command line), and a larger ``max_iter`` when starts
+    stopped at the iteration limit."""
+    s, robot = prob.spec, prob.model.robot
+    thrust = ("`thrust_design` (constant thrust can supply the energy each impact takes, e.g. "
+              "for a compass walker on flat ground)"
+              if robot.thrusters and not s.thrust_design else "")
+    hints = {
+        "orbit": thrust or "another `speed` or `step_length`, or a higher `order`",
+        "stability": "a larger `max_delta_sq` or another `speed`",
+        "speed": thrust or "another `step_length`, or a higher `order`",
+        "step_length": "another `speed` or `step_length`",
+        "clearance": "a smaller `clearance`",
+        "scuffing": "a higher `order` or a larger `clearance`",
+        "vertical_force": "a smaller `min_vertical_force` or a lower `speed`",
+        "friction": "a larger `mu` or a lower `speed`",
+        "impact": "a larger `mu`",
+        "touchdown": "a smaller `min_touchdown_velocity`",
+        "joint_range": "another `speed` or `step_length`",
+        "torque_limit": "a lower `speed`" + (" or `thrust_design`" if thrust else ""),
+    }
+    out = []
+    if family in hints:
+        out.append("try " + hints[family])
+    stuck = sum(ITERATION_LIMIT in r.status for r in runs)
+    if stuck:
+        out.append(f"{stuck} of {len(runs)} start(s) stopped at the iteration limit "
+                   f"(`max_iter` = {s.max_iter}): try a larger `max_iter`")
+    return "; ".join(out)
+
+
 def describe(family: str, ev: Evaluation, prob: Problem) -> str:
-    """What family ``family`` asks for and what the point ``ev`` achieves (one phrase)."""
+    """The violated inequality of family ``family`` at the point ``ev``, with the numbers that
+    show the violation (the solver's own bounds, safety margins included; enough digits to
+    tell the value from the bound), e.g. ``zeta >= 0.02 zeta^- violated: min zeta = 0.5 <
+    0.02 * 64.39 = 1.288 kg^2 m^4/s^2``."""
     s, i = prob.spec, ev.info
     if not ev.ok or not i:
         return "the point cannot be evaluated"
-    mu = s.mu
-    text = {
-        "orbit": f"a periodic orbit with zeta > {s.min_zeta_ratio:g} zeta^- along the step: "
-                 f"min zeta = {i['min_zeta']:.4g}, zeta^- = {i['zeta_minus']:.4g} kg^2 m^4/s^2",
-        "stability": f"delta_zero^2 <= {s.max_delta_sq:g}: got {i['delta_zero_sq']:.4g}",
-        "speed": f"speed {s.speed} m/s: reached {i['speed']:.4g} m/s",
-        "step_length": f"step length {s.step_length} m: got {i['step_length']:.4g} m",
-        "foot_placement": f"swing foot on the ground ahead of the stance foot at impact: "
-                          f"step length {i['step_length']:.4g} m",
-        "clearance": f"swing foot >= {s.clearance:g} m at mid-step: {i['mid_height']:.4g} m",
-        "scuffing": f"swing foot above the ground over the step: lowest "
-                    f"{i['min_height']:.4g} m",
-        "vertical_force": f"F_1^v >= {prob.eps:.4g} N: min {i['min_vertical_force']:.4g} N",
-        "friction": f"|F_1^h| <= mu F_1^v with mu = {mu:g}: max ratio "
-                    f"{i['max_friction_ratio']:.4g}",
-        "impact": f"impulse in the cone (mu = {mu:g}) and lift-off >= {s.min_liftoff:g} m/s: "
-                  f"ratio {i['impact_friction_ratio']:.4g}, lift-off "
-                  f"{i['liftoff_velocity']:.4g} m/s",
-        "joint_range": "joint angles inside the robot file's ranges",
-        "torque_limit": "joint torques inside the robot file's limits: max |u| = "
-                        + ", ".join(f"{v:.4g}" for v in i["max_abs_torque"]) + " N m",
-    }
-    return text.get(family, family)
+    if family == "orbit":
+        return _describe_orbit(ev, prob)
+    mu_d = s.mu - 0.005
+    if family == "stability":
+        a, b = show(i["delta_zero_sq"], s.max_delta_sq - STABILITY_MARGIN)
+        return f"delta_zero^2 <= {b} violated: delta_zero^2 = {a} > {b}"
+    if family == "speed":
+        return f"speed = {s.speed:g} m/s violated: reached {i['speed']:.4g} m/s"
+    if family == "step_length":
+        return f"step length = {s.step_length:g} m violated: got {i['step_length']:.4g} m"
+    if family == "foot_placement":
+        return (f"swing foot on the ground at least {0.05 * prob.ell:.3g} m ahead of the stance "
+                f"foot at impact violated: step length {i['step_length']:.4g} m")
+    if family == "clearance":
+        a, b = show(i["mid_height"], s.clearance, "m")
+        return f"swing foot >= {b} at mid-step violated: {a} < {b}"
+    if family == "scuffing":
+        return (f"swing foot >= 0 over the step violated: lowest {i['min_height']:.3g} m < 0")
+    if family == "vertical_force":
+        target = prob.eps + 0.005 * prob.weight
+        a, b = show(i["min_vertical_force"], target, "N")
+        return (f"F_1^v >= {b} (eps {prob.eps:.4g} N + 0.5 % of the weight) violated: "
+                f"min F_1^v = {a} < {b}")
+    if family == "friction":
+        a, b = show(i["max_friction_ratio"], mu_d)
+        return (f"|F_1^h| <= {b} F_1^v (mu = {s.mu:g} less 0.005) violated: max |F_1^h|/F_1^v "
+                f"= {a} > {b}")
+    if family == "impact":
+        lift = s.min_liftoff + VELOCITY_MARGIN
+        if i["impact_friction_ratio"] > mu_d:
+            a, b = show(i["impact_friction_ratio"], mu_d)
+            return (f"impact impulse |F_2^h| <= {b} F_2^v violated: |F_2^h|/F_2^v = {a} > {b}")
+        a, b = show(i["liftoff_velocity"], lift, "m/s")
+        return f"trailing foot lift-off >= {b} violated: {a} < {b}"
+    if family == "touchdown":
+        a, b = show(i["touchdown_velocity"], -(s.min_touchdown_velocity + VELOCITY_MARGIN),
+                    "m/s")
+        return (f"swing foot moving down at touchdown, vertical velocity <= {b}, violated: "
+                f"{a} > {b}")
+    if family == "joint_range":
+        names = prob.model.robot.coordinate_names
+        k = int(np.argmin(i["joint_range_margin"]))
+        return (f"joint angles inside the robot file's ranges less 0.01 rad violated: "
+                f"{names[k]} outside by {-i['joint_range_margin'][k]:.3g} rad")
+    if family == "torque_limit":
+        act = [c.name for c in prob.model.robot.coordinates if c.actuated]
+        ratio = i["max_abs_torque"] / prob.torque_limit
+        k = int(np.argmax(ratio))
+        a, b = show(i["max_abs_torque"][k], 0.99 * prob.torque_limit[k], "N m")
+        return f"|u_{act[k]}| <= 99 % of its limit = {b} violated: max |u_{act[k]}| = {a} > {b}"
+    return family
+
+
+def _describe_orbit(ev: Evaluation, prob: Problem) -> str:
+    """The worst part of the ``orbit`` family (see :meth:`Problem._evaluate`)."""
+    s, i = prob.spec, ev.info
+    p = i["orbit_parts"]
+    worst = {"fixed_point": p["fixed_point"]}
+    for k in ("zeta", "delta", "kappa1", "monotonic", "range"):
+        v = np.atleast_1d(p[k])
+        worst[k] = float(np.maximum(-v, 0.0).max(initial=0.0))
+    part = max(worst, key=worst.get)
+    zm, d2 = i["zeta_minus"], i["delta_zero_sq"]
+    if part == "zeta":
+        a, b = show(i["min_zeta"], s.min_zeta_ratio * zm)
+        return (f"zeta >= {s.min_zeta_ratio:g} zeta^- violated: min zeta = {a} < "
+                f"{s.min_zeta_ratio:g} * {zm:.4g} = {b} kg^2 m^4/s^2")
+    if part == "fixed_point":
+        a, b = show((1.0 - d2) * zm, i["V_f"])
+        return (f"periodic orbit (1 - delta_zero^2) zeta^- = V_Z(alpha_f) violated: {a} != {b} "
+                "kg^2 m^4/s^2")
+    if part == "delta":
+        return f"delta_zero^2 >= 0.001 violated: delta_zero^2 = {d2:.4g}"
+    if part == "kappa1":
+        return ("kappa_1 of one sign over the step (alpha monotonic) violated: e_N^T D Phi "
+                "changes sign or nears 0")
+    if part == "monotonic":
+        return (f"|alpha_f - alpha_i| >= 0.05 rad in the walking direction violated: "
+                f"alpha_f - alpha_i = {i['span']:.4g} rad")
+    return ("a periodic orbit with zeta* > 0 and zeta >= "
+            f"{s.min_zeta_ratio:g} zeta^- at the ends of the thrust range violated")

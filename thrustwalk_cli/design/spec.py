@@ -15,6 +15,12 @@ OBJECTIVES = ("effort", "peak")
 FEAS_TOL = 1e-5  # normalised constraint violation accepted at the solver's point
 
 
+# Margins that keep the solver inside the bounds the re-check enforces exactly, so that a point
+# the solver accepts (normalised violation <= FEAS_TOL) always passes the re-check
+STABILITY_MARGIN = 1e-5  # [1] delta_zero^2 <= max_delta_sq - this (violation <= 1e-6 accepted)
+VELOCITY_MARGIN = 1e-5  # [m/s] lift-off and touch-down velocities (violation <= 1e-6 accepted)
+
+
 ELASTIC = 100.0  # cost of one unit of normalised violation (elastic mode of the solver)
 
 
@@ -26,8 +32,11 @@ class DesignSpec:
     polynomials; clearance: swing-foot height at mid-step ``s = 1/2`` [m] (height >= 0 over the
     whole step in any case); max_delta_sq: bound on delta_zero^2 (stability margin);
     min_vertical_force ``eps`` [N] (None: 10 % of the robot's weight); min_liftoff: vertical
-    velocity of the trailing foot just after impact [m/s]; min_zeta_ratio: ``zeta(alpha) >=
-    ratio zeta^-`` (the walker keeps some momentum at mid-stance); objective ``effort`` or
+    velocity of the trailing foot just after impact [m/s]; min_touchdown_velocity: the swing
+    foot must move down onto the ground at at least this speed just before impact [m/s] (a
+    grazing touchdown, vertical velocity near 0, is a strike a full-order simulation can miss);
+    min_zeta_ratio: ``zeta(alpha) >= ratio zeta^-`` (the walker keeps some momentum at
+    mid-stance); objective ``effort`` or
     ``peak``; thrust_design: constant thrust per thruster as variables (within the robot's
     limits), costed ``thrust_weight |F|^2`` [m^2] in the effort objective; thrust_range
     ``(thruster, low, high)`` [N]: the orbit must exist and the stance, lift-off and torque
@@ -45,6 +54,7 @@ class DesignSpec:
     max_delta_sq: float = 0.9
     min_vertical_force: float | None = None
     min_liftoff: float = 0.02
+    min_touchdown_velocity: float = 0.05
     min_zeta_ratio: float = 0.02
     objective: str = "effort"
     thrust_design: bool = False
@@ -80,16 +90,21 @@ class DesignSpec:
             bad("max_delta_sq", f"must be in (0, 1) (got {self.max_delta_sq:g})")
         if self.min_vertical_force is not None and self.min_vertical_force < 0:
             bad("min_vertical_force", "must be >= 0 N")
+        if not (np.isfinite(self.min_touchdown_velocity) and self.min_touchdown_velocity >= 0):
+            bad("min_touchdown_velocity", f"must be >= 0 m/s (got "
+                                          f"{self.min_touchdown_velocity:g})")
         if self.objective not in OBJECTIVES:
             bad("objective", f"unknown objective {self.objective!r} (choose from "
                              f"{', '.join(OBJECTIVES)})")
         if self.thrust_design and model.n_thrusters == 0:
-            bad("thrust_design", "the robot has no thruster")
+            bad("thrust_design", f"robot {model.robot.name} has no thruster")
         if self.thrust_range is not None:
             name, lo, hi = self.thrust_range
-            if name not in model.robot.thruster_names:
+            names = model.robot.thruster_names
+            if name not in names:
                 bad("thrust_range", f"unknown thruster {name!r} (robot {model.robot.name} has: "
-                                    f"{', '.join(model.robot.thruster_names)})")
+                                    f"{', '.join(names)})" if names else
+                    f"robot {model.robot.name} has no thruster")
             if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
                 bad("thrust_range", "need finite NAME:LOW:HIGH with LOW <= HIGH [N]")
         if self.thrust_weight < 0:

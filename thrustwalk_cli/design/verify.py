@@ -15,6 +15,18 @@ from ..hzd.zero_dynamics import Schedule, limit_cycles, zero_dynamics
 from ..model.compiled import CompiledModel
 from .spec import DesignSpec
 
+
+def show(value: float, ref: float, unit: str = "") -> tuple[str, str]:
+    """``value`` and ``ref`` formatted with the fewest significant digits (at least 4) that tell
+    them apart, so that a violation stays visible (0.9000002 vs 0.9, not 0.9 vs 0.9)."""
+    u = f" {unit}" if unit else ""
+    for d in range(4, 18):
+        a, b = f"{value:.{d}g}", f"{ref:.{d}g}"
+        if a != b:
+            return a + u, b + u
+    return repr(float(value)) + u, repr(float(ref)) + u
+
+
 HEIGHT_TOL = 1e-6  # [m] swing-foot dips shallower than this count as touching (re-check)
 
 
@@ -58,12 +70,14 @@ def verify(model: CompiledModel, gait: Gait, spec: DesignSpec, thrust: np.ndarra
                            "step_length": lc.step_length, "speed": lc.speed,
                            "alpha_i": zd.alpha_i, "alpha_f": zd.alpha_f,
                            "min_abs_alpha_dot": lc.min_abs_alpha_dot,
+                           "touchdown_velocity": lc.touchdown_velocity,
                            "invariance_residual": {"position": zd.maps.position_residual,
                                                    "velocity": zd.maps.velocity_residual}}}
     failed = []
     m: dict = {"stability": spec.max_delta_sq - zd.delta_zero_sq}
     if not (lc.exists and lc.stable):
-        out.update(feasible=False, failed=["orbit"], margins=m, objective=None)
+        out.update(feasible=False, failed=["orbit"], failure_details={"orbit": lc.reason},
+                   margins=m, objective=None)
         return out
     rep = evaluate(model, zd, sched, mu=spec.mu, eps=eps, profiles=False)
     case = rep.cases[0]
@@ -81,7 +95,7 @@ def verify(model: CompiledModel, gait: Gait, spec: DesignSpec, thrust: np.ndarra
     cost = orbit_cost(model, zd, sched, lc.zeta_plus,
                       spec.thrust_weight if spec.thrust_design else 0.0)
     umax = np.array(case.max_abs_torque)
-    zmin = float(lc.orbit["zeta"].min())
+    zmin = lc.min_zeta
     m.update({
         "zeta_min_ratio": zmin / lc.zeta_star - spec.min_zeta_ratio,
         "speed_error": None if spec.speed is None else lc.speed - spec.speed,
@@ -95,42 +109,74 @@ def verify(model: CompiledModel, gait: Gait, spec: DesignSpec, thrust: np.ndarra
         "impact_friction": case.margins["impact_friction"],
         "impact_vertical_impulse": case.margins["impact_vertical_impulse"],
         "liftoff_velocity": case.margins["liftoff_velocity"] - spec.min_liftoff,
+        "touchdown_velocity": -lc.touchdown_velocity - spec.min_touchdown_velocity,
         "joint_range": {nm: (float(v) if np.isfinite(v) else None)
                         for nm, v in zip(model.robot.coordinate_names, rng_m)},
         "torque_limit": {c.name: (float(t - u) if np.isfinite(t) else None)
                          for c, t, u in zip([c for c in model.robot.coordinates if c.actuated],
                                             tl, umax)},
     })
+    why: dict[str, str] = {}
+
+    def fail(family: str, text: str) -> None:
+        if family not in failed:
+            failed.append(family)
+        why.setdefault(family, text)
+
+    d2, bound = show(zd.delta_zero_sq, spec.max_delta_sq)
     if m["stability"] < 0:
-        failed.append("stability")
+        fail("stability", f"delta_zero^2 = {d2} > {bound}")
     if m["zeta_min_ratio"] < -1e-3:
-        failed.append("orbit")
+        a, b = show(zmin, spec.min_zeta_ratio * lc.zeta_star)
+        fail("orbit", f"min zeta = {a} < {spec.min_zeta_ratio:g} zeta^- = {b} kg^2 m^4/s^2")
     if spec.speed is not None and abs(m["speed_error"]) > 1e-3 * spec.speed:
-        failed.append("speed")
+        fail("speed", f"speed {lc.speed:.6g} m/s, target {spec.speed:g} m/s")
     if spec.step_length is not None and abs(m["step_length_error"]) > 1e-4:
-        failed.append("step_length")
-    if abs(float(model.p_swing(zd.maps.q_minus)[1])) > 1e-9 or lc.step_length <= 0:
-        failed.append("foot_placement")
+        fail("step_length", f"step length {lc.step_length:.6g} m, target {spec.step_length:g} m")
+    h_impact = float(model.p_swing(zd.maps.q_minus)[1])
+    if abs(h_impact) > 1e-9 or lc.step_length <= 0:
+        fail("foot_placement", f"swing foot {h_impact:.3g} m above the ground at impact "
+                               f"(tolerance 1e-9 m), step length {lc.step_length:.6g} m")
     if m["clearance_mid_step"] < -HEIGHT_TOL:
-        failed.append("clearance")
+        a, b = show(h_mid, spec.clearance, "m")
+        fail("clearance", f"swing foot {a} < {b} at mid-step")
     if sw["deepest"] < -HEIGHT_TOL:
-        failed.append("scuffing")
+        fail("scuffing", f"swing foot {sw['deepest']:.3g} m below the ground at alpha = "
+                         f"{sw['alpha_at_deepest']:.6g} rad (tolerance {HEIGHT_TOL:g} m)")
     if m["vertical_force"] < 0:
-        failed.append("vertical_force")
+        a, b = show(case.min_vertical_force, eps, "N")
+        fail("vertical_force", f"min F_1^v = {a} < {b}")
     if m["friction"] is None or m["friction"] < 0:
-        failed.append("friction")
+        if case.max_friction_ratio is None:
+            fail("friction", "F_1^v <= 0 somewhere")
+        else:
+            a, b = show(case.max_friction_ratio, spec.mu)
+            fail("friction", f"max |F_1^h|/F_1^v = {a} > mu = {b}")
     if not imp.admissible(spec.mu) or m["liftoff_velocity"] < -1e-6:
-        failed.append("impact")
+        reasons = imp.reasons(spec.mu)
+        if m["liftoff_velocity"] < -1e-6:
+            a, b = show(case.liftoff_velocity, spec.min_liftoff, "m/s")
+            reasons.append(f"lift-off velocity {a} < {b}")
+        fail("impact", "; ".join(reasons))
+    if m["touchdown_velocity"] < 0:
+        a, b = show(lc.touchdown_velocity, -spec.min_touchdown_velocity, "m/s")
+        fail("touchdown", f"swing-foot vertical velocity at touchdown {a} > {b} (grazing)")
     if spec.thrust_range is not None:
         rr = _range_check(model, zd, spec, thrust, eps)
         m["thrust_range"] = rr
-        failed += [f for f in rr["failed"] if f not in failed]
+        for f in rr["failed"]:
+            fail(f, f"on the orbit of a thrust in the range: {'; '.join(rr['reasons'])}")
         umax = np.maximum(umax, rr["max_abs_torque"])
     if np.any(rng_m[np.isfinite(rng_m)] < -RANGE_TOL):
-        failed.append("joint_range")
+        k = int(np.nanargmin(np.where(np.isfinite(rng_m), rng_m, np.inf)))
+        fail("joint_range", f"{model.robot.coordinate_names[k]} leaves its range by "
+                            f"{-rng_m[k]:.3g} rad")
     if np.any(umax > tl * (1 + 1e-9)):
-        failed.append("torque_limit")
-    out.update(feasible=not failed, failed=failed, margins=m,
+        k = int(np.argmax(umax / tl))
+        a, b = show(umax[k], tl[k], "N m")
+        act = [c.name for c in model.robot.coordinates if c.actuated]
+        fail("torque_limit", f"max |u_{act[k]}| = {a} > limit {b}")
+    out.update(feasible=not failed, failed=failed, failure_details=why, margins=m,
                objective=cost[spec.objective], cost=cost,
                contact={"feasible": case.feasible, "reason": case.reason,
                         "min_vertical_force": case.min_vertical_force,
@@ -162,18 +208,24 @@ def _range_check(model: CompiledModel, zd, spec: DesignSpec, thrust: np.ndarray,
     vert = min(c.margins["vertical_force"] for c in cases)
     fr = [c.margins["friction"] for c in cases]
     lift = min(c.margins["liftoff_velocity"] for c in cases) - spec.min_liftoff
+    touch = min(-c.cycle.touchdown_velocity for c in cases) - spec.min_touchdown_velocity
     if vert < 0:
         failed.append("vertical_force")
     if any(f is None or f < 0 for f in fr):
         failed.append("friction")
     if lift < -1e-6:
         failed.append("impact")
+    reasons = [c.reason for c in cases if not c.feasible]
+    if touch < 0:
+        failed.append("touchdown")
+        reasons.append(f"touchdown velocity {-touch - spec.min_touchdown_velocity:.4g} m/s > "
+                       f"-{spec.min_touchdown_velocity:g} m/s")
     return {"thrusts": F[:, j].tolist(), "failed": failed, "vertical_force": vert,
             "friction": None if any(f is None for f in fr) else min(fr),
-            "liftoff_velocity": lift,
+            "liftoff_velocity": lift, "touchdown_velocity": touch,
             "speed": [c.cycle.speed for c in cases],
             "max_abs_torque": np.max([c.max_abs_torque for c in cases], axis=0),
-            "reasons": [c.reason for c in cases if not c.feasible]}
+            "reasons": reasons}
 
 
 def check_gait(model: CompiledModel, gait: Gait, spec: DesignSpec) -> dict:

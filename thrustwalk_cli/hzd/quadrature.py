@@ -59,6 +59,24 @@ class ChebSeries:
         out = np.moveaxis(np.asarray(out), -1, 0)
         return out.reshape(t.shape + self.coef.shape[1:])
 
+    def at_few(self, t: np.ndarray) -> np.ndarray:
+        """:meth:`__call__` for a few points (a search's iterates): ``T_k(x) = cos(k arccos x)``
+        as one matrix product, without Clenshaw's per-coefficient loop; Clenshaw for more
+        than 256 points, where the loop's overhead no longer dominates."""
+        t = np.asarray(t, float)
+        if t.size > 256:
+            return self(t)
+        x = np.clip(self._x(t).ravel(), -1.0, 1.0)
+        T = np.cos(np.outer(np.arccos(x), np.arange(self.coef.shape[0])))
+        out = T @ self.coef.reshape(self.coef.shape[0], -1)
+        return out.reshape(t.shape + self.coef.shape[1:])
+
+    def derivative(self, order: int = 1) -> ChebSeries:
+        """``d^order f / dt^order`` as a series on ``[a, b]`` (same number of coefficients)."""
+        d = C.chebder(self.coef, m=order, scl=2.0 / (self.b - self.a), axis=0)
+        pad = np.zeros((self.coef.shape[0] - d.shape[0],) + d.shape[1:])
+        return ChebSeries(self.a, self.b, np.concatenate([d, pad]))
+
     def cumulative(self) -> ChebSeries:
         """Antiderivative vanishing at ``a``: ``t -> int_a^t f``."""
         c = C.chebint(self.coef, m=1, lbnd=-1.0, scl=0.5 * (self.b - self.a), axis=0)

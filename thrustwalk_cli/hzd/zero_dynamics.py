@@ -19,7 +19,10 @@ SPEC 4 erratum: the paper's ``zeta* = zeta_0* + sum_j b_F T_j`` omits ``1/(1 - d
 this module implements the true fixed point (``paper_one_step_shift`` gives the paper's value).
 
 Integrals are spectral (Chebyshev-Lobatto, :mod:`quadrature`); the node count doubles until the
-nested error estimate is below ``rtol`` relative, and the estimate is reported.
+nested error estimate is below ``rtol`` relative, and the estimate is reported. Extrema along
+the orbit (minimum and maximum ``|alpha'|``, minimum ``zeta``) are located on a grid and polished
+by Newton iterations on their stationarity conditions (:func:`_orbit_extrema`), so they are exact
+to about 1e-12, not grid-limited.
 """
 
 from __future__ import annotations
@@ -31,9 +34,14 @@ import numpy as np
 from ..description.gait import Gait
 from ..model.compiled import CompiledModel
 from .constraints import GaitMaps, gait_maps
+from .extrema import neighbours
 from .quadrature import ChebSeries, cumulative_with_error, integrate, lobatto
 
 RTOL = 1e-9
+
+GRAZING_VELOCITY = 0.01  # [m/s] a touchdown slower than this is reported as grazing
+
+
 MAX_NODES = 4097
 INVARIANCE_TOL = 1e-8  # [rad], [1]: impact residuals above this: the gait is not invariant
 
@@ -74,6 +82,11 @@ class LimitCycle:
     Every number is SI: zeta [kg^2 m^4/s^2], sigma [kg m^2/s], alpha' [rad/s], step time [s],
     step length [m], speed [m/s]. Fields are ``None`` when ``exists`` is false; ``reason``
     says why. ``orbit`` holds the sampled phase-plane curve (alpha, alpha', sigma_N).
+    ``min_abs_alpha_dot``/``alpha_at_min`` (the potential-energy barrier),
+    ``max_abs_alpha_dot``/``alpha_at_max`` and ``min_zeta``/``alpha_at_min_zeta`` [rad] are the
+    exact extrema along the step (grid, then Newton). ``touchdown_velocity``: vertical
+    velocity of the swing foot just before impact [m/s], negative when it moves down; near 0
+    the foot grazes the ground and a full-order simulation can miss the strike.
     """
 
     exists: bool
@@ -93,6 +106,11 @@ class LimitCycle:
     speed: float | None = None
     min_abs_alpha_dot: float | None = None
     alpha_at_min: float | None = None
+    max_abs_alpha_dot: float | None = None
+    alpha_at_max: float | None = None
+    min_zeta: float | None = None
+    alpha_at_min_zeta: float | None = None
+    touchdown_velocity: float | None = None
     orbit: dict[str, np.ndarray] | None = field(default=None, repr=False)
 
 
@@ -112,6 +130,7 @@ class ZeroDynamics:
     delta_zero: float
     kappa1_ok: bool
     kappa1_reason: str
+    E: ChebSeries | None = None  # e_N^T D Phi = 1/kappa_1 interpolated on the nodes [kg m^2]
 
     @property
     def invariant(self) -> bool:
@@ -183,11 +202,72 @@ class ZeroDynamics:
         kn = np.asarray(knots, float)
         return np.diff(self.B(kn)), np.diff(self.Gamma(kn), axis=0)
 
+    def extrema_series(self) -> ChebSeries:
+        """Columns ``[V_0', Gamma', b_F', V_0'', Gamma'', b_F'', E, E', E'']`` (derivatives in
+        alpha; ``E = e_N^T D Phi = 1/kappa_1`` interpolated on the quadrature nodes) as one
+        series: what the polishing of orbit extrema needs, computed once per walker."""
+        cached = self.__dict__.get("_extrema_series")
+        if cached is None:
+            a, b = self.V0.a, self.V0.b
+            base = ChebSeries(a, b, np.column_stack([self.V0.coef, self.Gamma.coef,
+                                                     self.B.coef]))
+            E = self.E if self.E is not None else ChebSeries.from_values(
+                a, b, self.terms(lobatto(a, b, self.nodes))["eDPhi"])
+            n = base.coef.shape[0]
+            ecoef = np.zeros((n, 1))
+            ecoef[:E.coef.shape[0], 0] = E.coef
+            e = ChebSeries(a, b, ecoef)
+            cached = ChebSeries(a, b, np.hstack([base.derivative(1).coef,
+                                                 base.derivative(2).coef, e.coef,
+                                                 e.derivative(1).coef, e.derivative(2).coef]))
+            self.__dict__["_extrema_series"] = cached
+        return cached
+
+    def touchdown_velocity(self, alpha_dot_minus: float) -> float:
+        """Vertical swing-foot velocity just before impact [m/s] on Z:
+        ``E_2y(q^-) Phi(alpha_f) alpha'^-`` (negative: the foot moves down onto the ground)."""
+        per = self.__dict__.get("_touchdown_per_alpha_dot")
+        if per is None:
+            phi = self.maps.Phi(np.array(self.alpha_f))
+            per = float(self.model.E_swing(self.maps.q_minus)[1] @ phi)
+            self.__dict__["_touchdown_per_alpha_dot"] = per
+        return per * float(alpha_dot_minus)
+
     def poincare(self, zeta_minus: np.ndarray, schedule: Schedule) -> np.ndarray:
         """``rho(zeta^-) = delta_zero^2 zeta^- + V_Z(alpha_f)`` (SPEC 3); NaN-free, unchecked
         domain: see :func:`limit_cycles` for the existence conditions."""
         return self.delta_zero_sq * np.asarray(zeta_minus) + self.V_Z(
             np.array(self.alpha_f), schedule)
+
+
+class ZetaAt:
+    """``zeta_i(alpha_i) = zeta^+_i + V_Z(alpha_i; schedule i)`` for alpha values of each
+    schedule of a batch (a search that moves each schedule's points on their own): ``alpha``
+    of shape (k,) or (k, p), with V_0, Gamma and b_F stacked into one Chebyshev series (one
+    evaluation per call) [kg^2 m^4/s^2]."""
+
+    def __init__(self, zd: ZeroDynamics, sched: Schedule):
+        self.sched = sched
+        self.m = zd.Gamma.coef.shape[1]
+        coef = np.column_stack([zd.V0.coef, zd.Gamma.coef, zd.B.coef])
+        self.series = ChebSeries(zd.V0.a, zd.V0.b, coef)
+        kn = sched.knots
+        self.lo, self.hi = np.minimum(kn[:-1], kn[1:]), np.maximum(kn[:-1], kn[1:])
+        self.at_knots = self.series(kn)  # (n+1, 2+m)
+
+    def __call__(self, zeta_plus: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+        alpha = np.asarray(alpha, float)
+        a2 = alpha.reshape(alpha.shape[0], -1)  # (k, p)
+        pts = np.concatenate([a2[None], np.clip(a2[None], self.lo[:, None, None],
+                                                self.hi[:, None, None])])
+        v = self.series.at_few(pts)  # (1+n, k, p, 2+m)
+        m = self.m
+        dG = v[1:, ..., 1:1 + m] - self.at_knots[:-1, None, None, 1:1 + m]  # (n, k, p, m)
+        dB = v[1:, ..., -1] - self.at_knots[:-1, None, None, -1]  # (n, k, p)
+        z = (np.asarray(zeta_plus, float).reshape(-1, 1) + v[0, ..., 0]
+             + np.einsum("jkpm,kjm->kp", dG, self.sched.force)
+             + np.einsum("jkp,kj->kp", dB, self.sched.generalized))
+        return z.reshape(alpha.shape)
 
 
 def zero_dynamics_terms(model: CompiledModel, maps: GaitMaps, alpha: np.ndarray) -> dict:
@@ -246,7 +326,8 @@ def zero_dynamics(model: CompiledModel, gait: Gait, rtol: float = RTOL,
     N = model.n
     D_plus = model.D(maps.q_plus)
     delta = float(D_plus[N - 1, :] @ model.R @ Delta @ tf["Phi"][0] * tf["kappa1"][0])
-    return ZeroDynamics(model, gait, maps, n, V0, Gamma, B, err, scale, delta, ok, why)
+    E = ChebSeries.from_values(a, b, inv)  # interpolation error ~1e-14 relative (tested)
+    return ZeroDynamics(model, gait, maps, n, V0, Gamma, B, err, scale, delta, ok, why, E)
 
 
 def _step_times(zd: ZeroDynamics, schedule: Schedule, zeta_plus: np.ndarray
@@ -314,6 +395,9 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> li
     if live.size:
         sub = Schedule(kn, schedule.force[live], schedule.generalized[live])
         T[live], T_err[live], T_ok[live] = _step_times(zd, sub, zp[live])
+    ext = _orbit_extrema(zd, Schedule(kn, schedule.force[live], schedule.generalized[live]),
+                         zp[live], grid, k1, zeta[live]) if live.size else {}
+    pos = {int(i): r for r, i in enumerate(live)}
     out = []
     for i in range(len(Vf)):
         base = dict(delta_zero_sq=d2, V_f=float(Vf[i]))
@@ -344,7 +428,7 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> li
         else:
             sigma = sgn * np.sqrt(2.0 * zeta[i])
             adot = k1 * sigma
-            jm = int(np.argmin(np.abs(adot)))
+            r = pos[i]
             s_minus = sgn * np.sqrt(2.0 * zs)
             s_plus = zd.delta_zero * s_minus
             stable = d2 < 1.0
@@ -356,10 +440,89 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> li
                 alpha_dot_minus=float(k1[-1] * s_minus), alpha_dot_plus=float(k1[0] * s_plus),
                 step_time=float(T[i]), step_time_error=float(T_err[i]),
                 step_length=step_length, speed=step_length / float(T[i]),
-                min_abs_alpha_dot=float(abs(adot[jm])), alpha_at_min=float(grid[jm]),
+                min_abs_alpha_dot=float(ext["min_adot"][r]), alpha_at_min=float(ext["a_min"][r]),
+                max_abs_alpha_dot=float(ext["max_adot"][r]), alpha_at_max=float(ext["a_max"][r]),
+                min_zeta=float(ext["min_zeta"][r]), alpha_at_min_zeta=float(ext["a_zeta"][r]),
+                touchdown_velocity=zd.touchdown_velocity(float(k1[-1] * s_minus)),
                 orbit={"alpha": grid, "alpha_dot": adot, "sigma": sigma, "zeta": zeta[i]},
                 **base))
     return out
+
+
+def _orbit_extrema(zd: ZeroDynamics, sched: Schedule, zeta_plus: np.ndarray, grid: np.ndarray,
+                   k1: np.ndarray, zeta: np.ndarray, iterations: int = 8) -> dict[str, np.ndarray]:
+    """Exact min/max of ``|alpha'| = |kappa_1| sqrt(2 zeta)`` and min of ``zeta`` along the step
+    for a batch of orbits (``zeta``: (k, g) on ``grid``).
+
+    Each is located on the grid, then polished by safeguarded Newton iterations on its
+    stationarity condition between the neighbouring grid points: ``h = zeta' E - 2 zeta E'``
+    (``d/dalpha (zeta / E^2)`` up to a positive factor; ``E = e_N^T D Phi = 1/kappa_1``) for
+    ``|alpha'|``, ``h = zeta'`` for ``zeta``. ``zeta', zeta''`` come from the integrands' series
+    (V_0, Gamma, b_F differentiated, with the thrust of the point's knot interval), ``E`` and
+    its derivatives from ``1/kappa_1`` interpolated on the quadrature nodes (spectrally
+    accurate); one series evaluation per iteration for the whole batch. The reported values are
+    the model's at the points found, and never worse than the grid's."""
+    k = zeta.shape[0]
+    m = zd.Gamma.coef.shape[1]
+    series = zd.extrema_series()
+    zeta_at = ZetaAt(zd, sched)
+    ks = (np.asarray(sched.knots, float) - zd.alpha_i) / (zd.alpha_f - zd.alpha_i)
+    rows = np.arange(k)
+    # three problems stacked: min |alpha'|, max |alpha'|, min zeta
+    adot = np.abs(k1)[None, :] * np.sqrt(2.0 * np.maximum(zeta, 0.0))
+    j = np.concatenate([np.argmin(adot, 1), np.argmax(adot, 1), np.argmin(zeta, 1)])
+    lo, hi = neighbours(grid, j)
+    x = grid[j]
+    rr = np.tile(rows, 3)
+    F, T = sched.force[rr], sched.generalized[rr]
+    e = np.arange(3 * k)
+    is_speed = e < 2 * k
+    w = 2 + m
+    for _ in range(iterations):
+        s = (x - zd.alpha_i) / (zd.alpha_f - zd.alpha_i)
+        jj = np.clip(np.searchsorted(ks, s, side="right") - 1, 0, len(ks) - 2)
+        v = series.at_few(x)  # (3k, 2 w + 3)
+        Fj, Tj = F[e, jj], T[e, jj]  # thrust of each point's knot interval
+        d1 = v[:, 0] + np.einsum("em,em->e", v[:, 1:1 + m], Fj) + v[:, 1 + m] * Tj
+        d2 = v[:, w] + np.einsum("em,em->e", v[:, w + 1:w + 1 + m], Fj) + v[:, w + 1 + m] * Tj
+        e0, e1, e2 = v[:, 2 * w], v[:, 2 * w + 1], v[:, 2 * w + 2]
+        z = zeta_at(zeta_plus, x.reshape(3, k).T).T.ravel()
+        h = np.where(is_speed, d1 * e0 - 2.0 * z * e1, d1)
+        dh = np.where(is_speed, d2 * e0 - d1 * e1 - 2.0 * z * e2, d2)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = np.where(dh != 0, h / dh, 0.0)
+        step = np.where(np.isfinite(step), step, 0.0)
+        x_new = np.clip(x - step, lo, hi)  # an extremum at a bracket end stays there
+        moved = np.abs(x_new - x)
+        x = x_new
+        if np.all(moved <= 1e-14 * (1.0 + np.abs(x))):
+            break
+    xs, xz = x[:2 * k], x[2 * k:]
+    z_exact = zeta_at(zeta_plus, xs.reshape(2, k).T).T.ravel()
+    speed = np.sqrt(2.0 * np.maximum(z_exact, 0.0)) / np.abs(zd.terms(xs)["eDPhi"])
+    zmin = zeta_at(zeta_plus, xz)
+    g_min, g_max = adot[rows, j[:k]], adot[rows, j[k:2 * k]]
+    g_z = zeta[rows, j[2 * k:]]
+    take = speed[:k] < g_min
+    a_min, v_min = np.where(take, xs[:k], grid[j[:k]]), np.where(take, speed[:k], g_min)
+    take = speed[k:] > g_max
+    a_max, v_max = np.where(take, xs[k:], grid[j[k:2 * k]]), np.where(take, speed[k:], g_max)
+    take = zmin < g_z
+    a_z, z_min = np.where(take, xz, grid[j[2 * k:]]), np.where(take, zmin, g_z)
+    return {"a_min": a_min, "min_adot": v_min, "a_max": a_max, "max_adot": v_max,
+            "a_zeta": a_z, "min_zeta": z_min}
+
+
+def grazing_warning(lc: LimitCycle) -> str | None:
+    """A warning when the orbit's swing foot moves down onto the ground slower than
+    ``GRAZING_VELOCITY`` at touchdown (or not at all): the strike is (nearly) tangential and a
+    full-order simulation can miss it. None otherwise (or without an orbit)."""
+    v = lc.touchdown_velocity
+    if v is None or v < -GRAZING_VELOCITY:
+        return None
+    return (f"grazing touchdown: the swing foot reaches the ground at vertical velocity "
+            f"{v:.3g} m/s (moving down slower than {GRAZING_VELOCITY:g} m/s); a full-order "
+            "simulation can miss the strike")
 
 
 def paper_one_step_shift(zd: ZeroDynamics, schedule: Schedule) -> np.ndarray:

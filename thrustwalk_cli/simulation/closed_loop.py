@@ -154,8 +154,11 @@ class SimConfig:
     steps: number of steps. rtol/atol: integrator tolerances (``atol`` on rad and rad/s).
     method: ``solve_ivp`` method. samples_per_step: stored trajectory samples per step.
     torque_limit: |u| bound [N m] (None: unlimited). scuff_tol: how far below the ground the
-    swing foot may dip before mid-step [m]. min_impact_s: a foot strike earlier than this
-    fraction of the step is a scuff. guard_s: the guard is armed for s > guard_s.
+    swing foot may dip below the ground before the guard is armed [m]. min_impact_s: the
+    early-strike threshold: the guard (swing foot crossing the ground downward) is armed for
+    s > min_impact_s; before it a dip deeper than scuff_tol is a scuff (an early strike), a
+    shallower touch is tolerated (a straight-leg foot passing the stance foot at mid-step).
+    guard_s: the earliest s at which the guard may be armed (min_impact_s in [guard_s, 1)).
     max_s: no strike by this s fails the run. ground_tol: depth below which a dip of the
     swing foot between two integrator steps counts as a missed strike [m].
     max_step_time: a step longer than this fails [s] (None: 10 x the predicted step time,
@@ -189,6 +192,11 @@ class SimConfig:
                                                      f"step (got {self.samples_per_step})"))
         if self.torque_limit is not None and not self.torque_limit > 0:
             problems.append(param_problem("torque_limit", "must be > 0 N m"))
+        if not self.guard_s <= self.min_impact_s < 1.0:
+            problems.append(param_problem("min_impact_s", f"must lie in [{self.guard_s:g}, 1), "
+                                                          "the guard is armed from s = "
+                                                          f"{self.guard_s:g} (got "
+                                                          f"{self.min_impact_s:g})"))
         if problems:
             raise InputError(problems)
 
@@ -264,7 +272,7 @@ class ClosedLoop:
     def _segments_setup(self) -> None:
         """Breakpoints (in s, ascending) where the right-hand side or the events change."""
         self.breaks, self._piece_force, self._piece_T = alpha_pieces(
-            self.zd, self.thrust, (self.config.guard_s,))
+            self.zd, self.thrust, (self.arm_s,))
 
     def force(self, z, seg: int) -> list[float]:
         """Thrust per thruster [N] in segment ``seg`` with thruster states ``z``."""
@@ -280,7 +288,12 @@ class ClosedLoop:
         return int(np.searchsorted(self.breaks, s, side="right"))
 
     def guard_armed(self, seg: int) -> bool:
-        return seg > self.breaks.index(self.config.guard_s)
+        return seg > self.breaks.index(self.arm_s)
+
+    @property
+    def arm_s(self) -> float:
+        """s from which the guard is armed: ``min_impact_s`` (never before ``guard_s``)."""
+        return max(self.config.guard_s, self.config.min_impact_s)
 
     # -- scalar right-hand side ------------------------------------------------------------
     def _accel(self, x: list, seg: int, want_u: bool = False):
@@ -371,8 +384,9 @@ class ClosedLoop:
     def events(self, seg: int, rising: bool = True) -> list[tuple[str, Callable]]:
         """Event functions ``f(t, x, seg)`` of one segment, as (name, f).
 
-        ``break``: alpha reaches the next breakpoint; ``guard`` (armed segments): swing-foot
-        height crosses 0 downward; ``scuff`` (before arming): height crosses ``-scuff_tol``;
+        ``break``: alpha reaches the next breakpoint; ``guard`` (armed segments, s >
+        ``min_impact_s``): swing-foot height crosses 0 downward; ``scuff`` (before arming):
+        height crosses ``-scuff_tol``;
         ``overshoot``: s reaches ``max_s``; ``foot_min``/``foot_max``: the swing foot's vertical
         velocity crosses 0 upward/downward, so that a dip below the ground between two
         integrator steps is never missed (armed: terminal, alternating with ``rising``;
@@ -418,7 +432,7 @@ class ClosedLoop:
         seg = np.broadcast_to(np.asarray(seg, int), X.shape[:1])
         N, nb, m, mod = self.N, self.nb, self.m, self.model
         q, dq, z = X[:, :N], X[:, N:2 * N], X[:, 2 * N:]
-        F = np.array([self.force(zz, j) for zz, j in zip(z, seg)], float).reshape(-1, m)
+        F = np.array([self.force(zz, j) for zz, j in zip(z, seg)], float).reshape(len(X), m)
         T = np.array([self.generalized(j) for j in seg], float)
         D = mod.D(q)
         rhs = -mod.h(q, dq)

@@ -2,7 +2,9 @@
 
 The stance phase is the closed loop of :mod:`closed_loop` (input-output linearisation of
 ``y = H_0 q - h_d(c q)``, ``y'' = -K_p y - K_d y'``, thrust models). Hybrid execution: the
-guard is the swing-foot height crossing zero downward once the step is past ``s = 0.5``; the
+guard is the swing-foot height crossing zero downward once the step is past ``s =
+min_impact_s`` (0.75 by default, at least 0.5: past the middle of the step; before it the swing
+foot may touch the ground, and a dip deeper than ``scuff_tol`` is a scuff, an early strike); the
 impact map and relabelling of :meth:`CompiledModel.impact` (SPEC 5, 1) give the next step;
 thruster states are continuous across impacts. Failures stop the run and are reported in
 ``SimResult.reason``: integrator failure, swing-foot scuff, stance leg past horizontal, alpha
@@ -43,6 +45,12 @@ class Start:
     q: np.ndarray | None = None
     dq: np.ndarray | None = None
     orbit: str = "predicted"
+
+
+class NoOrbit(InputError):
+    """The start asked for (the predicted orbit) does not exist for this thrust: no periodic
+    orbit, so no run. An :class:`InputError` for a single run; a scenario of several steady
+    thrust values reports it as that value's result and runs the others."""
 
 
 # ----------------------------------------------------------------------------- results
@@ -145,7 +153,9 @@ class _Stop(Exception):
 
 
 _EVENT_REASONS = {
-    "scuff": ("scuff", "the swing foot scuffs the ground before mid-step"),
+    "scuff": ("scuff", "the swing foot goes more than `scuff_tol` below the ground before the "
+                       "guard is armed at s = `min_impact_s` (an early strike: a scuff, not the "
+                       "end of the step)"),
     "overshoot": ("no-impact", "the swing foot has not reached the ground by the end of the "
                                "step (s = max_s)"),
     "reverse": ("fall", "alpha reverses (alpha' = 0): the walker stops and falls back"),
@@ -206,12 +216,12 @@ def initial_state(zd: ZeroDynamics, thrust: ThrustModel, start: Start) -> np.nda
         if thrust.kind == "piecewise":
             lc = predicted_cycle(zd, thrust)
             if not lc.exists:
-                raise InputError(f"cannot start on the predicted orbit: {lc.reason}")
+                raise NoOrbit(f"cannot start on the predicted orbit: {lc.reason}")
             zm = lc.zeta_star
         else:
             zm = zeta_star_at(zd, np.asarray(F0, float))
             if not zm > 0:
-                raise InputError(f"cannot start on the predicted orbit: no fixed point for the "
+                raise NoOrbit(f"cannot start on the predicted orbit: no fixed point for the "
                                  f"initial thrust (zeta* = {zm:.6g}); use `start` nominal, "
                                  f"`zeta0` or `q0`/`dq0`")
     zm = zm * (1.0 + start.perturb)
@@ -293,7 +303,7 @@ def _one_step(cl: ClosedLoop, k: int, t0: float, x0: np.ndarray, t_max: float,
                  if f.terminal and len(te) and te[-1] == t1]
         name = fired[0] if fired else ""
         # the swing foot's lowest points: a dip below the ground between two integrator
-        # steps is a strike (armed guard) or a scuff (before mid-step); it comes first
+        # steps is a strike (armed guard) or a scuff (before the guard); it comes first
         lows = sol.t_events[names.index("foot_min")] if "foot_min" in names else ()
         dip = _dip(cl, sol, lows, seg, t, t1)
         if dip is not None:
@@ -302,6 +312,13 @@ def _one_step(cl: ClosedLoop, k: int, t0: float, x0: np.ndarray, t_max: float,
         elif sol.status == -1:
             if sol.sol is not None and t1 > t:
                 segments.append(Segment(k, t, t1, seg, sol.sol))
+            s1 = (float(cl.c @ x1[:N]) - cl.ai) / cl.span
+            if cl.guard_armed(seg) and s1 > 1.0:  # past the gait's end: physics, not the tool
+                raise _Stop("no-impact", f"the swing foot did not strike the ground by the end "
+                                         f"of the step (s = 1; a grazing or missed touchdown): "
+                                         f"on the extrapolated constraints the integrator "
+                                         f"{cfg.method} failed at s = {s1:.4g}, t = {t1:.6g} s "
+                                         f"({sol.message})")
             raise _Stop("integrator", f"integrator {cfg.method} failed at t = {t1:.6g} s: "
                                       f"{sol.message}")
         if t1 > t:
@@ -315,6 +332,11 @@ def _one_step(cl: ClosedLoop, k: int, t0: float, x0: np.ndarray, t_max: float,
                                      f"{cl.c @ x1[:N]:.6g} rad)")
         if name == "break":
             seg += 1
+            # the events of the next segment watch the swing foot's next extremum from here:
+            # a foot already moving down when the guard is armed must be watched for its
+            # lowest point (a shallow dip below the ground at a slow touchdown lies between
+            # two integrator steps and is found only there), not for an apex it has passed
+            rising = cl.foot_velocity(x) >= 0.0
             continue
         if name == "guard":
             break
@@ -324,7 +346,8 @@ def _one_step(cl: ClosedLoop, k: int, t0: float, x0: np.ndarray, t_max: float,
     s_minus = (float(cl.c @ x[:N]) - cl.ai) / cl.span
     if s_minus < cfg.min_impact_s:
         raise _Stop("scuff", f"the swing foot strikes the ground at s = {s_minus:.4g}, before "
-                             f"s = {cfg.min_impact_s:g} (a scuff, not the end of the step)")
+                             f"s = {cfg.min_impact_s:g} (a scuff, not the end of the step; "
+                             "threshold `min_impact_s`)")
     rec, x_next = _impact_and_record(cl, k, t0, t, x0, x, seg, segments[start_segments:],
                                      cl.nfev - nfev0)
     return rec, x_next, t

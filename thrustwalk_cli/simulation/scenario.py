@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import InputError, param_problem
 from ..hzd.zero_dynamics import Schedule, ZeroDynamics
 from .closed_loop import THRUST_MODELS, ThrustModel, predicted_cycle, zeta_star_at
-from .full_order import SimConfig, SimResult, Start, initial_state, simulate
+from .full_order import NoOrbit, SimConfig, SimResult, Start, initial_state, simulate
 from .reduced import ReducedModel, ReducedResult, predict_step, simulate_reduced
 
 
@@ -33,7 +33,10 @@ class Scenario:
     """What to simulate: thrust model ``kind`` driven at each of ``values`` [N] on the
     thrusters ``thrusters`` (indices), ``wn`` [rad/s], ``xi`` [1], ``tau`` [s], initial
     thrust ``f0`` [N]; ``schedule``: the piecewise schedule (``kind == "piecewise"``);
-    ``reduced_only`` skips the full-order model (the fast preview)."""
+    ``reduced_only`` skips the full-order model (the fast preview). ``impact_s_tol`` [1] and
+    ``zeta_tol`` [1, relative]: a full-order step whose impact is farther than this from s = 1,
+    or whose zeta^- differs from the zero-dynamics prediction by more, is reported as a
+    deviation (:func:`deviations`)."""
 
     kind: str
     values: tuple[float, ...]
@@ -46,18 +49,33 @@ class Scenario:
     config: SimConfig = SimConfig()
     reduced_only: bool = False
     schedule: Schedule | None = None
+    impact_s_tol: float = 1e-3
+    zeta_tol: float = 1e-3
 
 
 @dataclass(frozen=True)
 class Outcome:
     """One run: the sweep value (None for piecewise), its thrust model, the full-order result
-    (None for ``reduced_only``), the reduced cascade and the per-step comparison."""
+    (None for ``reduced_only``), the reduced cascade and the per-step comparison.
+    ``no_orbit``: why the run could not start (its thrust has no periodic orbit to start on);
+    then ``full`` and ``reduced`` are None."""
 
     value: float | None
     thrust: ThrustModel
     full: SimResult | None
-    reduced: ReducedResult
+    reduced: ReducedResult | None
     comparison: tuple[dict, ...]
+    no_orbit: str | None = None
+
+    @property
+    def primary(self) -> SimResult | ReducedResult | None:
+        """The full-order result, else the reduced one (None when the run did not start)."""
+        return self.full if self.full is not None else self.reduced
+
+    @property
+    def success(self) -> bool:
+        """The run started and completed every step."""
+        return self.primary is not None and self.primary.success
 
 
 def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
@@ -65,6 +83,7 @@ def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
                   **kw) -> Scenario:
     """Validate parameters into a :class:`Scenario`; :class:`InputError` names the parameter
     (``thrust_model``, ``thrust`` for ``values``, ``thruster``, ``f0``, ``wn``, ``xi``, ``tau``).
+    For a robot without thrusters ``values`` and ``f0`` must be 0 (no thruster is driven).
     ``schedule``: the piecewise schedule (from the gait's ``thrust:`` section), required for
     ``kind == "piecewise"``."""
     robot = zd.model.robot
@@ -82,6 +101,12 @@ def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
             raise InputError.param("thrust_model", "piecewise thrust needs a schedule")
         idx: tuple[int, ...] = ()
         values = []
+    elif not robot.thrusters:  # thrust options refer to no thruster: only 0 is possible
+        if thrusters:
+            robot.driven_thruster(thrusters[0])
+        robot.check_no_thrust(values or [], "thrust")
+        robot.check_no_thrust([kw.get("f0", 0.0)], "f0")
+        idx = ()
     else:
         names = thrusters or [None]
         idx = tuple(robot.thruster_index(n) for n in names)
@@ -94,7 +119,8 @@ def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
                     problems.append(param_problem(
                         ("thrust", "f0"), f"{v:g} N is outside the limits [{lo:g}, {hi:g}] N of "
                         f"thruster {robot.thruster_names[j]}"))
-    for key, unit in (("wn", "rad/s"), ("xi", ""), ("tau", "s")):
+    for key, unit in (("wn", "rad/s"), ("xi", ""), ("tau", "s"), ("impact_s_tol", ""),
+                      ("zeta_tol", "")):
         if key in kw and not kw[key] > 0:
             problems.append(param_problem(key, f"must be > 0{' ' + unit if unit else ''} "
                                                f"(got {kw[key]:g})"))
@@ -123,13 +149,20 @@ def thrust_models(zd: ZeroDynamics, sc: Scenario) -> list[tuple[float | None, Th
 def run_scenario(zd: ZeroDynamics, sc: Scenario,
                  progress: Callable[[int], None] | None = None) -> list[Outcome]:
     """Run every sweep value (full order unless ``reduced_only``, plus the cascade).
-    ``progress(1)`` after every step of the primary model."""
+    ``progress(1)`` after every step of the primary model. A value without a periodic orbit
+    to start on is an :class:`Outcome` with ``no_orbit`` set; the other values still run."""
     rm = ReducedModel(zd)
     cfg = sc.config
     N = zd.model.n
     out = []
     for value, th in thrust_models(zd, sc):
-        x0 = initial_state(zd, th, sc.start)
+        try:
+            x0 = initial_state(zd, th, sc.start)
+        except NoOrbit as exc:
+            out.append(Outcome(value, th, None, None, (), no_orbit=str(exc)))
+            if progress is not None:
+                progress(cfg.steps)
+            continue
         D0 = np.array(zd.model.D_s(x0[:N].tolist())).reshape(N, N)
         a0, s0 = float(zd.maps.c @ x0[:N]), float(D0[N - 1] @ x0[N:2 * N])
         pred = predicted_cycle(zd, th)
@@ -186,6 +219,37 @@ def compare_steps(zd: ZeroDynamics, th: ThrustModel, full: SimResult, red: Reduc
             rec["orbit_distance"] = None
         out.append(rec)
     return out
+
+
+def deviations(oc: Outcome, sc: Scenario) -> list[str]:
+    """Where a completed full-order run leaves the zero-dynamics prediction (SPEC 7), one line
+    per kind: impacts farther than ``sc.impact_s_tol`` from s = 1 (the swing foot did not
+    strike where the gait ends: a grazing or missed touchdown, then a strike on the
+    extrapolated constraints) and steps whose zeta^- differs from the prediction by more than
+    ``sc.zeta_tol`` relative. Empty when the run follows the prediction."""
+    if oc.full is None:
+        return []
+    out = []
+    late = [st for st in oc.full.steps if abs(st.s_minus - 1.0) > sc.impact_s_tol]
+    if late:
+        worst = max(late, key=lambda st: abs(st.s_minus - 1.0))
+        out.append(f"{_steps(late)}: impact away from s = 1 (worst s = {worst.s_minus:.6g} "
+                   f"at step {worst.step}; tolerance {sc.impact_s_tol:g}): the swing foot did "
+                   "not strike where the gait ends (a grazing or missed touchdown)")
+    off = [(st, c) for st, c in zip(oc.full.steps, oc.comparison)
+           if c["relative_error"] is not None and abs(c["relative_error"]) > sc.zeta_tol]
+    if off:
+        st, c = max(off, key=lambda p: abs(p[1]["relative_error"]))
+        out.append(f"{_steps([p[0] for p in off])}: zeta^- off the zero-dynamics prediction "
+                   f"(worst {100 * c['relative_error']:+.4g} % at step {st.step}: "
+                   f"{st.zeta_minus:.6g} vs {c['zeta_minus']:.6g} kg^2 m^4/s^2; tolerance "
+                   f"{100 * sc.zeta_tol:g} %)")
+    return out
+
+
+def _steps(steps) -> str:
+    n = [st.step for st in steps]
+    return f"step {n[0]}" if len(n) == 1 else f"{len(n)} steps ({n[0]} to {n[-1]})"
 
 
 def _V_f(zd: ZeroDynamics, th: ThrustModel) -> float:

@@ -41,6 +41,7 @@ def report_record(res: DesignResult) -> dict:
         "spec": {"speed": s.speed, "step_length": s.step_length, "mu": s.mu,
                  "order": s.order, "clearance": s.clearance, "max_delta_sq": s.max_delta_sq,
                  "min_vertical_force": res.eps, "min_liftoff_velocity": s.min_liftoff,
+                 "min_touchdown_velocity": s.min_touchdown_velocity,
                  "min_zeta_ratio": s.min_zeta_ratio, "objective": s.objective,
                  "thrust_design": s.thrust_design, "thrust_weight": s.thrust_weight,
                  "thrust_range": None if s.thrust_range is None else
@@ -55,6 +56,7 @@ def report_record(res: DesignResult) -> dict:
         "fixed_point": r.get("orbit"),
         "margins": r.get("margins"),
         "failed_checks": r.get("failed"),
+        "failed_check_details": r.get("failure_details"),
         "cost": r.get("cost"),
         "contact": r.get("contact"),
         "swing_foot": r.get("swing"),
@@ -132,7 +134,8 @@ def yaml_header(res: DesignResult, provenance: dict, report_name: str) -> list[s
         f"Stance: F_v >= {con['min_vertical_force']:.4g} N (>= {res.eps:.4g} N), |F_h|/F_v <= "
         f"{con['max_friction_ratio']:.3f} (mu = {s.mu:g}). Impact: |F_h|/F_v = "
         f"{con['impact_friction_ratio']:.3f}, trailing foot lifts off at "
-        f"{con['liftoff_velocity']:.3f} m/s.",
+        f"{con['liftoff_velocity']:.3f} m/s; the swing foot touches down at "
+        f"{o['touchdown_velocity']:.3f} m/s (<= -{s.min_touchdown_velocity:g}).",
     ]
     tr = m.get("thrust_range")
     if s.thrust_range is not None and tr:

@@ -21,7 +21,7 @@ from ..description.gait import ThrustSchedule
 from ..errors import InputError, Problem, Where
 from ..files.gait_file import load_gait
 from ..hzd.schedule import check_limits, schedule_from_gait
-from ..hzd.zero_dynamics import Schedule
+from ..hzd.zero_dynamics import Schedule, grazing_warning
 from ..walker import Walker
 from .records import SCHEMA_VERSION, fmt, units
 
@@ -54,6 +54,7 @@ def impact_record(imp: ImpactData, mu: float) -> dict:
     return {
         "impulse_per_unit_sigma": imp.impulse_per_sigma.tolist(),
         "trailing_foot_velocity_per_unit_sigma": imp.trailing_foot_velocity_per_sigma.tolist(),
+        "touchdown_velocity_per_unit_sigma": imp.touchdown_per_sigma,
         "friction_ratio": imp.friction_ratio,
         "admissible": imp.admissible(mu),
         "reasons": imp.reasons(mu),
@@ -73,7 +74,8 @@ def case_record(c: CaseResult) -> dict:
         "max_friction_ratio": c.max_friction_ratio,
         "alpha_at_max_friction_ratio": c.alpha_at_max_friction_ratio,
         "impact_impulse": c.impact_impulse, "impact_friction_ratio": c.impact_friction_ratio,
-        "liftoff_velocity": c.liftoff_velocity, "max_abs_torque": c.max_abs_torque,
+        "liftoff_velocity": c.liftoff_velocity, "touchdown_velocity": lc.touchdown_velocity,
+        "max_abs_torque": c.max_abs_torque,
         "margins": c.margins,
         "polynomial": c.poly,
         "fit_errors": None if c.poly is None else {"max_force_error": c.poly["max_force_error"]},
@@ -166,7 +168,8 @@ class FeasibilityResult:
             "schedule_source": self.schedule_source,
             "mu": mu, "min_vertical_force": self.eps, "friction_cone": FRICTION_NOTE,
             "verdict": self.verdict, "success": self.success, "reason": self.reason,
-            "warnings": list(w.warnings),
+            "warnings": list(w.warnings) + [f"{c.label}: {gw}" for c in rep.cases
+                                            if (gw := grazing_warning(c.cycle))],
             "impact": impact_record(rep.impact, mu),
             "swing_foot": {**sw, "window_s": list(SWING_WINDOW), "scuff_tolerance": SCUFF_TOL,
                            "note": "swing-foot height [m] above the stance foot; min_height "
@@ -254,7 +257,8 @@ def feasibility(walker: Walker, thrust: Sequence[float] | None = None, *,
     """Contact feasibility (SPEC 5) of ``walker`` for constant ``thrust`` values [N] on
     ``thruster`` (default: the first), or for one piecewise ``schedule`` (a gait-format file
     path, or a :class:`ThrustSchedule` whose problems are reported at ``schedule_where``);
-    with neither, the gait's own ``thrust:`` schedule, else 0 to -50 N in steps of 10.
+    with neither, the gait's own ``thrust:`` schedule, else 0 to -50 N in steps of 10 (only 0
+    for a robot without thrusters, which accepts no other value).
     ``mu`` [-] defaults to the gait's; ``min_vertical_force`` [N] is the least F^v allowed;
     ``degree``/``fit_tol`` set the polynomial fits L_k."""
     if thrust is not None and schedule is not None:
@@ -274,21 +278,26 @@ def feasibility(walker: Walker, thrust: Sequence[float] | None = None, *,
     m = model.n_thrusters
     fits = fit_terms(model, zd, degree=degree, tol=fit_tol)
     if schedule is None:
-        values = [float(v) for v in (DEFAULT_THRUST if thrust is None else thrust)]
-        j = model.robot.thruster_index(thruster)
+        j = model.robot.driven_thruster(thruster)
+        default = DEFAULT_THRUST if j is not None else (0.0,)
+        values = [float(v) for v in (default if thrust is None else thrust)]
+        if not values:
+            raise InputError.param("thrust", "no thrust values")
+        model.robot.check_no_thrust(values)
         F = np.zeros((len(values), m))
-        F[:, j] = values
+        e = np.zeros((1, m))
+        if j is not None:
+            F[:, j] = values
+            e[0, j] = 1.0
         sched = Schedule.constant(zd, F)
         check_limits(zd, sched, "thrust", ())
-        e = np.zeros((1, m))
-        e[0, j] = 1.0
-        unit = Schedule.constant(zd, e)
+        unit = Schedule.constant(zd, e)  # no thruster: the region is flat in the thrust axis
         lo, hi = min(min(values), 0.0), max(max(values), 0.0)
         pad = 0.2 * (hi - lo) if hi > lo else 10.0
-        scale_label = f"thrust {names[j]} [N]"
+        scale_label = f"thrust {names[j]} [N]" if j is not None else "thrust [N] (no thruster)"
         labels = [f"{v:g} N" for v in values]
         thrust_rec: list = values
-        thruster_name = names[j]
+        thruster_name = names[j] if j is not None else None
     else:
         sched = schedule_from_gait(zd, schedule, schedule_where, pad=True)[0]
         check_limits(zd, sched, schedule_where)
@@ -352,8 +361,9 @@ def markdown(doc: dict) -> str:
         "## Cases",
         "",
         "| thrust [N] | verdict | zeta* | min F^v [N] | at alpha [rad] | max abs(F^h)/F^v "
-        "| at alpha [rad] | impact impulse (h, v) [N s] | lift-off [m/s] | polynomial verdict |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| at alpha [rad] | impact impulse (h, v) [N s] | lift-off [m/s] | touchdown [m/s] "
+        "| polynomial verdict |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for c in doc["cases"]:
         poly = c["polynomial"]
@@ -366,11 +376,14 @@ def markdown(doc: dict) -> str:
             f"| {fmt(c['alpha_at_min_vertical_force'])} | {fmt(c['max_friction_ratio'])} "
             f"| {fmt(c['alpha_at_max_friction_ratio'])} "
             f"| {'—' if imp_c is None else f'({imp_c[0]:.4g}, {imp_c[1]:.4g})'} "
-            f"| {fmt(c['liftoff_velocity'])} | {pv} |")
+            f"| {fmt(c['liftoff_velocity'])} | {fmt(c['touchdown_velocity'])} | {pv} |")
     bad = [c for c in doc["cases"] if not c["feasible"]]
     if bad:
         lines += ["", "Reasons:", ""]
         lines += [f"- {thrust_text(c['thrust'])}: {c['reason']}" for c in bad]
+    if doc["warnings"]:
+        lines += ["", "Warnings:", ""]
+        lines += [f"- {w}" for w in doc["warnings"]]
     lines += [
         "",
         "## Impact",
@@ -384,6 +397,8 @@ def markdown(doc: dict) -> str:
         f"| friction ratio abs(F_2^h)/F_2^v | {fmt(imp['friction_ratio'])} |",
         f"| trailing-foot vertical velocity per unit abs(sigma_N^-) [m/s per kg m^2/s] | "
         f"{imp['trailing_foot_velocity_per_unit_sigma'][1]:.4g} |",
+        f"| swing-foot touchdown velocity per unit abs(sigma_N^-) [m/s per kg m^2/s] | "
+        f"{imp['touchdown_velocity_per_unit_sigma']:.4g} |",
         f"| admissible | {'yes' if imp['admissible'] else 'no: ' + '; '.join(imp['reasons'])} |",
         "",
         "## Swing foot",

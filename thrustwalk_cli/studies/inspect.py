@@ -36,6 +36,9 @@ def inspect_state(model: CompiledModel, q: str | Sequence[float],
     ``dq`` [rad/s], the impact map; with ``thrust`` [N] per thruster, ``B_F F_T`` (keys fixed
     by the robot-model issue)."""
     names = model.robot.coordinate_names
+    if thrust is not None and not model.robot.thrusters:
+        raise InputError.param("thrust", f"robot {model.robot.name} has no thruster: there is "
+                                         "no thrust to give")
     qv = _vector(q, "q", model.n, names)
     doc: dict = {"schema_version": SCHEMA_VERSION,
                  "units": units("q", "q_dot", "D", "C_dq", "G", "B_F", "impulse", "velocity",

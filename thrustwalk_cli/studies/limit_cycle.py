@@ -3,9 +3,10 @@ gait's own thrust schedule (SPEC 3, 4).
 
 For every case: the Poincare fixed point ``zeta* = V_Z(alpha_f) / (1 - delta_zero^2)``
 [kg^2 m^4/s^2], stability (``delta_zero^2``), the step time [s], step length [m], speed [m/s],
-``sigma_N^+/-`` [kg m^2/s], ``alpha'^+/-`` [rad/s] and the point of minimum ``|alpha'|``, and a
-verdict: ``walkable`` only when the orbit exists, is stable, the gait is hybrid-invariant and the
-swing foot stays above the ground. The sweep is vectorised: 1,000 values cost a few orbits.
+``sigma_N^+/-`` [kg m^2/s], ``alpha'^+/-`` [rad/s], the exact minimum and maximum of
+``|alpha'|``, the swing foot's touchdown velocity [m/s], and a verdict: ``walkable`` only when
+the orbit exists, is stable, the gait is hybrid-invariant and the swing foot stays above the
+ground. The sweep is vectorised: 1,000 values cost a few orbits.
 """
 
 from __future__ import annotations
@@ -18,7 +19,13 @@ import numpy as np
 from ..contact.terms import scuff_reason
 from ..errors import InputError
 from ..hzd.schedule import check_limits, schedule_from_gait
-from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
+from ..hzd.zero_dynamics import (
+    LimitCycle,
+    Schedule,
+    ZeroDynamics,
+    grazing_warning,
+    limit_cycles,
+)
 from ..walker import Walker
 from .records import (
     SCHEMA_VERSION,
@@ -58,6 +65,10 @@ def cycle_record(lc: LimitCycle, thrust: float | None, zd: ZeroDynamics, verdict
         "alpha_dot_plus": lc.alpha_dot_plus,
         "min_abs_alpha_dot": lc.min_abs_alpha_dot,
         "alpha_at_min": lc.alpha_at_min,
+        "max_abs_alpha_dot": lc.max_abs_alpha_dot,
+        "alpha_at_max": lc.alpha_at_max,
+        "min_zeta": lc.min_zeta,
+        "touchdown_velocity": lc.touchdown_velocity,
         "V_Z_alpha_f": lc.V_f,
         "invariance_residual": {"position": zd.maps.position_residual,
                                 "velocity": zd.maps.velocity_residual},
@@ -72,7 +83,8 @@ class LimitCycleResult:
     ``cycles[i]`` belongs to ``thrust[i]`` [N] (None for a piecewise gait schedule); each says
     whether its orbit ``exists``, is ``stable``, and why not (``reason``). ``walkable[i]``
     adds the gait's validity (hybrid invariance) and the swing foot's clearance; ``verdict``
-    says it in words. ``success``: every case is walkable.
+    says it in words. ``success``: every case is walkable. ``thruster`` is None for a robot
+    without thrusters (then every value is 0) and for a gait schedule on several thrusters.
     """
 
     walker: Walker = field(repr=False)
@@ -108,6 +120,10 @@ class LimitCycleResult:
         return tuple(self._verdict(c)[0] for c in self.cycles)
 
     @property
+    def _label(self) -> str:
+        return self.thruster_name or "(no thruster)"
+
+    @property
     def success(self) -> bool:
         return all(self.walkable)
 
@@ -138,7 +154,7 @@ class LimitCycleResult:
             "thruster": self.thruster_name,
             "success": self.success,
             "reason": self.reason,
-            "warnings": list(self.walker.warnings),
+            "warnings": list(self.walker.warnings) + self.warnings(),
             "swing_foot": sw,
             "zero_dynamics": {
                 "delta_zero": zd.delta_zero, "delta_zero_sq": d2,
@@ -162,6 +178,15 @@ class LimitCycleResult:
             "cycles": [cycle_record(lc, v, zd, verdict, ok) for lc, v, verdict, ok in
                        zip(self.cycles, self.thrust, self.verdicts, self.walkable)],
         }
+
+    def warnings(self) -> list[str]:
+        """Grazing touchdowns (:func:`grazing_warning`), one line per thrust value."""
+        out = []
+        for lc, v in zip(self.cycles, self.thrust):
+            w = grazing_warning(lc)
+            if w:
+                out.append(f"{'gait thrust' if v is None else f'thrust {v:g} N'}: {w}")
+        return out
 
     def tables(self) -> dict[str, Table]:
         """``limit_cycles.csv``: the sampled orbits (stance samples, then the impact jump)."""
@@ -206,7 +231,8 @@ class LimitCycleResult:
             jumps.append((zd.alpha_f, lc.alpha_dot_minus, zd.alpha_i, lc.alpha_dot_plus))
         values = [0.0 if v is None else v for v in self.thrust]
         label = (f"thrust {self.thruster_name} [N]" if self.thruster is not None
-                 else "gait thrust schedule")
+                 else "gait thrust schedule" if self.source == "gait"
+                 else "thrust [N] (no thruster)")
         out = {"limit_cycles": phase_portrait(
             values, orbits, jumps, value_label=label, black_every=black_step(values, "N"),
             title=f"{w.name}: zero-dynamics limit cycles" if titles else "")}
@@ -240,7 +266,8 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
         j, value = _constant_part(walker, sched)
         cycles = limit_cycles(zd, sched)
         return LimitCycleResult(walker, (value,), j, tuple(cycles), "gait", sched)
-    values = tuple(float(v) for v in (DEFAULT_THRUST if thrust is None else thrust))
+    default = DEFAULT_THRUST if walker.robot.thrusters else (0.0,)
+    values = tuple(float(v) for v in (default if thrust is None else thrust))
     if not values:
         raise InputError.param("thrust", "no thrust values")
     size = len(values) * (ORBIT_SAMPLES + 2) * ROW_BYTES
@@ -249,7 +276,8 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
                                              f"about {size / 1e6:.0f} MB, above the limit of "
                                              f"{max_output / 1e6:g} MB: sweep fewer values or "
                                              "raise the limit")
-    j = walker.robot.thruster_index(thruster)
+    j = walker.robot.driven_thruster(thruster)
+    walker.robot.check_no_thrust(values)
     sched = Schedule.constant(zd, constant_thrust(zd, values, j))
     check_limits(zd, sched, "thrust", ())
     cycles = limit_cycles(zd, sched)
@@ -260,7 +288,7 @@ def _constant_part(walker: Walker, sched: Schedule) -> tuple[int | None, float |
     """(thruster, value) when a schedule is one constant thrust on one thruster, else
     (None, None)."""
     F = sched.force[0]
-    if np.any(sched.generalized) or not np.all(F == F[0]):
+    if F.shape[-1] == 0 or np.any(sched.generalized) or not np.all(F == F[0]):
         return None, None
     used = np.flatnonzero(F[0])
     if len(used) > 1:

@@ -237,12 +237,16 @@ def optimize_schedule(walker: Walker, *, knots: list[float] = (0.0, 0.25, 0.5, 0
     [N, or N m in generalized mode], the friction cone ``mu`` (default: the gait's), vertical
     force ``>= min_vertical_force`` [N] and ``zeta >= zeta_min`` (default 1 % of zeta*). An
     infeasible problem is a result with ``success`` false and the violated constraint
-    families."""
+    families. A robot without thrusters has only ``mode="generalized"``."""
     model, zd = walker.model, walker.zd
     mu = walker.gait.mu if mu is None else float(mu)
     eps = float(min_vertical_force)
     check_options(fractions=list(knots), target_zeta=target_zeta, target_speed=target_speed,
                   max_thrust=max_thrust, mu=mu, eps=eps, zeta_min=zeta_min, mode=mode)
+    if mode == "force" and not model.robot.thrusters:
+        raise InputError.param("mode", f"robot {model.robot.name} has no thruster: force mode "
+                                       "needs one (use mode generalized, a generalised force "
+                                       "T_j on q_N in N m)")
     j = model.robot.thruster_index(thruster) if mode == "force" else 0
     fr = np.asarray(knots, float)
     fr[0], fr[-1] = 0.0, 1.0

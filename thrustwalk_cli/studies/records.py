@@ -101,8 +101,10 @@ def robot_record(zd: ZeroDynamics) -> dict:
             "thrusters": r.thruster_names}
 
 
-def constant_thrust(zd: ZeroDynamics, values, thruster: int) -> np.ndarray:
-    """Thrust per thruster (k, m) [N] with ``values`` on thruster index ``thruster``."""
+def constant_thrust(zd: ZeroDynamics, values, thruster: int | None) -> np.ndarray:
+    """Thrust per thruster (k, m) [N] with ``values`` on thruster index ``thruster`` (None: a
+    robot without thrusters, shape (k, 0))."""
     F = np.zeros((len(values), zd.model.n_thrusters))
-    F[:, thruster] = values
+    if thruster is not None:
+        F[:, thruster] = values
     return F

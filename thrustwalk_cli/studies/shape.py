@@ -241,7 +241,11 @@ def resolve(zd: ZeroDynamics, req: ShapeRequest, base: Schedule | None = None
         if req.thruster is not None:
             raise err("thruster", "only used with `mode` force")
         return source, mode, None
-    return source, mode, zd.model.robot.thruster_index(req.thruster)
+    robot = zd.model.robot
+    if not robot.thrusters:
+        raise err("mode", f"robot {robot.name} has no thruster: force mode needs one (use "
+                          "mode generalized, a generalised force T_j on q_N in N m)")
+    return source, mode, robot.thruster_index(req.thruster)
 
 
 def _cycles(zd: ZeroDynamics, schedule: Schedule,

@@ -21,7 +21,7 @@ from ..hzd.schedule import check_limits, schedule_from_gait
 from ..hzd.zero_dynamics import Schedule, ZeroDynamics, limit_cycles, paper_one_step_shift
 from ..simulation.closed_loop import MAX_TOTAL_STEPS, SimConfig, predicted_cycle
 from ..simulation.full_order import Start
-from ..simulation.scenario import Outcome, Scenario, make_scenario, run_scenario
+from ..simulation.scenario import Outcome, Scenario, deviations, make_scenario, run_scenario
 from ..walker import Walker
 from .records import SCHEMA_VERSION, Table, col, gait_record, robot_record, units
 
@@ -42,6 +42,8 @@ def step_entries(zd: ZeroDynamics, outcomes: list[Outcome]) -> list[dict]:
     """The ``steps`` list of simulation.json (one entry per step of every run)."""
     out = []
     for i, oc in enumerate(outcomes):
+        if oc.primary is None:
+            continue
         if oc.full is None:
             for st in oc.reduced.steps:
                 out.append({
@@ -81,28 +83,24 @@ def _steps_text(steps: list[int]) -> str:
             f"steps {steps[0]}-{steps[-1]} ({len(steps)} steps)")
 
 
-def run_status(success: bool, failure: str | None, reason: str, flags: dict[str, list[int]]
-               ) -> str:
-    """One line for a run: ``ok``, ``ok (slips at step 9)``, ``ok (torque saturated at steps
-    2-5 (4 steps))``, or the failure with its step: a run is never plain ok when a step left
-    the friction cone or saturated a torque."""
-    if not success:
-        return f"{failure}: {reason}"
-    notes = [f"{what} at {_steps_text(steps)}" for what, steps in flags.items() if steps]
-    return "ok" + (f" ({'; '.join(notes)})" if notes else "")
-
-
-def run_entries(zd: ZeroDynamics, outcomes: list[Outcome], mu: float | None = None
-                ) -> list[dict]:
+def run_entries(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
+                mu: float | None = None) -> list[dict]:
     """The ``runs`` list: status, prediction and final agreement of every run. ``mu`` (default:
-    the gait's) is the friction cone the steps are checked against."""
+    the gait's) is the friction cone the steps are checked against.
+
+    ``status``: ``ok`` (completed, on the prediction, no step out of the friction cone or
+    saturating a torque), ``warning`` (completed, but with the deviations of
+    :func:`deviations`, slipping or saturated torques; ``reason`` says which and at which
+    steps, e.g. ``... (slips at steps 1-2)``) or ``failed`` (stopped early, or no orbit to
+    start on: ``failure`` ``no-orbit``). A run is never plain ``ok`` when a step left the
+    friction cone or saturated a torque."""
     mu = zd.gait.mu if mu is None else mu
     runs = []
     for i, oc in enumerate(outcomes):
         full, red = oc.full, oc.reduced
         lc = predicted_cycle(zd, oc.thrust)
-        primary = full if full is not None else red
-        last = primary.steps[-1] if primary.steps else None
+        primary = oc.primary
+        last = primary.steps[-1] if primary is not None and primary.steps else None
         warn = []
         flags: dict[str, list[int]] = {"slips": [], "impact outside the friction cone": [],
                                        "torque saturated": []}
@@ -120,21 +118,31 @@ def run_entries(zd: ZeroDynamics, outcomes: list[Outcome], mu: float | None = No
                 if st.torque_saturated:
                     flags["torque saturated"].append(st.step)
                     warn.append(f"step {st.step}: joint torques saturated")
+        dev = deviations(oc, sc)
         sched = oc.thrust.schedule if oc.thrust.kind == "piecewise" else Schedule.constant(
             zd, np.asarray(oc.thrust.target, float)[None, :])
         zero = Schedule(sched.knots, np.zeros_like(sched.force), np.zeros_like(sched.generalized))
         z0 = _zeta_star(zd, zero)
+        if primary is None:
+            success, failure, reason = False, "no-orbit", oc.no_orbit
+        else:
+            success, failure, reason = primary.success, primary.failure or None, primary.reason
+        status = "failed" if not success else ("warning" if dev or warn else "ok")
+        notes = [f"{what} at {_steps_text(st)}" for what, st in flags.items() if st]
+        if success and notes:
+            reason += f" ({'; '.join(notes)})"
+        if success and dev:
+            reason += " off the zero-dynamics prediction: " + "; ".join(dev)
         runs.append({
             "run": i, "f_ss": oc.value, "model": "full-order" if full is not None else "reduced",
-            "success": primary.success, "failure": primary.failure or None,
-            "reason": primary.reason,
-            "status": run_status(primary.success, primary.failure, primary.reason, flags),
-            "steps_completed": len(primary.steps),
-            "rhs_evaluations": primary.nfev,
+            "success": success, "status": status, "failure": failure, "reason": reason,
+            "steps_completed": len(primary.steps) if primary is not None else 0,
+            "rhs_evaluations": primary.nfev if primary is not None else 0,
             "predicted": {
                 "exists": lc.exists, "stable": lc.stable, "reason": lc.reason,
                 "zeta_star": lc.zeta_star, "sigma_minus": lc.sigma_minus,
                 "step_time": lc.step_time, "speed": lc.speed,
+                "touchdown_velocity": lc.touchdown_velocity,
                 "paper_one_step_value": (None if z0 is None else
                                          z0 + float(paper_one_step_shift(zd, sched)[0])),
                 "note": "zeta* = V_Z(alpha_f)/(1 - delta_zero^2); "
@@ -144,10 +152,11 @@ def run_entries(zd: ZeroDynamics, outcomes: list[Outcome], mu: float | None = No
             "final_zeta_minus": last.zeta_minus if last else None,
             "final_relative_error": ((last.zeta_minus - lc.zeta_star) / lc.zeta_star
                                      if last and lc.exists else None),
-            "reduced": {"success": red.success, "reason": red.reason,
-                        "steps_completed": len(red.steps),
-                        "final_zeta_minus": red.steps[-1].zeta_minus if red.steps else None},
-            "warnings": warn,
+            "reduced": None if red is None else {
+                "success": red.success, "reason": red.reason, "steps_completed": len(red.steps),
+                "final_zeta_minus": red.steps[-1].zeta_minus if red.steps else None},
+            "deviations": dev,
+            "warnings": dev + warn,
         })
     return runs
 
@@ -160,9 +169,12 @@ def _zeta_star(zd: ZeroDynamics, sched: Schedule) -> float | None:
 
 def simulation_document(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
                         mu: float | None = None, warnings: tuple[str, ...] = ()) -> dict:
-    """The body of simulation.json (provenance is added by the command)."""
-    runs = run_entries(zd, outcomes, mu)
+    """The body of simulation.json (provenance is added by the command). ``success``: every
+    run completed its steps; ``status``: ``ok`` (and every run follows the zero-dynamics
+    prediction), ``warning`` or ``failed`` (some run did not complete)."""
+    runs = run_entries(zd, sc, outcomes, mu)
     bad = [r for r in runs if not r["success"]]
+    warned = [r for r in runs if r["status"] == "warning"]
     r = zd.model.robot
     cfg = sc.config
     return {
@@ -185,12 +197,17 @@ def simulation_document(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
             "atol": cfg.atol, "method": cfg.method, "torque_limit": cfg.torque_limit,
             "kp": zd.gait.kp, "kd": zd.gait.kd, "scuff_tolerance": cfg.scuff_tol,
             "mu": zd.gait.mu if mu is None else mu,
-            "guard": f"swing-foot height crosses 0 downward for s > {cfg.guard_s:g}",
+            "guard": f"swing-foot height crosses 0 downward for s > {cfg.min_impact_s:g}",
+            "min_impact_s": cfg.min_impact_s,
+            "early_strike": f"before s = {cfg.min_impact_s:g} the swing foot may touch the "
+                            f"ground; a dip deeper than {cfg.scuff_tol:g} m is a scuff",
+            "impact_s_tolerance": sc.impact_s_tol, "zeta_tolerance": sc.zeta_tol,
         },
         "success": not bad,
-        "reason": ("all runs completed" if not bad else
-                   "; ".join(f"run {b['run']} (F_ss = {b['f_ss']}): {b['reason']}"
-                             for b in bad)),
+        "status": "failed" if bad else ("warning" if warned else "ok"),
+        "reason": ("; ".join(f"run {b['run']} (F_ss = {b['f_ss']}): {b['reason']}"
+                             for b in bad + warned) if bad or warned else
+                   "all runs completed on the zero-dynamics prediction"),
         "runs": runs,
         "steps": step_entries(zd, outcomes),
     }
@@ -237,7 +254,7 @@ def trajectory_arrays(zd: ZeroDynamics, outcomes: list[Outcome]) -> dict[str, np
     r = zd.model.robot
     cols: dict[str, list] = {}
     for i, oc in enumerate(outcomes):
-        tr = oc.full.trajectory if oc.full is not None else oc.reduced.trajectory
+        tr = oc.primary.trajectory if oc.primary is not None else {}
         if not tr:
             continue
         n = tr["t"].size
@@ -298,7 +315,7 @@ def figure_data(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome]) -> dict
     """Thrust histories and phase-plane curves per run, with the predicted orbits."""
     runs = []
     for oc in outcomes:
-        tr = oc.full.trajectory if oc.full is not None else oc.reduced.trajectory
+        tr = oc.primary.trajectory if oc.primary is not None else {}
         lc = predicted_cycle(zd, oc.thrust)
         j = sc.thrusters[0] if sc.thrusters else None
         steps = []
@@ -310,12 +327,13 @@ def figure_data(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome]) -> dict
             "value": oc.value,
             "t": tr["t"] if tr else np.zeros(0),
             "thrust": (tr["F"][:, j] if (tr and j is not None) else
+                       np.zeros(tr["t"].size) if (tr and sc.kind != "piecewise") else
                        (tr["F"] if tr else np.zeros((0, zd.model.n_thrusters)))),
             "T": tr["T"] if tr else np.zeros(0),
             "steps": steps,
             "predicted": ({"alpha": lc.orbit["alpha"], "alpha_dot": lc.orbit["alpha_dot"]}
                           if lc.exists else None),
-            "failed": not (oc.full or oc.reduced).success,
+            "failed": not oc.success,
         })
     generalized = bool(sc.kind == "piecewise" and np.any(sc.schedule.generalized))
     return {"runs": runs, "thruster_names": zd.model.robot.thruster_names,
@@ -360,7 +378,11 @@ class SimulationResult:
     """Full-order runs of one scenario (one per steady thrust value), each with the reduced
     cascade and the per-step comparison with the zero-dynamics prediction (SPEC 3, 7).
 
-    ``success``: every run completed its steps; ``reason`` names the runs that did not.
+    ``success``: every run completed its steps; ``status``: ``ok`` when every run also follows
+    the zero-dynamics prediction, ``warning`` when a completed run leaves it (an impact away
+    from s = 1, zeta^- off the prediction: a grazing or missed touchdown), ``failed``
+    otherwise; ``reason`` names the runs that failed or were warned about. A steady thrust
+    without a periodic orbit to start on is a failed run (``no-orbit``); the others still run.
     ``tool_failure``: a run ended by an integrator or controller failure (not physics).
     """
 
@@ -372,13 +394,20 @@ class SimulationResult:
     name = "simulation"
 
     def runs(self) -> list[dict]:
-        """Per run: status (``ok``, ``ok (slips at step 9)``, or the failure), prediction and
+        """Per run: status (``ok``, ``warning``, ``failed``) with its reason, prediction and
         final agreement."""
-        return run_entries(self.walker.zd, list(self.outcomes), self.mu)
+        return run_entries(self.walker.zd, self.scenario, list(self.outcomes), self.mu)
 
     @property
     def success(self) -> bool:
-        return all((oc.full or oc.reduced).success for oc in self.outcomes)
+        return all(oc.success for oc in self.outcomes)
+
+    @property
+    def status(self) -> str:
+        """``ok``, ``warning`` (completed, but off the zero-dynamics prediction: see
+        ``reason``) or ``failed``."""
+        return simulation_document(self.walker.zd, self.scenario, list(self.outcomes),
+                                   self.mu)["status"]
 
     @property
     def reason(self) -> str:
@@ -386,7 +415,7 @@ class SimulationResult:
 
     @property
     def tool_failure(self) -> bool:
-        return any((oc.full or oc.reduced).failure in ("integrator", "controller")
+        return any(oc.primary is not None and oc.primary.failure in ("integrator", "controller")
                    for oc in self.outcomes)
 
     def _trajectory(self, provenance: dict | None = None) -> tuple[str, object]:
@@ -434,6 +463,12 @@ class SimulationResult:
         return animate(animation_frames(self.walker.zd, runs[-1])) if runs else None
 
 
+def default_f_ss(walker: Walker) -> tuple[float, ...]:
+    """Steady thrust values [N] run by default: 0 to -50 N in steps of 10, or only 0 for a
+    robot without thrusters."""
+    return (0.0, -10.0, -20.0, -30.0, -40.0, -50.0) if walker.robot.thrusters else (0.0,)
+
+
 def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None,
              thrust: Sequence[float] | None = None, wn: float = 2.0, xi: float = 1.0,
              tau: float = 0.5, f0: float = 0.0, thruster: Sequence[str] | None = None,
@@ -441,11 +476,13 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
              q0: Sequence[float] | None = None, dq0: Sequence[float] | None = None,
              start: str = "predicted", torque_limit: float | None = None, rtol: float = 1e-9,
              atol: float = 1e-9, method: str = "DOP853", samples: int = 80,
-             scuff_tol: float = 1e-4, reduced: bool = False, mu: float | None = None,
+             scuff_tol: float = 1e-4, min_impact_s: float = 0.75, impact_s_tol: float = 1e-3,
+             zeta_tol: float = 1e-3, reduced: bool = False, mu: float | None = None,
              progress: Callable[[int], None] | None = None) -> SimulationResult:
     """Simulate ``steps`` steps of the full-order closed loop (SPEC 7) for each steady thrust
-    ``thrust`` [N] (default 0 to -50 N in steps of 10; not with ``thrust_model="piecewise"``,
-    which uses the gait's ``thrust:`` section) on ``thruster`` (default: the first).
+    ``thrust`` [N] (default 0 to -50 N in steps of 10, only 0 for a robot without thrusters;
+    not with ``thrust_model="piecewise"``, which uses the gait's ``thrust:`` section) on
+    ``thruster`` (default: the first).
 
     Thrust models: ``constant``, ``first-order`` (``tau`` [s]), ``second-order`` (``wn``
     [rad/s], ``xi``), ``piecewise``; default: ``piecewise`` when the gait has a ``thrust:``
@@ -457,7 +494,12 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
     zero-thrust one (``"nominal"``), with ``zeta^-`` scaled by ``1 + perturb`` or given as
     ``zeta0`` [kg^2 m^4/s^2], or the explicit state ``q0`` [rad], ``dq0`` [rad/s].
     ``reduced``: only the reduced cascade (SPEC 3). ``progress(1)`` after every step.
-    A physical failure (a fall, a scuff) is a run with ``success`` false, never an exception.
+    A physical failure (a fall, a scuff, no periodic orbit for that thrust) is a run with
+    ``success`` false, never an exception; the other values still run. ``scuff_tol`` [m]: dip
+    allowed before mid-step; ``min_impact_s``: a strike before this s is a scuff (the
+    early-strike threshold, in [0.5, 1)); a completed run whose impacts are farther than
+    ``impact_s_tol`` from s = 1, or whose zeta^- differs from the zero-dynamics prediction by
+    more than ``zeta_tol`` (relative), gets status ``warning`` with the reason.
     """
     if (q0 is None) != (dq0 is None):
         raise InputError.param(("q0", "dq0"), "give both or neither")
@@ -469,7 +511,7 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
         thrust_model = ("piecewise" if walker.gait.thrust is not None and values is None
                         else "second-order")
     if values is None and thrust_model != "piecewise":
-        values = [0.0, -10.0, -20.0, -30.0, -40.0, -50.0]
+        values = list(default_f_ss(walker))
     runs = 1 if thrust_model == "piecewise" or not values else len(values)
     if runs * steps > MAX_TOTAL_STEPS:
         raise InputError.param(("thrust", "steps"),
@@ -479,7 +521,8 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
     st = Start(zeta_minus=zeta0, perturb=perturb, q=None if q0 is None else list(q0),
                dq=None if dq0 is None else list(dq0), orbit=start)
     config = SimConfig(steps=steps, rtol=rtol, atol=atol, method=method,
-                       samples_per_step=samples, torque_limit=torque_limit, scuff_tol=scuff_tol)
+                       samples_per_step=samples, torque_limit=torque_limit, scuff_tol=scuff_tol,
+                       min_impact_s=min_impact_s)
     zd = walker.zd
     schedule = None
     if thrust_model == "piecewise":
@@ -490,5 +533,6 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
         check_limits(zd, schedule, walker.where)
     sc = make_scenario(zd, thrust_model, values, list(thruster) if thruster else None,
                        schedule=schedule, wn=wn, xi=xi, tau=tau, f0=f0, start=st,
-                       config=config, reduced_only=reduced)
+                       config=config, reduced_only=reduced, impact_s_tol=impact_s_tol,
+                       zeta_tol=zeta_tol)
     return SimulationResult(walker, sc, tuple(run_scenario(zd, sc, progress)), mu)
