@@ -117,10 +117,27 @@ def progress(description: str, total: int, quiet: bool) -> Iterator:
         yield lambda n=1: prog.advance(task, n)
 
 
-def write_result(result, out: Path, provenance: dict) -> dict:
+FIGURE_FORMATS = ("png", "pdf", "svg")
+
+
+def figure_formats(text: str) -> tuple[str, ...]:
+    """``--formats``: ``"png,pdf"`` -> ``("png", "pdf")``; ``"none"`` -> ``()``."""
+    items = [t.strip().lower() for t in text.split(",") if t.strip()]
+    if items == ["none"]:
+        return ()
+    bad = [t for t in items if t not in FIGURE_FORMATS]
+    if bad or not items:
+        raise InputError(f"option --formats: unknown format {', '.join(bad) or repr(text)} "
+                         f"(choose from {', '.join(FIGURE_FORMATS)}, or none)")
+    return tuple(dict.fromkeys(items))
+
+
+def write_result(result, out: Path, provenance: dict,
+                 formats: tuple[str, ...] = ("png", "pdf")) -> dict:
     """Write a study result into the folder ``out``: ``<name>.json`` (provenance first), its
-    CSV tables, its attachments and its figures (PNG and PDF), every file atomically. Returns
-    the JSON document written."""
+    CSV tables, its attachments and its figures (in ``formats``; none: the figures are not
+    drawn and matplotlib is not imported), every file atomically. Returns the JSON document
+    written."""
     from ..files import output
 
     doc = {"provenance": provenance, **result.document()}
@@ -135,17 +152,18 @@ def write_result(result, out: Path, provenance: dict) -> dict:
             output.write_bytes_atomic(out / name, data)
         else:
             output.write_text_atomic(out / name, data)
-    save_figures(result.figures(), out)
+    if formats:
+        save_figures(result.figures(), out, formats)
     return doc
 
 
-def save_figures(figures: dict, out: Path) -> None:
-    """Save each figure as ``out/<name>.png`` and ``.pdf`` and close it."""
+def save_figures(figures: dict, out: Path, formats: tuple[str, ...] = ("png", "pdf")) -> None:
+    """Save each figure as ``out/<name>.<format>`` for every format and close it."""
     if not figures:
         return
     from ..files import output
     from ..plots.style import close
 
     for name, fig in figures.items():
-        output.save_figure(fig, out / name)
+        output.save_figure(fig, out / name, formats)
         close(fig)

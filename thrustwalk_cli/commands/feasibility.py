@@ -7,8 +7,8 @@ from typing import Annotated
 
 import typer
 
-from .common import cli_errors, console, parse_values, write_result
-from .options import EpsOpt, GaitArg, MuOpt, OutOpt, QuietOpt, RobotArg
+from .common import cli_errors, console, figure_formats, parse_values, write_result
+from .options import EpsOpt, FormatsOpt, GaitArg, MuOpt, OutOpt, QuietOpt, RobotArg
 
 HELP = """Is this gait, with this thrust, physically walkable?
 
@@ -33,7 +33,8 @@ DEFAULT_THRUST = "0:-50:-10"  # the study's default values, as the help shows th
 
 def run_feasibility(robot: str, gait: str, *, thrust: list[float] | None, schedule: str | None,
                     mu: float | None, eps: float, thruster: str | None, degree: int | None,
-                    fit_tol: float, out: Path, quiet: bool) -> dict:
+                    fit_tol: float, out: Path, quiet: bool,
+                    formats: str = "png,pdf") -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files.output import provenance
     from ..studies.feasibility import feasibility
@@ -42,7 +43,8 @@ def run_feasibility(robot: str, gait: str, *, thrust: list[float] | None, schedu
     walker = load_walker(robot, gait)
     result = feasibility(walker, thrust, schedule=schedule, thruster=thruster, mu=mu, eps=eps,
                          degree=degree, fit_tol=fit_tol)
-    doc = write_result(result, out, provenance(walker.robot, walker.gait, schedule=schedule))
+    doc = write_result(result, out, provenance(walker.robot, walker.gait, schedule=schedule),
+                       formats=figure_formats(formats))
     if not quiet:
         _table(doc)
     return doc
@@ -92,13 +94,14 @@ def register(app: typer.Typer) -> None:
         fit_tol: Annotated[float, typer.Option(
             "--fit-tol", help="Relative max error target of the fits L_k [-].")] = 1e-3,
         out: OutOpt = Path("out/feasibility"),
+        formats: FormatsOpt = "png,pdf",
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
             values = None if thrust is None else parse_values(thrust, "--thrust", "N")
             doc = run_feasibility(robot, gait, thrust=values, schedule=schedule, mu=mu, eps=eps,
                                   thruster=thruster, degree=degree, fit_tol=fit_tol, out=out,
-                                  quiet=quiet)
+                                  quiet=quiet, formats=formats)
             if not quiet:
                 console().print(f"verdict: {doc['verdict']}; wrote {out}/feasibility.json, "
                                 f".md, grf.png/.pdf, feasible_region.png/.pdf")

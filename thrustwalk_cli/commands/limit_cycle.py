@@ -7,8 +7,8 @@ from typing import Annotated
 
 import typer
 
-from .common import cli_errors, console, parse_values, write_result
-from .options import GaitArg, OutOpt, QuietOpt, RobotArg, ThrusterOpt
+from .common import cli_errors, console, figure_formats, parse_values, write_result
+from .options import FormatsOpt, GaitArg, OutOpt, QuietOpt, RobotArg, ThrusterOpt
 
 HELP = """Limit cycles of the hybrid zero dynamics for constant thrust values.
 
@@ -26,7 +26,7 @@ EPILOG = ("Example: thrustwalk limit-cycle three_link three_link_walk --thrust 0
 
 
 def run_limit_cycle(robot: str, gait: str, thrust: list[float], thruster: str | None,
-                    out: Path, quiet: bool) -> dict:
+                    out: Path, quiet: bool, formats: str = "png,pdf") -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files.output import provenance
     from ..studies.limit_cycle import limit_cycle
@@ -34,7 +34,7 @@ def run_limit_cycle(robot: str, gait: str, thrust: list[float], thruster: str | 
 
     walker = load_walker(robot, gait)
     doc = write_result(limit_cycle(walker, thrust, thruster), out,
-                       provenance(walker.robot, walker.gait))
+                       provenance(walker.robot, walker.gait), formats=figure_formats(formats))
     if not quiet:
         _table(doc)
     return doc
@@ -69,11 +69,12 @@ def register(app: typer.Typer) -> None:
             "--thrust", help="Thrust values [N]: start:stop:step or a comma list.")] = "0:-50:-10",
         thruster: ThrusterOpt = None,
         out: OutOpt = Path("out/limit_cycle"),
+        formats: FormatsOpt = "png,pdf",
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
             values = parse_values(thrust, "--thrust", "N")
-            run_limit_cycle(robot, gait, values, thruster, out, quiet)
+            run_limit_cycle(robot, gait, values, thruster, out, quiet, formats)
             if not quiet:
                 console().print(f"wrote {out}/limit_cycles.json, .csv, .png, .pdf and "
                                 f"{out}/fixed_point_shift.png, .pdf")

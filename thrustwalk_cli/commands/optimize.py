@@ -7,8 +7,8 @@ from typing import Annotated
 
 import typer
 
-from .common import cli_errors, console, parse_values, write_result
-from .options import EpsOpt, GaitArg, MuOpt, OutOpt, QuietOpt, RobotArg
+from .common import cli_errors, console, figure_formats, parse_values, write_result
+from .options import EpsOpt, FormatsOpt, GaitArg, MuOpt, OutOpt, QuietOpt, RobotArg
 
 HELP = """The least thrust that reaches a target while staying walkable.
 
@@ -32,7 +32,7 @@ EPILOG = ("Example: thrustwalk optimize three_link three_link_walk --knots 0:1:0
 def run_optimize(robot: str, gait: str, *, knots: list[float], target_speed: float | None,
                  target_zeta: float | None, max_thrust: float | None, mu: float | None,
                  eps: float, zeta_min: float | None, thruster: str | None, mode: str,
-                 weights: str, out: Path, quiet: bool) -> dict:
+                 weights: str, out: Path, quiet: bool, formats: str = "png,pdf") -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files.output import provenance
     from ..studies.optimize import optimize_schedule
@@ -43,7 +43,8 @@ def run_optimize(robot: str, gait: str, *, knots: list[float], target_speed: flo
         walker, knots=knots, target_zeta=target_zeta, target_speed=target_speed,
         max_thrust=max_thrust, mu=mu, eps=eps, zeta_min=zeta_min, thruster=thruster,
         mode=mode, weights=weights)
-    doc = write_result(result, out, provenance(walker.robot, walker.gait))
+    doc = write_result(result, out, provenance(walker.robot, walker.gait),
+                       formats=figure_formats(formats))
     if not quiet:
         _summary(doc)
     return doc
@@ -101,6 +102,7 @@ def register(app: typer.Typer) -> None:
             "--weights", help="Effort weights w_j: alpha (interval length [rad]) or time "
                               "(nominal time in the interval [s]).")] = "alpha",
         out: OutOpt = Path("out/optimize"),
+        formats: FormatsOpt = "png,pdf",
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
@@ -108,6 +110,6 @@ def register(app: typer.Typer) -> None:
             doc = run_optimize(robot, gait, knots=fr, target_speed=target_speed,
                                target_zeta=target_zeta, max_thrust=max_thrust, mu=mu, eps=eps,
                                zeta_min=zeta_min, thruster=thruster, mode=mode,
-                               weights=weights, out=out, quiet=quiet)
+                               weights=weights, out=out, quiet=quiet, formats=formats)
             if not quiet:
                 console().print(f"wrote {', '.join(f'{out}/{f}' for f in doc['files'])}")

@@ -32,3 +32,7 @@ MuOpt = Annotated[
 EpsOpt = Annotated[
     float, typer.Option("--eps", help="Minimum vertical ground force [N].")
 ]
+FormatsOpt = Annotated[
+    str, typer.Option("--formats", help="Figure formats, comma-separated: png, pdf, svg, or "
+                                        "none (no figures; matplotlib is not loaded).")
+]

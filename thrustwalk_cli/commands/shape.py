@@ -8,8 +8,8 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from ..errors import InputError
-from .common import cli_errors, console, parse_values, progress, write_result
-from .options import GaitArg, OutOpt, QuietOpt, RobotArg
+from .common import cli_errors, console, figure_formats, parse_values, progress, write_result
+from .options import FormatsOpt, GaitArg, OutOpt, QuietOpt, RobotArg
 
 if TYPE_CHECKING:
     from ..studies.shape import ShapeRequest
@@ -70,7 +70,7 @@ def _number(text: str | None, option: str, unit: str) -> float | None:
 
 
 def run_shape(robot: str | None, gait: str, request: ShapeRequest, out: Path,
-              quiet: bool) -> dict:
+              quiet: bool, formats: str = "png,pdf") -> dict:
     """Plain function behind the command; returns the JSON document it wrote.
 
     Exit 1 (after writing shape.json with the reason) when no shape-only knots exist or a
@@ -83,7 +83,8 @@ def run_shape(robot: str | None, gait: str, request: ShapeRequest, out: Path,
     walker = load_walker(robot, gait)
     with progress("shaped limit cycles", schedule_count(walker, request), quiet) as advance:
         result = shape(walker, request, progress=advance)
-    doc = write_result(result, out, provenance(walker.robot, walker.gait))
+    doc = write_result(result, out, provenance(walker.robot, walker.gait),
+                       formats=figure_formats(formats))
     if result.success and not quiet:
         _table(doc)
     return doc
@@ -179,6 +180,7 @@ def register(app: typer.Typer) -> None:
             "--target-speed", help="Minimum-norm values reaching this average speed "
             "[m/s].")] = None,
         out: OutOpt = Path("out/shape"),
+        formats: FormatsOpt = "png,pdf",
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
@@ -191,7 +193,7 @@ def register(app: typer.Typer) -> None:
                 field_k=_number(field_k, "--field-k", "as k"), mode=mode, thruster=thruster,
                 target_zeta=_number(target_zeta, "--target-zeta", "kg^2 m^4/s^2"),
                 target_speed=_number(target_speed, "--target-speed", "m/s"))
-            doc = run_shape(robot, gait, req, out, quiet)
+            doc = run_shape(robot, gait, req, out, quiet, formats)
             if not doc["success"]:
                 import sys
 

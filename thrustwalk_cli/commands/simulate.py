@@ -8,8 +8,15 @@ from typing import Annotated
 
 import typer
 
-from .common import cli_errors, console, parse_values, progress, write_result
-from .options import GaitArg, OutOpt, QuietOpt, RobotArg
+from .common import (
+    cli_errors,
+    console,
+    figure_formats,
+    parse_values,
+    progress,
+    write_result,
+)
+from .options import FormatsOpt, GaitArg, OutOpt, QuietOpt, RobotArg
 
 HELP = """Full-order hybrid simulation of the closed loop with thruster dynamics.
 
@@ -45,7 +52,7 @@ def run_simulate(robot: str, gait: str, *, steps: int, thrust_model: str, f_ss: 
                  start_orbit: str,
                  torque_limit: float | None, rtol: float, atol: float, method: str,
                  samples: int, scuff_tol: float, reduced: bool, animate: bool, out: Path,
-                 quiet: bool) -> dict:
+                 quiet: bool, integrator: str = "DOP853", formats: str = "png,pdf") -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files import output
     from ..studies.simulate import simulate
@@ -61,8 +68,10 @@ def run_simulate(robot: str, gait: str, *, steps: int, thrust_model: str, f_ss: 
             walker, steps=steps, thrust_model=thrust_model, f_ss=values, wn=wn, xi=xi, tau=tau,
             f0=f0, thruster=thrusters, perturb=perturb, zeta0=zeta0, q0=q, dq0=dq,
             start=start_orbit, torque_limit=torque_limit, rtol=rtol, atol=atol, method=method,
-            samples=samples, scuff_tol=scuff_tol, reduced=reduced, progress=advance)
-    doc = write_result(result, out, output.provenance(walker.robot, walker.gait))
+            integrator=integrator, samples=samples, scuff_tol=scuff_tol, reduced=reduced,
+            progress=advance)
+    doc = write_result(result, out, output.provenance(walker.robot, walker.gait),
+                       formats=figure_formats(formats))
     if animate:
         output.write_bytes_atomic(out / "walker.gif", result.animation())
     if not quiet:
@@ -132,7 +141,13 @@ def register(app: typer.Typer) -> None:
         atol: Annotated[float, typer.Option(
             "--atol", help="Integrator absolute tolerance [rad, rad/s].")] = 1e-9,
         method: Annotated[str, typer.Option(
-            "--method", help="solve_ivp method: DOP853, RK45, Radau, LSODA, BDF.")] = "DOP853",
+            "--method", help="compiled (numba kernel, DOP853; compiled once per robot) or "
+                             "scipy (solve_ivp, the reference). A solve_ivp name (DOP853, "
+                             "RK45, Radau, LSODA, BDF) means scipy with that "
+                             "integrator.")] = "compiled",
+        integrator: Annotated[str, typer.Option(
+            "--integrator", help="solve_ivp method with --method scipy: DOP853, RK45, Radau, "
+                                 "LSODA, BDF.")] = "DOP853",
         samples: Annotated[int, typer.Option(
             "--samples", help="Stored trajectory samples per step.")] = 80,
         scuff_tol: Annotated[float, typer.Option(
@@ -143,6 +158,7 @@ def register(app: typer.Typer) -> None:
         animate: Annotated[bool, typer.Option(
             "--animate", help="Also write DIR/walker.gif (the last run).")] = False,
         out: OutOpt = Path("out/simulate"),
+        formats: FormatsOpt = "png,pdf",
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
@@ -151,7 +167,8 @@ def register(app: typer.Typer) -> None:
                 tau=tau, f0=f0, thrusters=thruster, perturb=perturb, zeta0=zeta0, q0=q0,
                 dq0=dq0, start_orbit=start, torque_limit=torque_limit, rtol=rtol,
                 atol=atol, method=method, samples=samples, scuff_tol=scuff_tol,
-                reduced=reduced, animate=animate, out=out, quiet=quiet)
+                reduced=reduced, animate=animate, out=out, quiet=quiet,
+                integrator=integrator, formats=formats)
         tool = [r for r in doc["runs"] if r["failure"] in ("integrator", "controller")]
         for r in doc["runs"]:
             if not r["success"]:

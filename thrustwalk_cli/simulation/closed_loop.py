@@ -36,7 +36,8 @@ from ..hzd.constraints import bezier
 from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
 
 THRUST_MODELS = ("constant", "first-order", "second-order", "piecewise")
-METHODS = ("DOP853", "RK45", "Radau", "LSODA", "BDF")
+SIMULATORS = ("compiled", "scipy")  # the compiled kernel (default) or solve_ivp (reference)
+METHODS = ("DOP853", "RK45", "Radau", "LSODA", "BDF")  # solve_ivp integrators
 
 
 # ----------------------------------------------------------------------------- thrust
@@ -149,7 +150,10 @@ class SimConfig:
     """Numerical and physical settings of a full-order run.
 
     steps: number of steps. rtol/atol: integrator tolerances (``atol`` on rad and rad/s).
-    method: ``solve_ivp`` method. samples_per_step: stored trajectory samples per step.
+    method: ``compiled`` (the numba kernel: DOP853 with solve_ivp's step-size control and
+    event location, compiled once per robot) or ``scipy`` (``solve_ivp``, the reference).
+    integrator: the ``solve_ivp`` method (``scipy`` only; the compiled kernel is DOP853).
+    samples_per_step: stored trajectory samples per step.
     torque_limit: |u| bound [N m] (None: unlimited). scuff_tol: how far below the ground the
     swing foot may dip before mid-step [m]. min_impact_s: a foot strike earlier than this
     fraction of the step is a scuff. guard_s: the guard is armed for s > guard_s.
@@ -162,7 +166,8 @@ class SimConfig:
     steps: int = 30
     rtol: float = 1e-9
     atol: float = 1e-9
-    method: str = "DOP853"
+    method: str = "compiled"
+    integrator: str = "DOP853"
     samples_per_step: int = 80
     torque_limit: float | None = None
     scuff_tol: float = 1e-4
@@ -178,9 +183,17 @@ class SimConfig:
             problems.append(param_problem("steps", "must be at least 1"))
         if not (0 < self.rtol < 0.1) or not (0 < self.atol < 0.1):
             problems.append(param_problem(("rtol", "atol"), "tolerances must lie in (0, 0.1)"))
-        if self.method not in METHODS:
-            problems.append(param_problem("method", f"unknown integrator {self.method!r} "
-                                                    f"(choose from {', '.join(METHODS)})"))
+        if self.method not in SIMULATORS:
+            problems.append(param_problem("method", f"unknown method {self.method!r} "
+                                                    f"(choose from {', '.join(SIMULATORS)})"))
+        if self.integrator not in METHODS:
+            problems.append(param_problem("integrator", f"unknown integrator "
+                                          f"{self.integrator!r} (choose from "
+                                          f"{', '.join(METHODS)})"))
+        elif self.method == "compiled" and self.integrator != "DOP853":
+            problems.append(param_problem("integrator", f"the compiled method integrates with "
+                                          f"DOP853 only; {self.integrator} needs method "
+                                          f"`scipy`"))
         if self.samples_per_step < 2:
             problems.append(param_problem("samples", "at least 2 samples per step"))
         if self.torque_limit is not None and not self.torque_limit > 0:
