@@ -1039,8 +1039,7 @@ def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
                 return fail(out, FAIL_CONTROLLER, k, t, push[1], 0.0, EV_PUSH), ncalls, nbuf
             push_pending = False
             pushed = 1.0
-            rising = foot_velocity(x, fs, ip, par, w) >= 0.0
-            continue
+            continue  # ``rising`` is kept, as at a breakpoint: a zero push changes nothing
         if name == EV_GUARD:
             break
         s = (alpha_of(x, ip, par) - ai) / span
