@@ -175,8 +175,10 @@ def register(app: typer.Typer) -> None:
                 sys.stderr.write(f"warning: run {r['run']} (F_ss = {r['f_ss']}): "
                                  f"{r['reason']}\n")
         if not quiet:
+            ext = "/".join("." + f for f in figure_formats(formats))
+            figs = f", thrust_time{ext}, phase_portrait{ext}" if ext else ""
             console().print(f"wrote {out}/simulation.json, steps.csv, "
-                            f"{doc['trajectory_file']}, thrust_time.png/.pdf, "
-                            f"phase_portrait.png/.pdf" + (", walker.gif" if animate else ""))
+                            f"{doc['trajectory_file']}{figs}"
+                            + (", walker.gif" if animate else ""))
         if tool:
             raise typer.Exit(1)
