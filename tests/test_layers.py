@@ -54,6 +54,7 @@ FRAMEWORKS = {
     "typer": {"commands", "cli"}, "click": {"commands", "cli"}, "rich": {"commands"},
     "matplotlib": {"plots"}, "PIL": {"plots"},
     "sympy": {"model.derive", "model.codegen"},
+    "numba": {"model.jit", "simulation.compiled"},
 }
 # Modules that may read files (input parsing; the model cache and its generator digest).
 READERS = {"files", "model.cache", "model.compiler"}
@@ -290,6 +291,7 @@ CLEAN = {
     ({"hzd/bad.py": "import typer\n"}, "imports typer"),
     ({"hzd/bad.py": "def f():\n    import matplotlib.pyplot\n"}, "imports matplotlib"),
     ({"hzd/bad.py": "import sympy\n"}, "imports sympy"),
+    ({"hzd/bad.py": "def f():\n    import numba\n"}, "imports numba"),
     ({"model/compiler.py": "from . import derive\n"}, "at module level"),
     ({"hzd/a.py": "from . import b\n", "hzd/b.py": "def f():\n    from . import a\n"},
      "circle: hzd.a -> hzd.b"),

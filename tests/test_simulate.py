@@ -365,8 +365,18 @@ def test_integrator_failure_is_reported(walk3, monkeypatch):
         return [np.nan] * len(out) if t > 0.2 else out
 
     monkeypatch.setattr(ClosedLoop, "rhs", broken)
-    res = simulate(zd, const(model), SimConfig(steps=2))
+    res = simulate(zd, const(model), SimConfig(steps=2, method="scipy"))
     assert not res.success and res.failure == "integrator" and "DOP853" in res.reason
+
+
+def test_compiled_integrator_failure_is_reported(walk3):
+    """A state the right-hand side cannot evaluate (NaN rates) stops the compiled DOP853."""
+    model, _, zd = walk3
+    x0 = initial_state(zd, const(model), Start())
+    res = simulate(zd, const(model), SimConfig(steps=2),
+                   Start(q=x0[:3], dq=np.array([np.nan, 0.0, 0.0])))
+    assert not res.success and res.failure == "integrator", res.reason
+    assert "DOP853 (compiled)" in res.reason and res.reason.startswith("step 1:")
 
 
 def test_start_without_orbit_is_an_input_error(walk3):
@@ -434,8 +444,8 @@ def test_cli_integrator_failure_exit_1(tmp_path, monkeypatch, cli):
     real = ClosedLoop.rhs
     monkeypatch.setattr(ClosedLoop, "rhs", lambda self, t, x, seg: (
         [np.nan] * len(x) if t > 0.2 else real(self, t, x, seg)))
-    res = cli("simulate", "--steps", "1", "--thrust", "0", "--quiet", "--out",
-                              str(tmp_path))
+    res = cli("simulate", "--steps", "1", "--thrust", "0", "--method", "scipy", "--quiet",
+              "--out", str(tmp_path))
     assert res.exit_code == 1
     assert json.loads((tmp_path / "simulation.json").read_text())["runs"][0]["failure"] == \
         "integrator"

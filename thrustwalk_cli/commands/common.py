@@ -219,9 +219,13 @@ def parse_knots(text: str, option: str = "--knots") -> list[float | None]:
     return out
 
 
-def parse_formats(text: str, allowed: tuple[str, ...] = ("csv", "png", "pdf")) -> set[str]:
-    """``--formats csv,png`` -> the set of file kinds to write besides the JSON."""
+def parse_formats(text: str, allowed: tuple[str, ...] = ("csv", "png", "pdf", "svg")
+                  ) -> set[str]:
+    """``--formats csv,png`` -> the set of file kinds to write besides the JSON; ``none``:
+    only the JSON (no figure is drawn and matplotlib is not imported)."""
     kinds = {k.strip().lower() for k in text.split(",") if k.strip()}
+    if kinds == {"none"}:
+        return set()
     bad = sorted(kinds - set(allowed))
     if bad:
         raise InputError(f"option --formats: unknown {', '.join(bad)} (choose from "
@@ -333,7 +337,7 @@ def write_result(result, out: Path, provenance: dict, *, json: str | None = None
                 output.write_bytes_atomic(folder.path(name), data)
             else:
                 output.write_text_atomic(folder.path(name), data)
-        figure_kinds = [k for k in ("png", "pdf") if k in kinds]
+        figure_kinds = [k for k in ("png", "pdf", "svg") if k in kinds]
         if figure_kinds:
             save_figures(result.figures(titles=titles), folder.tmp, figure_kinds)
         folder.commit(provenance)
@@ -348,7 +352,7 @@ def write_result(result, out: Path, provenance: dict, *, json: str | None = None
 
 
 def save_figures(figures: dict, out: Path, kinds=("png", "pdf")) -> None:
-    """Save each figure as ``out/<name>.<kind>`` (PNG, PDF) and close it."""
+    """Save each figure as ``out/<name>.<kind>`` (PNG, PDF, SVG) and close it."""
     from .._version import __version__
     from ..files import output
     from ..plots.style import close, render

@@ -12,16 +12,22 @@ from .options import QuietOpt, RobotArg
 HELP = """Compile a robot file with SymPy into cached numeric dynamics.
 
 Derives D, C, G, B_F, the unpinned model, swing-foot kinematics and the impact map, generates
-vectorised code with common-subexpression elimination and caches it by content hash.
-Prints links, coordinates, total mass [kg], thrusters, time [s] and the cache entry.
+vectorised code with common-subexpression elimination and caches it by content hash; then
+compiles the full-order simulation kernel with numba (once per robot, cached beside the
+model). Prints links, coordinates, total mass [kg], thrusters, times [s] and the cache
+entries.
 """
 EPILOG = "Example: thrustwalk compile rabbit --rebuild"
 
 
-def run_compile(robot: str, rebuild: bool = False) -> dict:
+def run_compile(robot: str, rebuild: bool = False, kernel: bool = True) -> dict:
+    from ..studies.compile import compile_kernel
     from .common import load_model
 
-    return load_model(robot, rebuild).summary()
+    model = load_model(robot, rebuild)
+    out = model.summary()
+    out["kernel"] = compile_kernel(model, rebuild) if kernel else None
+    return out
 
 
 def register(app: typer.Typer) -> None:
@@ -31,10 +37,13 @@ def register(app: typer.Typer) -> None:
         robot: RobotArg = "three_link",
         rebuild: Annotated[bool, typer.Option(
             "--rebuild", help="Ignore the cache and compile again.")] = False,
+        kernel: Annotated[bool, typer.Option(
+            "--kernel/--no-kernel", help="Also compile the numba simulation kernel (once "
+                                         "per robot, cached).")] = True,
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
-            s = run_compile(robot, rebuild)
+            s = run_compile(robot, rebuild, kernel)
             if quiet:
                 return
             from rich.table import Table
@@ -50,4 +59,10 @@ def register(app: typer.Typer) -> None:
             how = "cache hit" if s["cache_hit"] else "compiled"
             t.add_row("time", f"{s['seconds']:.3f} s ({how})")
             t.add_row("cache entry", s["cache_entry"])
+            k = s["kernel"]
+            if k is not None:
+                secs = "?" if k["seconds"] is None else f"{k['seconds']:.1f} s"
+                t.add_row("numba kernel", f"cache hit (compiled once in {secs})"
+                          if k["cache_hit"] else f"compiled in {secs} (once per robot)")
+                t.add_row("kernel entry", k["entry"])
             console().print(t)

@@ -31,7 +31,8 @@ JsonOpt = Annotated[
 ]
 FormatsOpt = Annotated[
     str, typer.Option("--formats", help="Files to write besides the JSON, a comma list of "
-                                        "csv, png, pdf (and md where a command writes one).")
+                                        "csv, png, pdf, svg (and md where a command writes "
+                                        "one), or none (only the JSON; no figure is drawn).")
 ]
 TitlesOpt = Annotated[
     bool, typer.Option("--titles", help="Put a title (robot / gait: what) on every figure "

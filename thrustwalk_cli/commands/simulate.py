@@ -74,7 +74,7 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
                  quiet: bool, mu: float | None = None, json: str | None = None,
                  formats: set[str] | None = None, titles: bool = False,
                  min_impact_s: float = 0.75, impact_s_tol: float = 1e-3,
-                 zeta_tol: float = 1e-3) -> dict:
+                 zeta_tol: float = 1e-3, integrator: str = "DOP853") -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files import output
     from ..studies.simulate import default_f_ss, simulate
@@ -94,9 +94,9 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
             walker, steps=steps, thrust_model=thrust_model, thrust=values, wn=wn, xi=xi,
             tau=tau, f0=f0, thruster=thrusters, perturb=perturb, zeta0=zeta0, q0=q, dq0=dq,
             start=start_orbit, torque_limit=torque_limit, rtol=rtol, atol=atol,
-            method=method, samples=samples, scuff_tol=scuff_tol, min_impact_s=min_impact_s,
-            impact_s_tol=impact_s_tol, zeta_tol=zeta_tol, reduced=reduced, mu=mu,
-            progress=advance)
+            method=method, integrator=integrator, samples=samples, scuff_tol=scuff_tol,
+            min_impact_s=min_impact_s, impact_s_tol=impact_s_tol, zeta_tol=zeta_tol,
+            reduced=reduced, mu=mu, progress=advance)
     extra = {}
     if animate:
         gif = result.animation()
@@ -187,7 +187,13 @@ def register(app: typer.Typer) -> None:
         atol: Annotated[float, typer.Option(
             "--atol", help="Integrator absolute tolerance [rad, rad/s].")] = 1e-9,
         method: Annotated[str, typer.Option(
-            "--method", help="solve_ivp method: DOP853, RK45, Radau, LSODA, BDF.")] = "DOP853",
+            "--method", help="compiled (numba kernel, DOP853; compiled once per robot) or "
+                             "scipy (solve_ivp, the reference). A solve_ivp name (DOP853, "
+                             "RK45, Radau, LSODA, BDF) means scipy with that "
+                             "integrator.")] = "compiled",
+        integrator: Annotated[str, typer.Option(
+            "--integrator", help="solve_ivp method with --method scipy: DOP853, RK45, Radau, "
+                                 "LSODA, BDF.")] = "DOP853",
         samples: Annotated[int, typer.Option(
             "--samples", help="Stored trajectory samples per step.")] = 80,
         scuff_tol: Annotated[float, typer.Option(
@@ -220,7 +226,7 @@ def register(app: typer.Typer) -> None:
                 atol=atol, method=method, samples=samples, scuff_tol=scuff_tol,
                 reduced=reduced, animate=animate, out=out, quiet=quiet, mu=mu, json=json,
                 formats=parse_formats(formats), titles=titles, min_impact_s=min_impact_s,
-                impact_s_tol=impact_s_tol, zeta_tol=zeta_tol)
+                impact_s_tol=impact_s_tol, zeta_tol=zeta_tol, integrator=integrator)
         if any(r["failure"] in ("integrator", "controller") for r in doc["runs"]):
             sys.stderr.write("error: an integrator or controller failure ended a run (see "
                              f"{out}/simulation.json)\n")

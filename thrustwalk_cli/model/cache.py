@@ -136,3 +136,31 @@ def module_from_source(source: str, key: str, label: str = "<memory>") -> Module
     module.__file__ = label
     exec(compile(source, label, "exec"), module.__dict__)  # our own generated code
     return module
+def read_body(path: Path) -> str:
+    """The generated source of a verified entry, without its header line."""
+    return path.read_text().partition("\n")[2]
+
+
+def write_meta(path: Path, data: dict) -> None:
+    """Atomically write a small JSON sidecar (e.g. how long a numba compile took)."""
+    import json
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            json.dump(data, fh)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def read_meta(path: Path) -> dict | None:
+    """The sidecar written by :func:`write_meta`, or None if missing or unreadable."""
+    import json
+
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None

@@ -6,6 +6,9 @@ Each quantity becomes two functions with common-subexpression elimination:
   shape ``(..., rows, cols)`` (or ``(..., rows)`` for vectors). Constant entries broadcast.
 * ``NAME_s(*args)``: one state, ``math`` functions, sequences in, flat row-major list out
   (the fast path inside ODE right-hand sides; see shared/PERF_NOTES.md).
+* ``NAME_nb(*args, out)`` (``numba=True``): one state, ``math`` functions, 1-D float arrays in,
+  the flat row-major result written into ``out``; plain Python that numba compiles as it is
+  (the compiled simulation jit-compiles these, see :mod:`thrustwalk_cli.model.jit`).
 
 The generated module imports only ``math`` and ``numpy``.
 """
@@ -39,8 +42,10 @@ def generate_function(
     args: list[tuple[str, list[sp.Symbol]]],
     doc: str,
     vector: bool = False,
+    numba: bool = False,
 ) -> str:
-    """Source of ``name`` (vectorised) and ``name_s`` (scalar) evaluating matrix ``M``.
+    """Source of ``name`` (vectorised) and ``name_s`` (scalar) evaluating matrix ``M``, and
+    with ``numba`` also ``name_nb`` (scalar, array in, written into ``out``).
 
     ``args``: ``[(argument_name, [symbols in order])]``; the docstring lists the order.
     ``vector``: a column matrix is returned as a vector ``(..., rows)``.
@@ -88,6 +93,19 @@ def generate_function(
     items = ", ".join(m_p.doprint(sp.Float(e) if e.is_Number else e) for e in reduced)
     lines.append(f"    return [{items}]")
     lines.append("")
+    if numba:
+        lines.append(f"def {name}_nb({sig}, out):")
+        lines.append(f'    """Scalar {name} into ``out`` (flat, row-major, {len(reduced)} '
+                     f'values). {order}."""')
+        for a, syms in args:
+            for i, s in enumerate(syms):
+                if s in used:
+                    lines.append(f"    {s} = {a}[{i}]")
+        for s, e in repl:
+            lines.append(f"    {s} = {m_p.doprint(e)}")
+        for k, e in enumerate(reduced):
+            lines.append(f"    out[{k}] = {m_p.doprint(sp.Float(e) if e.is_Number else e)}")
+        lines.append("")
     return "\n".join(lines)
 
 

@@ -41,7 +41,13 @@ FUNCTIONS: dict[str, tuple[tuple[str, ...], str]] = {
     "thruster_points": (("q",), "Thruster application points p_k, columns [m]."),
     "thruster_dirs": (("q",), "Thruster unit directions d_k in the world, columns."),
     "link_points": (("q",), "Per link: frame origin (x, y) and end point (x, y) [m]."),
+    "link_points_J": (("q",), "Jacobian d(link_points)/dq (4 rows per link) [m]."),
 }
+
+# functions that also get a numba-ready scalar variant ``NAME_nb(args, out)`` (the compiled
+# simulation's right-hand side, events, impact and statistics; see model/jit.py)
+NUMBA = {"D", "h", "V", "B_F", "D_u", "h_u", "B_Fu", "p_swing", "E_swing", "E_swing_u",
+         "link_points", "link_points_J"}
 
 
 VECTORS = {"G", "h", "V", "h_u", "p_swing", "p_com", "link_points"}

@@ -218,5 +218,6 @@ def derive(robot: Robot) -> Derivation:
         "thruster_points": thr_pts,
         "thruster_dirs": thr_dir,
         "link_points": sp.Matrix(pts),
+        "link_points_J": sp.Matrix(pts).jacobian(q),
     }
     return Derivation(q=q, dq=dq, dxy=dxy, F=F, exprs=exprs)

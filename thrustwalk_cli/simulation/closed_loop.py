@@ -36,7 +36,8 @@ from ..hzd.constraints import bezier
 from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
 
 THRUST_MODELS = ("constant", "first-order", "second-order", "piecewise")
-METHODS = ("DOP853", "RK45", "Radau", "LSODA", "BDF")
+SIMULATORS = ("compiled", "scipy")  # the compiled kernel (default) or solve_ivp (reference)
+METHODS = ("DOP853", "RK45", "Radau", "LSODA", "BDF")  # solve_ivp integrators
 MAX_STEPS = 10_000  # steps per run
 MAX_SAMPLES = 10_000  # output samples per step
 MAX_TOTAL_STEPS = 20_000  # runs x steps in one call (about 70 ms per step with SciPy)
@@ -152,7 +153,10 @@ class SimConfig:
     """Numerical and physical settings of a full-order run.
 
     steps: number of steps. rtol/atol: integrator tolerances (``atol`` on rad and rad/s).
-    method: ``solve_ivp`` method. samples_per_step: stored trajectory samples per step.
+    method: ``compiled`` (the numba kernel: DOP853 with solve_ivp's step-size control and
+    event location, compiled once per robot) or ``scipy`` (``solve_ivp``, the reference).
+    integrator: the ``solve_ivp`` method (``scipy`` only; the compiled kernel is DOP853).
+    samples_per_step: stored trajectory samples per step.
     torque_limit: |u| bound [N m] (None: unlimited). scuff_tol: how far below the ground the
     swing foot may dip below the ground before the guard is armed [m]. min_impact_s: the
     early-strike threshold: the guard (swing foot crossing the ground downward) is armed for
@@ -168,7 +172,8 @@ class SimConfig:
     steps: int = 30
     rtol: float = 1e-9
     atol: float = 1e-9
-    method: str = "DOP853"
+    method: str = "compiled"
+    integrator: str = "DOP853"
     samples_per_step: int = 80
     torque_limit: float | None = None
     scuff_tol: float = 1e-4
@@ -184,9 +189,17 @@ class SimConfig:
             problems.append(param_problem("steps", f"must be 1..{MAX_STEPS} (got {self.steps})"))
         if not (0 < self.rtol < 0.1) or not (0 < self.atol < 0.1):
             problems.append(param_problem(("rtol", "atol"), "tolerances must lie in (0, 0.1)"))
-        if self.method not in METHODS:
-            problems.append(param_problem("method", f"unknown integrator {self.method!r} "
-                                                    f"(choose from {', '.join(METHODS)})"))
+        if self.method not in SIMULATORS:
+            problems.append(param_problem("method", f"unknown method {self.method!r} "
+                                                    f"(choose from {', '.join(SIMULATORS)})"))
+        if self.integrator not in METHODS:
+            problems.append(param_problem("integrator", f"unknown integrator "
+                                          f"{self.integrator!r} (choose from "
+                                          f"{', '.join(METHODS)})"))
+        elif self.method == "compiled" and self.integrator != "DOP853":
+            problems.append(param_problem("integrator", f"the compiled method integrates with "
+                                          f"DOP853 only; {self.integrator} needs method "
+                                          f"`scipy`"))
         if not 2 <= self.samples_per_step <= MAX_SAMPLES:
             problems.append(param_problem("samples", f"must be 2..{MAX_SAMPLES} samples per "
                                                      f"step (got {self.samples_per_step})"))

@@ -30,6 +30,8 @@ from .closed_loop import (
     predicted_cycle,
     zeta_star_at,
 )
+from .records import EVENT_REASONS as _EVENT_REASONS
+from .records import Segment, StepRecord
 
 
 @dataclass(frozen=True)
@@ -54,57 +56,6 @@ class NoOrbit(InputError):
 
 
 # ----------------------------------------------------------------------------- results
-@dataclass(frozen=True)
-class StepRecord:
-    """One simulated step, from the post-impact state to the next impact (SI units).
-
-    ``*_minus`` just before the impact that ends the step, ``*_plus`` just after it (after
-    relabelling). sigma [kg m^2/s], zeta = sigma^2/2 [kg^2 m^4/s^2], impulse F_2 [N s],
-    forces [N], torques [N m], outputs y [rad], y' [rad/s].
-    """
-
-    step: int
-    t_start: float
-    t_impact: float
-    step_time: float
-    alpha_start: float
-    z_start: tuple[float, ...]
-    alpha_minus: float
-    s_minus: float
-    sigma_start: float
-    zeta_start: float
-    sigma_minus: float
-    zeta_minus: float
-    sigma_plus: float
-    zeta_plus: float
-    impulse: tuple[float, float]
-    impulse_friction_ratio: float
-    trailing_foot_lift_velocity: float
-    thrust_at_impact: tuple[float, ...]
-    min_vertical_force: float
-    max_friction_ratio: float | None  # None if F_1^v <= 0 somewhere (then the step failed)
-    max_abs_output: float
-    max_abs_output_rate: float
-    max_abs_torque: float
-    torque_saturated: bool
-    energy_minus: float
-    energy_plus: float
-    q_minus: tuple[float, ...]
-    dq_minus: tuple[float, ...]
-    nfev: int
-
-
-@dataclass(frozen=True)
-class Segment:
-    """A smooth piece of the trajectory: one ``solve_ivp`` call (dense solution)."""
-
-    step: int
-    t0: float
-    t1: float
-    interval: int
-    sol: object = field(repr=False)
-
-
 @dataclass(frozen=True)
 class SimResult:
     """A full-order run. ``success`` false means the run stopped early; ``failure`` is one of
@@ -150,19 +101,6 @@ class _Stop(Exception):
     def __init__(self, failure: str, reason: str):
         super().__init__(reason)
         self.failure, self.reason = failure, reason
-
-
-_EVENT_REASONS = {
-    "scuff": ("scuff", "the swing foot goes more than `scuff_tol` below the ground before the "
-                       "guard is armed at s = `min_impact_s` (an early strike: a scuff, not the "
-                       "end of the step)"),
-    "overshoot": ("no-impact", "the swing foot has not reached the ground by the end of the "
-                               "step (s = max_s)"),
-    "reverse": ("fall", "alpha reverses (alpha' = 0): the walker stops and falls back"),
-    "horizontal": ("fall", "the stance leg passes the horizontal"),
-    "force": ("fall", "the vertical ground force becomes negative: the stance foot would "
-                      "lift off"),
-}
 
 
 def _dip(cl: ClosedLoop, sol, lows, seg: int, t0: float, t1: float):
@@ -237,7 +175,9 @@ def initial_state(zd: ZeroDynamics, thrust: ThrustModel, start: Start) -> np.nda
 def simulate(zd: ZeroDynamics, thrust: ThrustModel, config: SimConfig = SimConfig(),
              start: Start = Start(), progress: Callable[[int], None] | None = None
              ) -> SimResult:
-    """Simulate ``config.steps`` steps of the closed-loop hybrid system (SPEC 7).
+    """Simulate ``config.steps`` steps of the closed-loop hybrid system (SPEC 7), with the
+    compiled kernel (``config.method == "compiled"``) or ``solve_ivp`` (``"scipy"``, the
+    reference): same equations, events and records; zeta^- agrees to the tolerance.
 
     ``progress(1)`` is called after every completed step. Never raises on a physical failure:
     the result carries ``success``, ``failure`` and ``reason``.
@@ -248,6 +188,15 @@ def simulate(zd: ZeroDynamics, thrust: ThrustModel, config: SimConfig = SimConfi
     pred = predicted_cycle(zd, thrust)
     x = initial_state(zd, thrust, start)
     t_max = config.max_step_time or (10.0 * pred.step_time if pred.exists else 10.0)
+    if config.method == "compiled":
+        from .compiled import run_steps
+
+        recs, segs, failure, reason, nfev = run_steps(cl, x, t_max, config.steps, progress)
+        traj = _trajectory(cl, segs, config.samples_per_step)
+        if not failure:
+            reason = f"completed {len(recs)} steps"
+        return SimResult(not failure, reason, failure, thrust, config, tuple(recs), pred, traj,
+                         tuple(segs), nfev, time.perf_counter() - t_wall, cl)
     steps: list[StepRecord] = []
     segments: list[Segment] = []
     t = 0.0
@@ -292,7 +241,7 @@ def _one_step(cl: ClosedLoop, k: int, t0: float, x0: np.ndarray, t_max: float,
         evs = cl.events(seg, rising)
         names = [name for name, _ in evs]
         try:
-            sol = solve_ivp(cl.rhs, (t, t0 + t_max), x, method=cfg.method, rtol=cfg.rtol,
+            sol = solve_ivp(cl.rhs, (t, t0 + t_max), x, method=cfg.integrator, rtol=cfg.rtol,
                             atol=cfg.atol, events=[f for _, f in evs], dense_output=True,
                             args=(seg,))
         except np.linalg.LinAlgError:
@@ -317,9 +266,9 @@ def _one_step(cl: ClosedLoop, k: int, t0: float, x0: np.ndarray, t_max: float,
                 raise _Stop("no-impact", f"the swing foot did not strike the ground by the end "
                                          f"of the step (s = 1; a grazing or missed touchdown): "
                                          f"on the extrapolated constraints the integrator "
-                                         f"{cfg.method} failed at s = {s1:.4g}, t = {t1:.6g} s "
+                                         f"{cfg.integrator} failed at s = {s1:.4g}, t = {t1:.6g} s "
                                          f"({sol.message})")
-            raise _Stop("integrator", f"integrator {cfg.method} failed at t = {t1:.6g} s: "
+            raise _Stop("integrator", f"integrator {cfg.integrator} failed at t = {t1:.6g} s: "
                                       f"{sol.message}")
         if t1 > t:
             segments.append(Segment(k, t, t1, seg, sol.sol))

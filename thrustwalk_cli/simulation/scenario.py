@@ -171,7 +171,7 @@ def run_scenario(zd: ZeroDynamics, sc: Scenario,
         if not sc.reduced_only:
             full = simulate(zd, th, cfg, sc.start, progress)
         red = simulate_reduced(zd, th, cfg.steps, a0, s0, x0[2 * N:].tolist(), rtol=cfg.rtol,
-                               atol=cfg.atol, method=cfg.method,
+                               atol=cfg.atol, method=cfg.integrator,
                                samples_per_step=cfg.samples_per_step, max_step_time=t_max,
                                progress=progress if sc.reduced_only else None, model=rm)
         comp = tuple(compare_steps(zd, th, full, red, rm)) if full is not None else ()

@@ -13,3 +13,18 @@ def compile_robot(robot: str, rebuild: bool = False) -> CompiledModel:
     cache. ``model.summary()`` lists links, coordinates, mass [kg], thrusters, time [s] and the
     cache entry."""
     return load_model(load_robot(robot), rebuild=rebuild)
+
+
+def compile_kernel(model: CompiledModel, rebuild: bool = False) -> dict:
+    """The compiled simulation kernel of ``model`` (SPEC 7): compiled by numba once per robot
+    and cached beside the model. ``{"cache_hit": bool, "seconds": float | None, "entry":
+    path}``: whether it came from the cache and how long the one-time numba compile took
+    (measured now, or as recorded then). A warm cache is checked without importing numba."""
+    from ..simulation.compiled import kernel, kernel_status
+
+    if not rebuild:
+        st = kernel_status(model)
+        if st["cached"]:
+            return {"cache_hit": True, "seconds": st["compile_seconds"], "entry": st["entry"]}
+    jm = kernel(model, rebuild=rebuild)
+    return {"cache_hit": jm.cache_hit, "seconds": jm.compile_seconds, "entry": str(jm.path)}

@@ -19,7 +19,7 @@ from ..design.problem import legs
 from ..errors import InputError
 from ..hzd.schedule import check_limits, schedule_from_gait
 from ..hzd.zero_dynamics import Schedule, ZeroDynamics, limit_cycles, paper_one_step_shift
-from ..simulation.closed_loop import MAX_TOTAL_STEPS, SimConfig, predicted_cycle
+from ..simulation.closed_loop import MAX_TOTAL_STEPS, METHODS, SimConfig, predicted_cycle
 from ..simulation.full_order import Start
 from ..simulation.scenario import Outcome, Scenario, deviations, make_scenario, run_scenario
 from ..walker import Walker
@@ -194,7 +194,8 @@ def simulation_document(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
                       "q": None if sc.start.q is None else list(map(float, sc.start.q)),
                       "dq": None if sc.start.dq is None else list(map(float, sc.start.dq))},
             "reduced_only": sc.reduced_only, "steps": cfg.steps, "rtol": cfg.rtol,
-            "atol": cfg.atol, "method": cfg.method, "torque_limit": cfg.torque_limit,
+            "atol": cfg.atol, "method": cfg.method, "integrator": cfg.integrator,
+            "torque_limit": cfg.torque_limit,
             "kp": zd.gait.kp, "kd": zd.gait.kd, "scuff_tolerance": cfg.scuff_tol,
             "mu": zd.gait.mu if mu is None else mu,
             "guard": f"swing-foot height crosses 0 downward for s > {cfg.min_impact_s:g}",
@@ -475,7 +476,8 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
              perturb: float = 0.0, zeta0: float | None = None,
              q0: Sequence[float] | None = None, dq0: Sequence[float] | None = None,
              start: str = "predicted", torque_limit: float | None = None, rtol: float = 1e-9,
-             atol: float = 1e-9, method: str = "DOP853", samples: int = 80,
+             atol: float = 1e-9, method: str = "compiled", integrator: str = "DOP853",
+             samples: int = 80,
              scuff_tol: float = 1e-4, min_impact_s: float = 0.75, impact_s_tol: float = 1e-3,
              zeta_tol: float = 1e-3, reduced: bool = False, mu: float | None = None,
              progress: Callable[[int], None] | None = None) -> SimulationResult:
@@ -493,7 +495,10 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
     The start is just after an impact on the predicted orbit (``start="predicted"``) or the
     zero-thrust one (``"nominal"``), with ``zeta^-`` scaled by ``1 + perturb`` or given as
     ``zeta0`` [kg^2 m^4/s^2], or the explicit state ``q0`` [rad], ``dq0`` [rad/s].
-    ``reduced``: only the reduced cascade (SPEC 3). ``progress(1)`` after every step.
+    ``reduced``: only the reduced cascade (SPEC 3). ``method``: ``compiled`` (the numba
+    kernel, compiled once per robot) or ``scipy`` (``solve_ivp`` with ``integrator``, the
+    reference); a ``solve_ivp`` name as ``method`` (e.g. ``"LSODA"``) means ``scipy`` with that
+    integrator. ``progress(1)`` after every step.
     A physical failure (a fall, a scuff, no periodic orbit for that thrust) is a run with
     ``success`` false, never an exception; the other values still run. ``scuff_tol`` [m]: dip
     allowed before mid-step; ``min_impact_s``: a strike before this s is a scuff (the
@@ -520,7 +525,9 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
                                f"or fewer steps")
     st = Start(zeta_minus=zeta0, perturb=perturb, q=None if q0 is None else list(q0),
                dq=None if dq0 is None else list(dq0), orbit=start)
-    config = SimConfig(steps=steps, rtol=rtol, atol=atol, method=method,
+    if method in METHODS:  # a solve_ivp name: the SciPy reference with that integrator
+        method, integrator = "scipy", method
+    config = SimConfig(steps=steps, rtol=rtol, atol=atol, method=method, integrator=integrator,
                        samples_per_step=samples, torque_limit=torque_limit, scuff_tol=scuff_tol,
                        min_impact_s=min_impact_s)
     zd = walker.zd

@@ -1,0 +1,327 @@
+"""The compiled full-order simulation (SPEC 7): the numba kernel of :mod:`.kernel`, its
+parameters, and results in the same form as the SciPy reference path.
+
+One kernel per robot is generated from the model's scalar functions and the kernel source,
+compiled by numba once and cached beside the model (:mod:`thrustwalk_cli.model.jit`). It
+integrates with DOP853 (same tolerance semantics, step-size control and events as
+``solve_ivp``), so its steps agree with the SciPy path (``method="scipy"``) to the
+integration tolerance. numba is imported only here, when a compiled run is asked for.
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..model import jit
+from ..model.compiled import CompiledModel
+from . import kernel as K
+from .closed_loop import ClosedLoop, ScalarGait, SimConfig
+from .records import EVENT_REASONS, Segment, StepRecord
+
+TAG = "sim"
+KINDS = {"constant": K.K_CONSTANT, "first-order": K.K_FIRST, "second-order": K.K_SECOND,
+         "piecewise": K.K_PIECEWISE}
+BUF_ROWS = 512  # integrator steps per walking step kept for dense output (grows on demand)
+GRID = 201  # uniform samples of a step for its statistics (as the SciPy path)
+
+
+def _coefficients() -> str:
+    """The DOP853 tableau of :class:`scipy.integrate.DOP853` as source (exact reprs)."""
+    from scipy.integrate import DOP853
+
+    def arr(a) -> str:
+        return "np.array(" + repr(np.asarray(a, float).tolist()) + ")"
+
+    parts = {"DOP_A": DOP853.A, "DOP_B": DOP853.B, "DOP_C": DOP853.C, "DOP_E3": DOP853.E3,
+             "DOP_E5": DOP853.E5, "DOP_D": DOP853.D, "DOP_AX": DOP853.A_EXTRA,
+             "DOP_CX": DOP853.C_EXTRA}
+    return "\n".join(f"{k} = {arr(v)}" for k, v in parts.items())
+
+
+def kernel_source() -> str:
+    """The kernel's source followed by the DOP853 coefficients (they replace its
+    placeholders)."""
+    return inspect.getsource(K) + "\n\n# ---- DOP853 tableau (scipy.integrate.DOP853)\n" + \
+        _coefficients() + "\n"
+
+
+def _names() -> dict[str, str]:
+    """Every function to compile with its numba signature, callees first."""
+    from ..model.compiled import NUMBA
+
+    return {**jit.model_signatures(NUMBA), **K.SIGNATURES}
+
+
+def kernel(model: CompiledModel, rebuild: bool = False) -> jit.JitModule:
+    """The compiled kernel of ``model``: compiled once per robot (numba) or loaded from the
+    cache."""
+    return jit.load(model, TAG, kernel_source(), _names(), K.INLINE, rebuild=rebuild)
+
+
+def kernel_status(model: CompiledModel) -> dict:
+    """Whether the compiled kernel of ``model`` is cached, without importing numba."""
+    return jit.status(model, TAG, kernel_source(), _names(), K.INLINE)
+
+
+# ----------------------------------------------------------------------------- parameters
+@dataclass(frozen=True)
+class Packed:
+    """The kernel's parameters for one gait, thrust model and configuration: float settings
+    ``fs``, sizes and offsets ``ip``, the flat parameter vector ``par`` (gait rows, c,
+    breakpoints, thrust per segment, F_ss, R, b)."""
+
+    fs: np.ndarray
+    ip: np.ndarray
+    par: np.ndarray
+    t_max: float
+    nz: int
+
+    def part(self, key: int, size: int) -> np.ndarray:
+        """A view of one block of ``par`` (``key`` a ``kernel.P_*`` offset)."""
+        o = int(self.ip[key])
+        return self.par[o:o + size]
+
+
+def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
+    """Arrays for the kernel from a :class:`ClosedLoop` (the SciPy path's own setup, so both
+    methods see the same breakpoints, thrust pieces and settings)."""
+    zd, th, cfg, model = cl.zd, cl.thrust, cl.config, cl.model
+    N, m = model.n, model.n_thrusters
+    rows = np.array(ScalarGait(zd.maps).rows, float)
+    nbrk = len(cl.breaks)
+    ip = np.array(K.layout(N, m, th.n_states, len(model.robot.links), rows.shape[1], nbrk),
+                  np.int64)
+    ip[K.I_KIND] = KINDS[th.kind]
+    ip[K.I_ROOT_END] = cl.root_end
+    ip[K.I_GUARD_IDX] = cl.breaks.index(cl.arm_s)
+    ip[K.I_GRID] = grid
+    fs = np.zeros(K.N_FS)
+    fs[K.F_AI], fs[K.F_SPAN], fs[K.F_DIR] = cl.ai, cl.span, cl.direction
+    fs[K.F_KP], fs[K.F_KD] = cl.kp, cl.kd
+    fs[K.F_RTOL], fs[K.F_ATOL] = cfg.rtol, cfg.atol
+    fs[K.F_TLIM] = np.inf if cfg.torque_limit is None else cfg.torque_limit
+    fs[K.F_SCUFF], fs[K.F_MINIMP], fs[K.F_MAXS] = cfg.scuff_tol, cfg.min_impact_s, cfg.max_s
+    fs[K.F_GROUND], fs[K.F_TMAX] = cfg.ground_tol, t_max
+    fs[K.F_WN], fs[K.F_XI], fs[K.F_TAU] = th.wn, th.xi, th.tau
+    par = np.zeros(ip[K.P_SIZE])
+    p = Packed(fs, ip, par, t_max, th.n_states)
+    p.part(K.P_ROWS, rows.size)[:] = rows.ravel()
+    p.part(K.P_C, N)[:] = cl.c
+    p.part(K.P_BRK, nbrk)[:] = cl.breaks
+    p.part(K.P_SEGF, (nbrk + 1) * m)[:] = np.array(cl._piece_force, float).ravel()
+    p.part(K.P_SEGT, nbrk + 1)[:] = cl._piece_T
+    p.part(K.P_TGT, m)[:] = np.asarray(th.target, float)
+    p.part(K.P_R, N * N)[:] = np.asarray(model.R, float).ravel()
+    p.part(K.P_B, N)[:] = model.b
+    return p
+
+
+def with_thrust(p: Packed, target=None, seg_force=None, seg_T=None) -> np.ndarray:
+    """A copy of ``p.par`` with other thrust values: ``F_ss`` per thruster [N], the
+    piecewise force per segment and thruster [N] (segments: ``len(breaks) + 1``), or the
+    generalised force per segment [N m]."""
+    m, nbrk = int(p.ip[K.I_M]), int(p.ip[K.I_NBRK])
+    q = Packed(p.fs, p.ip, p.par.copy(), p.t_max, p.nz)
+    if target is not None:
+        q.part(K.P_TGT, m)[:] = np.asarray(target, float).ravel()
+    if seg_force is not None:
+        q.part(K.P_SEGF, (nbrk + 1) * m)[:] = np.asarray(seg_force, float).ravel()
+    if seg_T is not None:
+        q.part(K.P_SEGT, nbrk + 1)[:] = np.asarray(seg_T, float).ravel()
+    return q.par
+
+
+def record_width(N: int, nz: int, m: int) -> int:
+    return K.N_REC0 + 2 * N + 2 * nz + m
+
+
+# ----------------------------------------------------------------------------- dense output
+class DenseSolution:
+    """The dense DOP853 solution of one integration call, evaluated like SciPy's
+    ``OdeSolution`` (a time on a node belongs to the step that ends there). ``ts``: nodes."""
+
+    def __init__(self, rows: np.ndarray, t0: float, t1: float, n: int):
+        self.t_old = rows[:, 0].copy()
+        self.t_new = rows[:, 1].copy()
+        self.y_old = rows[:, 2:2 + n].copy()
+        self.F = rows[:, 2 + n:2 + 8 * n].reshape(-1, 7, n).copy()
+        self.n = n
+        self.ts = np.concatenate([[t0], self.t_new[:-1], [t1]])
+
+    def __call__(self, t):
+        t = np.asarray(t, float)
+        scalar = t.ndim == 0
+        tt = np.atleast_1d(t)
+        k = np.searchsorted(self.ts, tt, side="left") - 1
+        k = np.clip(k, 0, self.t_old.size - 1)
+        h = self.t_new[k] - self.t_old[k]
+        x = ((tt - self.t_old[k]) / h)[:, None]
+        y = np.zeros((tt.size, self.n))
+        for i, j in enumerate(range(6, -1, -1)):
+            y += self.F[k, j]
+            y *= x if i % 2 == 0 else 1.0 - x
+        y += self.y_old[k]
+        return y[0] if scalar else y.T
+
+
+# ----------------------------------------------------------------------------- one run
+@dataclass
+class StepOutcome:
+    """One walking step of the kernel: status (``kernel.OK`` or a failure code), the raw
+    record, the outcome row, the post-impact state, the dense pieces ``(t0, t1, seg, sol)``."""
+
+    status: int
+    record: np.ndarray
+    outcome: np.ndarray
+    x_next: np.ndarray
+    pieces: list
+
+
+class Stepper:
+    """Run the compiled closed loop one walking step at a time (for callers that change the
+    thrust between steps, e.g. step-to-step control): ``step`` returns a
+    :class:`StepOutcome`; ``set_thrust`` changes the thrust values of the following steps."""
+
+    def __init__(self, cl: ClosedLoop, t_max: float, dense: bool = True):
+        self.cl = cl
+        self.model = cl.model
+        self.packed = pack(cl, t_max)
+        self.jm = kernel(self.model)
+        self.dense = dense
+        N, m = self.model.n, self.model.n_thrusters
+        self.n = 2 * N + self.packed.nz
+        self.width = record_width(N, self.packed.nz, m)
+        self.par = self.packed.par.copy()
+        self._w = np.zeros(self.packed.ip[K.W_SIZE])
+        self._buf = np.zeros((BUF_ROWS, 2 + 8 * self.n))
+        self._calls = np.zeros((256, K.N_CALL))
+
+    def set_thrust(self, target=None, seg_force=None, seg_T=None) -> None:
+        """Thrust values for the following steps (see :func:`with_thrust`)."""
+        self.par = with_thrust(Packed(self.packed.fs, self.packed.ip, self.par,
+                                      self.packed.t_max, self.packed.nz),
+                               target, seg_force, seg_T)
+
+    def step(self, k: int, t0: float, x0: np.ndarray, push=None) -> StepOutcome:
+        """Step ``k`` (1-based) from the post-impact state ``x0`` at time ``t0`` [s];
+        ``push``: ``[k, s, link index, lambda, P_x, P_y]`` (see ``kernel.apply_push``)."""
+        p = self.packed
+        X0 = np.ascontiguousarray(np.asarray(x0, float).reshape(1, self.n))
+        recs = np.zeros((1, 1, self.width))
+        outs = np.zeros((1, K.N_OUT))
+        XN = np.zeros((1, self.n))
+        info = np.zeros((1, 2), np.int64)
+        pu = np.full((1, 6), -1.0) if push is None else np.asarray(push, float).reshape(1, 6)
+        gains = np.array([[p.fs[K.F_KP], p.fs[K.F_KD]]])
+        while True:
+            self.jm.module.run(X0, np.array([float(t0)]), np.array([int(k)], np.int64), 1,
+                               p.fs, p.ip, self.par[None, :], gains, pu, recs, outs,
+                               np.zeros(1, np.int64), XN, info, 0, 1, self._buf, self._calls)
+            if int(outs[0, K.O_STATUS]) != K.FAIL_BUFFER or self._buf.shape[0] >= 1 << 18:
+                break
+            self._buf = np.zeros((4 * self._buf.shape[0], self._buf.shape[1]))
+            self._calls = np.zeros((4 * self._calls.shape[0], K.N_CALL))
+        status, ncalls = int(outs[0, K.O_STATUS]), int(info[0, 0])
+        pieces = []
+        if self.dense:
+            for j in range(ncalls):
+                seg, first, last, ta, tb = self._calls[j]
+                rows = self._buf[int(first):int(last)]
+                pieces.append((float(ta), float(tb), int(seg),
+                               DenseSolution(rows, float(ta), float(tb), self.n)))
+        return StepOutcome(status, recs[0, 0], outs[0], XN[0], pieces)
+
+
+def failure_text(out: np.ndarray, cfg: SimConfig, t_max: float) -> tuple[str, str]:
+    """``(failure kind, reason)`` of a failed step, worded as the SciPy path words them."""
+    code, t, s, v = int(out[K.O_STATUS]), out[K.O_T], out[K.O_S], out[K.O_VALUE]
+    if code == K.FAIL_START_FORCE:
+        return "fall", (f"the vertical ground force is negative at the start of the step "
+                        f"({v:.4g} N)")
+    if code == K.FAIL_START_BELOW:
+        return "scuff", f"the swing foot starts the step {-v:.4g} m below the ground (s = {s:.4g})"
+    if code == K.FAIL_INTEGRATOR:
+        if v > 0 and s > 1.0:  # the guard was armed and the step ran past the gait's end
+            return "no-impact", (f"the swing foot did not strike the ground by the end of the "
+                                 f"step (s = 1; a grazing or missed touchdown): on the "
+                                 f"extrapolated constraints the integrator DOP853 (compiled) "
+                                 f"failed at s = {s:.4g}, t = {t:.6g} s (Required step size is "
+                                 f"less than spacing between numbers.)")
+        return "integrator", (f"integrator DOP853 (compiled) failed at t = {t:.6g} s: "
+                              "Required step size is less than spacing between numbers.")
+    if code == K.FAIL_CONTROLLER:
+        return "controller", (f"the decoupling matrix is singular near t = {t:.6g} s "
+                              "(input-output linearisation undefined)")
+    if code == K.FAIL_NO_IMPACT:
+        return "no-impact", f"no impact within {t_max:.4g} s (alpha = {v:.6g} rad)"
+    if code == K.FAIL_EVENT:
+        name = {K.EV_SCUFF: "scuff", K.EV_OVERSHOOT: "overshoot", K.EV_REVERSE: "reverse",
+                K.EV_HORIZONTAL: "horizontal", K.EV_FORCE: "force"}[int(out[K.O_EVENT])]
+        failure, text = EVENT_REASONS[name]
+        return failure, f"{text} at t = {t:.6g} s, s = {s:.4g}"
+    if code == K.FAIL_EARLY:
+        return "scuff", (f"the swing foot strikes the ground at s = {s:.4g}, before "
+                         f"s = {cfg.min_impact_s:g} (a scuff, not the end of the step; "
+                         "threshold `min_impact_s`)")
+    if code == K.FAIL_IMPACT_FY:
+        return "impact", f"impact infeasible: vertical impulse {v:.4g} N s <= 0 at t = {t:.6g} s"
+    if code == K.FAIL_IMPACT_LIFT:
+        return "impact", (f"impact infeasible: the trailing foot does not lift off (vertical "
+                          f"velocity {v:.4g} m/s) at t = {t:.6g} s")
+    return "integrator", "the integration needed more steps than the kernel's buffers hold"
+
+
+def step_record(rec: np.ndarray, N: int, nz: int, m: int):
+    """A :class:`~thrustwalk_cli.simulation.full_order.StepRecord` from a kernel record."""
+    o = K.N_REC0
+    q, dq = rec[o:o + N], rec[o + N:o + 2 * N]
+    z0 = rec[o + 2 * N:o + 2 * N + nz]
+    F = rec[o + 2 * N + 2 * nz:o + 2 * N + 2 * nz + m]
+    fr = rec[K.R_MAXFR]
+    sm, sp, s0 = rec[K.R_SIGM], rec[K.R_SIGP], rec[K.R_SIG0]
+    Fx, Fy = float(rec[K.R_FX]), float(rec[K.R_FY])
+    return StepRecord(
+        step=int(rec[K.R_STEP]), t_start=float(rec[K.R_T0]), t_impact=float(rec[K.R_T1]),
+        step_time=float(rec[K.R_T1] - rec[K.R_T0]), alpha_start=float(rec[K.R_ALPHA0]),
+        z_start=tuple(map(float, z0)), alpha_minus=float(rec[K.R_ALPHAM]),
+        s_minus=float(rec[K.R_SM]), sigma_start=float(s0), zeta_start=0.5 * float(s0) ** 2,
+        sigma_minus=float(sm), zeta_minus=0.5 * float(sm) ** 2, sigma_plus=float(sp),
+        zeta_plus=0.5 * float(sp) ** 2, impulse=(Fx, Fy), impulse_friction_ratio=abs(Fx) / Fy,
+        trailing_foot_lift_velocity=float(rec[K.R_LIFT]),
+        thrust_at_impact=tuple(map(float, F)), min_vertical_force=float(rec[K.R_MINFV]),
+        max_friction_ratio=None if np.isnan(fr) else float(fr),
+        max_abs_output=float(rec[K.R_MAXY]), max_abs_output_rate=float(rec[K.R_MAXDY]),
+        max_abs_torque=float(rec[K.R_MAXU]), torque_saturated=bool(rec[K.R_SAT]),
+        energy_minus=float(rec[K.R_EM]), energy_plus=float(rec[K.R_EP]),
+        q_minus=tuple(map(float, q)), dq_minus=tuple(map(float, dq)),
+        nfev=int(rec[K.R_NFEV]))
+
+
+def run_steps(cl: ClosedLoop, x0: np.ndarray, t_max: float, steps: int,
+              progress: Callable[[int], None] | None = None):
+    """The compiled counterpart of ``full_order.simulate``'s loop: (records, segments,
+    failure, reason, nfev) with segments ``full_order.Segment`` holding dense solutions."""
+    st = Stepper(cl, t_max, dense=True)
+    N, m, nz = cl.N, cl.m, st.packed.nz
+    records, segments = [], []
+    failure, reason, nfev = "", "", 0
+    t, x = 0.0, np.asarray(x0, float)
+    for k in range(1, steps + 1):
+        res = st.step(k, t, x)
+        for ta, tb, seg, sol in res.pieces:
+            segments.append(Segment(k, ta, tb, seg, sol))
+        if res.status != K.OK:
+            failure, text = failure_text(res.outcome, cl.config, t_max)
+            reason = f"step {k}: {text}"
+            break
+        rec = step_record(res.record, N, nz, m)
+        nfev += rec.nfev
+        records.append(rec)
+        t, x = rec.t_impact, res.x_next
+        if progress is not None:
+            progress(1)
+    return records, segments, failure, reason, nfev
