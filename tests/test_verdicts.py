@@ -318,3 +318,19 @@ def test_inspect_warns_on_angles_beyond_pi_and_prints_a_table(cli):
     assert res.exit_code == 0
     assert "warning: q2 = 4 is beyond +-pi: angles are in radians" in res.stderr
     assert "potential energy" in res.stdout and "[[" not in res.stdout
+
+
+def test_shape_is_not_a_success_when_a_shaped_schedule_has_no_orbit(tmp_path, cli):
+    """k = -500 N m (generalized) stops the walker before the end of the step: the study says
+    so in the JSON (success false, the reason naming the schedule) and on standard error, and
+    still writes the orbits it has."""
+    res = cli("shape", "--k", "0,-500", "--out", tmp_path, "-q")
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "shape.json").read_text())
+    assert doc["success"] is False
+    assert doc["reason"].startswith("no stable shaped orbit for 1 of 2 schedule(s) (k = -500)")
+    assert "walker stops" in doc["reason"]
+    assert "warning: no stable shaped orbit for 1 of 2" in res.stderr
+    assert (tmp_path / "shape.csv").exists()
+    ok = cli("shape", "--k", "0,10", "--out", tmp_path / "ok", "-q")
+    assert json.loads((tmp_path / "ok" / "shape.json").read_text())["success"] is True, ok.output

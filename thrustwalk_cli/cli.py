@@ -7,8 +7,10 @@ import only typer at module level.
 from __future__ import annotations
 
 import os
+import sys
 
 import typer
+from typer.core import TyperGroup
 
 from ._version import __version__
 from .commands import (
@@ -27,8 +29,65 @@ from .commands import (
 COMMANDS = (compile, inspect, limit_cycle, shape, feasibility, optimize, simulate, design_gait,
             report)
 
+class _OneLineErrors(TyperGroup):
+    """The command group, with usage errors (an unknown option, a value of the wrong type, a
+    missing argument) printed as one line, like every other bad input:
+    ``error: option --steps: ...`` (exit 2), never a usage block and never a traceback."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True,
+             **extra):
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        from typer._click import exceptions as ex
+
+        try:
+            rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        except ex.NoArgsIsHelpError as exc:  # `thrustwalk` alone: the help
+            exc.show()
+            sys.exit(exc.exit_code)
+        except ex.UsageError as exc:
+            sys.stderr.write(f"error: {usage_line(exc)}\n")
+            sys.exit(2)
+        except typer.Abort:
+            sys.stderr.write("error: aborted\n")
+            sys.exit(1)
+        sys.exit(rv if isinstance(rv, int) else 0)
+
+
+def usage_line(exc) -> str:
+    """One line for a usage error, naming the option and pointing to ``--help``."""
+    from typer._click import exceptions as ex
+
+    ctx = exc.ctx
+    where = f"see '{ctx.command_path} --help'" if ctx is not None else "see --help"
+    if isinstance(exc, ex.NoSuchOption):
+        near = sorted(exc.possibilities or ())
+        hint = f"did you mean {' or '.join(near)}? " if near else ""
+        return f"no such option {exc.option_name} ({hint}{where})"
+    if isinstance(exc, ex.BadOptionUsage):
+        message = exc.message
+        prefix = f"Option '{exc.option_name}' "
+        if message.startswith(prefix):
+            message = message[len(prefix):]
+        return f"option {exc.option_name}: {message} ({where})"
+    if isinstance(exc, ex.BadParameter):
+        param = exc.param
+        opts = [o for o in getattr(param, "opts", ()) if o.startswith("--")] if param else []
+        if opts:
+            name = f"option {opts[0]}"
+        elif param is not None and getattr(param, "name", None):
+            name = f"argument {param.name.upper()}"
+        else:
+            name = "a value"
+        message = "required" if isinstance(exc, ex.MissingParameter) else exc.message
+        return f"{name}: {message} ({where})"
+    message = exc.format_message()
+    return f"{message[:1].lower()}{message[1:].rstrip('.')} ({where})"
+
+
 app = typer.Typer(
     name="thrustwalk",
+    cls=_OneLineErrors,
     help=(
         "Thruster-assisted bipedal walking with hybrid zero dynamics.\n\n"
         "Robots and gaits are YAML files (bundled names such as 'three_link' work from any "

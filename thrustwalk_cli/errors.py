@@ -58,7 +58,7 @@ class ComputationError(Exception):
 
 # Where a problem found after loading is reported: a parameter name, or a function making a
 # file:line Problem from a key path (e.g. the ``thrust:`` section of a gait file).
-Where = str | Callable[[tuple, str], Problem]
+Where = str | tuple[str, ...] | Callable[[tuple, str], Problem]
 
 
 def locate(where: Where, key: tuple, message: str) -> Problem:

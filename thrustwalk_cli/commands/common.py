@@ -165,7 +165,9 @@ def parse_values(text: str, option: str, unit: str = "") -> list[float]:
     Raises :class:`InputError` naming the option on malformed input.
     """
     def bad(msg: str) -> InputError:
-        return InputError(f"option {option}: {msg} (got {text!r}; use e.g. 0:-50:-10 or 0,-10)")
+        shown = text if len(text) <= 60 else text[:40] + " ... " + text[-12:]
+        return InputError(f"option {option}: {msg} (got {shown!r}; use e.g. 0:-50:-10 or "
+                          "0,-10)")
 
     text = text.strip()
     try:
@@ -260,12 +262,15 @@ def load_model(robot: str, rebuild: bool = False):
     return model
 
 
-def check_out(out: Path, *, whole: bool = True) -> None:
-    """Check the output folder before any work (:func:`thrustwalk_cli.files.output.check_target`;
-    ``whole``: the command replaces the folder as a whole)."""
-    from ..files.output import check_target
+def check_out(out: Path, *, whole: bool = True, json: str | None = None) -> None:
+    """Check the output folder (and the ``--json`` file, unless ``-``) before any work
+    (:func:`thrustwalk_cli.files.output.check_target`; ``whole``: the command replaces the
+    folder as a whole)."""
+    from ..files.output import check_file_target, check_target
 
     check_target(out, whole=whole)
+    if json and json != "-":
+        check_file_target(Path(json))
 
 
 @contextlib.contextmanager

@@ -87,7 +87,7 @@ def run_design_gait(robot: str, out: Path, *, speed: float | None, step_length: 
     from ..studies.design_gait import design_gait, reload_check, robot_reference
     from .common import check_out, load_model, load_walker
 
-    check_out(out, whole=False)
+    check_out(out, whole=False, json=json)
     if out.suffix in (".yaml", ".yml"):
         raise InputError(f"option --out: a folder is expected (the gait goes to "
                          f"DIR/NAME.yaml, NAME from --name), got {out}")

@@ -64,7 +64,7 @@ def run_feasibility(robot: str | None, gait: str | None, *, thrust: list[float] 
     from ..files.output import provenance
     from ..studies.feasibility import feasibility
 
-    check_out(out)
+    check_out(out, json=json)
     walker = load_walker(robot, gait)
     result = feasibility(walker, thrust, schedule=schedule, thruster=thruster, mu=mu,
                          min_vertical_force=min_vertical_force, degree=degree, fit_tol=fit_tol)

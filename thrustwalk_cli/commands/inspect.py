@@ -104,9 +104,7 @@ def register(app: typer.Typer) -> None:
                     sys.stdout.write(json.dumps(output.jsonable(full), indent=2) + "\n")
                 else:
                     target = Path(json_file)
-                    if target.is_dir():
-                        raise InputError.param("json_file", f"{target} is a folder, not a "
-                                                            "file")
+                    output.check_file_target(target, "json_file")
                     output.write_json(target, full)
             if not quiet and json_file != "-":
                 _table(doc)

@@ -57,7 +57,7 @@ def run_limit_cycle(robot: str | None, gait: str | None, thrust: list[float] | N
     from ..files.output import provenance
     from ..studies.limit_cycle import limit_cycle
 
-    check_out(out)
+    check_out(out, json=json)
     walker = load_walker(robot, gait)
     result = limit_cycle(walker, thrust, thruster, max_output=max_output * 1e6)
     if result.source == "gait" and not quiet:

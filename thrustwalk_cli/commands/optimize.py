@@ -59,7 +59,7 @@ def run_optimize(robot: str | None, gait: str | None, *, knots: list[float | Non
     from ..files.output import provenance
     from ..studies.optimize import optimize_schedule
 
-    check_out(out)
+    check_out(out, json=json)
     walker = load_walker(robot, gait)
     result = optimize_schedule(
         walker, knots=knots, target_zeta=target_zeta, target_speed=target_speed,

@@ -81,7 +81,7 @@ def run_shape(robot: str | None, gait: str | None, request: ShapeRequest, out: P
     from ..files.output import provenance
     from ..studies.shape import schedule_count, shape
 
-    check_out(out)
+    check_out(out, json=json)
     walker = load_walker(robot, gait)
     with progress("shaped limit cycles", schedule_count(walker, request), quiet) as advance:
         result = shape(walker, request, progress=advance, max_output=max_output * 1e6)
@@ -92,8 +92,10 @@ def run_shape(robot: str | None, gait: str | None, request: ShapeRequest, out: P
         warn(["no --pattern given: the gait's own thrust: schedule is shaped"])
     doc = write_result(result, out, provenance(walker.robot, walker.gait), json=json,
                        formats=formats, titles=titles)
-    if result.success and not quiet and json != "-":
+    if result.cycles and not quiet and json != "-":
         _table(doc)
+    if not result.success and result.cycles:  # shaped, but some schedule has no orbit
+        warn([doc["reason"]])
     return doc
 
 
@@ -206,7 +208,7 @@ def register(app: typer.Typer) -> None:
             doc = run_shape(robot, gait, req, out, quiet, json=json,
                             formats=parse_formats(formats), titles=titles,
                             max_output=max_output)
-            if not doc["success"]:
+            if not doc["success"] and not doc.get("schedules"):  # nothing could be shaped
                 import sys
 
                 sys.stderr.write(f"error: {doc['reason']} (details in {out}/shape.json)\n")

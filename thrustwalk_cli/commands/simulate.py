@@ -81,7 +81,7 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
 
     values = _floats(thrust, "--thrust")
     q, dq = _floats(q0, "--q0"), _floats(dq0, "--dq0")
-    check_out(out)
+    check_out(out, json=json)
     walker = load_walker(robot, gait)
     gait_schedule = thrust_model is None and values is None and walker.gait.thrust is not None
     if gait_schedule and not quiet:

@@ -66,17 +66,45 @@ def _alive(pid: int) -> bool:
     return True
 
 
+def complete_run(folder: Path) -> bool:
+    """``folder`` holds one whole run: its manifest lists exactly the files present, each with
+    its SHA-256."""
+    try:
+        manifest = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
+        files = manifest["files"]
+        present = {p.relative_to(folder).as_posix() for p in folder.rglob("*")
+                   if p.is_file() and p.name != MANIFEST}
+        return set(files) == present and all(
+            hashlib.sha256((folder / name).read_bytes()).hexdigest() == digest
+            for name, digest in files.items())
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return False
+
+
 def clean_stale(target: Path) -> list[Path]:
-    """Remove the temporaries that runs killed while writing ``target`` left beside it
-    (``.NAME.tmp-PID-*`` and ``.NAME.old-PID-*`` of processes that no longer exist)."""
-    removed = []
+    """Tidy what runs killed while writing ``target`` left beside it (``.NAME.tmp-PID-*`` and
+    ``.NAME.old-PID-*`` of processes that no longer exist). A run killed between moving the
+    previous folder aside and moving its own in left no ``target``: the newest complete run
+    (its own folder if its manifest was written, else the previous one) is put back first;
+    the rest is removed. Returns the paths removed."""
+    removed: list[Path] = []
     parent = target.parent
     if not parent.is_dir():
         return removed
-    for p in parent.glob(f".{target.name}.*-*-*"):
+    stale: dict[str, list[Path]] = {"tmp": [], "old": []}
+    for p in sorted(parent.glob(f".{target.name}.*-*-*")):
         kind, _, rest = p.name[len(target.name) + 2:].partition("-")
         pid = rest.split("-", 1)[0]
-        if kind in ("tmp", "old") and pid.isdigit() and not _alive(int(pid)):
+        if kind in stale and pid.isdigit() and not _alive(int(pid)):
+            stale[kind].append(p)
+    if not target.exists():
+        news = [p for p in stale["tmp"] if p.is_dir() and complete_run(p)]
+        olds = [p / "run" for p in stale["old"] if (p / "run").is_dir()]
+        back = max(news, key=lambda p: p.stat().st_mtime) if news else (olds[0] if olds else None)
+        if back is not None:
+            os.rename(back, target)
+    for p in stale["tmp"] + stale["old"]:
+        if p.exists():
             shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
             removed.append(p)
     return removed
@@ -122,6 +150,22 @@ def check_target(target: Path, *, whole: bool) -> None:
         raise InputError.param("out", f"{t} is a folder with files that thrustwalk did not "
                                       "write; give a new or empty folder (its contents "
                                       "would be replaced)")
+
+
+def check_file_target(target: Path, param: str = "json") -> None:
+    """Refuse a single output file that cannot be written, before any computation: a folder,
+    a path under a file, a read-only place. :class:`InputError` on ``param``."""
+    t = Path(target)
+    if t.is_dir():
+        raise InputError.param(param, f"{t} is a folder, not a file")
+    for anc in t.parents:
+        if anc.exists():
+            if not anc.is_dir():
+                raise InputError.param(param, f"cannot create {t}: {anc} is a file")
+            if not os.access(anc, os.W_OK | os.X_OK):
+                raise InputError.param(param, f"cannot write in {anc}: permission denied or a "
+                                              "read-only file system")
+            break
 
 
 @contextlib.contextmanager

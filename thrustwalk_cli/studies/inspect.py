@@ -46,9 +46,13 @@ def inspect_state(model: CompiledModel, q: str | Sequence[float],
                  "coordinates": names, "q": qv,
                  "warnings": [f"{n} = {v:g} is beyond +-pi: angles are in radians"
                               for n, v in zip(names, qv) if abs(v) > math.pi]}
+    F = None if thrust is None else _vector(thrust, "thrust", model.n_thrusters,
+                                            model.robot.thruster_names)
+    for t, v in zip(model.robot.thrusters, F or ()):
+        lo, hi = t.limits
+        if not lo <= v <= hi:
+            raise InputError.param("thrust", f"{v:g} N is outside the limits [{lo:g}, {hi:g}] N "
+                                             f"of thruster {t.name}")
     doc.update(model.evaluate_state(
-        qv,
-        None if dq is None else _vector(dq, "dq", model.n, names),
-        None if thrust is None else _vector(thrust, "thrust", model.n_thrusters,
-                                            model.robot.thruster_names)))
+        qv, None if dq is None else _vector(dq, "dq", model.n, names), F))
     return doc

@@ -101,9 +101,10 @@ class ShapeStudy:
     source: ``"pattern"`` (T_j or F_j = pattern(j, k) for each k), ``"gait"`` (the gait file's
     ``thrust:`` section), ``"target-zeta"`` or ``"target-speed"`` (solver a). ``labels`` and
     ``values`` (k, or None) name the shaped schedules; ``one_step`` and ``shift`` are the paper's
-    one-step value and the true fixed-point shift [kg^2 m^4/s^2] per schedule. When ``success``
-    is false (no shape-only knots, target out of reach) the shaped fields are empty and
-    ``reason`` says why.
+    one-step value and the true fixed-point shift [kg^2 m^4/s^2] per schedule. ``success``: every
+    shaped schedule has a stable orbit (and the gait is valid); when nothing could be shaped
+    (no shape-only knots, target out of reach) the shaped fields are empty; ``reason`` says
+    which.
     """
 
     walker: Walker = field(repr=False)
@@ -135,14 +136,14 @@ class ShapeStudy:
         return shape_records(self.walker.zd, self)[0]
 
     def tables(self) -> dict[str, Table]:
-        """``shape.csv``: nominal and shaped orbits (none when ``success`` is false)."""
-        return {"shape": shape_records(self.walker.zd, self)[1]} if self.success else {}
+        """``shape.csv``: nominal and shaped orbits (none when nothing was shaped)."""
+        return {"shape": shape_records(self.walker.zd, self)[1]} if self.cycles else {}
 
     def figures(self, titles: bool = False) -> dict:
         """``shape`` (shaped limit cycles, black every 10) and ``vector_field`` (nominal vs
-        shaped zero-dynamics field, the paper's figures 4 and 5); none when ``success`` is
-        false."""
-        if not self.success:
+        shaped zero-dynamics field, the paper's figures 4 and 5); none when nothing was
+        shaped (no shape-only knots, a target out of reach)."""
+        if not self.cycles:
             return {}
         from ..plots.shape import shape_portrait, vector_field_figure
 
@@ -322,7 +323,7 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
             fr = list(ksol.fractions)
         knots = knots_alpha(zd, np.array(fr, float))
         sched = _around(make_schedule(zd, knots, P[:-1], mode, th), base)
-        check_limits(zd, sched, "pattern", ())
+        check_limits(zd, sched, ("pattern", "k"), ())
         labels, values, P_field, target = tuple(f"k = {k:g}" for k in ks), ks, P[-1:], None
     elif source != "gait":
         pattern = None
@@ -356,7 +357,17 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
         fsched, flabel = sched, labels[0]
     fcycle = limit_cycles(zd, fsched)[0]
     one_step = one_step_change(zd, sched) - one_step_change(zd, nom_sched)[0]
-    return ShapeStudy(walker, True, "shaped limit cycles computed", source, mode, th, pattern,
+    bad = [(lab, c) for lab, c in zip(labels, cycles) if not (c.exists and c.stable)]
+    if bad:
+        success, reason = False, (
+            f"no stable shaped orbit for {len(bad)} of {len(cycles)} schedule(s) "
+            f"({', '.join(lab for lab, _ in bad[:5])}{', ...' if len(bad) > 5 else ''}): "
+            f"{bad[0][1].reason}")
+    elif walker.warnings:
+        success, reason = False, f"shaped limit cycles computed, but {walker.warnings[0]}"
+    else:
+        success, reason = True, "a stable shaped limit cycle for every schedule"
+    return ShapeStudy(walker, success, reason, source, mode, th, pattern,
                       nominal, labels, values, ksol, target, intervals(zd, knots), sched, cycles,
                       one_step, one_step / (1.0 - zd.delta_zero_sq), flabel, fsched, fcycle,
                       base)
