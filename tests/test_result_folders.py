@@ -193,3 +193,27 @@ def test_disk_full_midway_keeps_the_previous_run(tmp_path, previous, monkeypatch
     assert len(lines) == 1 and lines[0].startswith("error: ") and "No space left" in lines[0]
     assert _complete(out) == before
     assert _leftovers(tmp_path, "run") == []
+
+
+@pytest.mark.parametrize("err", ["EROFS", "EACCES"])
+def test_report_on_a_folder_it_cannot_write(err, tmp_path, previous, monkeypatch, cli):
+    """``report`` on a read-only folder (injected: the tests may run as root, which ignores
+    permissions): one line naming the path and the reason, exit 1, the folder untouched."""
+    import errno
+
+    folder = tmp_path / "figs"
+    folder.mkdir()
+    os.system(f"cp -a '{previous}' '{folder / 'lc'}'")
+    before = sorted(p.name for p in folder.rglob("*"))
+    code = getattr(errno, err)
+
+    def refuse(path, data):
+        raise OSError(code, os.strerror(code), str(path))
+
+    monkeypatch.setattr(output, "write_bytes_atomic", refuse)
+    res = cli("report", folder, "-q")
+    assert res.exit_code == 1
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1, res.stderr
+    assert lines[0] == f"error: {folder / 'index.md'}: {os.strerror(code)}"
+    assert sorted(p.name for p in folder.rglob("*")) == before
