@@ -216,14 +216,16 @@ def _certify(log: StepLog, planner: Planner, plan: Plan, weight: float, mu: floa
     Fm = rw.force(plan.x_meas, plan.u)
     Fa, Fb = rw.force(plan.x_band[0], plan.u), rw.force(plan.x_band[1], plan.u)
     F1 = log.samples["F1"]
-    tol = REL_TOL * (weight + np.abs(Fm).max()) + rw.E[:, None]
+    E = planner.error_bound(rw, plan.x_band[1])
+    tol = REL_TOL * (weight + np.abs(Fm).max()) + E[:, None]
     lo, hi = np.minimum(Fa, Fb) - tol, np.maximum(Fa, Fb) + tol
     outside = np.maximum(lo - F1, F1 - hi).max(initial=0.0)
     xlo, xhi = plan.x_next_band
     xtol = REL_TOL * max(abs(plan.x_next), 1.0)
     x_out = max(xlo - xtol - log.x_next, log.x_next - xhi - xtol, 0.0)
     log.samples["F1_predicted"] = Fm
-    pred = predicted_margins(plan, planner.grid_rows(), mu, zd.delta_zero_sq)
+    grid = planner.grid_rows()
+    pred = predicted_margins(plan, grid, mu, planner.error_bound(grid, plan.x_band[1]))
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(F1[:, 1] > 0, np.abs(F1[:, 0]) / F1[:, 1], np.inf)
     real_v = min(float(F1[:, 1].min()), log.min_vertical_force)

@@ -120,12 +120,17 @@ class Planner:
         self.nu = nu
 
     # ------------------------------------------------------------------ constraint rows
-    def _bounds(self, rw: Rows) -> tuple[np.ndarray, np.ndarray]:
-        """(zeta_bound (g,), thrust_bound (m,)) for the fit error: |zeta| and |F| over all
-        allowed u."""
+    def error_bound(self, rw: Rows, x_hi: float) -> np.ndarray:
+        """Bound on the error of ``F_1`` from the fitted terms at the rows' alpha [N] (0 with the
+        exact terms): ``e_0 + e_1 max|zeta| + e_2 sum_t max|F_t|`` with ``e_k`` the fits' maximum
+        errors and the maxima over every allowed thrust and ``x_k <= x_hi``."""
+        if self.terms.fits is None:
+            return np.zeros(rw.alpha.size)
         umax = np.maximum(np.abs(self.lo), np.abs(self.hi))
-        return (np.abs(rw.z0) + np.abs(rw.Zu) @ umax, np.abs(rw.f0).max(axis=0)
-                + np.abs(rw.S).max(axis=0) @ umax)
+        zb = np.abs(rw.z0) + np.abs(rw.Zu) @ umax + self.d2 * x_hi
+        fb = float(np.sum(np.abs(rw.f0).max(axis=0) + np.abs(rw.S).max(axis=0) @ umax))
+        e0, e1, e2 = self.terms.errors
+        return e0 + e1 * zb + e2 * fb
 
     def contact_rows(self, rw: Rows, x_hi: float
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -133,11 +138,7 @@ class Planner:
         (SPEC 5, 11); with fitted terms each is tightened by the fit error bound ``E``."""
         st = self.st
         mu = st.mu
-        E = rw.E
-        if self.terms.fits is not None:
-            zb, fb = self._bounds(rw)
-            e0, e1, e2 = self.terms.errors
-            E = e0 + e1 * (zb + self.d2 * x_hi) + e2 * float(np.sum(fb))
+        E = self.error_bound(rw, x_hi)
         h, v = 0, 1
         Pu, P0, Px = rw.Pu, rw.P0, rw.Px
         g = len(P0)
@@ -309,20 +310,21 @@ class Planner:
                     iterations=iterations, violation=viol)
 
 
-def predicted_margins(plan: Plan, rw: Rows, mu: float, d2: float) -> dict:
+def predicted_margins(plan: Plan, rw: Rows, mu: float, E: np.ndarray) -> dict:
     """Predicted worst vertical force [N] and friction ratio [1] over the rows' alpha, at the
-    measured ``x`` and over the measurement band (the worse end), with the fit error bound."""
+    measured ``x`` and over the measurement band (the worse end), with the fit error bound
+    ``E`` [N] (the friction ratio bound uses ``(|F^h| + E)/(F^v - E)``)."""
     out = {}
-    for name, x in (("at_measured", plan.x_meas), ("lo", plan.x_band[0]),
-                    ("hi", plan.x_band[1])):
+    for name, x, e in (("at_measured", plan.x_meas, 0.0), ("lo", plan.x_band[0], E),
+                       ("hi", plan.x_band[1], E)):
         F = rw.force(x, plan.u)
         with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = np.where(F[:, 1] > 0, np.abs(F[:, 0]) / F[:, 1], np.inf)
-        out[name] = (float(F[:, 1].min()), float(ratio.max()))
-    worst_v = min(out["lo"][0], out["hi"][0]) - float(rw.E.max(initial=0.0))
+            ratio = np.where(F[:, 1] - e > 0, (np.abs(F[:, 0]) + e) / (F[:, 1] - e), np.inf)
+        out[name] = (float((F[:, 1] - e).min()), float(ratio.max()))
+    worst_v = min(out["lo"][0], out["hi"][0])
     worst_r = max(out["lo"][1], out["hi"][1])
     return {"min_vertical_force": out["at_measured"][0],
             "max_friction_ratio": out["at_measured"][1],
             "min_vertical_force_bound": worst_v, "max_friction_ratio_bound": worst_r,
-            "fit_error_bound": float(rw.E.max(initial=0.0)),
+            "fit_error_bound": float(np.max(E, initial=0.0)),
             "feasible": bool(worst_v >= 0 and worst_r <= mu)}

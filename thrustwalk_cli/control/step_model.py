@@ -27,7 +27,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm
 
 from ..contact.terms import Fits, stance_terms
 from ..hzd.quadrature import ChebSeries, lobatto
@@ -70,8 +69,16 @@ class Terms:
 
     def __init__(self, model: CompiledModel, zd: ZeroDynamics, fits: Fits | None = None):
         self.model, self.zd, self.fits = model, zd, fits
+        self._last: tuple | None = None  # the QP grid's terms, asked for at every step
 
     def __call__(self, alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if self._last is not None and self._last[0] is alpha:
+            return self._last[1]
+        out = self._terms(alpha)
+        self._last = (alpha, out)
+        return out
+
+    def _terms(self, alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if self.fits is None:
             t = stance_terms(self.model, self.zd.maps, alpha)
             return t.L0, t.L1, t.L2
@@ -162,15 +169,31 @@ class ThrusterDynamics:
         return 1 if self.kind == "first-order" else 2
 
     def response(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(Phi, Psi)`` at times ``t`` (g,): ``F(t) = Phi(t) z_0 + Psi(t) F_ss`` with
-        ``Phi = C e^{A t}`` (g, n_z) and ``Psi = C int_0^t e^{A s} ds B`` (g,) — the exponential
-        of the augmented matrix ``[[A, B], [0, 0]] t``."""
-        A, B, C = self.matrices
-        k = A.shape[0]
-        aug = np.zeros((k + 1, k + 1))
-        aug[:k, :k], aug[:k, k] = A, B
-        E = expm(np.asarray(t, float)[:, None, None] * aug[None])
-        return E[:, :k, :k].transpose(0, 2, 1) @ C, E[:, :k, k] @ C
+        """``(Phi, Psi)`` at times ``t`` (g,) [s]: ``F(t) = Phi(t) z_0 + Psi(t) F_ss``, with
+        ``Phi = C e^{A t}`` (g, n_z) and ``Psi = C int_0^t e^{A s} ds B`` (g,), in closed form:
+        first order ``e^{-t/tau}`` and ``1 - e^{-t/tau}``; second order the free response
+        ``h(t; F_0, F'_0)`` of ``F'' + 2 xi wn F' + wn^2 F = 0`` (under-, critically or
+        over-damped) with ``Phi = [h(t; 1, 0), h(t; 0, 1)]`` and ``Psi = 1 - h(t; 1, 0)``."""
+        t = np.asarray(t, float)
+        if self.kind == "first-order":
+            e = np.exp(-t / self.tau)
+            return e[:, None], 1.0 - e
+        w, xi = self.wn, self.xi
+        if abs(xi - 1.0) < 1e-9:
+            e = np.exp(-w * t)
+            h10, h01 = e * (1.0 + w * t), e * t
+        elif xi < 1.0:
+            wd = w * np.sqrt(1.0 - xi * xi)
+            e = np.exp(-xi * w * t)
+            c, sn = np.cos(wd * t), np.sin(wd * t)
+            h10, h01 = e * (c + xi * w / wd * sn), e * sn / wd
+        else:
+            r = w * np.sqrt(xi * xi - 1.0)
+            r1, r2 = -xi * w + r, -xi * w - r
+            e1, e2 = np.exp(r1 * t), np.exp(r2 * t)
+            h10 = (-r2 * e1 + r1 * e2) / (r1 - r2)
+            h01 = (e1 - e2) / (r1 - r2)
+        return np.stack([h10, h01], axis=-1), 1.0 - h10
 
 
 class ResponseThrust:
@@ -255,12 +278,10 @@ class ResponseThrust:
 
 
 def rows(zd: ZeroDynamics, terms: Terms, thrust, alpha: np.ndarray,
-         idx: np.ndarray | None = None, zeta_bound: np.ndarray | None = None,
-         thrust_bound: np.ndarray | None = None) -> Rows:
+         idx: np.ndarray | None = None) -> Rows:
     """The affine model (:class:`Rows`) at ``alpha`` for ``thrust`` (:class:`IdealThrust` or
-    :class:`ResponseThrust`), SPEC 5 and 11. With fitted terms, ``E = e_0 + e_1 zeta_bound +
-    e_2 sum_t thrust_bound_t`` bounds the error of ``F_1`` per component [N] (``zeta_bound`` (g,)
-    and ``thrust_bound`` (m,) bound |zeta| and |F| over the step)."""
+    :class:`ResponseThrust`), SPEC 5 and 11 (``E`` zero: the planner adds the fit error bound,
+    which depends on the step's zeta and thrust ranges)."""
     alpha = np.atleast_1d(np.asarray(alpha, float))
     d2 = zd.delta_zero_sq
     L0, L1, L2 = terms(alpha)
@@ -269,10 +290,4 @@ def rows(zd: ZeroDynamics, terms: Terms, thrust, alpha: np.ndarray,
     P0 = L0 + L1 * z0[:, None] + np.einsum("gcm,gm->gc", L2, f0)
     Px = L1 * d2
     Pu = L1[:, :, None] * Iu[:, None, :] + np.einsum("gcm,gmv->gcv", L2, S)
-    e0, e1, e2 = terms.errors
-    E = np.zeros(alpha.size)
-    if e0 or e1 or e2:
-        zb = np.zeros(alpha.size) if zeta_bound is None else zeta_bound
-        fb = 0.0 if thrust_bound is None else float(np.sum(thrust_bound))
-        E = e0 + e1 * np.abs(zb) + e2 * fb
-    return Rows(alpha, z0, Iu, P0, Px, Pu, f0, S, E)
+    return Rows(alpha, z0, Iu, P0, Px, Pu, f0, S, np.zeros(alpha.size))
