@@ -13,6 +13,7 @@ import typer
 from ._version import __version__
 from .commands import (
     compile,
+    control,
     design_gait,
     feasibility,
     inspect,
@@ -24,8 +25,8 @@ from .commands import (
 )
 
 # Help lists the commands in this order.
-COMMANDS = (compile, inspect, limit_cycle, shape, feasibility, optimize, simulate, design_gait,
-            report)
+COMMANDS = (compile, inspect, limit_cycle, shape, feasibility, optimize, simulate, control,
+            design_gait, report)
 
 app = typer.Typer(
     name="thrustwalk",

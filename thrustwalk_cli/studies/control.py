@@ -228,6 +228,7 @@ class ControlResult:
             "schema_version": SCHEMA_VERSION,
             "units": UNITS,
             "success": self.success,
+            "failure": self.controlled.failure or None,
             "status": self.status,
             "reason": self.reason,
             "warnings": list(self.warnings) + [self.reason] * (self.status != "ok"),
