@@ -251,22 +251,25 @@ class Planner:
 
     def _least_violation(self, A: np.ndarray, b: np.ndarray, fam: np.ndarray
                          ) -> tuple[np.ndarray, float]:
-        """``min t`` s.t. ``A_n u <= b_n + t`` on the normalised contact and zeta rows, the
-        thrust bounds and rate limits kept (an LP, HiGHS); returns (u, t)."""
+        """``min t`` s.t. ``A_n u <= b_n + t`` on the normalised contact rows, the thrust
+        bounds, rate limits and zeta >= zeta_min kept (the walker keeps moving; an LP, HiGHS);
+        without such a point, every row but the bounds and rates relaxed. Returns (u, t)."""
         An, bn, _, const = normalise_rows(A, b)
-        hard = np.isin(fam, ("thrust_bounds", "rate_limit"))
-        soft = ~hard & ~const
         n = A.shape[1]
-        Aub = np.vstack([np.column_stack([An[soft], -np.ones(soft.sum())]),
-                         np.column_stack([An[hard], np.zeros(hard.sum())])])
-        bub = np.concatenate([bn[soft], bn[hard]])
-        cost = np.zeros(n + 1)
-        cost[-1] = 1.0
-        res = linprog(cost, A_ub=Aub, b_ub=bub, bounds=[(None, None)] * n + [(0, None)],
-                      method="highs")
-        if res.status != 0:
-            return np.clip(np.zeros(n), self.lo, self.hi), float("inf")
-        return res.x[:n], float(res.x[-1])
+        for hard_fams in (("thrust_bounds", "rate_limit", "zeta_min"),
+                          ("thrust_bounds", "rate_limit")):
+            hard = np.isin(fam, hard_fams)
+            soft = ~hard & ~const
+            Aub = np.vstack([np.column_stack([An[soft], -np.ones(soft.sum())]),
+                             np.column_stack([An[hard], np.zeros(hard.sum())])])
+            bub = np.concatenate([bn[soft], bn[hard]])
+            cost = np.zeros(n + 1)
+            cost[-1] = 1.0
+            res = linprog(cost, A_ub=Aub, b_ub=bub, bounds=[(None, None)] * n + [(0, None)],
+                          method="highs")
+            if res.status == 0:
+                return res.x[:n], float(res.x[-1])
+        return np.clip(np.zeros(n), self.lo, self.hi), float("inf")
 
     def x_band(self, x_meas: float) -> tuple[float, float]:
         """True zeta^- consistent with the measurement: ``[x/(1+noise), x/(1-noise)]``."""
