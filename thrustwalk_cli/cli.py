@@ -15,6 +15,7 @@ from typer.core import TyperGroup
 from ._version import __version__
 from .commands import (
     compile,
+    control,
     design_gait,
     feasibility,
     inspect,
@@ -26,8 +27,8 @@ from .commands import (
 )
 
 # Help lists the commands in this order.
-COMMANDS = (compile, inspect, limit_cycle, shape, feasibility, optimize, simulate, design_gait,
-            report)
+COMMANDS = (compile, inspect, limit_cycle, shape, feasibility, optimize, simulate, control,
+            design_gait, report)
 
 class _OneLineErrors(TyperGroup):
     """The command group, with usage errors (an unknown option, a value of the wrong type, a

@@ -145,10 +145,16 @@ def _combine(mass: float, com: list[float], inertia: float, points: list[dict]
     return float(M), (float(c[0]), float(c[1])), float(I)
 
 
-def load_robot(ref: str) -> Robot:
-    """Read, validate and build a :class:`Robot` from a YAML file or bundled name."""
+def load_robot(ref: str, scale: dict[str, float] | None = None) -> Robot:
+    """Read, validate and build a :class:`Robot` from a YAML file or bundled name.
+
+    ``scale``: factors for named ``parameters:`` of the file (``{"MT": 1.1}``: 10 % more
+    torso mass), substituted before anything is built, so that every quantity written with the
+    parameter changes with it (a plant that differs from a controller's model)."""
     path = resolve(ref, "robots")
     doc = load_yaml(path)
+    if scale:
+        doc = _scaled(doc, scale)
     res = check(doc, ROBOT_SCHEMA)
     res.raise_if_problems()
     d = res.data
@@ -280,6 +286,29 @@ def load_robot(ref: str) -> Robot:
         source_file=str(path), source_sha256=doc.sha256,
         parameters=tuple(sorted(res.params.items())), key_lines=lines,
     )
+
+
+def _scaled(doc, scale: dict[str, float]):
+    """``doc`` with each named parameter multiplied by its factor (an expression ``e``
+    becomes ``(e) * factor``); :class:`InputError` on the parameter ``plant_scale`` for a
+    name the file does not define."""
+    import copy
+    from dataclasses import replace
+
+    params = doc.data.get("parameters") if isinstance(doc.data, dict) else None
+    params = params if isinstance(params, dict) else {}
+    unknown = [n for n in scale if n not in params]
+    if unknown:
+        have = ", ".join(params) or "none"
+        raise InputError.param("plant_scale", f"unknown robot parameter "
+                               f"{', '.join(map(repr, unknown))} (the robot file's "
+                               f"parameters: {have})")
+    data = copy.deepcopy(doc.data)
+    for name, factor in scale.items():
+        v = data["parameters"][name]
+        data["parameters"][name] = (f"({v}) * {float(factor)!r}" if isinstance(v, str)
+                                    else v * float(factor))
+    return replace(doc, data=data)
 
 
 def _key_lines(doc) -> list[tuple[str, int]]:

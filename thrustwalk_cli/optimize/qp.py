@@ -155,3 +155,104 @@ def kkt(A: np.ndarray, b: np.ndarray, a_eq: np.ndarray, b_eq: float, w: np.ndarr
         "active": active, "multipliers": lam / norms[active],
         "nu": float(mult[-2] - mult[-1]),
     }
+
+
+# ----------------------------------------------------------------- general strictly convex QP
+class ConvexQP:
+    """``min 1/2 x^T H x + c^T x`` s.t. ``A x <= b`` (and optionally ``a_eq x = b_eq``) for a
+    fixed positive definite ``H``, fixed ``A`` and ``a_eq``, solved many times for new ``c``,
+    ``b``, ``b_eq`` (a controller's per-step QP, SPEC 11). Exact and finite.
+
+    With ``H = L L^T`` and ``y = L^T x + L^-1 c`` the objective is ``1/2 |y|^2`` up to a
+    constant and ``A x <= b`` becomes ``G y <= b + G L^-1 c`` with ``G = A L^-T``; the equality
+    ``g_e y = h_e`` is eliminated on its null space (``y = y_p + N z``, ``y_p`` its minimum-norm
+    solution, so ``|y|^2 = |y_p|^2 + |z|^2``). What remains is a least-distance problem
+    ``min |z|`` s.t. ``M z <= m``, solved exactly by Lawson-Hanson NNLS as in :func:`ldp_qp`.
+    Rows are generated: the LDP is solved on a working set (the rows active at the previous
+    solve, then the most violated rows of all), and rows violated by its solution are added
+    until none is; the solution of the working set then satisfies every row, so it is the
+    optimum of the whole problem (the working set's feasible set contains the whole one).
+    An incompatible working set proves the whole problem infeasible.
+    """
+
+    def __init__(self, H: np.ndarray, A: np.ndarray, a_eq: np.ndarray | None = None):
+        H = np.asarray(H, float)
+        self.n = H.shape[0]
+        self.L = np.linalg.cholesky(H)
+        A = np.asarray(A, float).reshape(-1, self.n)
+        self.A = A
+        G = np.linalg.solve(self.L, A.T).T  # A L^-T
+        self.G = G
+        self.eq = a_eq is not None
+        if self.eq:
+            ge = np.linalg.solve(self.L, np.asarray(a_eq, float).ravel())  # (L^-1 a_eq^T)^T
+            self.ge = ge
+            self.ge2 = float(ge @ ge)
+            self.N = null_space(ge[None, :])
+        else:
+            self.N = np.eye(self.n)
+        M = G @ self.N
+        norms = np.linalg.norm(M, axis=1)
+        self.const = norms <= 1e-12 * max(1.0, float(norms.max(initial=0.0)))
+        self.any_const = bool(self.const.any())
+        self.scale = np.where(self.const, 1.0, norms)
+        self.rows = np.flatnonzero(~self.const)
+        self.Mr = np.ascontiguousarray((M / self.scale[:, None])[self.rows])
+        self.Linv = np.linalg.inv(self.L)
+        self.LTinv = self.Linv.T.copy()
+        self.working: np.ndarray = np.zeros(0, int)  # positions in ``rows``
+
+    def solve(self, c: np.ndarray, b: np.ndarray, b_eq: float | None = None,
+              tol: float = 1e-10) -> tuple[np.ndarray | None, np.ndarray]:
+        """The optimum ``x`` (None when the constraints are incompatible) and the indices of
+        the rows of ``A`` active at it (slack within 1e-9 of the row's scale)."""
+        Lc = self.Linv @ np.asarray(c, float)
+        h = np.asarray(b, float) + self.G @ Lc
+        if self.eq:
+            he = float(b_eq) + float(self.ge @ Lc)
+            yp = self.ge * (he / self.ge2)
+            m = (h - self.G @ yp) / self.scale  # rows: M z <= m (unit-norm rows of M)
+        else:
+            yp = None
+            m = h / self.scale
+        if self.any_const and np.any(m[self.const] < -tol * (1.0 + np.abs(m[self.const]))):
+            return None, np.zeros(0, int)
+        mr = m[self.rows]
+        thr = tol * (1.0 + np.abs(mr))
+        work = self.working
+        z = self._ldp(work, mr) if work.size else np.zeros(self.N.shape[1])
+        if z is None:  # the previous active set no longer fits: start afresh
+            work, z = np.zeros(0, int), np.zeros(self.N.shape[1])
+        for _ in range(len(mr) + 1):
+            viol = self.Mr @ z - mr
+            bad = np.flatnonzero(viol > thr)
+            if bad.size == 0:
+                break
+            if bad.size > 8:
+                bad = bad[np.argpartition(-viol[bad], 8)[:8]]
+            work = np.concatenate([work, bad])
+            z = self._ldp(work, mr)
+            if z is None:
+                self.working = np.zeros(0, int)
+                return None, np.zeros(0, int)
+        y = self.N @ z if yp is None else yp + self.N @ z
+        x = self.LTinv @ (y - Lc)
+        slack = mr - self.Mr @ z
+        act = np.flatnonzero(slack <= 1e-9 * (1.0 + np.abs(mr)))
+        self.working = act
+        return x, self.rows[act]
+
+    def _ldp(self, work: np.ndarray, m: np.ndarray) -> np.ndarray | None:
+        """``min |z|`` s.t. ``M[work] z <= m[work]`` (positions in the non-constant rows) by
+        NNLS (Lawson & Hanson, ch. 23); None when the rows are incompatible."""
+        Mw, mw = self.Mr[work], m[work]
+        if self.N.shape[1] == 0:
+            return np.zeros(0) if np.all(mw >= -1e-12) else None
+        E = np.vstack([-Mw.T, -mw[None, :]])  # rows of "-M z >= -m" as columns
+        f = np.zeros(E.shape[0])
+        f[-1] = 1.0
+        u, _ = nnls(E, f, maxiter=50 * E.shape[1] + 50)
+        r = E @ u - f
+        if abs(r[-1]) < 1e-12:
+            return None
+        return -r[:-1] / r[-1]

@@ -1,0 +1,323 @@
+"""Step-to-step thrust control (SPEC 11): the QP solver, the thruster response, deadbeat in the
+reduced step map, tracking and certificate in the full-order simulation, saturation, push
+recovery, slow thrusters, plant mismatch and the command's outputs and errors.
+
+Independent computations: the QP against SciPy's SLSQP; the closed-form thruster response
+against the matrix exponential; the step map against ``ZeroDynamics.V_Z`` / ``poincare`` (the
+limit-cycle code path, not the planner's rows); a saturated step against the extreme of the
+affine map over the thrust box; the plant's mass from the robot file's parameters.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+from scipy.optimize import minimize
+
+from thrustwalk_cli.controller.planner import Planner, Settings
+from thrustwalk_cli.controller.step_model import IdealThrust, Terms, ThrusterDynamics
+from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.optimize.qp import ConvexQP
+from thrustwalk_cli.studies.control import control, reference_values
+
+
+def _nominal(zd):
+    return limit_cycles(zd, Schedule.constant(zd, np.zeros((1, zd.model.n_thrusters))))[0]
+
+
+def _planner(walker, fractions=(0.0, 0.5, 1.0), *, mu=0.7, noise=0.0, lo=-100.0, hi=100.0,
+             fits=None):
+    zd = walker.zd
+    zs = _nominal(zd).zeta_star
+    kn = zd.alpha_i + np.array(fractions) * (zd.alpha_f - zd.alpha_i)
+    st = Settings(mu=mu, eps=0.0, zeta_min=0.01 * zs, lo=np.array([lo]), hi=np.array([hi]),
+                  rate=None, tracking=None, effort=1.0, smooth=0.0, noise=noise, points=401,
+                  zeta_scale=zs, force_scale=max(abs(lo), abs(hi)))
+    return Planner(zd, Terms(walker.model, zd, fits), IdealThrust(zd, kn, [0]), st), kn, zs
+
+
+# ----------------------------------------------------------------------------- the solver
+@pytest.mark.parametrize("with_eq", [False, True])
+def test_convex_qp_matches_slsqp(with_eq):
+    rng = np.random.default_rng(3)
+    n = 4
+    M = rng.normal(size=(n, n))
+    H = M @ M.T + np.eye(n)
+    A = rng.normal(size=(300, n))
+    b = rng.uniform(0.1, 1.0, 300)
+    c = 5.0 * rng.normal(size=n)
+    ae = rng.normal(size=n) if with_eq else None
+    qp = ConvexQP(H, A, ae)
+    x, active = qp.solve(c, b, 0.02 if with_eq else None)
+    cons = [{"type": "ineq", "fun": lambda x: b - A @ x}]
+    if with_eq:
+        cons.append({"type": "eq", "fun": lambda x: ae @ x - 0.02})
+    ref = minimize(lambda x: 0.5 * x @ H @ x + c @ x, np.zeros(n), jac=lambda x: H @ x + c,
+                   constraints=cons, method="SLSQP", options={"ftol": 1e-12, "maxiter": 500})
+    np.testing.assert_allclose(x, ref.x, atol=1e-6)
+    assert (A @ x - b).max() <= 1e-10
+    assert active.size >= 1  # the unconstrained optimum -H^-1 c is far outside
+    # KKT: H x + c + A_act^T lam (+ a_eq nu) = 0 with lam >= 0 (multipliers by NNLS)
+    from scipy.optimize import nnls
+
+    cols = [A[active].T] + ([ae[:, None], -ae[:, None]] if with_eq else [])
+    lam, res = nnls(np.hstack(cols), -(H @ x + c))
+    assert res <= 1e-8 * np.linalg.norm(H @ x + c)
+    # warm start (the previous active set) gives the same optimum
+    x2, _ = qp.solve(c, b, 0.02 if with_eq else None)
+    np.testing.assert_allclose(x2, x, atol=1e-12)
+
+
+def test_convex_qp_reports_incompatible_rows():
+    qp = ConvexQP(np.eye(2), np.array([[1.0, 0.0], [-1.0, 0.0]]))
+    x, _ = qp.solve(np.zeros(2), np.array([-1.0, -1.0]))  # x <= -1 and x >= 1
+    assert x is None
+
+
+@pytest.mark.parametrize("dyn", [ThrusterDynamics("second-order", wn=20, xi=1),
+                                 ThrusterDynamics("second-order", wn=3, xi=0.3),
+                                 ThrusterDynamics("second-order", wn=5, xi=2.5),
+                                 ThrusterDynamics("first-order", tau=0.3)])
+def test_thruster_response_equals_the_matrix_exponential(dyn):
+    A, B, C = dyn.matrices
+    t = np.linspace(0.0, 1.5, 9)
+    Phi, Psi = dyn.response(t)
+    k = A.shape[0]
+    aug = np.zeros((k + 1, k + 1))
+    aug[:k, :k], aug[:k, k] = A, B
+    E = np.array([expm(tt * aug) for tt in t])
+    np.testing.assert_allclose(Phi, E[:, :k, :k].transpose(0, 2, 1) @ C, atol=1e-12)
+    np.testing.assert_allclose(Psi, E[:, :k, k] @ C, atol=1e-12)
+
+
+def test_reference_profiles_hold_or_ramp():
+    prof = [(0, 0.8), (10, 1.4), (25, 1.0)]
+    held = reference_values(prof, 30, ramp=False)
+    assert held[0] == 0.8 and held[8] == 0.8 and held[9] == 1.4 and held[24] == 1.0
+    ramp = reference_values(prof, 30, ramp=True)
+    assert ramp[4] == pytest.approx(0.8 + 0.6 * 5 / 10) and ramp[29] == 1.0
+
+
+# ----------------------------------------------------------------------------- reduced map
+def test_deadbeat_in_the_reduced_step_map(walker3):
+    """No active constraint, an attainable reference: x_{k+1} = x_ref in one step, with the
+    step map evaluated by the zero-dynamics code (V_Z of the schedule), not the planner."""
+    pl, kn, zs = _planner(walker3)
+    zd = walker3.zd
+    for x, ref in ((zs, 1.3 * zs), (0.9 * zs, 0.8 * zs), (1.2 * zs, zs)):
+        plan = pl.plan(x, ref, np.zeros(2))
+        assert plan.status == "tracking" and plan.active == []
+        force = np.zeros((1, 2, zd.model.n_thrusters))
+        force[0, :, 0] = plan.u
+        sched = Schedule(kn, force, np.zeros((1, 2)))
+        x_next = float(zd.poincare(np.array(x), sched)[0])
+        assert x_next == pytest.approx(ref, rel=1e-12)
+        assert plan.x_next == pytest.approx(x_next, rel=1e-12)
+        # least effort: the values are proportional to Gamma_j / w_j (w_j equal here)
+        _, G = zd.interval_integrals(kn)
+        assert plan.u[0] / plan.u[1] == pytest.approx(G[0, 0] / G[1, 0], rel=1e-9)
+
+
+def test_saturated_step_meets_the_attainable_extreme(walker3):
+    """With |F| <= 5 N the reference cannot be met; the step reaches the largest x_{k+1} the
+    thrust box allows: d2 x + V_0(alpha_f) + sum_j max(Gamma_j lo, Gamma_j hi) (contact far
+    from active at this speed)."""
+    pl, kn, zs = _planner(walker3, lo=-5.0, hi=5.0)
+    zd = walker3.zd
+    plan = pl.plan(zs, 2.0 * zs, np.zeros(2))
+    assert plan.status == "saturated"
+    _, G = zd.interval_integrals(kn)
+    best = zd.delta_zero_sq * zs + float(zd.V0(np.array(zd.alpha_f))) + float(
+        np.sum(np.maximum(G[:, 0] * -5.0, G[:, 0] * 5.0)))
+    assert plan.x_next == pytest.approx(best, rel=1e-8)
+    assert plan.active == ["thrust_bounds"]
+
+
+def test_fitted_terms_tighten_the_margin_by_their_error(walker3):
+    from thrustwalk_cli.contact.terms import fit_terms
+
+    fits = fit_terms(walker3.model, walker3.zd, tol=1e-2)
+    pl, _, zs = _planner(walker3, fits=fits)
+    exact, _, _ = _planner(walker3)
+    rw = pl.grid_rows()
+    E = pl.error_bound(rw, zs)
+    ex = exact.grid_rows()
+    assert np.all(E > 0)
+    # E bounds the true error of F_1 for every allowed thrust (checked at the box corners)
+    for u in ([-100.0, -100.0], [100.0, -100.0], [-100.0, 100.0], [100.0, 100.0]):
+        err = np.abs(rw.force(zs, np.array(u)) - ex.force(zs, np.array(u))).max(axis=1)
+        assert np.all(err <= E + 1e-9)
+    # so every thrust the fitted rows accept satisfies the exact rows
+    A, b, _ = pl.constraints(rw, zs, zs, np.zeros(2))
+    Ae, be, _ = exact.constraints(ex, zs, zs, np.zeros(2))
+    rng = np.random.default_rng(0)
+    U = rng.uniform(-100.0, 100.0, size=(4000, 2))
+    ok = np.all(U @ A.T <= b, axis=1)
+    assert ok.any()
+    assert np.all(U[ok] @ Ae.T <= be + 1e-9)
+
+
+# ----------------------------------------------------------------------------- full order
+def test_full_order_tracking_three_link(walker3):
+    zs = _nominal(walker3.zd).zeta_star
+    res = control(walker3, reference="zeta", profile=[(0, 1.3 * zs), (4, 1.1 * zs)], steps=7,
+                  compare=False)
+    err = res.tracking_errors()
+    assert res.status == "ok", res.reason
+    assert np.all(err[1:] < 1e-6), err  # from the second step on (the first is deadbeat too)
+    assert np.all(err < 1e-6)
+
+
+@pytest.mark.slow
+def test_full_order_tracking_rabbit(walker_rabbit):
+    res = control(walker_rabbit, reference="speed", profile=[(0, 0.6)], steps=5,
+                  compare=False)
+    err = res.tracking_errors()
+    assert res.success, res.reason
+    assert np.all(err[1:] < 1e-6), err
+    assert abs(res.controlled.steps[-1].speed - 0.6) < 1e-3
+
+
+def test_certified_steps_stay_in_the_cone(walker3):
+    """Noisy measurements (2 %) and a fast reference (2.4 m/s) at mu = 0.42, so that the friction
+    rows are active: every step the certificate calls feasible stays in the cone in the
+    full-order simulation, and inside the prediction's band."""
+    res = control(walker3, reference="speed", profile=[(0, 2.4)], steps=6, mu=0.42,
+                  noise=0.02, seed=4, compare=False)
+    steps = res.controlled.steps
+    assert any("friction" in s.plan.active for s in steps)  # the test exercises the cone
+    certified = [s for s in steps if s.certificate["certified"]]
+    assert certified
+    for s in certified:
+        assert s.realised["in_cone"], s.step
+        assert not s.certificate["flagged"], (s.step, s.certificate)
+        assert s.realised["max_friction_ratio"] <= 0.42
+
+
+def test_saturated_reference_is_reported(walker3, tmp_path, cli):
+    out = tmp_path / "sat"
+    res = cli("control", "--reference", "speed", "--profile", "0:2.0", "--max-thrust", "5",
+              "--steps", "3", "--out", str(out), "--formats", "csv", "-q")
+    assert res.exit_code == 0, res.output
+    assert "saturated at steps 1-3" in res.output  # said on the console (stderr)
+    doc = json.loads((out / "control.json").read_text())
+    assert doc["status"] == "warning" and "saturated" in doc["reason"]
+    assert doc["summary"]["findings"]["saturated"] == [1, 2, 3]
+    assert all(e["qp"]["status"] == "saturated" for e in doc["steps"])
+    csv = (out / "control_steps.csv").read_text().splitlines()
+    assert all(",saturated," in line for line in csv[1:])
+
+
+def test_push_recovery(walker3):
+    """Case: a backward push of 30 N s at the hip at phase 0.8 of step 2. It drains the
+    momentum late in the step, so the next step starts too slowly to climb over mid-stance:
+    the uncontrolled walker stops and falls back in step 3. The controller measures the low
+    zeta^- at the impact and thrusts forward during step 3 (zeta >= zeta_min and tracking),
+    and is back on its reference the step after."""
+    zs = _nominal(walker3.zd).zeta_star
+    res = control(walker3, reference="nominal", steps=5, push=[(2, 0.8, -30.0, 0.0)])
+    assert not res.uncontrolled.success
+    assert res.uncontrolled.failure == "fall" and res.uncontrolled.reason.startswith("step 3")
+    assert res.controlled.success, res.controlled.reason
+    assert res.controlled.steps[2].u.min() < -10.0  # forward thrust in the rescue step
+    assert abs(res.controlled.steps[-1].x_next - zs) < 1e-6 * zs
+    # the pushed step is outside the prediction and said so
+    assert res.controlled.steps[1].certificate["flagged"]
+    assert "outside the prediction's error bound" in res.reason
+
+
+def test_slow_thruster_linear_response_vs_ignoring_the_lag(walker3):
+    zs = _nominal(walker3.zd).zeta_star
+    res = control(walker3, reference="zeta", profile=[(0, 1.3 * zs)], steps=5,
+                  thrust_model="second-order", wn=20.0, xi=1.0, knots=(0.0, 1.0))
+    err = res.tracking_errors()
+    assert np.all(err < 1e-6), err  # the response model is exact, not a linearisation
+    assert not any(s.certificate["flagged"] for s in res.controlled.steps)
+    naive = res.naive
+    mis = [abs(s.x_next - s.plan.x_next) / s.x_next for s in naive.steps]
+    assert mis[0] > 1e-2  # the lag costs the naive controller percent-level errors
+    assert naive.steps[0].certificate["flagged"]
+    doc = res.document()
+    assert doc["lag_ignored"]["mismatch"][0]["flagged"] is True
+    assert "linear response" in doc["settings"]["slow_thrusters"]
+
+
+@pytest.mark.slow
+def test_plant_with_heavier_torso(walker3):
+    """+10 % torso mass in the plant: its robot is built from the file's parameters (total
+    mass 35 + 1 kg), the controller keeps its model; the mismatch is flagged, the walker
+    still walks and stays near its reference."""
+    zs = _nominal(walker3.zd).zeta_star
+    res = control(walker3, reference="zeta", profile=[(0, 1.2 * zs)], steps=6,
+                  plant_scale={"MT": 1.1}, compare=False)
+    assert res.plant["parameters"]["MT"] == pytest.approx(11.0)
+    from thrustwalk_cli.files.robot_file import load_robot
+
+    assert load_robot("three_link", {"MT": 1.1}).total_mass == pytest.approx(
+        walker3.robot.total_mass + 1.0)
+    assert res.controlled.success
+    assert any(s.certificate["flagged"] for s in res.controlled.steps)
+    assert res.tracking_errors()[-1] < 0.05
+
+
+# ----------------------------------------------------------------------------- command
+@pytest.mark.slow
+def test_cli_control_writes_every_output(tmp_path, cli):
+    out, exp = tmp_path / "ctl", tmp_path / "ctl_export.json"
+    res = cli("control", "three_link", "three_link_walk", "--reference", "speed", "--profile",
+              "0:0.8,4:1.2", "--knots", "0,0.5,1", "--steps", "6", "--push", "5:0.8:-20",
+              "--noise", "0.01", "--mu", "0.7", "--out", str(out), "--export", str(exp), "-q")
+    assert res.exit_code == 0, res.output
+    names = {p.name for p in out.iterdir()}
+    for f in ("control.json", "control_steps.csv", "speed_tracking.png", "speed_tracking.pdf",
+              "thrust_schedule.png", "thrust_schedule.pdf", "contact_margin.png",
+              "contact_margin.pdf"):
+        assert f in names
+    text = (out / "control.json").read_text()
+    assert "NaN" not in text and "Infinity" not in text
+    doc = json.loads(text)
+    for key in ("schema_version", "units", "success", "reason", "warnings", "provenance"):
+        assert key in doc
+    assert doc["units"]["zeta"] == "kg^2 m^4/s^2" and doc["units"]["thrust"] == "N"
+    # the backward push late in step 5 stops the uncontrolled walker in step 6 (it falls
+    # back); the controlled one completes every step
+    unc = doc["uncontrolled"]
+    assert unc["steps_completed"] == 5 and unc["failure"] == "fall", unc
+    assert doc["failure"] is None and len(doc["steps"]) == 6
+    import pandas as pd
+
+    df = pd.read_csv(out / "control_steps.csv")
+    assert len(df) == 6 and "speed_m_s" in df.columns and "qp_time_s" in df.columns
+    ex = json.loads(exp.read_text())
+    assert ex["delta_zero_sq"] == pytest.approx(doc["model"]["delta_zero_sq"])
+    assert len(ex["Gamma_j_alpha_f"]) == 2
+    assert {"L0", "L1", "L2"} <= set(ex["polynomial_fits"])
+    assert len(ex["qp"]["A"]) == len(ex["qp"]["b0"]) == len(ex["qp"]["family"])
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--thruster", "nozzle"], "option --thruster: unknown thruster 'nozzle'"),
+    (["--knots", "0,0.6,0.4,1"], "option --knots:"),
+    (["--knots", "0.1,1"], "option --knots:"),
+    (["--profile", "10:1.0,5:1.2"], "option --profile: steps must increase strictly"),
+    (["--profile", "0:fast"], "option --profile:"),
+    (["--reference", "torque"], "option --reference:"),
+    (["--push", "2:0.5"], "option --push:"),
+    (["--push", "99:0.5:-10"], "option --push:"),
+    (["--plant-scale", "XX=1.1"], "option --plant-scale: unknown robot parameter 'XX'"),
+    (["--plant-scale", "MT"], "option --plant-scale:"),
+    (["--noise", "0.7"], "option --noise:"),
+    (["--thrust-model", "second-order"], "option --knots: a thruster with dynamics"),
+    (["--mu", "0"], "option --mu:"),
+])
+def test_cli_bad_options_exit_two(tmp_path, cli, args, message):
+    out = tmp_path / "bad"
+    res = cli("control", "--profile", "0:0.8", "--steps", "3", *args, "--out", str(out), "-q")
+    assert res.exit_code == 2, res.output
+    assert message in res.output
+    lines = [ln for ln in res.output.splitlines() if ln.startswith("error:")]
+    assert len(lines) == 1 and "Traceback" not in res.output
+    assert not out.exists()

@@ -1,0 +1,247 @@
+"""The step-to-step controller in closed loop with the full-order compiled simulation (SPEC 7,
+11, 12).
+
+At every impact the controller measures ``x_k`` (zeta^- of the plant, with a seeded uniform
+relative error ``e_k in [-noise, noise]``: ``x_meas = x_k (1 + e_k)``), solves the SPEC 11 QP
+(:class:`~thrustwalk_cli.control.planner.Planner`) and sets the thrust values of the next step
+on the plant (:class:`thrustwalk_cli.simulation.compiled.Stepper`, ``set_thrust`` between
+steps). The plant may differ from the controller's model (its own robot parameters, the same
+virtual constraints) and may be pushed (impulse at a phase of a step, SPEC 12).
+
+Certificate (per step): the model's ground force ``F_1(alpha)`` for the chosen thrust, over the
+band of true ``x_k`` the measurement allows and widened by the fit error bound and a numerical
+tolerance, against the realised ``F_1`` of the full-order step sampled along it (at the
+realised alpha). A step whose realised force or ``x_{k+1}`` leaves that band is *flagged*: the
+prediction did not describe reality (a push, a plant that differs, a lagging thruster the
+controller ignored, outputs off the manifold). Units SI.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..hzd.zero_dynamics import Schedule, ZeroDynamics
+from ..simulation.batch import push_row
+from ..simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel
+from ..simulation.compiled import Stepper, failure_text, step_record
+from ..simulation.full_order import Start, initial_state
+from .planner import Plan, Planner, predicted_margins
+from .step_model import ThrusterDynamics, interval_of
+
+SAMPLES = 81  # samples per step for the certificate and the figures
+REL_TOL = 1e-6  # numerical tolerance of the comparison, relative to the weight and to |F_1|
+
+
+@dataclass(frozen=True)
+class Push:
+    """An impulse ``(P_x, P_y)`` [N s] at the hip (the end of the stance link) at phase ``s``
+    of step ``step`` (SPEC 12)."""
+
+    step: int
+    s: float
+    impulse: tuple[float, float]
+
+
+@dataclass
+class StepLog:
+    """One step of a run (SI units). ``plan`` is None for the uncontrolled walker."""
+
+    step: int
+    t_start: float
+    t_impact: float
+    x_true: float
+    x_meas: float
+    x_ref: float | None
+    u: np.ndarray
+    plan: Plan | None
+    x_next: float
+    step_time: float
+    speed: float
+    min_vertical_force: float
+    max_friction_ratio: float | None
+    impact_friction_ratio: float
+    pushed: bool
+    thrust_at_impact: np.ndarray
+    predicted: dict | None = None
+    realised: dict | None = None
+    certificate: dict | None = None
+    samples: dict = field(default_factory=dict, repr=False)
+
+
+@dataclass
+class Run:
+    """A closed-loop (or uncontrolled) run: ``success`` false when it stopped early
+    (``failure``, ``reason`` as the simulation words them)."""
+
+    label: str
+    success: bool
+    failure: str
+    reason: str
+    steps: list[StepLog]
+
+
+def _segment_intervals(cl: ClosedLoop, knots: np.ndarray, zd: ZeroDynamics) -> np.ndarray:
+    """Knot interval of each simulation segment (breakpoints at the knots and the guard)."""
+    edges = [-np.inf] + list(cl.breaks) + [np.inf]
+    mids = [0.5 * (max(lo, 0.0) + min(hi, 1.0)) for lo, hi in zip(edges[:-1], edges[1:])]
+    alpha = zd.alpha_i + np.array(mids) * zd.maps.span
+    return interval_of(knots, alpha)
+
+
+def run_loop(plant: ZeroDynamics, planner: Planner | None, *, label: str, steps: int,
+             x0: float, refs: np.ndarray | None, knots: np.ndarray, driven: list[int],
+             dynamics: ThrusterDynamics | None, f0: float = 0.0, pushes: tuple[Push, ...] = (),
+             noise: float = 0.0, seed: int = 0, config: SimConfig = SimConfig(),
+             t_max: float = 10.0, mu: float = 0.7, eps: float = 0.0,
+             progress=None) -> Run:
+    """Run ``steps`` steps of the plant from the post-impact state of ``zeta^- = x0`` on Z;
+    ``planner`` None: the uncontrolled walker (all thrust setpoints 0). ``refs[k-1]``: the
+    reference for ``x_{k+1}`` [kg^2 m^4/s^2]; ``dynamics``: the plant's thruster dynamics (None:
+    ideal thrust on ``knots``)."""
+    model = plant.model
+    m = model.n_thrusters
+    md = len(driven)
+    knots = np.asarray(knots, float)
+    n_int = len(knots) - 1
+    if dynamics is None:
+        sched = Schedule(knots, np.zeros((1, n_int, m)), np.zeros((1, n_int)))
+        th = ThrustModel("piecewise", np.zeros(m), schedule=sched)
+    else:
+        th = ThrustModel(dynamics.kind, np.zeros(m), wn=dynamics.wn, xi=dynamics.xi,
+                         tau=dynamics.tau, initial=np.full(m, f0))
+    cfg = SimConfig(steps=1, rtol=config.rtol, atol=config.atol, scuff_tol=config.scuff_tol,
+                    min_impact_s=config.min_impact_s, torque_limit=config.torque_limit)
+    cl = ClosedLoop(plant, th, cfg)
+    stepper = Stepper(cl, t_max, dense=True)
+    seg_int = _segment_intervals(cl, knots, plant) if dynamics is None else None
+    x = initial_state(plant, th, Start(zeta_minus=x0))
+    N, nz = model.n, th.n_states
+    rng = np.random.default_rng(seed)
+    nu = planner.nu if planner is not None else (n_int * md if dynamics is None else md)
+    u_prev = np.zeros(nu)
+    t = 0.0
+    x_true = float(x0)
+    logs: list[StepLog] = []
+    weight = model.robot.total_mass * model.robot.gravity
+    for k in range(1, steps + 1):
+        e = rng.uniform(-noise, noise) if noise > 0 else 0.0
+        x_meas = x_true * (1.0 + e)
+        z = x[2 * N:2 * N + nz]
+        plan = None
+        if planner is not None:
+            plan = planner.plan(x_meas, float(refs[k - 1]), u_prev, z)
+            u = plan.u
+        else:
+            u = np.zeros(nu)
+        # the plant's thrust: per segment (ideal) or the setpoints (dynamic)
+        if dynamics is None:
+            per = u.reshape(-1, md)  # intervals x driven (one interval for a dynamic model)
+            if per.shape[0] != n_int:  # a planner with one interval on a multi-knot plant
+                per = np.repeat(per[:1], n_int, axis=0)
+            seg_force = np.zeros((len(seg_int), m))
+            seg_force[:, driven] = per[seg_int]
+            stepper.set_thrust(seg_force=seg_force)
+        else:
+            target = np.zeros(m)
+            target[driven] = u.reshape(-1, md)[0]
+            stepper.set_thrust(target=target)
+        push = next((p for p in pushes if p.step == k), None)
+        row = None if push is None else push_row(model, k, push.s, push.impulse)
+        res = stepper.step(k, t, x, push=row)
+        if res.status != 0:
+            kind, text = failure_text(res.outcome, cfg, t_max)
+            return Run(label, False, kind, f"step {k}: {text}", logs)
+        rec = step_record(res.record, N, nz, m)
+        length = float(model.p_swing(np.asarray(rec.q_minus))[0])
+        log = StepLog(
+            step=k, t_start=rec.t_start, t_impact=rec.t_impact, x_true=x_true, x_meas=x_meas,
+            x_ref=None if refs is None else float(refs[k - 1]), u=np.asarray(u, float),
+            plan=plan, x_next=rec.zeta_minus, step_time=rec.step_time,
+            speed=length / rec.step_time, min_vertical_force=rec.min_vertical_force,
+            max_friction_ratio=rec.max_friction_ratio,
+            impact_friction_ratio=rec.impulse_friction_ratio, pushed=push is not None,
+            thrust_at_impact=np.asarray(rec.thrust_at_impact, float))
+        _sample(log, res.pieces, plant, th, u, knots, driven, dynamics, cfg)
+        if plan is not None:
+            _certify(log, planner, plan, weight, mu, eps)
+        logs.append(log)
+        x_true = rec.zeta_minus
+        x = res.x_next
+        t = rec.t_impact
+        u_prev = np.asarray(u, float)
+        if progress is not None:
+            progress(1)
+    return Run(label, True, "", f"completed {steps} steps", logs)
+
+
+def _sample(log: StepLog, pieces: list, plant: ZeroDynamics, th: ThrustModel, u: np.ndarray,
+            knots: np.ndarray, driven: list[int], dynamics, cfg: SimConfig) -> None:
+    """Realised time histories of the step at ``SAMPLES`` times: alpha, thrust, F_1."""
+    m = plant.model.n_thrusters
+    if dynamics is None:  # the simulation's own schedule for this step
+        md = len(driven)
+        per = np.asarray(u, float).reshape(-1, md)
+        force = np.zeros((1, len(knots) - 1, m))
+        force[0][:, driven] = per if per.shape[0] == len(knots) - 1 else per[:1]
+        th = ThrustModel("piecewise", np.zeros(m),
+                         schedule=Schedule(knots, force, np.zeros((1, len(knots) - 1))))
+    cl = ClosedLoop(plant, th, cfg)
+    ts = np.linspace(log.t_start, log.t_impact, SAMPLES)
+    X = np.zeros((SAMPLES, pieces[0][3](pieces[0][0]).size))
+    seg = np.zeros(SAMPLES, int)
+    for j, (ta, tb, sg, sol) in enumerate(pieces):
+        last = j == len(pieces) - 1
+        sel = (ts >= ta) & ((ts <= tb) if last else (ts < tb))
+        if j == 0:
+            sel |= ts < ta
+        if last:
+            sel |= ts > tb
+        if sel.any():
+            X[sel] = sol(ts[sel]).T
+            seg[sel] = sg
+    d = cl.details(X, seg)
+    log.samples = {"t": ts, "alpha": d["alpha"], "F": d["F"], "F1": d["F1"]}
+
+
+def _certify(log: StepLog, planner: Planner, plan: Plan, weight: float, mu: float,
+             eps: float) -> None:
+    """Predicted vs realised margins, and whether reality stayed inside the prediction's
+    error bound (see the module docstring)."""
+    zd = planner.zd
+    lo_a, hi_a = min(zd.alpha_i, zd.alpha_f), max(zd.alpha_i, zd.alpha_f)
+    alpha = np.clip(log.samples["alpha"], lo_a, hi_a)
+    rw = planner.rows_at(alpha)
+    Fm = rw.force(plan.x_meas, plan.u)
+    Fa, Fb = rw.force(plan.x_band[0], plan.u), rw.force(plan.x_band[1], plan.u)
+    F1 = log.samples["F1"]
+    E = planner.error_bound(rw, plan.x_band[1])
+    tol = REL_TOL * (weight + np.abs(Fm).max()) + E[:, None]
+    lo, hi = np.minimum(Fa, Fb) - tol, np.maximum(Fa, Fb) + tol
+    outside = np.maximum(lo - F1, F1 - hi).max(initial=0.0)
+    xlo, xhi = plan.x_next_band
+    xtol = REL_TOL * max(abs(plan.x_next), 1.0)
+    x_out = max(xlo - xtol - log.x_next, log.x_next - xhi - xtol, 0.0)
+    log.samples["F1_predicted"] = Fm
+    grid = planner.grid_rows()
+    pred = predicted_margins(plan, grid, mu, planner.error_bound(grid, plan.x_band[1]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(F1[:, 1] > 0, np.abs(F1[:, 0]) / F1[:, 1], np.inf)
+    real_v = min(float(F1[:, 1].min()), log.min_vertical_force)
+    real_r = max(float(ratio.max()), log.max_friction_ratio if log.max_friction_ratio
+                 is not None else np.inf)
+    log.predicted = {**pred, "x_next": plan.x_next, "x_next_band": list(plan.x_next_band)}
+    log.realised = {"min_vertical_force": real_v,
+                    "max_friction_ratio": float(real_r) if np.isfinite(real_r) else None,
+                    "x_next": log.x_next,
+                    "in_cone": bool(real_v >= eps and np.isfinite(real_r) and real_r <= mu
+                                    and log.impact_friction_ratio <= mu)}
+    certified = bool(pred["feasible"] and plan.status != "infeasible" and planner.impact_ok)
+    log.certificate = {
+        "certified": certified,
+        "flagged": bool(outside > 0 or x_out > 0),
+        "max_force_outside_bound": float(outside),
+        "x_next_outside_bound": float(x_out),
+        "force_tolerance": float(tol.max()),
+    }

@@ -1,0 +1,616 @@
+"""The ``control`` study: step-to-step thrust control with certified contact (SPEC 11), run in
+closed loop on the full-order compiled simulation (SPEC 7) with pushes, a plant that differs
+from the model and measurement noise, beside the uncontrolled walker.
+
+References (``x_ref``: the zeta^- to reach at the end of each step) come from a profile over
+steps, ``[(step, value), ...]`` with steps increasing, held from each point to the next or
+ramped linearly between points: ``zeta`` values [kg^2 m^4/s^2] directly; ``speed`` values [m/s]
+through the steady state the controller itself would settle on (the minimum-effort schedule
+with ``x_{k+1} = x_k = x``, thrust limits and contact ignored so that a reference beyond them
+still has a value and is reported as saturated), whose average speed (step length over the
+zero-dynamics step time) is solved for x by Brent's method; ``nominal``: the zero-thrust fixed
+point zeta*_0 on every step (regulation to the nominal orbit).
+
+Slow thrusters (``thrust_model`` first- or second-order): the controller uses the thruster's
+linear response (:class:`~thrustwalk_cli.control.step_model.ResponseThrust`); for comparison the
+same plant is also run with a controller that ignores the lag (it plans as if the thrust were
+the command) and the mismatch of each of its steps is reported. Units SI.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import brentq
+
+from ..contact.evaluate import check_contact_options
+from ..contact.terms import fit_terms, impact_data
+from ..controller.loop import Push, Run, run_loop
+from ..controller.planner import Planner, Settings
+from ..controller.step_model import IdealThrust, ResponseThrust, Terms, ThrusterDynamics
+from ..errors import InputError
+from ..hzd.zero_dynamics import Schedule, ZeroDynamics, limit_cycles
+from ..simulation.closed_loop import MAX_STEPS, SimConfig
+from ..walker import Walker, walker_from
+from .records import SCHEMA_VERSION, Table, col, gait_record, robot_record, units
+
+REFERENCES = ("speed", "zeta", "nominal")
+THRUST_MODELS = ("ideal", "first-order", "second-order")
+TERMS = ("exact", "fitted")
+UNITS = units("thrust", "alpha", "zeta", "speed", "time", "force", "friction_ratio",
+              "delta_zero_sq", "impulse", "step_length", "Lambda_0", "Lambda_1", "Lambda_2",
+              "Gamma_j", "wn", "tau", rate_limit="N", qp_time="s", noise="1",
+              tracking_error="1")
+
+
+# ----------------------------------------------------------------------------- references
+def reference_values(profile: Sequence[tuple[float, float]], steps: int, ramp: bool
+                     ) -> np.ndarray:
+    """The profile's value at steps 1..steps: held from each point until the next (or linear
+    between points with ``ramp``), the first value before the first point, the last after."""
+    st = np.array([p[0] for p in profile], float)
+    val = np.array([p[1] for p in profile], float)
+    k = np.arange(1, steps + 1, dtype=float)
+    if ramp and len(st) > 1:
+        return np.interp(k, st, val)
+    j = np.clip(np.searchsorted(st, k, side="right") - 1, 0, len(st) - 1)
+    return val[j]
+
+
+def check_profile(profile, reference: str) -> None:
+    """A profile has at least one point, steps >= 0 strictly increasing, values > 0."""
+    if reference == "nominal":
+        if profile:
+            raise InputError.param("profile", "reference nominal takes no profile (it "
+                                              "regulates to the zero-thrust orbit)")
+        return
+    if not profile:
+        raise InputError.param("profile", f"reference {reference} needs a profile "
+                                          "step:value,... (e.g. 0:0.8,10:1.4)")
+    st = [p[0] for p in profile]
+    if any(s < 0 or s != int(s) for s in st):
+        raise InputError.param("profile", "steps must be whole numbers >= 0")
+    if any(b <= a for a, b in zip(st[:-1], st[1:])):
+        raise InputError.param("profile", f"steps must increase strictly (got "
+                                          f"{', '.join(f'{s:g}' for s in st)})")
+    if any(not (np.isfinite(p[1]) and p[1] > 0) for p in profile):
+        unit = "m/s" if reference == "speed" else "kg^2 m^4/s^2"
+        raise InputError.param("profile", f"values must be > 0 {unit}")
+
+
+def steady_schedule(zd: ZeroDynamics, thrust: IdealThrust, weights: np.ndarray, x: float
+                    ) -> Schedule:
+    """The minimum-effort schedule holding ``x_{k+1} = x_k = x`` (no bounds, no contact):
+    ``u = W^-1 g ((1 - d2) x - V_0(alpha_f)) / (g^T W^-1 g)`` with ``g`` the columns of
+    ``Gamma_j(alpha_f)`` (SPEC 11)."""
+    g = thrust.parts(np.array([zd.alpha_f]))[3][0]
+    need = (1.0 - zd.delta_zero_sq) * x - float(zd.V0(np.array(zd.alpha_f)))
+    wi = 1.0 / weights
+    u = wi * g * need / float(g @ (wi * g))
+    md = len(thrust.driven)
+    force = np.zeros((1, thrust.n_int, zd.model.n_thrusters))
+    force[0][:, thrust.driven] = u.reshape(-1, md)
+    return Schedule(thrust.knots, force, np.zeros((1, thrust.n_int)))
+
+
+def zeta_for_speed(zd: ZeroDynamics, thrust: IdealThrust, weights: np.ndarray, v: float,
+                   x0: float) -> float:
+    """zeta^- whose steady schedule (:func:`steady_schedule`) walks at ``v`` [m/s]."""
+    def speed(x: float) -> float | None:
+        lc = limit_cycles(zd, steady_schedule(zd, thrust, weights, x))[0]
+        return lc.speed if lc.exists else None
+
+    a = b = x0
+    sa = sb = speed(x0)
+    for _ in range(60):
+        if sb is not None and sb >= v:
+            break
+        a, sa, b = b, sb, b * 1.5
+        sb = speed(b)
+    for _ in range(60):
+        if sa is not None and sa <= v:
+            break
+        b, sb, a = a, sa, a / 1.5
+        sa = speed(a)
+    if sa is None or sb is None or not sa <= v <= sb:
+        raise InputError.param("profile", f"no walking orbit at {v:g} m/s for this gait "
+                                          "(the speed cannot be reached by any steady thrust)")
+    if sa == v:
+        return a
+    return float(brentq(lambda x: speed(x) - v, a, b, xtol=1e-12 * b, rtol=1e-12))
+
+
+# ----------------------------------------------------------------------------- result
+@dataclass(frozen=True)
+class ControlResult:
+    """A controlled run with its certificate, the uncontrolled walker (and, for slow
+    thrusters, the controller that ignores the lag) for comparison (SPEC 11).
+
+    ``success``: the controlled walker completed every step; ``status``: ``ok`` only when it
+    also never saturated, never met an infeasible QP, never left the friction cone and never
+    left the prediction's error bound; else ``warning`` (or ``failed``), with ``reason``
+    naming the steps."""
+
+    walker: Walker = field(repr=False)
+    settings: dict
+    planner: Planner = field(repr=False)
+    refs: np.ndarray
+    speed_refs: np.ndarray | None
+    controlled: Run
+    uncontrolled: Run | None
+    naive: Run | None
+    plant: dict
+    warnings: tuple[str, ...] = ()
+
+    name = "control"
+
+    # -- verdicts ----------------------------------------------------------------------
+    def _steps_with(self, pred: Callable) -> list[int]:
+        return [s.step for s in self.controlled.steps if pred(s)]
+
+    @property
+    def success(self) -> bool:
+        return self.controlled.success
+
+    def findings(self) -> dict[str, list[int]]:
+        """Steps that make the run less than ``ok``, by kind."""
+        mu = self.settings["mu"]
+        return {
+            "saturated": self._steps_with(lambda s: s.plan.status == "saturated"),
+            "infeasible QP": self._steps_with(lambda s: s.plan.status == "infeasible"),
+            "out of the friction cone": self._steps_with(
+                lambda s: not s.realised["in_cone"]),
+            "outside the prediction's error bound": self._steps_with(
+                lambda s: s.certificate["flagged"]),
+            "uncertified": self._steps_with(lambda s: not s.certificate["certified"]),
+        } if mu is not None else {}
+
+    @property
+    def status(self) -> str:
+        if not self.success:
+            return "failed"
+        return "warning" if any(self.findings().values()) else "ok"
+
+    @property
+    def reason(self) -> str:
+        parts = [] if self.success else [self.controlled.reason]
+        for what, steps in self.findings().items():
+            if steps:
+                parts.append(f"{what} at {_steps_text(steps)}")
+        if not self.planner.impact_ok:
+            parts.append("impact inadmissible: " + "; ".join(self.planner.impact_reasons))
+        if not parts:
+            return (f"completed {len(self.controlled.steps)} steps: every step tracked its "
+                    "reference, certified and inside the prediction's error bound")
+        head = (f"completed {len(self.controlled.steps)} steps; " if self.success else "")
+        return head + "; ".join(parts)
+
+    def tracking_errors(self) -> np.ndarray:
+        """``|x_{k+1} - x_ref,k| / x_ref,k`` per completed step [1]."""
+        return np.array([abs(s.x_next - s.x_ref) / s.x_ref for s in self.controlled.steps])
+
+    # -- documents ---------------------------------------------------------------------
+    def _step_entry(self, s, speed_ref) -> dict:
+        names = self.walker.robot.thruster_names
+        driven = self.settings["thrusters"]
+        p = s.plan
+        return {
+            "step": s.step, "t_start": s.t_start, "t_impact": s.t_impact,
+            "reference": {"zeta_minus": s.x_ref, "speed": speed_ref},
+            "zeta_minus_start": s.x_true, "zeta_minus_measured": s.x_meas,
+            "zeta_minus_end": s.x_next,
+            "tracking_error": abs(s.x_next - s.x_ref) / s.x_ref,
+            "step_time": s.step_time, "speed": s.speed,
+            "thrust_commanded": _command(s.u, driven, self.settings["knot_fractions"],
+                                         self.settings["thrust_model"]),
+            "thrust_delivered": {"mean": dict(zip(names, map(float, s.samples["F"].mean(0)))),
+                                 "at_impact": dict(zip(names, map(float,
+                                                                  s.thrust_at_impact)))},
+            "qp": {"status": p.status, "active": p.active, "target_zeta_minus": p.x_target,
+                   "time": p.qp_time, "iterations": p.iterations,
+                   "violation": p.violation},
+            "pushed": s.pushed,
+            "predicted": {**s.predicted, "step_time": p.step_time},
+            "realised": {**s.realised, "impact_friction_ratio": s.impact_friction_ratio},
+            "certificate": s.certificate,
+        }
+
+    def document(self) -> dict:
+        zd = self.walker.zd
+        sp = self.speed_refs
+        steps = [self._step_entry(s, None if sp is None else float(sp[s.step - 1]))
+                 for s in self.controlled.steps]
+        err = self.tracking_errors()
+        qp_times = [s.plan.qp_time for s in self.controlled.steps]
+        out = {
+            "schema_version": SCHEMA_VERSION,
+            "units": UNITS,
+            "success": self.success,
+            "failure": self.controlled.failure or None,
+            "status": self.status,
+            "reason": self.reason,
+            "warnings": list(self.warnings) + [self.reason] * (self.status != "ok"),
+            "robot": robot_record(zd),
+            "gait": gait_record(zd),
+            "settings": self.settings,
+            "plant": self.plant,
+            "model": {"delta_zero_sq": zd.delta_zero_sq,
+                      "V0_alpha_f": float(zd.V0(np.array(zd.alpha_f))),
+                      "step_map": "x_{k+1} = delta_zero^2 x_k + V_0(alpha_f) + Gamma(alpha_f) u_k",
+                      "impact_admissible": self.planner.impact_ok,
+                      "impact_reasons": self.planner.impact_reasons},
+            "summary": {
+                "steps_completed": len(self.controlled.steps),
+                "final_tracking_error": float(err[-1]) if err.size else None,
+                "max_tracking_error_last_5": float(err[-5:].max()) if err.size else None,
+                "findings": self.findings(),
+                "qp_time_median": float(np.median(qp_times)) if qp_times else None,
+                "qp_time_max": float(np.max(qp_times)) if qp_times else None,
+            },
+            "uncontrolled": _run_summary(self.uncontrolled),
+            "lag_ignored": _run_summary(self.naive, certificate=True),
+            "steps": steps,
+        }
+        return out
+
+    def tables(self) -> dict[str, Table]:
+        names = self.walker.robot.thruster_names
+        header = ["step", col("t_start", "s"), col("reference_zeta", "kg^2 m^4/s^2"),
+                  col("reference_speed", "m/s"), col("zeta_minus_measured", "kg^2 m^4/s^2"),
+                  col("zeta_minus_end", "kg^2 m^4/s^2"), "tracking_error",
+                  col("step_time", "s"), col("speed", "m/s"), "qp_status",
+                  col("qp_time", "s"), "pushed",
+                  col("predicted_min_vertical_force", "N"), "predicted_max_friction_ratio",
+                  col("realised_min_vertical_force", "N"), "realised_max_friction_ratio",
+                  "in_cone", "certified", "flagged",
+                  col("force_outside_bound", "N")]
+        ncmd = len(self.controlled.steps[0].u) if self.controlled.steps else 0
+        header += [col(f"command_{i}", "N") for i in range(ncmd)]
+        header += [col(f"mean_thrust_{n}", "N") for n in names]
+        rows = []
+        for e, s in zip(self.document()["steps"], self.controlled.steps):
+            rows.append([e["step"], e["t_start"], e["reference"]["zeta_minus"],
+                         e["reference"]["speed"], e["zeta_minus_measured"],
+                         e["zeta_minus_end"], e["tracking_error"], e["step_time"],
+                         e["speed"], e["qp"]["status"], e["qp"]["time"], e["pushed"],
+                         e["predicted"]["min_vertical_force"],
+                         _finite(e["predicted"]["max_friction_ratio"]),
+                         e["realised"]["min_vertical_force"],
+                         e["realised"]["max_friction_ratio"], e["realised"]["in_cone"],
+                         e["certificate"]["certified"], e["certificate"]["flagged"],
+                         e["certificate"]["max_force_outside_bound"]]
+                        + [float(v) for v in s.u]
+                        + [e["thrust_delivered"]["mean"][n] for n in names])
+        return {"control_steps": Table(header, rows, [
+            "thrustwalk control: one row per controlled step (zeta^- measured at the impact "
+            "that starts it, zeta_minus_end at the impact that ends it)",
+            "command_i: the QP's thrust values, interval-major per driven thruster"])}
+
+    def figure_data(self) -> dict:
+        def series(run: Run | None) -> dict | None:
+            if run is None:
+                return None
+            return {"step": [s.step for s in run.steps], "speed": [s.speed for s in run.steps],
+                    "failed": not run.success, "reason": run.reason,
+                    "t": [s.samples["t"] for s in run.steps],
+                    "F": [s.samples["F"] for s in run.steps],
+                    "F1": [s.samples["F1"] for s in run.steps],
+                    "F1_predicted": [s.samples.get("F1_predicted") for s in run.steps],
+                    "commanded": [(s.t_start, s.t_impact, s.u) for s in run.steps],
+                    "flagged": [s.step for s in run.steps
+                                if s.certificate and s.certificate["flagged"]],
+                    "saturated": [s.step for s in run.steps
+                                  if s.plan is not None and s.plan.status != "tracking"]}
+        names = self.walker.robot.thruster_names
+        sp = self.speed_refs
+        return {"controlled": series(self.controlled), "uncontrolled": series(self.uncontrolled),
+                "naive": series(self.naive),
+                "reference_speed": None if sp is None else list(map(float, sp)),
+                "reference_zeta": list(map(float, self.refs)),
+                "zeta": [s.x_next for s in self.controlled.steps],
+                "mu": self.settings["mu"], "eps": self.settings["min_vertical_force"],
+                "driven": [names.index(n) for n in self.settings["thrusters"]],
+                "thruster_names": names, "thrust_model": self.settings["thrust_model"],
+                "knots": self.settings["knot_fractions"],
+                "pushes": [p["step"] for p in self.settings["pushes"]]}
+
+    def figures(self, titles: bool = False) -> dict:
+        from ..plots.control import contact_margin, speed_tracking, thrust_schedule
+
+        d = self.figure_data()
+        name = self.walker.name
+        return {"speed_tracking": speed_tracking(d, title=f"{name}: speed" if titles else ""),
+                "thrust_schedule": thrust_schedule(d, title=f"{name}: thrust" if titles else ""),
+                "contact_margin": contact_margin(d, title=f"{name}: contact" if titles else "")}
+
+    def export_document(self) -> dict:
+        """What an embedded controller needs (SPEC 11): knots, delta_zero^2, V_0(alpha_f),
+        Gamma_j(alpha_f), the polynomial fits L_k with their error bounds, and the QP data
+        (grid, rows ``A u <= b0 + bx x_k``, weights, bounds)."""
+        zd, pl = self.walker.zd, self.planner
+        fits = fit_terms(self.walker.model, zd, tol=self.settings["fit_tolerance"])
+        rw = pl.grid_rows()
+        A, b0, bx, fam = pl.contact_rows(rw, float(self.refs.max()))
+        th = pl.thrust
+        return {
+            "schema_version": SCHEMA_VERSION,
+            "units": {**UNITS, "A": "1 (force rows) or kg^2 m^4/s^2 per N (zeta rows)",
+                      "b0": "N (force rows) or kg^2 m^4/s^2 (zeta rows)",
+                      "bx": "N per kg^2 m^4/s^2 (force rows) or 1 (zeta rows)"},
+            "robot": robot_record(zd), "gait": {"name": zd.gait.name},
+            "knots": {"alpha": list(map(float, th.knots)),
+                      "fractions": self.settings["knot_fractions"]},
+            "thrusters": self.settings["thrusters"],
+            "variables": "u[j * m_d + t]: interval j, driven thruster t" if not th.dynamic
+            else "u[t]: one setpoint per driven thruster (thruster dynamics)",
+            "delta_zero_sq": zd.delta_zero_sq,
+            "V0_alpha_f": float(zd.V0(np.array(zd.alpha_f))),
+            "Gamma_j_alpha_f": list(map(float, IdealThrust(zd, th.knots, th.driven).parts(
+                np.array([zd.alpha_f]))[3][0])),
+            "step_map": "x_{k+1} = delta_zero_sq x_k + V0_alpha_f + Gamma_j_alpha_f . u",
+            "polynomial_fits": {
+                "basis": "Chebyshev T_k(x), x = 2 (alpha - alpha_i)/(alpha_f - alpha_i) - 1",
+                "alpha_i": zd.alpha_i, "alpha_f": zd.alpha_f,
+                **{k: {"degree": f.degree, "coefficients": np.asarray(f.coef).tolist(),
+                       "max_error": f.max_error, "relative_error": f.relative_error}
+                   for k, f in fits.fits.items() if k in ("L0", "L1", "L2")}},
+            "qp": {
+                "objective": "w ((x_{k+1} - x_ref)/zeta_scale)^2 + sum_j effort w_j "
+                             "(u_j/force_scale)^2 + smooth |u - u_prev|^2/force_scale^2 "
+                             "(w = null: x_{k+1} = x_ref first, as an equality)",
+                "tracking_weight": pl.st.tracking, "effort_weight": pl.st.effort,
+                "rate_weight": pl.st.smooth, "zeta_scale": pl.st.zeta_scale,
+                "force_scale": pl.st.force_scale,
+                "interval_weights": list(map(float, np.diag(pl.W))),
+                "lower": list(map(float, pl.lo)), "upper": list(map(float, pl.hi)),
+                "rate_limit": pl.st.rate, "mu": pl.st.mu, "min_vertical_force": pl.st.eps,
+                "zeta_min": pl.st.zeta_min, "noise": pl.st.noise,
+                "grid_alpha": list(map(float, rw.alpha)),
+                "rows": "A u <= b0 + bx x_k (take the worse end of the measurement band)",
+                "A": A.tolist(), "b0": list(map(float, b0)), "bx": list(map(float, bx)),
+                "family": [str(f) for f in fam],
+                "exact_terms": self.settings["terms"] == "exact",
+            },
+        }
+
+
+def _finite(v):
+    return v if v is None or np.isfinite(v) else None
+
+
+def _steps_text(steps: list[int]) -> str:
+    if len(steps) == 1:
+        return f"step {steps[0]}"
+    if steps == list(range(steps[0], steps[-1] + 1)):
+        return f"steps {steps[0]}-{steps[-1]}"
+    return "steps " + ", ".join(map(str, steps[:12])) + (" ..." if len(steps) > 12 else "")
+
+
+def _command(u: np.ndarray, driven: list[str], fractions: list[float], model: str) -> dict:
+    md = len(driven)
+    per = np.asarray(u, float).reshape(-1, md)
+    return {name: list(map(float, per[:, c])) for c, name in enumerate(driven)}
+
+
+def _run_summary(run: Run | None, certificate: bool = False) -> dict | None:
+    if run is None:
+        return None
+    out = {"success": run.success, "failure": run.failure or None, "reason": run.reason,
+           "steps_completed": len(run.steps),
+           "speed": [s.speed for s in run.steps],
+           "zeta_minus_end": [s.x_next for s in run.steps]}
+    if certificate:
+        out["mismatch"] = [{"step": s.step, "x_next_predicted": s.plan.x_next,
+                            "x_next_realised": s.x_next,
+                            "relative_mismatch": (s.x_next - s.plan.x_next) / s.plan.x_next,
+                            "flagged": s.certificate["flagged"]} for s in run.steps]
+    return out
+
+
+# ----------------------------------------------------------------------------- the study
+def _plant(walker: Walker, plant_scale: dict[str, float]) -> tuple[ZeroDynamics, dict]:
+    if not plant_scale:
+        return walker.zd, {"same_as_model": True, "scale": {}}
+    from ..files.robot_file import load_robot
+    from ..model.compiler import load_model
+
+    for name, f in plant_scale.items():
+        if not (np.isfinite(f) and f > 0):
+            raise InputError.param("plant_scale", f"factor of {name} must be > 0 (got {f:g})")
+    robot = load_robot(walker.robot.source_file, plant_scale)
+    model = load_model(robot)
+    plant = walker_from(model, walker.gait).zd
+    return plant, {"same_as_model": False, "scale": dict(plant_scale),
+                   "parameters": dict(robot.parameters),
+                   "note": "the plant's robot file parameters scaled; the controller keeps "
+                           "the model's virtual constraints and step map"}
+
+
+def control(walker: Walker, *, reference: str = "speed",
+            profile: Sequence[tuple[float, float]] | None = None, ramp: bool = False,
+            knots: Sequence[float] = (0.0, 0.5, 1.0), steps: int = 40,
+            thrust_model: str = "ideal", wn: float = 20.0, xi: float = 1.0, tau: float = 0.05,
+            thruster: Sequence[str] | None = None,
+            push: Sequence[tuple[int, float, float, float]] = (),
+            plant_scale: dict[str, float] | None = None, noise: float = 0.0, seed: int = 0,
+            mu: float | None = None, min_vertical_force: float = 0.0,
+            zeta_min: float | None = None, max_thrust: float | None = None,
+            rate_limit: float | None = None, tracking_weight: float | None = None,
+            effort_weight: float = 1.0, rate_weight: float = 0.0, terms: str = "exact",
+            fit_tol: float = 1e-3, points: int = 401, zeta0: float | None = None,
+            compare: bool = True, progress: Callable[[int], None] | None = None
+            ) -> ControlResult:
+    """Step-to-step thrust control (SPEC 11) in closed loop with the full-order simulation.
+
+    ``reference``: ``speed`` [m/s], ``zeta`` [kg^2 m^4/s^2] (``profile`` of ``(step, value)``,
+    held or ``ramp``-ed) or ``nominal``. ``knots``: fractions of the step, 0 first, 1 last,
+    increasing (slow thrusters: one setpoint per step, knots 0, 1). ``thrust_model``: ``ideal``
+    (the thrust is the command), ``first-order`` (``tau`` [s]) or ``second-order`` (``wn``
+    [rad/s], ``xi``). ``thruster``: driven thrusters (default: the first). ``push``:
+    ``(step, phase s, P_x, P_y)`` [N s] at the hip. ``plant_scale``: robot parameter factors
+    of the plant. ``noise``: relative bound of the uniform error of the measured zeta^-
+    (seeded by ``seed``). ``mu`` (default: the gait's), ``min_vertical_force`` [N],
+    ``zeta_min`` (default 1 % of zeta*_0) [kg^2 m^4/s^2], ``max_thrust`` [N] (within the
+    robot file's ``limits``), ``rate_limit`` [N per step]. Weights: see
+    :mod:`thrustwalk_cli.control.planner`. ``terms``: ``exact`` Lambdas or ``fitted``
+    polynomials (relative tolerance ``fit_tol``) with their error bound added to the margins.
+    ``zeta0``: the start's zeta^- (default zeta*_0). ``compare``: also run the uncontrolled
+    walker (and, for slow thrusters, the controller that ignores the lag).
+    """
+    zd, model, robot = walker.zd, walker.model, walker.robot
+    problems = []
+    if reference not in REFERENCES:
+        raise InputError.param("reference", f"unknown reference {reference!r} (choose from "
+                                            f"{', '.join(REFERENCES)})")
+    if thrust_model not in THRUST_MODELS:
+        raise InputError.param("thrust_model", f"unknown thrust model {thrust_model!r} "
+                                               f"(choose from {', '.join(THRUST_MODELS)})")
+    if terms not in TERMS:
+        raise InputError.param("terms", f"unknown terms {terms!r} (choose from "
+                                        f"{', '.join(TERMS)})")
+    if not robot.thrusters:
+        raise InputError.param("thruster", f"robot {robot.name} has no thruster: nothing to "
+                                           "control (`thrusters: []`)")
+    names = list(thruster) if thruster else [robot.thruster_names[0]]
+    driven = [robot.thruster_index(n) for n in names]
+    if len(set(driven)) != len(driven):
+        raise InputError.param("thruster", "a thruster is named twice")
+    fr = [float(k) for k in knots]
+    if len(fr) < 2 or fr[0] != 0.0 or fr[-1] != 1.0 or any(
+            b <= a for a, b in zip(fr[:-1], fr[1:])):
+        raise InputError.param("knots", f"knots are fractions of the step, 0 first, 1 last, "
+                                        f"strictly increasing (got {', '.join(map(str, fr))})")
+    if thrust_model != "ideal" and len(fr) != 2:
+        raise InputError.param("knots", f"a thruster with dynamics (`thrust_model` "
+                                        f"{thrust_model}) takes one setpoint per step: use "
+                                        "knots 0,1")
+    if not 1 <= steps <= MAX_STEPS:
+        raise InputError.param("steps", f"must be 1..{MAX_STEPS} (got {steps})")
+    check_profile(list(profile or []), reference)
+    mu = zd.gait.mu if mu is None else float(mu)
+    check_contact_options(mu, min_vertical_force)
+    if not 0.0 <= noise < 0.5:
+        raise InputError.param("noise", f"the relative measurement error bound must lie in "
+                                        f"[0, 0.5) (got {noise:g})")
+    for name, v, lo in (("wn", wn, 0.0), ("tau", tau, 0.0), ("xi", xi, 0.0),
+                        ("effort_weight", effort_weight, -1.0), ("rate_weight", rate_weight,
+                                                                 -1.0)):
+        if not (np.isfinite(v) and v > lo):
+            problems.append((name, f"must be > {max(lo, 0):g} (got {v:g})"))
+    if effort_weight <= 0 and rate_weight <= 0:
+        problems.append(("effort_weight", "`effort_weight` or `rate_weight` must be > 0 (the "
+                                          "QP must be strictly convex)"))
+    if rate_limit is not None and not rate_limit > 0:
+        problems.append(("rate_limit", f"must be > 0 N per step (got {rate_limit:g})"))
+    if max_thrust is not None and not max_thrust > 0:
+        problems.append(("max_thrust", f"must be > 0 N (got {max_thrust:g})"))
+    if tracking_weight is not None and not tracking_weight > 0:
+        problems.append(("tracking_weight", f"must be > 0 (got {tracking_weight:g})"))
+    if not 21 <= points <= 10_000:
+        problems.append(("points", f"must be 21..10000 (got {points})"))
+    pushes = []
+    for p in push:
+        stp, s, px, py = p
+        if not (stp == int(stp) and 1 <= stp <= steps and 0.0 <= s < 1.0):
+            problems.append(("push", f"a push needs a step in 1..{steps} and a phase in "
+                                     f"[0, 1) (got step {stp:g}, phase {s:g})"))
+        pushes.append(Push(int(stp), float(s), (float(px), float(py))))
+    if problems:
+        raise InputError([InputError.param(n, m).problems[0] for n, m in problems])
+    if not zd.valid:
+        raise InputError.param("gait", f"the gait has no walking orbit to control: "
+                                       f"{zd.invalid_reason}")
+    lc0 = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, model.n_thrusters))))[0]
+    if not lc0.exists:
+        raise InputError.param("gait", f"no zero-thrust periodic orbit to start from or "
+                                       f"regulate to: {lc0.reason}")
+    lo = np.array([robot.thrusters[t].limits[0] for t in driven], float)
+    hi = np.array([robot.thrusters[t].limits[1] for t in driven], float)
+    if max_thrust is not None:
+        lo, hi = np.maximum(lo, -max_thrust), np.minimum(hi, max_thrust)
+    if np.any(lo > 0) or np.any(hi < 0):
+        raise InputError.param("thruster", "the thrust limits must include 0 N (the "
+                                           "uncontrolled walker and the start)")
+    force_scale = float(max(np.max(np.abs(lo)), np.max(np.abs(hi)), 1.0))
+    zs0 = float(lc0.zeta_star)
+    settings_qp = Settings(
+        mu=mu, eps=float(min_vertical_force),
+        zeta_min=0.01 * zs0 if zeta_min is None else float(zeta_min), lo=lo, hi=hi,
+        rate=rate_limit, tracking=tracking_weight, effort=float(effort_weight),
+        smooth=float(rate_weight), noise=float(noise), points=int(points),
+        zeta_scale=zs0, force_scale=force_scale)
+    span = zd.alpha_f - zd.alpha_i
+    kn = zd.alpha_i + np.array(fr) * span
+    fits = fit_terms(model, zd, tol=fit_tol) if terms == "fitted" else None
+    tm = Terms(model, zd, fits)
+    dyn = None if thrust_model == "ideal" else ThrusterDynamics(thrust_model, wn, xi, tau)
+    thrust = (IdealThrust(zd, kn, driven) if dyn is None else
+              ResponseThrust(zd, dyn, driven))
+    planner = Planner(zd, tm, thrust, settings_qp)
+    # references
+    ideal = IdealThrust(zd, kn, driven)
+    weights = np.diag(planner.W) if dyn is None else np.ones(len(driven))
+    speed_refs = None
+    if reference == "nominal":
+        refs = np.full(steps, zs0)
+    else:
+        vals = reference_values(list(profile), steps, ramp)
+        if reference == "zeta":
+            refs = vals
+        else:
+            speed_refs = vals
+            cache: dict[float, float] = {}
+            for v in np.unique(vals):
+                cache[float(v)] = zeta_for_speed(zd, ideal, weights, float(v), zs0)
+            refs = np.array([cache[float(v)] for v in vals])
+    plant, plant_doc = _plant(walker, dict(plant_scale or {}))
+    cfg = SimConfig(steps=1)
+    t_max = 10.0 * float(lc0.step_time)
+    common = dict(steps=steps, x0=zs0 if zeta0 is None else float(zeta0), knots=kn,
+                  driven=driven, dynamics=dyn, pushes=tuple(pushes), config=cfg,
+                  t_max=t_max, mu=mu, eps=float(min_vertical_force), progress=progress)
+    if zeta0 is not None and not zeta0 > 0:
+        raise InputError.param("zeta0", f"must be > 0 kg^2 m^4/s^2 (got {zeta0:g})")
+    controlled = run_loop(plant, planner, label="controlled", refs=refs, noise=noise,
+                          seed=seed, **common)
+    uncontrolled = naive = None
+    if compare:
+        uncontrolled = run_loop(plant, None, label="uncontrolled", refs=refs, **common)
+        if dyn is not None:
+            naive_planner = Planner(zd, Terms(model, zd, fits), IdealThrust(zd, kn, driven),
+                                    settings_qp)
+            naive = run_loop(plant, naive_planner, label="lag ignored", refs=refs,
+                             noise=noise, seed=seed, **common)
+    imp = impact_data(model, zd)
+    warnings = list(walker.warnings)
+    if not imp.admissible(mu):
+        warnings.append("the impact is inadmissible for every step (it does not depend on "
+                        "thrust): " + "; ".join(imp.reasons(mu)))
+    settings = {
+        "reference": reference, "profile": [list(map(float, p)) for p in (profile or [])],
+        "ramp": ramp, "knot_fractions": fr, "knots_alpha": list(map(float, kn)),
+        "steps": steps, "thrust_model": thrust_model,
+        "thruster_dynamics": None if dyn is None else {"kind": dyn.kind, "wn": dyn.wn,
+                                                       "xi": dyn.xi, "tau": dyn.tau},
+        "slow_thrusters": None if dyn is None else (
+            "the controller uses the thruster's linear response: the delivered thrust over "
+            "the step is affine in the setpoint and the thruster state at impact, on the "
+            "step's own zero-dynamics time map (fixed-point iteration); `lag_ignored` is the "
+            "same plant under a controller that plans as if the thrust were the command"),
+        "thrusters": names, "thrust_bounds": {"lower": list(map(float, lo)),
+                                              "upper": list(map(float, hi))},
+        "rate_limit": rate_limit, "mu": mu, "min_vertical_force": float(min_vertical_force),
+        "zeta_min": settings_qp.zeta_min, "tracking_weight": tracking_weight,
+        "effort_weight": effort_weight, "rate_weight": rate_weight, "terms": terms,
+        "fit_tolerance": fit_tol, "grid_points": points,
+        "pushes": [{"step": p.step, "phase": p.s, "impulse": list(p.impulse),
+                    "at": "hip (end of the stance link)"} for p in pushes],
+        "noise": {"relative_bound": noise, "distribution": "uniform", "seed": seed},
+        "start_zeta_minus": common["x0"], "nominal_zeta_star": zs0,
+        "nominal_speed": float(lc0.speed),
+        "integrator": {"method": "compiled DOP853", "rtol": cfg.rtol, "atol": cfg.atol},
+    }
+    return ControlResult(walker, settings, planner, refs, speed_refs, controlled, uncontrolled,
+                         naive, plant_doc, tuple(warnings))
