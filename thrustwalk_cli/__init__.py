@@ -34,6 +34,8 @@ Studies (one per command)
     OptimizeResult      the optimal schedule (or why none exists), gait file, figure
     simulate            full-order closed-loop simulation -> :class:`SimulationResult`
     SimulationResult    runs, per-step records, comparison with the zero dynamics, figures
+    stability           Floquet multipliers of the full-order loop -> :class:`StabilityResult`
+    StabilityResult     fixed point, Jacobian two ways, multipliers, verdicts, figures
     design_gait         design a stable, walkable gait -> :class:`DesignGaitResult`
     DesignSpec          what a gait design asks for (speed, step length, margins, ...)
     DesignGaitResult    the designed gait, its re-check and report
@@ -61,6 +63,7 @@ _HOMES = {
     "feasibility": "studies.feasibility", "FeasibilityResult": "studies.feasibility",
     "optimize_schedule": "studies.optimize", "OptimizeResult": "studies.optimize",
     "simulate": "studies.simulate", "SimulationResult": "studies.simulate",
+    "stability": "studies.stability", "StabilityResult": "studies.stability",
     "design_gait": "studies.design_gait", "DesignGaitResult": "studies.design_gait",
     "DesignSpec": "design.spec",
     "InputError": "errors", "ComputationError": "errors",

@@ -21,11 +21,12 @@ from .commands import (
     report,
     shape,
     simulate,
+    stability,
 )
 
 # Help lists the commands in this order.
-COMMANDS = (compile, inspect, limit_cycle, shape, feasibility, optimize, simulate, design_gait,
-            report)
+COMMANDS = (compile, inspect, limit_cycle, shape, feasibility, optimize, simulate, stability,
+            design_gait, report)
 
 app = typer.Typer(
     name="thrustwalk",
