@@ -1,7 +1,7 @@
 """The ``stability`` study: Floquet multipliers of the full-order closed loop with its thruster
 states, for one setting or a sweep of one parameter (SPEC 13).
 
-Each case is analysed by :func:`thrustwalk_cli.stability.floquet.analyse`: fixed point of the
+Each case is analysed by :func:`thrustwalk_cli.floquet.multipliers.analyse`: fixed point of the
 Poincare map on the impact surface by Newton from the zero-dynamics prediction, Jacobian on a
 section of dimension ``n - 1`` by central differences (compiled simulation) and by the
 variational equations with saltation, multipliers compared with ``delta_zero^2`` (SPEC 3).
@@ -17,12 +17,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..floquet.multipliers import AGREEMENT_TOL, MARGIN, Floquet, analyse
+from ..floquet.poincare import Setting
 from ..hzd.schedule import check_limits, schedule_from_gait
 from ..simulation.closed_loop import SimConfig, ThrustModel
 from ..simulation.full_order import Start
 from ..simulation.scenario import make_scenario
-from ..stability.floquet import AGREEMENT_TOL, MARGIN, Floquet, analyse
-from ..stability.poincare import Setting
 from ..walker import Walker
 from .records import SCHEMA_VERSION, Table, col, gait_record, robot_record, units
 
