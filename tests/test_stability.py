@@ -146,6 +146,24 @@ def test_rhs_jacobian_against_finite_differences_of_the_scalar_right_hand_side(w
     assert np.max(np.abs(J - Jfd)) / scale < 1e-7, np.max(np.abs(J - Jfd))
 
 
+def test_piecewise_thrust_saltation_at_the_knot(walk3, tmp_path):
+    """A gait's own thrust: section (force jumps at s = 0.5): the variational Jacobian needs the
+    saltation matrix at the knot to agree with the finite differences."""
+    text = Path(walk3[1].source_file).read_text().replace(
+        "robot: three_link\n", f"robot: {Path(walk3[0].robot.source_file)}\n")
+    text += ("thrust:\n  mode: force\n  knots: [0, 0.5, 1]\n  fractions: true\n"
+             "  values:\n    hip_x: [-10, -3]\n")
+    (tmp_path / "pw.yaml").write_text(text)
+    walker = tw.load_walker(walk3[0].robot.source_file, str(tmp_path / "pw.yaml"))
+    res = tw.stability(walker)
+    f = res.cases[0].floquet
+    assert res.thrust_model == "piecewise"
+    assert f.agree and f.agreement < 1e-6, f.reason
+    assert abs(f.variational.trivial_multiplier - 1.0) < 1e-6
+    assert abs(f.zero_dynamics_multiplier - delta_sq_from_momentum(walker)) < 1e-6
+    assert res.verdict == "stable"
+
+
 def test_low_gains_are_unstable_though_the_zero_dynamics_is_stable(walker3):
     """Where the two-time-scale picture breaks: with slow outputs (K_p = 9, K_d = 1) the
     transverse dynamics grow over a step, delta_zero^2 < 1 notwithstanding."""
