@@ -49,9 +49,9 @@ verdict: stable, unstable, or undetermined (Newton did not converge, the methods
 a marginal radius), never better than the evidence; "no orbit" when the zero dynamics has no
 periodic orbit to start from.
 
---vary NAME=SPEC sweeps one parameter, one analysis per value: kp [1/s^2], kd [1/s] (the output
+--vary NAME=VALUES sweeps one parameter, one analysis per value: kp [1/s^2], kd [1/s] (the output
 gains y'' = -kp y - kd y'), wn [rad/s], xi [1] (second-order thruster), tau [s] (first-order
-thruster) or thrust [N] (F_ss). SPEC is start:stop:logK (K values evenly spaced in log),
+thruster) or thrust [N] (F_ss). VALUES is start:stop:logK (K values evenly spaced in log),
 start:stop:step, or a comma list.
 
 Writes DIR/stability.json, DIR/multipliers.csv, DIR/multipliers.png/.pdf (the complex plane
@@ -191,7 +191,7 @@ def register(app: typer.Typer) -> None:
         kd: Annotated[float | None, typer.Option(
             "--kd", help="Output gain K_d [1/s] (default: the gait's).")] = None,
         vary: Annotated[str | None, typer.Option(
-            "--vary", metavar="NAME=SPEC",
+            "--vary", metavar="NAME=VALUES",
             help="Sweep one parameter: kp [1/s^2], kd [1/s], wn [rad/s], xi [1], tau [s] or "
                  "thrust [N]; SPEC start:stop:logK, start:stop:step or a comma list, e.g. "
                  "wn=0.5:50:log20.")] = None,
