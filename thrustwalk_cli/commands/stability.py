@@ -193,7 +193,7 @@ def register(app: typer.Typer) -> None:
         vary: Annotated[str | None, typer.Option(
             "--vary", metavar="NAME=VALUES",
             help="Sweep one parameter: kp [1/s^2], kd [1/s], wn [rad/s], xi [1], tau [s] or "
-                 "thrust [N]; SPEC start:stop:logK, start:stop:step or a comma list, e.g. "
+                 "thrust [N]; VALUES start:stop:logK, start:stop:step or a comma list, e.g. "
                  "wn=0.5:50:log20.")] = None,
         rtol: Annotated[float, typer.Option(
             "--rtol", help="Relative tolerance of the compiled simulation (finite differences "
