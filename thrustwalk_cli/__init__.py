@@ -36,6 +36,8 @@ Studies (one per command)
     SimulationResult    runs, per-step records, comparison with the zero dynamics, figures
     control             step-to-step thrust control, certified contact -> :class:`ControlResult`
     ControlResult       controlled vs uncontrolled runs, certificate per step, export, figures
+    stability           Floquet multipliers of the full-order loop -> :class:`StabilityResult`
+    StabilityResult     fixed point, Jacobian two ways, multipliers, verdicts, figures
     design_gait         design a stable, walkable gait -> :class:`DesignGaitResult`
     DesignSpec          what a gait design asks for (speed, step length, margins, ...)
     DesignGaitResult    the designed gait, its re-check and report
@@ -64,6 +66,7 @@ _HOMES = {
     "optimize_schedule": "studies.optimize", "OptimizeResult": "studies.optimize",
     "simulate": "studies.simulate", "SimulationResult": "studies.simulate",
     "control": "studies.control", "ControlResult": "studies.control",
+    "stability": "studies.stability", "StabilityResult": "studies.stability",
     "design_gait": "studies.design_gait", "DesignGaitResult": "studies.design_gait",
     "DesignSpec": "design.spec",
     "InputError": "errors", "ComputationError": "errors",

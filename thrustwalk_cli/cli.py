@@ -24,11 +24,12 @@ from .commands import (
     report,
     shape,
     simulate,
+    stability,
 )
 
 # Help lists the commands in this order.
 COMMANDS = (compile, inspect, limit_cycle, shape, feasibility, optimize, simulate, control,
-            design_gait, report)
+            stability, design_gait, report)
 
 class _OneLineErrors(TyperGroup):
     """The command group, with usage errors (an unknown option, a value of the wrong type, a

@@ -30,6 +30,7 @@ UNITS = {
     "Lambda_T": "1/m", "impulse_per_sigma": "1/m", "wn": "rad/s", "tau": "s",
     "effort": "N^2 m s", "C_dq": "N m", "G": "N m", "B_F": "m", "D": "kg m^2",
     "invariance_residual": "rad", "frequency": "rad/s",
+    "multiplier": "1", "kp": "1/s^2", "kd": "1/s", "xi": "1",
 }
 
 

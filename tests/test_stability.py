@@ -1,0 +1,271 @@
+"""Floquet analysis of the full-order closed loop (SPEC 13): the zero-dynamics multiplier, the
+two Jacobians, the decoupled thruster, unstable settings, bad options.
+
+Expected values come from computations the stability code does not use: delta_zero^2 from the
+angular momentum about the stance foot before and after the impact map (SPEC 5, 10),
+``exp(A T)`` of the thruster's own linear dynamics with the zero-dynamics step time (SPEC 3,
+quadrature), finite differences of the closed loop's scalar right-hand side.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+import thrustwalk_cli as tw
+from thrustwalk_cli.floquet.poincare import Setting
+from thrustwalk_cli.floquet.variational import closed_loop, rhs_jacobian
+from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.simulation.closed_loop import ThrustModel
+
+DATA = Path(__file__).resolve().parent / "data"
+
+
+def delta_sq_from_momentum(walker) -> float:
+    """delta_zero^2 = (sigma^+/sigma^-)^2 from the angular momentum about the stance foot,
+    ``sigma = e_N^T D(q) q'``, just before and after the impact map, on Z at alpha_f: the
+    rates along ``Phi(alpha_f) = H^-1 [dh_d/dalpha; 1]`` built here from the Bezier
+    coefficients (``dh_d/ds(1) = M (a_M - a_{M-1})``)."""
+    model, zd = walker.model, walker.zd
+    N = model.n
+    A = np.asarray(zd.maps.A, float)
+    M = A.shape[1] - 1
+    span = zd.alpha_f - zd.alpha_i
+    dh = M * (A[:, M] - A[:, M - 1]) / span
+    H = np.vstack([np.hstack([np.eye(N - 1), np.zeros((N - 1, 1))]), zd.maps.c[None, :]])
+    phi = np.linalg.solve(H, np.concatenate([dh, [1.0]]))
+    q = zd.maps.q_minus
+    sigma_minus = float(model.D(q)[N - 1] @ phi)
+    imp = model.impact(q, phi)
+    sigma_plus = float(model.D(imp.q_plus)[N - 1] @ imp.dq_plus)
+    return (sigma_plus / sigma_minus) ** 2
+
+
+def test_delta_zero_sq_two_ways(walker3):
+    assert delta_sq_from_momentum(walker3) == pytest.approx(walker3.zd.delta_zero_sq,
+                                                            rel=1e-10)
+
+
+@pytest.fixture(scope="module")
+def second_order(walker3):
+    """Second-order thruster (wn 2 rad/s, xi 0.7) at F_ss = -20 N, the gait's gains."""
+    return tw.stability(walker3, thrust_model="second-order", wn=2.0, xi=0.7, thrust=-20.0)
+
+
+def test_high_gains_one_multiplier_is_delta_zero_sq_and_the_others_are_small(walker3):
+    res = tw.stability(walker3, thrust_model="constant", thrust=-10.0, kp=2500.0, kd=100.0)
+    f = res.cases[0].floquet
+    assert f.fixed_point.converged and f.agree, f.reason
+    d2 = delta_sq_from_momentum(walker3)
+    lam = np.array([m.value for m in f.multipliers])
+    i = int(np.argmin(np.abs(lam - d2)))
+    assert abs(lam[i] - d2) < 1e-4, lam
+    assert f.multipliers[i].kind == "zero dynamics"
+    others = np.delete(np.abs(lam), i)
+    assert others.size == 2 * walker3.model.n - 2  # 2N - 1 + n_z multipliers, n_z = 0
+    assert np.all(others < 1e-3), others
+    assert res.verdict == "stable" and res.success
+
+
+def test_finite_differences_and_variational_equations_agree(second_order):
+    f = second_order.cases[0].floquet
+    assert f.agree
+    assert np.max(np.abs(f.J - f.J_fd)) / max(1.0, np.max(np.abs(f.J))) < 1e-6
+    for m in f.multipliers:
+        assert abs(m.value - m.finite_difference) < 1e-6, m
+    # the finite-difference step was chosen from a converging sweep
+    assert f.fd.error < 1e-6 and 1e-6 < f.fd.step < 1e-2
+    # the monodromy with saltation carries the flow direction: trivial multiplier 1
+    assert abs(f.variational.trivial_multiplier - 1.0) < 1e-6
+    doc = second_order.document()
+    assert "agree" in doc["cases"][0]["jacobian"]["agreement"]["statement"]
+
+
+def test_decoupled_thruster_contributes_exactly_the_eigenvalues_of_exp_AT(walker3,
+                                                                          second_order):
+    """SPEC 13: z' = A z + b F_ss does not depend on the walker, so at the equilibrium thrust
+    the Jacobian is block-triangular and the thruster's multipliers are eig(exp(A T*))."""
+    f = second_order.cases[0].floquet
+    zd = walker3.zd
+    T = limit_cycles(zd, Schedule.constant(zd, np.array([[-20.0, 0.0]])))[0].step_time
+    wn, xi = 2.0, 0.7
+    A = np.array([[0.0, 1.0], [-wn**2, -2 * xi * wn]])  # states (F, F') of one thruster
+    expected = np.tile(np.linalg.eigvals(expm(A * T)), 2)  # two thrusters, the same A
+    got = [m.value for m in f.multipliers if m.kind == "thruster"]
+    assert len(got) == 4
+    for g in got:  # each multiplier is an eigenvalue of exp(A T), each one used twice
+        k = int(np.argmin(np.abs(expected - g)))
+        assert abs(expected[k] - g) < 1e-7, (got, expected)
+        expected = np.delete(expected, k)
+    # and the zero-dynamics multiplier is still delta_zero^2
+    assert abs(f.zero_dynamics_multiplier - delta_sq_from_momentum(walker3)) < 1e-6
+
+
+def test_section_has_2n_minus_1_plus_nz_dimensions_and_drops_the_trivial_multiplier(
+        walker3, second_order):
+    f = second_order.cases[0].floquet
+    N, nz = walker3.model.n, 4
+    B = f.basis
+    assert B.shape == (2 * N + nz, 2 * N - 1 + nz)
+    assert np.allclose(B.T @ B, np.eye(B.shape[1]), atol=1e-12)
+    gq = walker3.model.E_swing(f.fixed_point.x[:N])[1]
+    assert np.max(np.abs(gq @ B[:N])) < 1e-12  # tangent to the guard
+    # the full-space Jacobian has the same multipliers plus the trivial 0 (normal direction)
+    full = np.linalg.eigvals(f.variational.DP)
+    assert np.min(np.abs(full)) < 1e-9
+    rest = np.sort_complex(np.delete(full, np.argmin(np.abs(full))))
+    assert np.allclose(rest, np.sort_complex([m.value for m in f.multipliers]), atol=1e-8)
+
+
+def test_rhs_jacobian_against_finite_differences_of_the_scalar_right_hand_side(walker3,
+                                                                               second_order):
+    f = second_order.cases[0].floquet
+    setting = Setting(ThrustModel("second-order", np.array([-20.0, 0.0]), wn=2.0, xi=0.7),
+                      400.0, 40.0)
+    cl = closed_loop(walker3.zd, setting)
+    N = walker3.model.n
+    x = f.fixed_point.x.copy()
+    x[N:2 * N] *= 0.9  # off the orbit too
+    x[2 * N] += 3.0
+    seg = cl.segment_of((float(cl.c @ x[:N]) - cl.ai) / cl.span)
+    f0, J = rhs_jacobian(cl, x, seg)
+    assert np.allclose(f0, cl.rhs(0.0, x, seg), rtol=1e-12, atol=1e-9)
+    h = 1e-6
+    Jfd = np.empty_like(J)
+    for j in range(x.size):
+        e = np.zeros(x.size)
+        e[j] = h
+        Jfd[:, j] = (np.array(cl.rhs(0.0, x + e, seg)) - np.array(cl.rhs(0.0, x - e, seg))) \
+            / (2 * h)
+    scale = max(1.0, np.max(np.abs(J)))
+    assert np.max(np.abs(J - Jfd)) / scale < 1e-7, np.max(np.abs(J - Jfd))
+
+
+def test_piecewise_thrust_saltation_at_the_knot(walk3, tmp_path):
+    """A gait's own thrust: section (force jumps at s = 0.5): the variational Jacobian needs the
+    saltation matrix at the knot to agree with the finite differences."""
+    text = Path(walk3[1].source_file).read_text().replace(
+        "robot: three_link\n", f"robot: {Path(walk3[0].robot.source_file)}\n")
+    text += ("thrust:\n  mode: force\n  knots: [0, 0.5, 1]\n  fractions: true\n"
+             "  values:\n    hip_x: [-10, -3]\n")
+    (tmp_path / "pw.yaml").write_text(text)
+    walker = tw.load_walker(walk3[0].robot.source_file, str(tmp_path / "pw.yaml"))
+    res = tw.stability(walker)
+    f = res.cases[0].floquet
+    assert res.thrust_model == "piecewise"
+    assert f.agree and f.agreement < 1e-6, f.reason
+    assert abs(f.variational.trivial_multiplier - 1.0) < 1e-6
+    assert abs(f.zero_dynamics_multiplier - delta_sq_from_momentum(walker)) < 1e-6
+    assert res.verdict == "stable"
+
+
+def test_low_gains_are_unstable_though_the_zero_dynamics_is_stable(walker3):
+    """Where the two-time-scale picture breaks: with slow outputs (K_p = 9, K_d = 1) the
+    transverse dynamics grow over a step, delta_zero^2 < 1 notwithstanding."""
+    res = tw.stability(walker3, thrust_model="constant", kp=9.0, kd=1.0)
+    f = res.cases[0].floquet
+    assert f.agree and f.fixed_point.converged
+    assert f.spectral_radius > 1 and f.verdict == "unstable" and res.verdict == "unstable"
+    assert abs(f.zero_dynamics_multiplier - walker3.zd.delta_zero_sq) < 1e-6
+    assert f.multipliers[0].kind == "outputs"
+
+
+def test_no_orbit_is_said_and_never_stable(walker3):
+    res = tw.stability(walker3, thrust_model="constant", thrust=40.0)
+    f = res.cases[0].floquet
+    assert not f.exists and f.verdict == "no orbit" and "no predicted orbit" in f.reason
+    assert not res.success and res.verdict == "undetermined"
+    doc = res.document()
+    assert doc["warnings"] and doc["cases"][0]["multipliers"] == []
+
+
+def test_vary_sweeps_one_parameter(walker3):
+    res = tw.stability(walker3, thrust_model="second-order", thrust=-10.0,
+                       vary=("wn", [0.5, 20.0]))
+    zd = walker3.zd
+    T = limit_cycles(zd, Schedule.constant(zd, np.array([[-10.0, 0.0]])))[0].step_time
+    for case, wn in zip(res.cases, (0.5, 20.0)):
+        thr = [m.value for m in case.floquet.multipliers if m.kind == "thruster"]
+        # critically damped (xi = 1): a double eigenvalue exp(-wn T)
+        assert np.allclose(np.abs(thr), math.exp(-wn * T), rtol=1e-5), (wn, thr)
+    # the slow thruster (wn T ~ 0.3: as slow as a step) dominates the spectral radius
+    assert res.cases[0].floquet.spectral_radius == pytest.approx(math.exp(-0.5 * T), rel=1e-5)
+    figs = res.figures()
+    assert set(figs) == {"multipliers", "spectral_radius"}
+
+
+@pytest.mark.slow
+def test_gait_with_delta_zero_sq_above_one_is_never_called_stable():
+    """tests/data/three_link_unstable_walk.yaml: delta_zero^2 > 1 (checked independently);
+    its zero-dynamics orbit needs a negative vertical ground force just after impact, so the
+    full-order step fails and the verdict is undetermined, never stable."""
+    walker = tw.load_walker(str(DATA / "three_link_low_torso.yaml"),
+                            str(DATA / "three_link_unstable_walk.yaml"))
+    assert delta_sq_from_momentum(walker) > 1.0
+    res = tw.stability(walker, thrust_model="constant", thrust=0.0)
+    f = res.cases[0].floquet
+    assert f.verdict == "undetermined" and not res.success
+    assert "vertical ground force" in f.reason
+
+
+BAD = [
+    (["--vary", "foo=1:2:log3"], "option --vary: unknown parameter 'foo'"),
+    (["--vary", "wn=0:1:log5"], "option --vary: a log range needs start and stop > 0"),
+    (["--vary", "wn"], "option --vary: expected NAME=VALUES"),
+    (["--vary", "wn=1:2:logx"], "option --vary: a log range is start:stop:logK"),
+    (["--thrust-model", "constant", "--vary", "wn=1,2"],
+     "option --vary: wn is a parameter of the second-order thrust model"),
+    (["--vary", "tau=1,2"], "option --vary: tau is a parameter of the first-order"),
+    (["--vary", "kp=-1,2"], "option --vary: kp must be > 0"),
+    (["--thrust", "0,-10"], "option --thrust: one steady thrust per analysis"),
+    (["--kp", "-5"], "option --kp: must be > 0"),
+    (["--thrust-model", "bogus"], "option --thrust-model: unknown model 'bogus'"),
+    (["--thrust", "500"], "is outside the limits"),
+    (["--thruster", "nope"], "option --thruster: unknown thruster 'nope'"),
+    (["--wn", "0"], "option --wn: must be > 0"),
+    (["--rtol", "nan"], "option --rtol: nan is not a usable number"),
+]
+
+
+@pytest.mark.parametrize("args, message", BAD)
+def test_bad_options_are_one_line_errors_exit_2_nothing_written(cli, tmp_path, args, message):
+    out = tmp_path / "out"
+    res = cli("stability", "three_link", *args, "--out", out, "-q")
+    assert res.exit_code == 2, (args, res.output)
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), res.stderr
+    assert message in lines[0], lines[0]
+    assert "Traceback" not in res.output
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_command_writes_the_result_folder(cli, tmp_path):
+    from thrustwalk_cli.studies.records import UNITS
+
+    res = cli("stability", "three_link", "three_link_walk", "--thrust-model", "constant",
+              "--thrust", "-10", "--vary", "kp=100:1600:log3", "--out", tmp_path)
+    assert res.exit_code == 0, res.output
+    for name in ("stability.json", "multipliers.csv", "multipliers.png", "multipliers.pdf",
+                 "spectral_radius.png", "spectral_radius.pdf"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    text = (tmp_path / "stability.json").read_text()
+    assert "NaN" not in text and "Infinity" not in text
+    doc = json.loads(text)
+    assert doc["schema_version"] >= 1 and doc["provenance"]["command"].startswith("thrustwalk")
+    for key, unit in doc["units"].items():
+        assert UNITS[key] == unit, key
+    assert doc["settings"]["vary"]["values"] == pytest.approx([100.0, 400.0, 1600.0])
+    assert doc["success"] and doc["verdict"] == "stable"
+    for c in doc["cases"]:
+        assert c["fixed_point"]["newton"]["residual"] <= 1e-9
+        assert c["jacobian"]["agreement"]["agree"]
+        assert len(c["multipliers"]) == 2 * 3 - 1
+        assert abs(c["zero_dynamics"]["difference"]) < 1e-6
+    assert "verdict: stable" in res.stdout
+    assert (tmp_path / "multipliers.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -1,0 +1,1 @@
+"""SPEC 13: Floquet analysis of the full-order closed loop with its thruster states."""

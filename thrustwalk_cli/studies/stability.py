@@ -1,0 +1,385 @@
+"""The ``stability`` study: Floquet multipliers of the full-order closed loop with its thruster
+states, for one setting or a sweep of one parameter (SPEC 13).
+
+Each case is analysed by :func:`thrustwalk_cli.floquet.multipliers.analyse`: fixed point of the
+Poincare map on the impact surface by Newton from the zero-dynamics prediction, Jacobian on a
+section of dimension ``n - 1`` by central differences (compiled simulation) and by the
+variational equations with saltation, multipliers compared with ``delta_zero^2`` (SPEC 3).
+Documents and figure data are plain Python built here. Units: SI; multipliers [1], gains
+``K_p`` [1/s^2], ``K_d`` [1/s].
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..floquet.multipliers import AGREEMENT_TOL, MARGIN, Floquet, analyse
+from ..floquet.poincare import Setting
+from ..hzd.schedule import check_limits, schedule_from_gait
+from ..simulation.closed_loop import SimConfig, ThrustModel
+from ..simulation.full_order import Start
+from ..simulation.scenario import make_scenario
+from ..walker import Walker
+from .records import SCHEMA_VERSION, Table, col, gait_record, robot_record, units
+
+UNITS = units("thrust", "time", "q", "q_dot", "wn", "tau", "multiplier", "kp", "kd", "xi",
+              "delta_zero_sq", "zeta")
+
+# the parameters --vary sweeps: unit, the thrust model they need (None: any)
+VARY = {"kp": ("1/s^2", None), "kd": ("1/s", None), "wn": ("rad/s", "second-order"),
+        "xi": ("1", "second-order"), "tau": ("s", "first-order"), "thrust": ("N", None)}
+MAX_CASES = 200  # settings in one sweep (each takes about 1-3 s)
+VERDICTS = ("stable", "unstable", "undetermined", "no orbit")
+
+
+def _c(z: complex | None) -> dict | None:
+    return None if z is None else {"re": float(z.real), "im": float(z.imag)}
+
+
+def _fmt_c(z: complex) -> str:
+    return f"{z.real:.6g}" if z.imag == 0 else f"{z.real:.6g}{z.imag:+.6g}i"
+
+
+@dataclass(frozen=True)
+class Case:
+    """One analysed setting: the varied value (None without a sweep) and the analysis."""
+
+    value: float | None
+    floquet: Floquet
+    thrust: float
+    thruster: str | None
+
+
+def case_entry(i: int, case: Case) -> dict:
+    """One entry of ``cases`` in stability.json."""
+    f = case.floquet
+    s = f.setting
+    th = s.thrust
+    entry = {
+        "case": i, "value": case.value, "thrust": case.thrust, "thruster": case.thruster,
+        "kp": s.kp, "kd": s.kd, "wn": th.wn if th.kind == "second-order" else None,
+        "xi": th.xi if th.kind == "second-order" else None,
+        "tau": th.tau if th.kind == "first-order" else None,
+        "exists": f.exists, "verdict": f.verdict, "stable": f.stable, "reason": f.reason,
+        "predicted": {"zeta_star": f.predicted_zeta_star,
+                      "step_time": f.predicted_step_time},
+        "state_names": list(f.names),
+        "fixed_point": None, "jacobian": None, "multipliers": [], "spectral_radius": None,
+        "zero_dynamics": None, "output_reference": None, "simulations": f.simulations,
+    }
+    fp = f.fixed_point
+    if fp is not None:
+        entry["fixed_point"] = {
+            "converged": fp.converged,
+            "state": dict(zip(f.names, map(float, fp.x))),
+            "prediction": dict(zip(f.names, map(float, fp.x0))),
+            "distance_from_prediction": float(np.max(np.abs(fp.x - fp.x0))),
+            "step_time": None if not np.isfinite(fp.step_time) else fp.step_time,
+            "newton": {"iterations": fp.iterations, "residual": _finite(fp.residual),
+                       "start_residual": _finite(fp.history[0]) if fp.history else None,
+                       "history": [_finite(v) for v in fp.history], "tolerance": fp.tol,
+                       "reason": fp.reason or None,
+                       "residual_definition": "max |P(x) - x| / max(1, max |x|)"},
+        }
+    if f.fd is not None and f.variational is not None:
+        fd, var = f.fd, f.variational
+        entry["jacobian"] = {
+            "finite_differences": {
+                "ok": fd.ok, "step": fd.step, "error_estimate": _finite(fd.error),
+                "steps": [{"step": h, "change_to_next": c} for h, c in fd.steps],
+                "reason": fd.reason or None,
+                "method": "central differences of the compiled one-step simulation along an "
+                          "orthonormal basis of the guard's tangent space; the step is the "
+                          "middle of the plateau (least change to both neighbours)"},
+            "variational": {
+                "ok": var.ok, "reason": var.reason or None, "step_time": var.T if var.ok
+                else None, "rhs_jacobians": var.evaluations,
+                "trivial_multiplier": _c(var.trivial_multiplier) if var.ok else None,
+                "flow_residual": _finite(var.flow_residual) if var.ok else None,
+                "method": "Phi' = f_x Phi along the orbit (DOP853), DP = (I - f g_x/(g_x f)) "
+                          "Phi_T DDelta; f_x exact along q' and z (f polynomial of degree "
+                          "<= 2 there), fourth-order Richardson differences along q"},
+            "agreement": None if f.agreement is None else {
+                "jacobian": f.agreement, "multipliers": f.multiplier_agreement,
+                "tolerance": AGREEMENT_TOL, "agree": f.agree,
+                "statement": (f"finite differences and variational equations "
+                              f"{'agree' if f.agree else 'DISAGREE'}: Jacobians within "
+                              f"{f.agreement:.2g} (relative to max(1, max |J|)), multipliers "
+                              f"within {f.multiplier_agreement:.2g}; tolerance "
+                              f"{AGREEMENT_TOL:g}")},
+        }
+    if f.multipliers:
+        entry["multipliers"] = [{
+            "re": m.value.real, "im": m.value.imag, "modulus": m.modulus, "kind": m.kind,
+            "dominant": [{"component": n, "weight": w} for n, w in m.dominant],
+            "thruster_share": m.thruster_share, "zero_dynamics_alignment": m.alignment,
+            "finite_difference": _c(m.finite_difference)} for m in f.multipliers]
+        entry["spectral_radius"] = f.spectral_radius
+        zdm = f.zero_dynamics_multiplier
+        entry["zero_dynamics"] = None if zdm is None else {
+            "multiplier": _c(zdm), "delta_zero_sq": f.delta_zero_sq,
+            "difference": abs(zdm - f.delta_zero_sq)}
+        entry["output_reference"] = {
+            "value": f.output_reference,
+            "formula": "exp(max Re(lambda) T*), lambda the roots of s^2 + kd s + kp"}
+    return entry
+
+
+def _finite(v: float) -> float | None:
+    return float(v) if v is not None and np.isfinite(v) else None
+
+
+def overall_verdict(cases: Sequence[Case]) -> str:
+    """``stable`` only when every case is stable; ``unstable`` when every case is determined
+    and some is unstable; ``undetermined`` otherwise (some case undetermined or without an
+    orbit)."""
+    vs = [c.floquet.verdict for c in cases]
+    if all(v == "stable" for v in vs):
+        return "stable"
+    if all(v in ("stable", "unstable") for v in vs):
+        return "unstable"
+    return "undetermined"
+
+
+@dataclass(frozen=True)
+class StabilityResult:
+    """Floquet analysis of the full-order closed loop for one setting or a sweep (SPEC 13).
+
+    ``success``: every case has a determined verdict (fixed point converged, Jacobians
+    agreeing); ``verdict``: see :func:`overall_verdict`; ``reason`` names the cases that are
+    not stable and why."""
+
+    walker: Walker = field(repr=False)
+    cases: tuple[Case, ...]
+    thrust_model: str
+    vary: tuple[str, tuple[float, ...]] | None
+    settings: dict
+
+    name = "stability"
+
+    @property
+    def success(self) -> bool:
+        return all(c.floquet.verdict in ("stable", "unstable") for c in self.cases)
+
+    @property
+    def verdict(self) -> str:
+        return overall_verdict(self.cases)
+
+    @property
+    def reason(self) -> str:
+        bad = [(i, c) for i, c in enumerate(self.cases) if c.floquet.verdict != "stable"]
+        if not bad:
+            return (f"every case is stable ({len(self.cases)} case"
+                    f"{'s' if len(self.cases) > 1 else ''})")
+        return "; ".join(f"{self._label(i, c)}: {c.floquet.verdict}: {c.floquet.reason}"
+                         for i, c in bad)
+
+    def _label(self, i: int, c: Case) -> str:
+        if self.vary is None:
+            return "case 0"
+        return f"case {i} ({self.vary[0]} = {c.value:g} {VARY[self.vary[0]][0]})"
+
+    @property
+    def warnings(self) -> list[str]:
+        """One line per case that is not determined (Newton, disagreement, no orbit) and the
+        gait's own warnings."""
+        out = list(self.walker.warnings)
+        for i, c in enumerate(self.cases):
+            if c.floquet.verdict in ("undetermined", "no orbit"):
+                out.append(f"{self._label(i, c)}: {c.floquet.verdict}: {c.floquet.reason}")
+        return out
+
+    def document(self) -> dict:
+        """The JSON body of ``stability.json``."""
+        zd = self.walker.zd
+        counts = {v: sum(c.floquet.verdict == v for c in self.cases) for v in VERDICTS}
+        return {
+            "schema_version": SCHEMA_VERSION,
+            "units": UNITS,
+            "success": self.success,
+            "verdict": self.verdict,
+            "verdicts": counts,
+            "reason": self.reason,
+            "warnings": self.warnings,
+            "robot": robot_record(zd),
+            "gait": gait_record(zd),
+            "zero_dynamics": {"delta_zero": zd.delta_zero, "delta_zero_sq": zd.delta_zero_sq,
+                              "note": "the zero-dynamics Poincare eigenvalue (SPEC 3); "
+                                      "with exact output zeroing and a hybrid-invariant gait "
+                                      "it is one of the full-order multipliers (SPEC 13)"},
+            "settings": {**self.settings,
+                         "vary": None if self.vary is None else {
+                             "parameter": self.vary[0], "unit": VARY[self.vary[0]][0],
+                             "values": list(self.vary[1])},
+                         "section": "the guard's tangent space at the fixed point: x = x* + "
+                                    "B xi, B = diag(B_q, I, I) orthonormal with g_q B_q = 0; "
+                                    "n - 1 = 2N - 1 + n_z multipliers (the trivial one, 0 for "
+                                    "the Poincare map, normal to the guard, is dropped)",
+                         "agreement_tolerance": AGREEMENT_TOL, "marginal_band": MARGIN,
+                         "reported_multipliers": "eigenvalues of the variational Jacobian; "
+                                                 "finite_difference: the matching eigenvalue "
+                                                 "of the finite-difference Jacobian"},
+            "cases": [case_entry(i, c) for i, c in enumerate(self.cases)],
+        }
+
+    def tables(self) -> dict[str, Table]:
+        """``multipliers``: one row per multiplier per case."""
+        header = ["case", col("value", VARY[self.vary[0]][0]) if self.vary else "value",
+                  "verdict", "index", "re", "im", "modulus", "kind", "thruster_share",
+                  "fd_re", "fd_im", "dominant", col("spectral_radius", "1")]
+        rows = []
+        for i, c in enumerate(self.cases):
+            f = c.floquet
+            if not f.multipliers:
+                rows.append([i, c.value, f.verdict] + [None] * 9 + [None])
+                continue
+            for j, m in enumerate(f.multipliers):
+                rows.append([i, c.value, f.verdict, j, m.value.real, m.value.imag, m.modulus,
+                             m.kind, m.thruster_share, m.finite_difference.real,
+                             m.finite_difference.imag,
+                             " ".join(f"{n}:{w:.3f}" for n, w in m.dominant),
+                             f.spectral_radius])
+        return {"multipliers": Table(header, rows, [
+            "thrustwalk stability: Floquet multipliers of the full-order closed loop [1], "
+            "sorted by modulus per case",
+            "kind: zero dynamics | outputs | thruster; dominant: largest eigenvector components "
+            "(unit eigenvector); fd_*: the finite-difference Jacobian's matching multiplier"])}
+
+    def figure_data(self) -> dict:
+        """Plain data for the figures: per case the multipliers (re, im, kind) and the varied
+        value; ``delta_zero_sq``; the varied parameter's label."""
+        cases = []
+        for c in self.cases:
+            f = c.floquet
+            cases.append({"value": c.value, "verdict": f.verdict,
+                          "re": np.array([m.value.real for m in f.multipliers]),
+                          "im": np.array([m.value.imag for m in f.multipliers]),
+                          "kind": [m.kind for m in f.multipliers],
+                          "spectral_radius": f.spectral_radius})
+        label = None
+        if self.vary is not None:
+            name, (unit, _) = self.vary[0], VARY[self.vary[0]]
+            label = f"{PARAM_LABEL[name]} [{unit}]"
+        return {"cases": cases, "delta_zero_sq": self.walker.zd.delta_zero_sq,
+                "label": label}
+
+    def figures(self, titles: bool = False) -> dict:
+        """``multipliers`` (complex plane with the unit circle) and, with a sweep,
+        ``spectral_radius`` (modulus of each multiplier against the varied parameter)."""
+        from ..plots.stability import multiplier_plane, spectral_radius
+
+        data = self.figure_data()
+        name = self.walker.name
+        out = {"multipliers": multiplier_plane(
+            data, title=f"{name}: Floquet multipliers" if titles else "")}
+        if self.vary is not None:
+            out["spectral_radius"] = spectral_radius(
+                data, title=f"{name}: multipliers vs {self.vary[0]}" if titles else "")
+        return out
+
+
+PARAM_LABEL = {"kp": "$K_p$", "kd": "$K_d$", "wn": r"$\omega_n$", "xi": r"$\xi$",
+               "tau": r"$\tau$", "thrust": "$F_{ss}$"}
+
+
+def _check_vary(vary, kind: str) -> tuple[str, tuple[float, ...]] | None:
+    if vary is None:
+        return None
+    name, values = vary[0], tuple(float(v) for v in vary[1])
+    if name not in VARY:
+        raise InputError.param("vary", f"unknown parameter {name!r} (choose from "
+                                       f"{', '.join(VARY)})")
+    need = VARY[name][1]
+    if need is not None and kind != need:
+        raise InputError.param("vary", f"{name} is a parameter of the {need} thrust model "
+                                       f"(`thrust_model` is {kind})")
+    if name == "thrust" and kind == "piecewise":
+        raise InputError.param("vary", "the piecewise thrust model takes its thrust from the "
+                                       "gait's thrust: section; vary another parameter")
+    if not values:
+        raise InputError.param("vary", "no values")
+    if len(values) > MAX_CASES:
+        raise InputError.param("vary", f"{len(values)} values: the limit is {MAX_CASES} (each "
+                                       f"takes a few seconds)")
+    if not all(np.isfinite(values)):
+        raise InputError.param("vary", "values must be finite")
+    if name != "thrust" and not all(v > 0 for v in values):
+        raise InputError.param("vary", f"{name} must be > 0 (got "
+                                       f"{min(values):g})")
+    return name, values
+
+
+def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float | None = None,
+              thruster: str | None = None, wn: float = 2.0, xi: float = 1.0, tau: float = 0.5,
+              kp: float | None = None, kd: float | None = None,
+              vary: tuple[str, Sequence[float]] | None = None, rtol: float = 1e-12,
+              atol: float = 1e-12, progress: Callable[[int], None] | None = None
+              ) -> StabilityResult:
+    """Floquet multipliers of the full-order closed loop (SPEC 13) at steady thrust ``thrust``
+    [N] (default 0) on ``thruster`` (default: the first), thrust model ``thrust_model``
+    (``constant``, ``first-order`` with ``tau`` [s], ``second-order`` with ``wn`` [rad/s] and
+    ``xi`` [1], ``piecewise``: the gait's ``thrust:`` section; default as ``simulate``:
+    piecewise for a gait with a schedule and no ``thrust``, else second-order), output gains
+    ``kp`` [1/s^2], ``kd`` [1/s] (default: the gait's). ``vary``: ``(name, values)`` sweeps one
+    of ``kp``, ``kd``, ``wn``, ``xi``, ``tau``, ``thrust`` (one case per value). ``rtol``,
+    ``atol``: tolerances of the compiled simulation (the finite differences need about 1e-12).
+    ``progress(1)`` after each case. Bad parameters raise :class:`InputError` naming them."""
+    zd = walker.zd
+    robot = walker.robot
+    if thrust_model is None:
+        thrust_model = ("piecewise" if walker.gait.thrust is not None and thrust is None
+                        else "second-order")
+    vary_t = _check_vary(vary, thrust_model)
+    kp = float(walker.gait.kp if kp is None else kp)
+    kd = float(walker.gait.kd if kd is None else kd)
+    schedule = None
+    if thrust_model == "piecewise":
+        if walker.gait.thrust is None:
+            raise InputError(walker.where(("thrust",), "the gait has no thrust schedule "
+                                                       "(needed by the piecewise thrust model)"))
+        if thrust is not None:
+            raise InputError.param("thrust", "not used with the piecewise thrust model (the "
+                                             "schedule comes from the gait's thrust: section)")
+        schedule = schedule_from_gait(zd, walker.gait.thrust, walker.where, pad=True)[0]
+        check_limits(zd, schedule, walker.where)
+    base = 0.0 if thrust is None else float(thrust)
+    values = [base] + (list(vary_t[1]) if vary_t and vary_t[0] == "thrust" else [])
+    config = SimConfig(steps=1, rtol=rtol, atol=atol)
+    sc = make_scenario(zd, thrust_model, None if thrust_model == "piecewise" else values,
+                       [thruster] if thruster else None, schedule=schedule, wn=wn, xi=xi,
+                       tau=tau, f0=0.0, start=Start(), config=config)
+    for key, v in (("kp", kp), ("kd", kd)):
+        if not v > 0:
+            raise InputError.param(key, f"must be > 0 (got {v:g})")
+    m = zd.model.n_thrusters
+    driven = robot.thruster_names[sc.thrusters[0]] if sc.thrusters else None
+
+    def setting(**over) -> tuple[Setting, float]:
+        p = {"thrust": base, "kp": kp, "kd": kd, "wn": wn, "xi": xi, "tau": tau, **over}
+        target = np.zeros(m)
+        if sc.thrusters:
+            target[sc.thrusters[0]] = p["thrust"]
+        th = ThrustModel(thrust_model, target, wn=p["wn"], xi=p["xi"], tau=p["tau"],
+                         schedule=schedule)
+        return Setting(th, p["kp"], p["kd"], rtol, atol), p["thrust"]
+
+    todo = ([(None, {})] if vary_t is None else
+            [(v, {vary_t[0]: v}) for v in vary_t[1]])
+    cases = []
+    for value, over in todo:
+        s, F = setting(**over)
+        cases.append(Case(value, analyse(zd, s), F if thrust_model != "piecewise" else 0.0,
+                          driven))
+        if progress is not None:
+            progress(1)
+    settings = {"thrust_model": thrust_model, "thruster": driven,
+                "thrust": None if thrust_model == "piecewise" else base, "kp": kp, "kd": kd,
+                "wn": wn if thrust_model == "second-order" else None,
+                "xi": xi if thrust_model == "second-order" else None,
+                "tau": tau if thrust_model == "first-order" else None,
+                "rtol": rtol, "atol": atol}
+    return StabilityResult(walker, tuple(cases), thrust_model, vary_t, settings)
