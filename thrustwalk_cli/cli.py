@@ -21,11 +21,12 @@ from .commands import (
     report,
     shape,
     simulate,
+    sweep,
 )
 
 # Help lists the commands in this order.
 COMMANDS = (compile, inspect, limit_cycle, shape, feasibility, optimize, simulate, design_gait,
-            report)
+            sweep, report)
 
 app = typer.Typer(
     name="thrustwalk",
