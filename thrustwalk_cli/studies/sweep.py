@@ -135,15 +135,17 @@ def _check_parameters(spec: SweepSpec, study: SweepStudy, source: SweepSource, b
             key = where.get(name, ("settings",))
             problems.setdefault(key, source.where(key, message))
 
-    run(dict(settings))
+    swept = {a.name: a.values or (a.parameters if a.distribution != "normal" else
+                                  a.parameters[:1])
+             for a in spec.axes if a.target == "study" and not a.name.startswith("schedule.")}
     for a in spec.axes:
-        if a.target != "study" or a.name.startswith("schedule."):
-            continue
-        where[a.name] = source.axis_key(a)
-        values = a.values or (a.parameters if a.distribution != "normal" else
-                              a.parameters[:1])
-        for v in values:
-            run({**settings, a.name: v})
+        if a.name in swept:
+            where[a.name] = source.axis_key(a)
+    first = {**settings, **{k: v[0] for k, v in swept.items()}}
+    run(first)  # the settings with the first value of every axis, then every axis value
+    for name, values in swept.items():
+        for v in values[1:]:
+            run({**first, name: v})
     if problems:
         raise InputError(sorted(problems.values(), key=lambda p: p.line or 0))
 

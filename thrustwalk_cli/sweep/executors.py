@@ -163,17 +163,20 @@ class DaskCluster:
                                    f"{', '.join(other)}, not {__version__}: install the same "
                                    "version everywhere")
         self.workers = len(versions)
+        from distributed import as_completed
+
+        self._done = as_completed(loop=self.client.loop)
 
     def describe(self) -> dict:
         return {"kind": self.kind, "scheduler": self.address, "workers": self.workers}
 
     def submit(self, fn: Callable, task: Any) -> Any:
-        return self.client.submit(fn, task, pure=False)
+        f = self.client.submit(fn, task, pure=False)
+        self._done.add(f)
+        return f
 
     def wait(self, handles: Iterable) -> list[Outcome]:
-        from distributed import wait
-
-        done, _ = wait(list(handles), return_when="FIRST_COMPLETED")
+        done = [next(self._done)] + self._done.next_batch(block=False)
         out: list[Outcome] = []
         for f in done:
             if f.status == "finished":
