@@ -474,3 +474,21 @@ def test_a_gait_library_with_continuation(cli, tmp_path, _cache_dir):
               for t in sweep.tasks]
     assert points[0]["next_start"]["zeta_minus"] == pytest.approx(lib.iloc[0][col(
         "zeta_star", "kg^2 m^4/s^2")])
+
+
+def test_the_registry_and_the_parameter_tables_name_the_same_studies_and_are_documented():
+    from thrustwalk_cli.files.sweep_file import STUDY_PARAMETERS, WITHOUT_GAIT
+    from thrustwalk_cli.studies.sweep_studies import STUDIES
+
+    assert list(STUDIES) == list(STUDY_PARAMETERS)
+    assert {n for n, s in STUDIES.items() if not s.uses_gait} == set(WITHOUT_GAIT)
+    files = (REPO / "docs" / "files.md").read_text()
+    commands = (REPO / "docs" / "commands.md").read_text()
+    for name, study in STUDIES.items():
+        section = files.split(f"`settings` of a **{name}** sweep", 1)[1].split("<!--", 1)[0]
+        for f in study.fields:
+            assert f"`{f}`" in section, (name, f)
+        assert f"`{name}`" in commands
+    for key in ("kill -9", "dask scheduler", "dask worker", "dask-jobqueue", "SLURMCluster",
+                "--tls-ca-file", "tls://", "127.0.0.1", ".thrustwalk-sweep.json"):
+        assert key in commands, key
