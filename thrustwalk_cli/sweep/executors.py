@@ -88,9 +88,11 @@ class LocalProcesses:
         import multiprocessing
 
         method = "fork" if sys.platform.startswith("linux") else "spawn"
-        return futures.ProcessPoolExecutor(
+        pool = futures.ProcessPoolExecutor(
             max_workers=self.workers, mp_context=multiprocessing.get_context(method),
             initializer=_watch_parent, initargs=(os.getpid(),))
+        pool.submit(int).result()  # start the processes now, before a progress bar's thread
+        return pool
 
     def describe(self) -> dict:
         return {"kind": self.kind, "workers": self.workers, "restarts": self.restarts}
