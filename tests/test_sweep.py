@@ -464,8 +464,10 @@ def test_a_gait_library_with_continuation(cli, tmp_path, _cache_dir):
     assert res.exit_code == 0, res.stderr
     lib = pd.read_csv(out / "library.csv")
     assert len(lib) == 2 and lib["feasible"].all(), lib
+    assert list(lib["gait"]) == ["lib_0000", "lib_0001"]
     for _, row in lib.iterrows():
         walker = tw.load_walker(None, str(out / row["file"]))
+        assert walker.gait.name == row["gait"]
         lc = tw.limit_cycle(walker, thrust=[0.0]).cycles[0]
         assert lc.zeta_star == pytest.approx(row[col("zeta_star", "kg^2 m^4/s^2")], rel=1e-8)
         assert lc.speed == pytest.approx(row["target_speed_m_s"], rel=2e-3)
@@ -492,3 +494,11 @@ def test_the_registry_and_the_parameter_tables_name_the_same_studies_and_are_doc
     for key in ("kill -9", "dask scheduler", "dask worker", "dask-jobqueue", "SLURMCluster",
                 "--tls-ca-file", "tls://", "127.0.0.1", ".thrustwalk-sweep.json"):
         assert key in commands, key
+
+
+def test_heat_map_cells_are_centred_on_the_values():
+    """Cell edges half-way between neighbouring values, half a spacing beyond the ends."""
+    from thrustwalk_cli.plots.sweep import _edges
+
+    assert _edges(np.array([0.0, 1.0, 3.0])).tolist() == [-0.5, 0.5, 2.0, 4.0]
+    assert _edges(np.array([2.0])).tolist() == [1.5, 2.5]

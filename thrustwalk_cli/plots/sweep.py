@@ -59,7 +59,7 @@ def atlas(data: dict, title: str = ""):
     """A gait library's atlas: one panel per field of ``data["panels"]`` ((key, label)),
     against ``data["x_label"]``, one line per series (``data["series"]``: line value ->
     ``{"x": [...], key: [...]}``, None for an infeasible design), labelled by
-    ``data["line_label"]``."""
+    ``data["line_label"]`` and ``data["line_unit"]``."""
     panels = data["panels"]
     series = data["series"]
     keys = sorted(series, key=lambda k: (k is None, k))
@@ -74,8 +74,8 @@ def atlas(data: dict, title: str = ""):
                 yv = np.array([np.nan if v is None else float(v) for v in s[key]], float)
                 order = np.argsort(xv)
                 color = cmap(i / max(len(keys) - 1, 1)) if len(keys) > 1 else "k"
-                name = (f"{data['line_label']} = {k:g}" if k is not None and
-                        data["line_label"] else "designs")
+                name = (f"{data['line_label']} = {k:g} {data.get('line_unit', '')}".rstrip()
+                        if k is not None and data["line_label"] else "designs")
                 ax.plot(xv[order], yv[order], "o-", ms=3, lw=0.8, color=color, label=name)
             if key.endswith("margin"):
                 ax.axhline(0.0, color="firebrick", lw=0.6, ls="--")

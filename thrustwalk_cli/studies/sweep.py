@@ -23,6 +23,7 @@ from ..errors import InputError, Problem
 from ..files.bundled import resolve
 from ..files.gait_file import load_gait_text, same_robot_file
 from ..files.robot_file import load_robot_text
+from ..files.schema import _suggest
 from ..files.sweep_file import SweepSource, load_sweep_file, read_source
 from ..sweep.executors import DaskCluster, InProcess, LocalProcesses
 from ..sweep.points import expand, grid_coordinates, neighbours
@@ -57,13 +58,6 @@ class Sweep:
         """Unit of every axis and collectable field."""
         return {**{a.name: a.unit for a in self.spec.axes},
                 **{k: u for k, (u, _) in self.study.fields.items()}}
-
-
-def _suggest(word: str, options) -> str:
-    import difflib
-
-    close = difflib.get_close_matches(word, list(options), n=1)
-    return f"; did you mean '{close[0]}'?" if close else ""
 
 
 def load_sweep(path: str | Path) -> Sweep:
@@ -163,6 +157,7 @@ def _plan(spec: SweepSpec, study: SweepStudy, gait_name: str | None) -> Sweep:
         tasks.append(PointTask(i, key, spec.study, tuple(values.items()),
                                tuple(settings.items()), spec.robot, spec.robot_text,
                                spec.gait, spec.gait_text, after=prev,
+                               name=f"{spec.name}_{i:04d}",
                                label=f"sweep {spec.name}, point {i}"))
     return Sweep(spec, study, tuple(tasks), identity([t.key for t in tasks]), gait_name)
 
@@ -297,7 +292,8 @@ class SweepResult:
 
     # -- gait library ------------------------------------------------------------------
     def gait_name(self, index: int) -> str:
-        return f"{self.sweep.name}_{index:04d}"
+        """The name (and file stem) of point ``index``'s designed gait."""
+        return self.sweep.tasks[index].name
 
     def library_files(self) -> dict[str, str]:
         """``gaits/NAME.yaml`` of every feasible design point (the gait library)."""
@@ -400,8 +396,8 @@ class SweepResult:
                 s[f].append(r["fields"].get(f) if ok else None)
         units = self.sweep.units()
         return {"x_label": f"{x.name} [{x.unit}]" if x.unit else x.name,
-                "line_label": None if other is None else
-                (f"{other.name} [{other.unit}]" if other.unit else other.name),
+                "line_label": None if other is None else other.name,
+                "line_unit": "" if other is None else other.unit,
                 "series": series,
                 "panels": [(f, f"{ATLAS_LABELS[f]} [{units[f]}]") for f in ATLAS_FIELDS]}
 

@@ -445,7 +445,7 @@ def run_point(task: PointTask) -> dict:
                                    f"{task.version}")
         base = point_walker(task) if study.uses_gait else point_model(task)
         params = task.parameters
-        params.update(_label=task.label, _robot_ref=task.robot_ref)
+        params.update(_label=task.label, _robot_ref=task.robot_ref, _gait_name=task.name)
         res = study.point(base, params, task.start)
         doc = jsonable(res.document)
         fields = jsonable({k: res.fields.get(k) for k in study.fields})

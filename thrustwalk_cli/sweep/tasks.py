@@ -33,7 +33,8 @@ class PointTask:
     index: the point's position in the sweep; key: its content hash; values: the axis values
     ``(name, value)``; settings: the study's fixed parameters ``(name, value)``; after: the key
     of the point whose result starts this one (continuation), and ``start`` that result's
-    start data once known; robot_ref: how a gait written by this point names its robot.
+    start data once known; robot_ref: how a gait written by this point names its robot;
+    name: the name of what the point writes (a designed gait); label: the point in words.
     """
 
     index: int
@@ -49,6 +50,7 @@ class PointTask:
     after: str | None = None
     start: dict | None = None
     robot_ref: str | None = None
+    name: str = ""
     label: str = ""
 
     @property
