@@ -256,7 +256,7 @@ def test_plant_with_heavier_torso(walker3):
     assert res.plant["parameters"]["MT"] == pytest.approx(11.0)
     from thrustwalk_cli.files.robot_file import load_robot
 
-    assert load_robot("three_link", {"MT": 1.1}).total_mass == pytest.approx(
+    assert load_robot("three_link", scale={"MT": 1.1}).total_mass == pytest.approx(
         walker3.robot.total_mass + 1.0)
     assert res.controlled.success
     assert any(s.certificate["flagged"] for s in res.controlled.steps)

@@ -26,9 +26,10 @@ LAYER = {
     "contact": 4, "simulation": 4,
     "optimize": 5, "design": 5, "floquet": 5, "walker": 5,
     "controller": 5.5,
-    "studies": 6,
-    "commands": 7,
-    "cli": 8, "__main__": 8,
+    "sweep": 6,
+    "studies": 7,
+    "commands": 8,
+    "cli": 9, "__main__": 9,
 }
 # Units a unit may import besides itself (always downward); everything else is forbidden.
 ALLOWED = {
@@ -47,9 +48,10 @@ ALLOWED = {
                "files"},
     "controller": {"errors", "_version", "description", "model", "hzd", "contact", "simulation",
                 "optimize"},
+    "sweep": {"errors", "_version", "description"},
     "studies": {"errors", "_version", "description", "plots", "files", "model", "hzd",
                 "contact", "simulation", "optimize", "design", "floquet", "walker",
-                "controller"},
+                "controller", "sweep"},
     "commands": set(LAYER) - {"commands", "cli", "__main__"},
     "cli": {"_version", "commands"},
     "__main__": {"cli"},
@@ -60,6 +62,7 @@ FRAMEWORKS = {
     "matplotlib": {"plots"}, "PIL": {"plots"},
     "sympy": {"model.derive", "model.codegen"},
     "numba": {"model.jit", "simulation.compiled"},
+    "distributed": {"sweep.executors"}, "dask": {"sweep.executors"},
 }
 # Modules that may read files (input parsing; the model cache and its generator digest).
 READERS = {"files", "model.cache", "model.compiler"}
@@ -297,6 +300,8 @@ CLEAN = {
     ({"hzd/bad.py": "def f():\n    import matplotlib.pyplot\n"}, "imports matplotlib"),
     ({"hzd/bad.py": "import sympy\n"}, "imports sympy"),
     ({"hzd/bad.py": "def f():\n    import numba\n"}, "imports numba"),
+    ({"studies/bad.py": "def f():\n    import distributed\n"}, "imports distributed"),
+    ({"sweep/bad.py": "from ..studies.limit_cycle import f\n"}, "layer sweep (6) imports"),
     ({"model/compiler.py": "from . import derive\n"}, "at module level"),
     ({"hzd/a.py": "from . import b\n", "hzd/b.py": "def f():\n    from . import a\n"},
      "circle: hzd.a -> hzd.b"),

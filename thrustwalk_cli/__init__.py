@@ -43,6 +43,12 @@ Studies (one per command)
     DesignGaitResult    the designed gait, its re-check and report
     inspect_state       the dynamics at one state (D, C q', G, B_F, impact map)
 
+Sweeps (one study at many points; resumable; local processes or a Dask cluster)
+    load_sweep          a sweep file, checked before any work -> :class:`Sweep`
+    Sweep               the study, axes and one content-keyed task per point
+    run_sweep           run the points not yet finished -> :class:`SweepResult`
+    SweepResult         every point's record; results table, sweep document, heat maps
+
 Errors
     InputError          bad input: every problem as ``file:line: key.path: message`` or
                         ``parameter: message``
@@ -69,6 +75,8 @@ _HOMES = {
     "stability": "studies.stability", "StabilityResult": "studies.stability",
     "design_gait": "studies.design_gait", "DesignGaitResult": "studies.design_gait",
     "DesignSpec": "design.spec",
+    "load_sweep": "studies.sweep", "Sweep": "studies.sweep", "run_sweep": "studies.sweep",
+    "SweepResult": "studies.sweep",
     "InputError": "errors", "ComputationError": "errors",
 }
 

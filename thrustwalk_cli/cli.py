@@ -25,11 +25,12 @@ from .commands import (
     shape,
     simulate,
     stability,
+    sweep,
 )
 
 # Help lists the commands in this order.
 COMMANDS = (compile, inspect, limit_cycle, shape, feasibility, optimize, simulate, control,
-            stability, design_gait, report)
+            stability, design_gait, sweep, report)
 
 class _OneLineErrors(TyperGroup):
     """The command group, with usage errors (an unknown option, a value of the wrong type, a

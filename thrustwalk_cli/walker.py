@@ -13,6 +13,7 @@ thrust-independent zero dynamics.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from math import pi
@@ -120,20 +121,24 @@ def check_impact_posture(model: CompiledModel, gait: Gait, source: GaitSource) -
     raise InputError(source.where(key, msg))
 
 
-def load_walker(robot: str | None = None, gait: str | None = None) -> Walker:
+def load_walker(robot: str | None = None, gait: str | None = None, *,
+                robot_parameters: Mapping[str, float] | None = None,
+                gait_parameters: Mapping[str, float] | None = None) -> Walker:
     """Load a gait and its robot (``robot`` overrides the gait's own ``robot:``), check them
     against each other, compile (or load) the model, apply ``invariance: auto`` (SPEC 2) and
     precompute the zero dynamics (SPEC 3). ``robot`` and ``gait`` are bundled names or paths;
     without a gait, the robot's bundled gait (or ``three_link_walk`` without a robot).
+    ``robot_parameters`` / ``gait_parameters``: numbers replacing the files' named
+    ``parameters:`` (as if edited into the files; e.g. ``{"MT": 12.0}`` [kg]).
 
     Raises :class:`InputError` (``file:line: key.path: message``) on bad files, when ``robot``
     is not the robot the gait was written for, or when the swing foot is not on the ground at
     impact (angles in degrees, the wrong sign of alpha).
     """
-    rob = load_robot(robot) if robot else None
+    rob = load_robot(robot, robot_parameters) if robot else None
     if gait is None:
         gait = default_gait(rob)
-    g, source = load_gait(gait)
+    g, source = load_gait(gait, gait_parameters)
     if rob is not None:
         if not same_robot_file(rob, g.robot):
             try:
@@ -148,11 +153,18 @@ def load_walker(robot: str | None = None, gait: str | None = None) -> Walker:
             resolve(g.robot, "robots")
         except InputError as exc:  # name the gait file's line: that is where to fix it
             raise InputError(source.where(("robot",), str(exc))) from None
-        rob = load_robot(g.robot)
-    g = bind_gait(g, source, rob)
-    model = load_model(rob)
+        rob = load_robot(g.robot, robot_parameters)
+    return assemble_walker(rob, g, source)
+
+
+def assemble_walker(robot: Robot, gait: Gait, source: GaitSource) -> Walker:
+    """A walker from a robot and a gait as loaded (:func:`load_gait`, not yet bound): check
+    the gait against the robot, compile (or load) the model, check the impact posture, apply
+    ``invariance: auto`` and precompute the zero dynamics. Problems name the gait file's
+    lines."""
+    g = bind_gait(gait, source, robot)
+    model = load_model(robot)
     check_impact_posture(model, g, source)
     if g.invariance == "auto":
         g = apply_invariance(model, g)
-    return Walker(rob, g, model, zero_dynamics(model, g), source.where)
-
+    return Walker(robot, g, model, zero_dynamics(model, g), source.where)

@@ -276,21 +276,24 @@ def check_out(out: Path, *, whole: bool = True, json: str | None = None) -> None
 @contextlib.contextmanager
 def progress(description: str, total: int, quiet: bool) -> Iterator:
     """A rich progress bar with an ETA on stderr (silent with --quiet); yields
-    ``advance(n=1)``."""
+    ``advance(n=1, note=None)`` (``note``: a short status shown after the counts, e.g.
+    ``3 failed``)."""
     if quiet:
-        yield lambda n=1: None
+        yield lambda n=1, note=None: None
         return
     con = console(stderr=True)
     if not con.is_terminal:  # a log, not a terminal: one line per finished unit
         t0 = time.monotonic()
         done = 0
 
-        def line(n: int = 1) -> None:
+        def line(n: int = 1, note: str | None = None) -> None:
             nonlocal done
             done += n
             el = time.monotonic() - t0
             eta = el / done * (total - done) if done else 0.0
-            sys.stderr.write(f"{description}: {done}/{total} ({el:.1f} s, eta {eta:.1f} s)\n")
+            extra = f", {note}" if note else ""
+            sys.stderr.write(f"{description}: {done}/{total}{extra} ({el:.1f} s, eta "
+                             f"{eta:.1f} s)\n")
         yield line
         return
     from rich.progress import (
@@ -302,11 +305,17 @@ def progress(description: str, total: int, quiet: bool) -> Iterator:
     )
 
     with Progress(TextColumn("{task.description}"), BarColumn(),
-                  TextColumn("{task.completed}/{task.total}"), TimeElapsedColumn(),
-                  TextColumn("eta"), TimeRemainingColumn(),
+                  TextColumn("{task.completed}/{task.total}"), TextColumn("{task.fields[note]}"),
+                  TimeElapsedColumn(), TextColumn("eta"), TimeRemainingColumn(),
                   console=con, transient=True) as prog:
-        task = prog.add_task(description, total=total)
-        yield lambda n=1: prog.advance(task, n)
+        task = prog.add_task(description, total=total, note="")
+
+        def advance(n: int = 1, note: str | None = None) -> None:
+            if note is None:
+                prog.advance(task, n)
+            else:
+                prog.update(task, advance=n, note=note)
+        yield advance
 
 
 def write_result(result, out: Path, provenance: dict, *, json: str | None = None,

@@ -187,6 +187,9 @@ class Problem:
         self.u_scale = 0.1 * self.weight * self.ell
         self.J_scale = self.u_scale**2 * np.sqrt(self.ell / r.gravity) / self.ell
         self.m = model.n_thrusters if spec.thrust_design else 0
+        # a fixed constant thrust [N] (spec.thrust) when thrust is not a variable
+        self.F_fixed = (np.zeros(model.n_thrusters) if spec.thrust is None
+                        else np.asarray(spec.thrust, float))
         lim = np.array([t.limits for t in r.thrusters], float).reshape(-1, 2)
         self.F_lo, self.F_hi = lim[:, 0], lim[:, 1]
         self.F_scale = max(float(np.abs(lim[np.isfinite(lim)]).max(initial=0.0)), self.weight)
@@ -212,7 +215,7 @@ class Problem:
         N, nX, m = self.N, self.n_X, self.m
         qm = x[:N]
         X = x[N:N + nX].reshape(N - 1, self.M - 2)
-        F = np.zeros(self.model.n_thrusters)
+        F = self.F_fixed.copy()
         if m:
             F = x[N + nX:N + nX + m] * self.F_scale
         zm = x[N + nX + m] * self.zeta_ref
@@ -260,7 +263,8 @@ class Problem:
         return apply_invariance(self.model, g)
 
     def thrust_schedule(self, F: np.ndarray) -> ThrustSchedule | None:
-        if not self.m:
+        """The constant thrust of the gait file (designed, or fixed by ``spec.thrust``)."""
+        if not self.m and self.spec.thrust is None:
             return None
         names = self.model.robot.thruster_names
         return ThrustSchedule((0.0, 1.0), tuple((nm, (float(f),)) for nm, f in zip(names, F)))
@@ -492,7 +496,7 @@ class Problem:
         deterministic default start; otherwise a random perturbation of it. Also fixes, for
         this start, the sign of kappa_1 and of alpha_f - alpha_i that the ``orbit`` family
         keeps (kappa_1 may not change sign, alpha stays monotonic)."""
-        spec, model = self.spec, self.model
+        spec = self.spec
         step = spec.step_length or 0.55 * self.ell
         q_ref = self.q_ref.copy()
         amp = 1.0
@@ -507,7 +511,13 @@ class Problem:
         X = self._lift(qm, X, amp)
         if rng is not None:
             X += rng.normal(0.0, 0.05, X.shape)
-        # orientation of kappa_1 and alpha for the regularity constraints
+        return self._oriented(qm, X, None)
+
+    def _oriented(self, qm: np.ndarray, X: np.ndarray, zeta_minus: float | None) -> np.ndarray:
+        """``x`` of the posture ``qm`` and Bezier offsets ``X``, fixing for this start the sign
+        of kappa_1 and of alpha_f - alpha_i that the ``orbit`` family keeps; ``zeta^-`` given,
+        or (None) from the target speed."""
+        spec, model = self.spec, self.model
         x = self.pack(qm, X, np.zeros(model.n_thrusters), self.zeta_ref)
         g = self.gait(x)
         maps = gait_maps(model, g)
@@ -516,15 +526,32 @@ class Problem:
         self.sign_E = float(np.sign(np.mean(E))) or 1.0
         self.E_ref = max(abs(float(np.mean(E))), 1e-6)
         self.direction = float(np.sign(maps.alpha_f - maps.alpha_i)) or 1.0
-        v = spec.speed or 0.5
-        L = max(float(model.p_swing(qm)[0]), 0.05 * self.ell)
-        alpha_dot = abs(maps.alpha_f - maps.alpha_i) * v / L
-        zm = 0.5 * (self.E_ref * alpha_dot) ** 2
+        zm = zeta_minus
+        if zm is None:
+            v = spec.speed or 0.5
+            L = max(float(model.p_swing(qm)[0]), 0.05 * self.ell)
+            alpha_dot = abs(maps.alpha_f - maps.alpha_i) * v / L
+            zm = 0.5 * (self.E_ref * alpha_dot) ** 2
         x = self.pack(qm, X, np.zeros(model.n_thrusters), zm, 0.0)
         if spec.objective == "peak":  # epigraph variable just above the start's peak torque
             ev = self.evaluate(x)
             x[-1] = 1.05 * ev.objective / self.u_scale if ev.ok else 1.0
         return x
+
+    def warm_start(self, q_minus, coefficients, zeta_minus: float) -> np.ndarray | None:
+        """Start ``x0`` from a finished design (continuation): its pre-impact posture
+        ``q_minus`` [rad], Bezier ``coefficients`` ((N-1) x (M+1) [rad]) and ``zeta_minus``
+        [kg^2 m^4/s^2]. None when that design does not fit this problem (another order or
+        robot); constant thrust variables start at 0 N."""
+        qm = np.asarray(q_minus, float)
+        A = np.asarray(coefficients, float)
+        if qm.shape != (self.N,) or A.shape != (self.N - 1, self.M + 1) or \
+                not (np.all(np.isfinite(A)) and np.all(np.isfinite(qm))) or \
+                not zeta_minus > 0:
+            return None
+        line, _ = self.coefficients(qm, np.zeros((self.N - 1, self.M - 2)))
+        X = A[:, 2:self.M] - line[:, 2:self.M]
+        return self._oriented(qm, X, float(zeta_minus))
 
     def _lift(self, qm: np.ndarray, X: np.ndarray, amp: float) -> np.ndarray:
         """Minimum-norm bump ``d sin(pi s)`` on the swing-leg joints raising the mid-step

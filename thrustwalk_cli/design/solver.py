@@ -175,16 +175,23 @@ class DesignResult:
 
 
 def solve_design(model: CompiledModel, spec: DesignSpec,
-                progress: Callable[[int, int, str], None] | None = None) -> DesignResult:
+                progress: Callable[[int, int, str], None] | None = None,
+                initial: WarmStart | None = None) -> DesignResult:
     """Design a gait for ``spec`` (module docstring): ``spec.starts`` seeded SLSQP runs, the
     best feasible one re-checked by :func:`verify`. ``progress(done, total, message)`` is
-    called after every start. Deterministic for a given spec (seed included)."""
+    called after every start. ``initial``: a finished neighbouring design (continuation)
+    that replaces the default start 0 (when it fits this problem). Deterministic for a given
+    spec (seed included) and start."""
     t0 = time.perf_counter()
     prob = Problem(model, spec)
     rng = np.random.default_rng(spec.seed)
     runs: list[StartResult] = []
     for k in range(spec.starts):
-        x0 = prob.start(None if k == 0 else rng)
+        x0 = None
+        if k == 0 and initial is not None:
+            x0 = prob.warm_start(initial.q_minus, initial.coefficients, initial.zeta_minus)
+        if x0 is None:
+            x0 = prob.start(None if k == 0 else rng)
         r = solve_start(prob, x0, k)
         runs.append(r)
         if progress is not None:
@@ -237,9 +244,21 @@ def solve_design(model: CompiledModel, spec: DesignSpec,
         reason = "feasible: every constraint re-checked on the periodic orbit"
     F = prob.unpack(x)[2]
     return DesignResult(feasible, reason, blocking, spec, prob.gait(x),
-                        tuple(map(float, F)) if prob.m else (), check.get("objective"),
+                        tuple(map(float, F)) if prob.m or spec.thrust is not None else (),
+                        check.get("objective"),
                         chosen.objective, viol, check, tuple(runs), prob.evaluations,
                         time.perf_counter() - t0, tuple(prob.c.tolist()), prob.eps)
+
+
+@dataclass(frozen=True)
+class WarmStart:
+    """A finished design to start from (continuation): pre-impact posture ``q_minus``
+    [rad], Bezier ``coefficients`` ((N-1) x (M+1) [rad], invariance applied) and
+    ``zeta_minus`` [kg^2 m^4/s^2] of its periodic orbit."""
+
+    q_minus: tuple[float, ...]
+    coefficients: tuple[tuple[float, ...], ...]
+    zeta_minus: float
 
 
 ITERATION_LIMIT = "Iteration limit reached"  # SciPy SLSQP's message when max_iter is hit

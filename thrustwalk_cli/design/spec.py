@@ -41,7 +41,9 @@ class DesignSpec:
     limits), costed ``thrust_weight |F|^2`` [m^2] in the effort objective; thrust_range
     ``(thruster, low, high)`` [N]: the orbit must exist and the stance, lift-off and torque
     constraints hold for every constant thrust of that thruster in the range (checked at the
-    ends: zeta*, zeta(alpha), F_1 and u are affine in a constant thrust); alpha_c: gait-timing
+    ends: zeta*, zeta(alpha), F_1 and u are affine in a constant thrust); thrust: one constant
+    thrust per thruster [N] held fixed (not a variable): the gait is designed to walk under it
+    (a gait library over thrust; not with ``thrust_design``); alpha_c: gait-timing
     row vector (None: the virtual stance leg, see :func:`default_alpha`); starts, seed,
     max_iter: solver; nodes: Lobatto nodes per evaluation (odd, so that s = 1/2 is a node).
     """
@@ -60,6 +62,7 @@ class DesignSpec:
     thrust_design: bool = False
     thrust_weight: float = 1.0
     thrust_range: tuple[str, float, float] | None = None
+    thrust: tuple[float, ...] | None = None
     alpha_c: tuple[float, ...] | None = None
     starts: int = 8
     seed: int = 0
@@ -107,6 +110,16 @@ class DesignSpec:
                     f"robot {model.robot.name} has no thruster")
             if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
                 bad("thrust_range", "need finite NAME:LOW:HIGH with LOW <= HIGH [N]")
+        if self.thrust is not None:
+            lim = [t.limits for t in model.robot.thrusters]
+            if self.thrust_design:
+                bad(("thrust", "thrust_design"), "a fixed `thrust` or `thrust_design`, not both")
+            elif len(self.thrust) != model.n_thrusters:
+                bad("thrust", f"need one value per thruster ({model.n_thrusters} for robot "
+                              f"{model.robot.name}), got {len(self.thrust)}")
+            elif not all(np.isfinite(f) and lo <= f <= hi
+                         for f, (lo, hi) in zip(self.thrust, lim)):
+                bad("thrust", "must be finite and within each thruster's limits [N]")
         if self.thrust_weight < 0:
             bad("thrust_weight", "must be >= 0 m^2")
         if not 1 <= self.starts <= 1000:

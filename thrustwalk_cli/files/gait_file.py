@@ -8,6 +8,7 @@ coordinates against the robot, a thrust schedule against the zero dynamics) poin
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 
@@ -27,6 +28,7 @@ from .schema import (
     mapping,
     null_or,
     number,
+    override_parameters,
     parameters,
     string,
     vector,
@@ -91,22 +93,28 @@ class GaitSource:
         return self.res.problem(key, message)
 
 
-def load_gait(ref: str) -> tuple[Gait, GaitSource]:
+def load_gait(ref: str, parameters: Mapping[str, float] | None = None
+              ) -> tuple[Gait, GaitSource]:
     """Read and validate a gait file (a path or a bundled name). Returns the gait (``c`` and
     ``A`` empty until :func:`bind_gait` checks it against its robot) and its validated data.
-    The gait's ``robot`` is resolved relative to the gait file."""
+    The gait's ``robot`` is resolved relative to the gait file. ``parameters``: numbers
+    replacing the file's named ``parameters:``, as if edited into the file."""
     path = resolve(ref, "gaits")
-    return parse_gait(load_yaml(path), path)
+    return parse_gait(load_yaml(path), path, parameters)
 
 
-def load_gait_text(text: str, file: str) -> tuple[Gait, GaitSource]:
+def load_gait_text(text: str, file: str, parameters: Mapping[str, float] | None = None
+                   ) -> tuple[Gait, GaitSource]:
     """:func:`load_gait` for YAML text that is not (yet) a file; ``file`` names it in
     messages and anchors a relative ``robot:`` path."""
-    return parse_gait(load_yaml_text(text, file), Path(file))
+    return parse_gait(load_yaml_text(text, file), Path(file), parameters)
 
 
-def parse_gait(doc, path: Path) -> tuple[Gait, GaitSource]:
-    """Validate a parsed gait document against ``GAIT_SCHEMA`` (every problem at once)."""
+def parse_gait(doc, path: Path, parameters: Mapping[str, float] | None = None
+               ) -> tuple[Gait, GaitSource]:
+    """Validate a parsed gait document (with ``parameters`` replaced, see :func:`load_gait`)
+    against ``GAIT_SCHEMA`` (every problem at once)."""
+    doc = override_parameters(doc, parameters)
     res = check(doc, GAIT_SCHEMA)
     res.raise_if_problems()
     d = res.data

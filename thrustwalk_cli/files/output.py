@@ -6,6 +6,11 @@ folder beside the target, a manifest (``.thrustwalk-run.json``: the command and 
 of every file) is written last, and the folder is swapped in at the end. A killed run or a full
 disk therefore leaves the previous folder (or none), never a folder that mixes two runs;
 temporaries of dead runs are removed by the next run.
+
+A sweep's folder is different (:class:`SweepFolder`): it is written incrementally, one point
+file at a time (each atomically) as the points finish, so that a stopped sweep resumes; its
+marker ``.thrustwalk-sweep.json`` names the sweep it belongs to, and no other sweep, nor a
+command that replaces its folder as a whole, may write into it.
 """
 
 from __future__ import annotations
@@ -54,6 +59,7 @@ def write_text_atomic(path: Path, text: str) -> Path:
 
 
 MANIFEST = ".thrustwalk-run.json"
+SWEEP_MARKER = ".thrustwalk-sweep.json"
 
 
 def _alive(pid: int) -> bool:
@@ -146,6 +152,9 @@ def check_target(target: Path, *, whole: bool) -> None:
     if not os.access(place, os.W_OK | os.X_OK):
         raise InputError.param("out", f"cannot write in {place}: permission denied or a "
                                       "read-only file system")
+    if whole and (t / SWEEP_MARKER).is_file():
+        raise InputError.param("out", f"{t} is a sweep's folder (its points are kept for "
+                                      "resuming): give another folder")
     if whole and t.is_dir() and any(t.iterdir()) and not written_by_thrustwalk(t):
         raise InputError.param("out", f"{t} is a folder with files that thrustwalk did not "
                                       "write; give a new or empty folder (its contents "
@@ -318,3 +327,106 @@ def provenance(robot: Any = None, gait: Any = None, **extra: Any) -> dict[str, A
         prov["gait"] = file_ref(gait.source_file, gait.source_sha256)
     prov.update(extra)
     return prov
+
+
+class SweepFolder:
+    """The folder of one sweep, written incrementally (module docstring).
+
+    ``SweepFolder(target, marker)`` checks ``target`` before any work: a file, a path under a
+    file or a read-only place, a folder of another sweep (its marker has another
+    ``identity``), a command's result folder or any other non-empty folder is an
+    :class:`InputError` on ``out``; a sweep already running into it (an exclusive lock held
+    for the whole run; a killed run releases it) too. Then it removes the temporaries a killed
+    run left and writes the marker. ``finished()`` reads the point records written so far,
+    ``write_point(record)`` writes one (atomically: never a half-written point file),
+    ``path(name)`` is where a summary file goes; ``close()`` releases the lock."""
+
+    POINTS = "points"
+
+    def __init__(self, target: Path, marker: dict):
+        t = self.target = Path(target)
+        check_target(t, whole=False)
+        if t.is_dir() and any(t.iterdir()):
+            own = _read_json(t / SWEEP_MARKER)
+            if own is None:
+                what = ("the result folder of a command (replaced as a whole)"
+                        if (t / MANIFEST).exists() else "not a sweep's folder")
+                raise InputError.param("out", f"{t} is {what}: give a new or empty folder "
+                                              "for the sweep")
+            if own.get("identity") != marker["identity"]:
+                raise InputError.param("out", (
+                    f"{t} holds another sweep ('{own.get('sweep')}' from {own.get('file')}, "
+                    f"{own.get('points')} points); a sweep resumes only into its own folder: "
+                    "give another folder, or remove this one"))
+        try:
+            (t / self.POINTS).mkdir(parents=True, exist_ok=True)
+        except (FileExistsError, NotADirectoryError):
+            raise InputError.param("out", f"cannot create {t}: a part of the path is a "
+                                          "file") from None
+        self._fd = _try_lock(t)
+        if self._fd is False:
+            raise InputError.param("out", f"another thrustwalk sweep is running into {t}")
+        for folder in (t, t / self.POINTS):
+            for tmp in folder.glob(".*.tmp"):  # left by a killed run (we hold the lock)
+                tmp.unlink(missing_ok=True)
+        if not (t / SWEEP_MARKER).is_file():
+            write_json(t / SWEEP_MARKER, {"tool": "thrustwalk", "version": __version__,
+                                          **marker})
+        self.notes: list[str] = []
+
+    def point_path(self, key: str) -> Path:
+        return self.target / self.POINTS / f"{key[:20]}.json"
+
+    def finished(self, keys: Iterable[str]) -> dict[str, dict]:
+        """The records of the points ``keys`` already written (key -> record). A point file
+        that cannot be read or does not hold its key's record is ignored (the point runs
+        again and replaces it), with a note in ``notes``."""
+        out = {}
+        for key in keys:
+            p = self.point_path(key)
+            if not p.exists():
+                continue
+            rec = _read_json(p)
+            if rec is None or rec.get("key") != key or rec.get("status") not in ("ok",
+                                                                                 "failed"):
+                self.notes.append(f"{p}: not a point record of this sweep; the point runs "
+                                  "again")
+                continue
+            out[key] = rec
+        return out
+
+    def write_point(self, record: dict) -> Path:
+        return write_json(self.point_path(record["key"]), record)
+
+    def path(self, name: str) -> Path:
+        return self.target / name
+
+    def close(self) -> None:
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+
+def _read_json(path: Path) -> dict | None:
+    """A JSON object from ``path``, or None (missing, unreadable, not a JSON object)."""
+    try:
+        doc = json.loads(path.read_bytes().decode("utf-8"))
+    except (OSError, ValueError):
+        return None
+    return doc if isinstance(doc, dict) else None
+
+
+def _try_lock(folder: Path):
+    """An exclusive, non-blocking ``flock`` on ``folder``: its descriptor, False when another
+    process holds it, None where ``fcntl`` does not exist (Windows: no lock)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows
+        return None
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        return False
+    return fd

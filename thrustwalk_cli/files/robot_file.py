@@ -6,6 +6,9 @@ first); the key tables of ``docs/files.md`` are generated from ``ROBOT_SCHEMA``.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from pathlib import Path
+
 import numpy as np
 
 from ..description.robot import (
@@ -28,11 +31,12 @@ from .schema import (
     matrix,
     null_or,
     number,
+    override_parameters,
     parameters,
     string,
     vector,
 )
-from .yamlio import load_yaml
+from .yamlio import Document, load_yaml, load_yaml_text
 
 # ----------------------------------------------------------------------------- robot schema
 # ----------------------------------------------------------------------------- robot schema
@@ -145,16 +149,34 @@ def _combine(mass: float, com: list[float], inertia: float, points: list[dict]
     return float(M), (float(c[0]), float(c[1])), float(I)
 
 
-def load_robot(ref: str, scale: dict[str, float] | None = None) -> Robot:
+def load_robot(ref: str, parameters: Mapping[str, float] | None = None, *,
+               scale: Mapping[str, float] | None = None) -> Robot:
     """Read, validate and build a :class:`Robot` from a YAML file or bundled name.
 
-    ``scale``: factors for named ``parameters:`` of the file (``{"MT": 1.1}``: 10 % more
-    torso mass), substituted before anything is built, so that every quantity written with the
-    parameter changes with it (a plant that differs from a controller's model)."""
+    ``parameters``: numbers replacing the file's named ``parameters:`` (e.g. ``{"MT": 12.0}``
+    [kg]), exactly as if they were edited into the file (a robot-parameter axis of a sweep).
+    ``scale``: factors for named parameters (``{"MT": 1.1}``: 10 % more torso mass; an
+    expression ``e`` becomes ``(e) * factor``), applied before ``parameters`` (a plant that
+    differs from a controller's model)."""
     path = resolve(ref, "robots")
     doc = load_yaml(path)
     if scale:
-        doc = _scaled(doc, scale)
+        doc = _scaled(doc, dict(scale))
+    return parse_robot(doc, path, parameters)
+
+
+def load_robot_text(text: str, file: str, parameters: Mapping[str, float] | None = None
+                    ) -> Robot:
+    """:func:`load_robot` for the YAML text of a robot file (``file`` names it in messages),
+    e.g. a robot file's content shipped to a worker process or machine."""
+    return parse_robot(load_yaml_text(text, file), Path(file), parameters)
+
+
+def parse_robot(doc: Document, path: Path, parameters: Mapping[str, float] | None = None
+                ) -> Robot:
+    """Validate a parsed robot document (with ``parameters`` replaced, see :func:`load_robot`)
+    against ``ROBOT_SCHEMA`` and build the :class:`Robot` (every problem at once)."""
+    doc = override_parameters(doc, parameters)
     res = check(doc, ROBOT_SCHEMA)
     res.raise_if_problems()
     d = res.data

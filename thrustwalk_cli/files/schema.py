@@ -27,7 +27,7 @@ import keyword
 import math
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from ..errors import InputError, Problem
@@ -431,6 +431,32 @@ def _report_cycles(left: list[str], deps: dict[str, set[str]], path: KeyPath, ct
             k = cycle.index(min(cycle, key=order.__getitem__))
             cycle = cycle[k:] + cycle[:k]
             ctx.report(path + (cycle[0],), "parameter cycle: " + " -> ".join(cycle + cycle[:1]))
+
+
+def override_parameters(doc: Document, values: Mapping[str, float] | None,
+                        path: KeyPath = ("parameters",)) -> Document:
+    """``doc`` with the named ``parameters`` replaced by the numbers ``values`` (SI, as the
+    file states them): the description the file would be with those numbers edited in.
+    Expressions of other parameters that use a replaced one follow it; lines stay those of the
+    file. A name the file does not define is an :class:`InputError` at ``path``."""
+    if not values:
+        return doc
+    section: Any = doc.data.get(path[0]) if isinstance(doc.data, dict) else None
+    for key in path[1:]:
+        section = section.get(key) if isinstance(section, dict) else None
+    names = sorted(section) if isinstance(section, dict) else []
+    unknown = [k for k in values if k not in names]
+    if unknown:
+        raise InputError([problem(doc, path, f"no parameter '{k}' to replace (defined: "
+                                              f"{', '.join(names) or 'none'}){_suggest(k, names)}")
+                          for k in unknown])
+    data = copy.deepcopy(doc.data)
+    target = data
+    for key in path:
+        target = target[key]
+    for k, v in values.items():
+        target[k] = float(v)
+    return replace(doc, data=data)
 
 
 # ---------------------------------------------------------------------------- validation

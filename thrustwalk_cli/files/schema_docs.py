@@ -10,8 +10,10 @@ from .gait_file import GAIT_SCHEMA
 from .output import write_text_atomic
 from .robot_file import ROBOT_SCHEMA
 from .schema import markdown_table
+from .sweep_file import STUDY_PARAMETERS, SWEEP_SCHEMA
 
-SECTIONS = {"robot-keys": ROBOT_SCHEMA, "gait-keys": GAIT_SCHEMA}
+SECTIONS = {"robot-keys": ROBOT_SCHEMA, "gait-keys": GAIT_SCHEMA, "sweep-keys": SWEEP_SCHEMA,
+            **{f"sweep-{study}-settings": kind for study, kind in STUDY_PARAMETERS.items()}}
 
 
 def render(text: str) -> str:

@@ -419,7 +419,7 @@ def _plant(walker: Walker, plant_scale: dict[str, float]) -> tuple[ZeroDynamics,
     for name, f in plant_scale.items():
         if not (np.isfinite(f) and f > 0):
             raise InputError.param("plant_scale", f"factor of {name} must be > 0 (got {f:g})")
-    robot = load_robot(walker.robot.source_file, plant_scale)
+    robot = load_robot(walker.robot.source_file, scale=plant_scale)
     model = load_model(robot)
     plant = walker_from(model, walker.gait).zd
     return plant, {"same_as_model": False, "scale": dict(plant_scale),

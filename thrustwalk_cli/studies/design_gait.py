@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..description.robot import Robot
-from ..design.solver import DesignResult, solve_design
+from ..design.solver import DesignResult, WarmStart, solve_design
 from ..design.spec import DesignSpec
 from ..design.verify import check_gait
 from ..errors import ComputationError, InputError
@@ -228,15 +228,17 @@ class DesignGaitResult:
 
 
 def design_gait(robot: CompiledModel, spec: DesignSpec, *, compare: Walker | None = None,
-                progress: Callable[[int, int, str], None] | None = None) -> DesignGaitResult:
+                progress: Callable[[int, int, str], None] | None = None,
+                initial: WarmStart | None = None) -> DesignGaitResult:
     """Design a gait for the compiled robot ``robot`` (:func:`solve_design`, SPEC 2, 3, 5) and
     optionally evaluate an existing gait (``compare``) with the same objective and
-    constraints. ``progress(done, total, message)`` after every solver start."""
+    constraints. ``progress(done, total, message)`` after every solver start. ``initial``: a
+    finished neighbouring design to start from (continuation; replaces the default start)."""
     spec.validate(robot)
     if compare is not None and compare.robot.name != robot.robot.name:
         raise InputError.param("compare", f"gait {compare.gait.name!r} is for robot "
                                           f"{compare.robot.name!r}, not {robot.robot.name!r}")
-    res = solve_design(robot, spec, progress=progress)
+    res = solve_design(robot, spec, progress=progress, initial=initial)
     res = with_name(res, spec.name)
     cmp = None
     if compare is not None:

@@ -1,0 +1,504 @@
+"""``thrustwalk sweep``: sweep files and their errors, points from axes, robot parameters as
+axes, resuming, failed points, the outputs, the gait library. The executors (local processes,
+Dask) and killed runs: tests/test_sweep_cluster.py."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from thrustwalk_cli.errors import InputError
+from thrustwalk_cli.studies.records import col
+
+REPO = Path(__file__).resolve().parents[1]
+EXAMPLES = sorted((REPO / "sweeps").glob("*.yaml"))
+
+
+def sweep_file(tmp_path: Path, text: str, name: str = "s.yaml") -> Path:
+    p = tmp_path / name
+    p.write_text(textwrap.dedent(text))
+    return p
+
+
+SMALL = """\
+name: small
+study: limit-cycle
+robot: three_link
+gait: three_link_walk
+grid:
+  robot.MT: {values: [8, 12], unit: kg}
+  thrust: {start: 0, stop: -20, step: -10}
+collect: [speed, zeta_star, walkable]
+"""
+
+
+# ------------------------------------------------------------------------------ files
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
+def test_every_example_sweep_file_validates(path, _cache_dir):
+    from thrustwalk_cli.studies.sweep import load_sweep
+
+    sweep = load_sweep(path)
+    assert len(sweep.tasks) == sweep.spec.count >= 2, path.name
+    assert len({t.key for t in sweep.tasks}) == len(sweep.tasks), path.name
+
+
+def test_the_examples_cover_a_limit_cycle_and_a_simulate_sweep():
+    studies = {p.name: p.read_text() for p in EXAMPLES}
+    lc = [n for n, t in studies.items() if "study: limit-cycle" in t and "robot.MT" in t
+          and "thrust" in t]
+    assert lc, "a limit-cycle sweep over thrust and torso mass"
+    assert any("study: simulate" in t for t in studies.values())
+    readme = (REPO / "README.md").read_text()
+    for p in EXAMPLES:
+        assert f"sweeps/{p.name}" in readme, f"{p.name} is not in the README"
+
+
+BAD = [
+    ("study: limit-cycle", "study: limit_cycle", "study: must be one of"),
+    ("  thrust: {start: 0, stop: -20, step: -10}",
+     "  thrus: {start: 0, stop: -20, step: -10}", "unknown axis 'thrus'"),
+    ("  robot.MT: {values: [8, 12], unit: kg}", "  robot.MX: {values: [8, 12]}",
+     "no parameter 'MX' in the robot three_link"),
+    ("  robot.MT: {values: [8, 12], unit: kg}", "  gait.zz: {values: [8, 12]}",
+     "no parameter 'zz' in the gait"),
+    ("collect: [speed, zeta_star, walkable]", "collect: [speed, zeta_stra]",
+     "unknown field 'zeta_stra'"),
+    ("  thrust: {start: 0, stop: -20, step: -10}", "  thrust: {start: 0, stop: -20, step: 10}",
+     "the step must be non-zero and point from start to stop"),
+    ("  thrust: {start: 0, stop: -20, step: -10}", "  thrust: {values: [0, -2000]}",
+     "-2000 N is outside the limits"),
+    ("grid:\n", "settings: {thruster: hip_z}\ngrid:\n", "settings.thruster"),
+    ("grid:\n", "settings: {mu: 0.5}\ngrid:\n", "unknown key 'mu'"),
+    ("  robot.MT: {values: [8, 12], unit: kg}", "  robot.MT: {values: [8, 12], unit: kg}\n"
+     "  thrust: [1, 2]", "duplicate key 'thrust'"),
+    ("  robot.MT: {values: [8, 12], unit: kg}", "  robot.MT: {values: [8, 12], start: 1}",
+     "give `values` or a range"),
+    ("  thrust: {start: 0, stop: -20, step: -10}", "  thrust: {values: [0, -10], unit: kN}",
+     "'thrust' is in N"),
+    ("gait: three_link_walk", "gait: no_such_gait", "no such file and no bundled gait"),
+]
+
+
+@pytest.mark.parametrize("old, new, message", BAD, ids=[m[:30] for _, _, m in BAD])
+def test_a_bad_sweep_file_is_refused_before_any_work(cli, tmp_path, old, new, message):
+    assert old in SMALL, old
+    path = sweep_file(tmp_path, SMALL.replace(old, new, 1))
+    out = tmp_path / "out"
+    res = cli("sweep", path, "--out", out, "-q")
+    assert res.exit_code == 2, res.output
+    lines = res.stderr.strip().splitlines()
+    assert any(message in ln for ln in lines), res.stderr
+    assert all(ln.startswith("error: ") for ln in lines), res.stderr
+    assert any(ln.startswith(f"error: {path}:") for ln in lines), res.stderr  # file:line
+    assert "Traceback" not in res.stderr
+    assert not out.exists(), "nothing is written for bad input"
+
+
+def test_every_problem_is_reported_with_its_line(tmp_path):
+    from thrustwalk_cli.studies.sweep import load_sweep
+
+    text = SMALL.replace("collect: [speed, zeta_star, walkable]", "collect: [speed, nope]")
+    text = text.replace("robot.MT: {values: [8, 12], unit: kg}", "robot.MX: {values: [8]}")
+    path = sweep_file(tmp_path, text)
+    with pytest.raises(InputError) as exc:
+        load_sweep(path)
+    got = sorted(str(p) for p in exc.value.problems)
+    lines = text.splitlines()
+    assert len(got) == 2, got
+    mx = next(i for i, ln in enumerate(lines) if "robot.MX" in ln) + 1
+    co = next(i for i, ln in enumerate(lines) if "collect" in ln) + 1
+    assert any(g.startswith(f"{path}:{mx}: grid['robot.MX']: no parameter 'MX'") for g in got)
+    assert any(g.startswith(f"{path}:{co}: collect[1]: unknown field 'nope'") for g in got)
+
+
+def test_random_and_zip_problems(tmp_path):
+    from thrustwalk_cli.files.sweep_file import load_sweep_file
+
+    text = SMALL + textwrap.dedent("""\
+        zip:
+          robot.m: {values: [4, 5, 6], unit: kg}
+          robot.MH: {values: [14, 15], unit: kg}
+        random:
+          samples: 4
+          seed: 1
+          axes:
+            robot.L: {distribution: normal, mean: 0.5}
+            robot.r: {distribution: log-uniform, low: 0, high: 1}
+        """)
+    with pytest.raises(InputError) as exc:
+        load_sweep_file(sweep_file(tmp_path, text))
+    msgs = " | ".join(str(p) for p in exc.value.problems)
+    assert "zipped axes need equal lengths (robot.m: 3, robot.MH: 2)" in msgs
+    assert "the normal distribution needs `std`" in msgs
+    assert "must be > 0 for a log-uniform distribution" in msgs
+
+
+# ------------------------------------------------------------------------------ points
+def test_points_are_grid_times_zip_times_random_in_order(tmp_path, _cache_dir):
+    """Against an independent enumeration: itertools.product, zip and the same seeded
+    generator drawn axis after axis."""
+    from thrustwalk_cli.studies.sweep import load_sweep
+
+    text = textwrap.dedent("""\
+        name: order
+        study: limit-cycle
+        robot: three_link
+        grid:
+          thrust: {values: [0, -10]}
+          robot.MT: {start: 8, stop: 12, num: 3, unit: kg}
+        zip:
+          robot.m: {values: [4, 6], unit: kg}
+          robot.MH: {values: [14, 16], unit: kg}
+        random:
+          samples: 3
+          seed: 11
+          axes:
+            robot.L: {distribution: uniform, low: 0.4, high: 0.6, unit: m}
+            robot.r: {distribution: log-uniform, low: 0.9, high: 1.1, unit: m}
+            gait.af: {distribution: normal, mean: 0.27, std: 0.001, unit: rad}
+        collect: [speed]
+        """)
+    sweep = load_sweep(sweep_file(tmp_path, text))
+    rng = np.random.default_rng(11)
+    L = rng.uniform(0.4, 0.6, 3)
+    r = np.exp(rng.uniform(math.log(0.9), math.log(1.1), 3))
+    af = rng.normal(0.27, 0.001, 3)
+    expected = []
+    for F, MT in itertools.product([0.0, -10.0], [8.0, 10.0, 12.0]):
+        for m, MH in zip([4.0, 6.0], [14.0, 16.0]):
+            for k in range(3):
+                expected.append({"thrust": F, "robot.MT": MT, "robot.m": m, "robot.MH": MH,
+                                 "robot.L": L[k], "robot.r": r[k], "gait.af": af[k]})
+    assert sweep.points == expected
+    assert sweep.spec.count == 2 * 3 * 2 * 3
+
+
+def test_continuation_neighbours_form_chains_along_the_last_grid_axis():
+    from thrustwalk_cli.description.sweep import Axis, SweepSpec
+    from thrustwalk_cli.sweep.points import neighbours
+
+    spec = SweepSpec("n", "design-gait", "r", "", None, None, (), (
+        Axis("thrust", "N", "grid", (0.0, -10.0)),
+        Axis("target_speed", "m/s", "grid", (0.5, 0.6, 0.7))), ("effort",))
+    # points: (0, .5) (0, .6) (0, .7) (-10, .5) (-10, .6) (-10, .7)
+    assert neighbours(spec) == [None, 0, 1, 0, 3, 4]
+
+
+def test_keys_change_with_every_input_and_only_then(tmp_path, _cache_dir):
+    from thrustwalk_cli.studies.sweep import load_sweep
+
+    a = load_sweep(sweep_file(tmp_path, SMALL, "a.yaml"))
+    b = load_sweep(sweep_file(tmp_path, SMALL.replace("name: small", "name: other")
+                              + "description: same points\n", "b.yaml"))
+    assert [t.key for t in a.tasks] == [t.key for t in b.tasks]
+    assert a.identity == b.identity
+    c = load_sweep(sweep_file(tmp_path, SMALL.replace("grid:", "settings: {thruster: torso_back}"
+                                                      "\ngrid:"), "c.yaml"))
+    assert not {t.key for t in a.tasks} & {t.key for t in c.tasks}
+    robot = (REPO / "robots" / "three_link.yaml").read_text().replace("gravity: 9.8",
+                                                                       "gravity: 9.81")
+    (tmp_path / "r.yaml").write_text(robot)
+    d = load_sweep(sweep_file(tmp_path, SMALL.replace("robot: three_link", "robot: r.yaml"),
+                              "d.yaml"))
+    assert not {t.key for t in a.tasks} & {t.key for t in d.tasks}
+
+
+# ------------------------------------------------------------------ robot parameters
+def test_a_robot_parameter_axis_equals_the_robot_file_with_the_number_edited(tmp_path,
+                                                                            _cache_dir):
+    """The torso mass MT as an axis gives the numbers of a robot file in which MT was edited
+    by hand (to 1e-12): the point's robot is the file's description with the number
+    substituted, however its model is compiled."""
+    import thrustwalk_cli as tw
+
+    sweep = tw.load_sweep(sweep_file(tmp_path, SMALL))
+    res = tw.run_sweep(sweep, workers=1)
+    assert res.success and res.done == len(sweep.tasks)
+    text = (REPO / "robots" / "three_link.yaml").read_text()
+    assert "  MT: 10.0" in text
+    for MT in (8.0, 12.0):
+        edited = tmp_path / f"three_link_MT{MT:g}.yaml"
+        edited.write_text(text.replace("  MT: 10.0", f"  MT: {MT!r}"))
+        walker = tw.load_walker(str(edited), "three_link_walk")
+        lc = tw.limit_cycle(walker, thrust=[0.0, -10.0, -20.0])
+        for F, cyc in zip(lc.thrust, lc.cycles):
+            rec = next(r for t, r in zip(sweep.tasks, res.records)
+                       if dict(t.values) == {"robot.MT": MT, "thrust": F})
+            for name, ref in (("speed", cyc.speed), ("zeta_star", cyc.zeta_star)):
+                got = rec["fields"][name]
+                assert abs(got - ref) <= 1e-12 * abs(ref), (MT, F, name, got, ref)
+            assert rec["document"]["zero_dynamics"]["delta_zero_sq"] == pytest.approx(
+                walker.zd.delta_zero_sq, rel=1e-12, abs=0)
+
+
+def test_gait_parameters_and_gains_reach_the_point(tmp_path, _cache_dir):
+    """gait.af replaces the gait file's parameter; kp and kd the controller gains of a
+    simulate point (compared with the gait file edited and with simulate called directly)."""
+    import thrustwalk_cli as tw
+
+    text = textwrap.dedent("""\
+        name: gains
+        study: simulate
+        robot: three_link
+        gait: three_link_walk
+        settings: {steps: 2, thrust: -10, method: scipy, rtol: 1.0e-8, atol: 1.0e-8}
+        zip:
+          kp: {values: [100, 900]}
+          kd: {values: [20, 60]}
+        collect: [final_zeta_minus, max_abs_output]
+        """)
+    sweep = tw.load_sweep(sweep_file(tmp_path, text))
+    res = tw.run_sweep(sweep, workers=1)
+    walker = tw.load_walker("three_link", "three_link_walk")
+    from dataclasses import replace
+
+    for t, rec in zip(sweep.tasks, res.records):
+        v = dict(t.values)
+        g = replace(walker.gait, kp=v["kp"], kd=v["kd"])
+        w = replace(walker, gait=g, zd=replace(walker.zd, gait=g))
+        ref = tw.simulate(w, steps=2, thrust_model="constant", thrust=[-10.0],
+                          method="scipy", rtol=1e-8, atol=1e-8).document()
+        assert rec["document"]["settings"]["kp"] == v["kp"]
+        assert rec["fields"]["final_zeta_minus"] == ref["runs"][0]["final_zeta_minus"]
+    gait_text = (REPO / "gaits" / "three_link_walk.yaml").read_text()
+    af = 0.2669090288119819  # 1e-6 rad more: the swing foot stays on the ground
+    assert "  af: 0.2669080288119819 " in gait_text
+    edited = tmp_path / "walk_af.yaml"
+    edited.write_text(gait_text.replace("  af: 0.2669080288119819 ", f"  af: {af!r} ")
+                      .replace("robot: three_link", f"robot: {REPO / 'robots/three_link.yaml'}"))
+    text2 = SMALL.replace("  robot.MT: {values: [8, 12], unit: kg}\n",
+                          f"  gait.af: {{values: [{af!r}], unit: rad}}\n")
+    sweep2 = tw.load_sweep(sweep_file(tmp_path, text2, "af.yaml"))
+    res2 = tw.run_sweep(sweep2, workers=1)
+    lc = tw.limit_cycle(tw.load_walker("three_link", str(edited)), thrust=[0.0, -10.0, -20.0])
+    assert [r["fields"]["zeta_star"] for r in res2.records] == [c.zeta_star for c in lc.cycles]
+
+
+# --------------------------------------------------------------------- running, outputs
+def test_outputs_of_a_sweep(cli, tmp_path, _cache_dir):
+    path = sweep_file(tmp_path, SMALL)
+    out = tmp_path / "out"
+    res = cli("sweep", path, "--out", out, "--workers", "1")
+    assert res.exit_code == 0, res.output + res.stderr
+    table = pd.read_csv(out / "results.csv")
+    assert list(table.columns) == ["point", "key", "status", "robot_MT_kg", "thrust_N",
+                                   col("speed", "m/s"), col("zeta_star", "kg^2 m^4/s^2"),
+                                   "walkable", "reason"]
+    assert len(table) == 6 and (table["status"] == "ok").all()
+    assert list(table["robot_MT_kg"]) == [8, 8, 8, 12, 12, 12]
+    assert list(table["thrust_N"]) == [0, -10, -20] * 2
+    doc = json.loads((out / "sweep.json").read_text())
+    assert doc["schema_version"] == 1 and doc["units"]["thrust"] == "N"
+    assert doc["units"]["robot.MT"] == "kg" and doc["units"]["zeta_star"] == "kg^2 m^4/s^2"
+    assert doc["counts"] == {"points": 6, "done": 6, "failed": 0, "skipped": 0, "computed": 6,
+                             "not_run": 0, "resubmitted": 0}
+    assert doc["executor"] == {"kind": "in-process", "workers": 1}
+    assert doc["provenance"]["sweep"]["file"] == str(path)
+    assert doc["wall_time"] > 0
+    keys = sorted(p.stem for p in (out / "points").glob("*.json"))
+    assert keys == sorted(table["key"])
+    point = json.loads((out / "points" / f"{table['key'][4]}.json").read_text())
+    assert point["values"] == {"robot.MT": 12.0, "thrust": -10.0}
+    assert point["document"]["cycles"][0]["speed"] == table[col("speed", "m/s")][4]
+    assert (out / "heatmap_robot-MT_thrust.png").read_bytes()[:4] == b"\x89PNG"
+    assert (out / "heatmap_robot-MT_thrust.pdf").is_file()
+    assert (out / ".thrustwalk-sweep.json").is_file()
+    # rerun: every point skipped, the same table
+    before = (out / "results.csv").read_bytes()
+    res = cli("sweep", path, "--out", out, "-q")
+    assert res.exit_code == 0 and res.stdout == "", res.output
+    assert (out / "results.csv").read_bytes() == before
+    doc = json.loads((out / "sweep.json").read_text())
+    assert doc["counts"]["skipped"] == 6 and doc["counts"]["computed"] == 0
+
+
+def test_a_failed_point_is_recorded_and_the_sweep_goes_on(cli, tmp_path, _cache_dir):
+    path = sweep_file(tmp_path, SMALL.replace("values: [8, 12]", "values: [8, -1]"))
+    out = tmp_path / "out"
+    res = cli("sweep", path, "--out", out, "--workers", "1", "-q")
+    assert res.exit_code == 0, res.stderr
+    assert "3 point(s) failed" in res.stderr
+    table = pd.read_csv(out / "results.csv")
+    bad = table[table["robot_MT_kg"] == -1]
+    assert list(bad["status"]) == ["failed"] * 3
+    # (commas in CSV text become ';')
+    assert all("three_link.yaml:28: links[1].point_masses[1].mass: must be > 0; got -1" in r
+               for r in bad["reason"])
+    assert bad[col("speed", "m/s")].isna().all()
+    assert (table[table["robot_MT_kg"] == 8]["status"] == "ok").all()
+    doc = json.loads((out / "sweep.json").read_text())
+    assert doc["counts"]["failed"] == 3 and len(doc["failures"]) == 3
+    # a failed point is a result: the rerun does not compute it again
+    res = cli("sweep", path, "--out", out, "--workers", "1", "-q")
+    assert json.loads((out / "sweep.json").read_text())["counts"]["computed"] == 0
+
+
+def test_the_sweep_folder_belongs_to_its_sweep(cli, tmp_path, _cache_dir):
+    path = sweep_file(tmp_path, SMALL.replace("values: [8, 12]", "values: [8]"))
+    out = tmp_path / "out"
+    assert cli("sweep", path, "--out", out, "-q", "--workers", "1").exit_code == 0
+    other = sweep_file(tmp_path, SMALL.replace("values: [8, 12]", "values: [9]"), "o.yaml")
+    res = cli("sweep", other, "--out", out, "-q")
+    assert res.exit_code == 2
+    assert "holds another sweep ('small' from" in res.stderr
+    assert res.stderr.startswith("error: option --out: ")
+    res = cli("limit-cycle", "--thrust", "0", "--out", out, "-q")
+    assert res.exit_code == 2 and "is a sweep's folder" in res.stderr, res.stderr
+    assert (out / "results.csv").is_file() and not (out / "limit_cycles.json").exists()
+    lc = tmp_path / "lc"
+    assert cli("limit-cycle", "--thrust", "0", "--out", lc, "-q").exit_code == 0
+    res = cli("sweep", path, "--out", lc, "-q")
+    assert res.exit_code == 2 and "is the result folder of a command" in res.stderr
+    res = cli("sweep", path, "--out", tmp_path / "s.yaml", "-q")
+    assert res.exit_code == 2 and "is a file, not a folder" in res.stderr
+
+
+def test_a_half_written_point_file_is_never_read(tmp_path, _cache_dir):
+    """A killed run leaves at most temporaries (removed) and never a truncated point file;
+    a corrupted one (edited by hand) is computed again, with a warning."""
+    import thrustwalk_cli as tw
+    from thrustwalk_cli.files.output import SweepFolder
+
+    sweep = tw.load_sweep(sweep_file(tmp_path, SMALL))
+    out = tmp_path / "out"
+    marker = {"identity": sweep.identity, "sweep": "small", "file": "s.yaml", "points": 6}
+    folder = SweepFolder(out, marker)
+    res = tw.run_sweep(sweep, workers=1, on_point=folder.write_point)
+    folder.close()
+    (out / "points" / ".abc.json.x1.tmp").write_text('{"key": ')
+    first = folder.point_path(sweep.tasks[0].key)
+    first.write_text(first.read_text()[:50])
+    folder = SweepFolder(out, marker)
+    got = folder.finished([t.key for t in sweep.tasks])
+    assert not list((out / "points").glob(".*.tmp"))
+    assert set(got) == {t.key for t in sweep.tasks[1:]}
+    assert len(folder.notes) == 1 and "runs again" in folder.notes[0]
+    rerun = tw.run_sweep(sweep, workers=1, finished=got, on_point=folder.write_point)
+    folder.close()
+    assert rerun.counts.ok == 1 and rerun.counts.skipped == 5
+    assert [r["fields"] for r in rerun.records] == [r["fields"] for r in res.records]
+
+
+def test_a_second_run_into_a_running_sweep_is_refused(tmp_path, _cache_dir):
+    import thrustwalk_cli as tw
+    from thrustwalk_cli.files.output import SweepFolder
+
+    sweep = tw.load_sweep(sweep_file(tmp_path, SMALL))
+    marker = {"identity": sweep.identity, "sweep": "small", "file": "s.yaml", "points": 6}
+    first = SweepFolder(tmp_path / "out", marker)
+    try:
+        with pytest.raises(InputError, match="another thrustwalk sweep is running"):
+            SweepFolder(tmp_path / "out", marker)
+    finally:
+        first.close()
+    SweepFolder(tmp_path / "out", marker).close()  # released
+
+
+def test_workers_and_scheduler_are_checked(cli, tmp_path):
+    path = sweep_file(tmp_path, SMALL)
+    res = cli("sweep", path, "--out", tmp_path / "o", "--workers", "2", "--scheduler",
+              "tcp://127.0.0.1:1")
+    assert res.exit_code == 2 and "options --workers/--scheduler: give one" in res.stderr
+    res = cli("sweep", path, "--out", tmp_path / "o", "--scheduler", "127.0.0.1:8786")
+    assert res.exit_code == 2 and "expected tcp://HOST:PORT" in res.stderr
+    res = cli("sweep", path, "--out", tmp_path / "o", "--workers", "0")
+    assert res.exit_code == 2 and "option --workers: must be 1 to 1024" in res.stderr
+
+
+def test_a_schedule_axis_equals_the_gait_with_that_schedule(tmp_path, _cache_dir):
+    """schedule.j sets interval j's thrust: the limit cycle equals the gait file with that
+    thrust: section."""
+    import thrustwalk_cli as tw
+
+    text = textwrap.dedent("""\
+        name: sched
+        study: limit-cycle
+        robot: three_link
+        settings:
+          schedule: {knots: [0, 0.5, 1], values: [0, 0]}
+        zip:
+          schedule.1: {values: [-10, -20]}
+          schedule.2: {values: [5, 0]}
+        collect: [zeta_star, speed]
+        """)
+    sweep = tw.load_sweep(sweep_file(tmp_path, text))
+    res = tw.run_sweep(sweep, workers=1)
+    gait = (REPO / "gaits" / "three_link_walk.yaml").read_text().replace(
+        "robot: three_link", f"robot: {REPO / 'robots/three_link.yaml'}")
+    for rec, (a, b) in zip(res.records, [(-10, 5), (-20, 0)]):
+        g = tmp_path / f"g{a}.yaml"
+        g.write_text(gait + f"thrust: {{knots: [0, 0.5, 1], values: {{hip_x: [{a}, {b}]}}}}\n")
+        lc = tw.limit_cycle(tw.load_walker(None, str(g)))
+        assert lc.source == "gait"
+        assert rec["fields"]["zeta_star"] == lc.cycles[0].zeta_star
+
+
+@pytest.mark.slow
+def test_a_gait_library_with_continuation(cli, tmp_path, _cache_dir):
+    """A design-gait sweep over target speed: one gait file per feasible design, library.csv,
+    the atlas; each written gait, loaded back, has the fixed point and speed in the table;
+    each point after the first is keyed with (and started from) its neighbour."""
+    import thrustwalk_cli as tw
+
+    text = textwrap.dedent("""\
+        name: lib
+        study: design-gait
+        robot: three_link
+        settings: {clearance: 0, max_iter: 80}
+        grid:
+          target_speed: {values: [0.8, 0.85]}
+        collect: [effort, delta_zero_sq, feasible]
+        """)
+    path = sweep_file(tmp_path, text)
+    sweep = tw.load_sweep(path)
+    assert [t.after for t in sweep.tasks] == [None, sweep.tasks[0].key]
+    out = tmp_path / "out"
+    res = cli("sweep", path, "--out", out, "-q", "--workers", "2")
+    assert res.exit_code == 0, res.stderr
+    lib = pd.read_csv(out / "library.csv")
+    assert len(lib) == 2 and lib["feasible"].all(), lib
+    assert list(lib["gait"]) == ["lib_0000", "lib_0001"]
+    for _, row in lib.iterrows():
+        walker = tw.load_walker(None, str(out / row["file"]))
+        assert walker.gait.name == row["gait"]
+        lc = tw.limit_cycle(walker, thrust=[0.0]).cycles[0]
+        assert lc.zeta_star == pytest.approx(row[col("zeta_star", "kg^2 m^4/s^2")], rel=1e-8)
+        assert lc.speed == pytest.approx(row["target_speed_m_s"], rel=2e-3)
+    assert (out / "atlas.png").is_file() and (out / "atlas.pdf").is_file()
+    points = [json.loads((out / "points" / f"{t.key[:20]}.json").read_text())
+              for t in sweep.tasks]
+    assert points[0]["next_start"]["zeta_minus"] == pytest.approx(lib.iloc[0][col(
+        "zeta_star", "kg^2 m^4/s^2")])
+
+
+def test_the_registry_and_the_parameter_tables_name_the_same_studies_and_are_documented():
+    from thrustwalk_cli.files.sweep_file import STUDY_PARAMETERS, WITHOUT_GAIT
+    from thrustwalk_cli.studies.sweep_studies import STUDIES
+
+    assert list(STUDIES) == list(STUDY_PARAMETERS)
+    assert {n for n, s in STUDIES.items() if not s.uses_gait} == set(WITHOUT_GAIT)
+    files = (REPO / "docs" / "files.md").read_text()
+    commands = (REPO / "docs" / "commands.md").read_text()
+    for name, study in STUDIES.items():
+        section = files.split(f"`settings` of a **{name}** sweep", 1)[1].split("<!--", 1)[0]
+        for f in study.fields:
+            assert f"`{f}`" in section, (name, f)
+        assert f"`{name}`" in commands
+    for key in ("kill -9", "dask scheduler", "dask worker", "dask-jobqueue", "SLURMCluster",
+                "--tls-ca-file", "tls://", "127.0.0.1", ".thrustwalk-sweep.json"):
+        assert key in commands, key
+
+
+def test_heat_map_cells_are_centred_on_the_values():
+    """Cell edges half-way between neighbouring values, half a spacing beyond the ends."""
+    from thrustwalk_cli.plots.sweep import _edges
+
+    assert _edges(np.array([0.0, 1.0, 3.0])).tolist() == [-0.5, 0.5, 2.0, 4.0]
+    assert _edges(np.array([2.0])).tolist() == [1.5, 2.5]
