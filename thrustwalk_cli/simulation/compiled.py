@@ -1,10 +1,11 @@
 """The compiled full-order simulation (SPEC 7): the numba kernel of :mod:`.kernel`, its
 parameters, and results in the same form as the SciPy reference path.
 
-One kernel per robot is generated from the model's scalar functions and the kernel source,
-compiled by numba once and cached beside the model (:mod:`thrustwalk_cli.model.jit`). It
-integrates with DOP853 (same tolerance semantics, step-size control and events as
-``solve_ivp``), so its steps agree with the SciPy path (``method="scipy"``) to the
+One kernel serves every robot: the kernel source and the tape interpreter, compiled by numba
+once per machine and cached in the thrustwalk cache folder (:mod:`thrustwalk_cli.model.jit`);
+the robot enters as data, its tape (:mod:`thrustwalk_cli.model.tape`) appended to the integer
+settings. It integrates with DOP853 (same tolerance semantics, step-size control and events
+as ``solve_ivp``), so its steps agree with the SciPy path (``method="scipy"``) to the
 integration tolerance. numba is imported only here, when a compiled run is asked for.
 """
 
@@ -17,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model import jit
-from ..model.compiled import CompiledModel
+from ..model.tape import SIGNATURES as TAPE_SIGNATURES
+from ..model.tape import interpreter_source
 from . import kernel as K
 from .closed_loop import ClosedLoop, ScalarGait, SimConfig
 from .records import EVENT_REASONS, Segment, StepRecord
@@ -43,28 +45,27 @@ def _coefficients() -> str:
 
 
 def kernel_source() -> str:
-    """The kernel's source followed by the DOP853 coefficients (they replace its
-    placeholders)."""
-    return inspect.getsource(K) + "\n\n# ---- DOP853 tableau (scipy.integrate.DOP853)\n" + \
-        _coefficients() + "\n"
+    """The kernel's source, the tape interpreter and the DOP853 coefficients (the last two
+    replace its placeholders)."""
+    return (inspect.getsource(K) + "\n\n# ---- the tape interpreter (model/tape.py)\n"
+            + interpreter_source() + "\n\n# ---- DOP853 tableau (scipy.integrate.DOP853)\n"
+            + _coefficients() + "\n")
 
 
 def _names() -> dict[str, str]:
     """Every function to compile with its numba signature, callees first."""
-    from ..model.compiled import NUMBA
-
-    return {**jit.model_signatures(NUMBA), **K.SIGNATURES}
+    return {**TAPE_SIGNATURES, **K.SIGNATURES}
 
 
-def kernel(model: CompiledModel, rebuild: bool = False) -> jit.JitModule:
-    """The compiled kernel of ``model``: compiled once per robot (numba) or loaded from the
-    cache."""
-    return jit.load(model, TAG, kernel_source(), _names(), K.INLINE, rebuild=rebuild)
+def kernel(rebuild: bool = False) -> jit.JitModule:
+    """The compiled kernel (every robot): compiled once per machine (numba) or loaded from
+    the cache."""
+    return jit.load(TAG, kernel_source(), _names(), rebuild=rebuild)
 
 
-def kernel_status(model: CompiledModel) -> dict:
-    """Whether the compiled kernel of ``model`` is cached, without importing numba."""
-    return jit.status(model, TAG, kernel_source(), _names(), K.INLINE)
+def kernel_status() -> dict:
+    """Whether the compiled kernel is cached, without importing numba."""
+    return jit.status(TAG, kernel_source(), _names())
 
 
 # ----------------------------------------------------------------------------- parameters
@@ -93,13 +94,21 @@ def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
     N, m = model.n, model.n_thrusters
     rows = np.array(ScalarGait(zd.maps).rows, float)
     nbrk = len(cl.breaks)
-    ip = np.array(K.layout(N, m, th.n_states, len(model.robot.links), rows.shape[1], nbrk),
-                  np.int64)
+    tape = model.tape
+    ip = np.array(K.layout(N, m, th.n_states, len(model.robot.links), rows.shape[1], nbrk,
+                           tape.nreg), np.int64)
+    for slot, name in ((K.T_ACCEL, "accel"), (K.T_FORCE, "force"), (K.T_HEIGHT, "height"),
+                       (K.T_FOOTVEL, "footvel"), (K.T_LINKS, "links"),
+                       (K.T_IMPACT, "impact"), (K.T_ENERGY, "energy"), (K.T_PUSH, "push")):
+        ip[slot] = K.N_IP + tape.programs[name]
+    ip[K.I_NCONST], ip[K.I_C0], ip[K.I_NREG] = tape.consts.size, tape.n_inputs, tape.nreg
+    ip = np.concatenate([ip, tape.code])
     ip[K.I_KIND] = KINDS[th.kind]
     ip[K.I_ROOT_END] = cl.root_end
     ip[K.I_GUARD_IDX] = cl.breaks.index(cl.arm_s)
     ip[K.I_GRID] = grid
-    fs = np.zeros(K.N_FS)
+    fs = np.zeros(K.N_FS + tape.consts.size)
+    fs[K.N_FS:] = tape.consts
     fs[K.F_AI], fs[K.F_SPAN], fs[K.F_DIR] = cl.ai, cl.span, cl.direction
     fs[K.F_KP], fs[K.F_KD] = cl.kp, cl.kd
     fs[K.F_RTOL], fs[K.F_ATOL] = cfg.rtol, cfg.atol
@@ -190,7 +199,7 @@ class Stepper:
         self.cl = cl
         self.model = cl.model
         self.packed = pack(cl, t_max)
-        self.jm = kernel(self.model)
+        self.jm = kernel()
         self.dense = dense
         N, m = self.model.n, self.model.n_thrusters
         self.n = 2 * N + self.packed.nz
