@@ -276,6 +276,8 @@ def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
     n_in_all, n_const = len(inputs), len(b.consts)
     base = n_in_all + n_const  # first temporary register
     unary = {b.op_code[k] for k in ("neg", "sin", "cos")}
+    if base + max((len(v[2]) for v in raw.values()), default=0) >= 1 << 20:
+        raise ValueError("tape: more than 2^20 registers")
     code: list[int] = []
     offsets: dict[str, int] = {}
     nreg = base
@@ -287,8 +289,8 @@ def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
         where = {d: base + j for j, (_, d, _, _) in enumerate(order)}
         where.update({r: n_in_all + (-1 - r) for r in range(-n_const, 0)})  # constants
         enc: list[int] = []
-        for op, _, x, y in order:
-            enc += [op, where.get(x, x), 0 if op in unary else where.get(y, y)]
+        for op, _, x, y in order:  # one integer per instruction: op << 40 | a << 20 | b
+            enc.append(op << 40 | where.get(x, x) << 20 | (0 if op in unary else where.get(y, y)))
         offsets[name] = len(code)
         code += [n_in, len(outs), len(order), base, *(where.get(r, r) for r in outs), *enc]
         nreg = max(nreg, base + len(order))

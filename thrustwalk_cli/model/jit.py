@@ -21,6 +21,7 @@ cached model.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import sys
 import tempfile
@@ -49,12 +50,20 @@ def _numba_version() -> str:
 
 
 def _digest(tag: str, source: str, names: dict[str, str]) -> str:
+    key = (tag, id(source), id(names))
+    hit = _DIGESTS.get(key)
+    if hit is not None and hit[0] is source and hit[1] is names:
+        return hit[2]
     h = hashlib.sha256()
     for part in (tag, source, repr(sorted(names.items())), OPTIONS, _numba_version(),
                  sys.version):
         h.update(part.encode())
         h.update(b"\0")
+    _DIGESTS[key] = (source, names, h.hexdigest())
     return h.hexdigest()
+
+
+_DIGESTS: dict[tuple, tuple[str, dict, str]] = {}  # the same source objects: hashed once
 
 
 def entry_path(tag: str, source: str, names: dict[str, str], folder: Path | None = None
@@ -200,11 +209,15 @@ def status(tag: str, source: str, names: dict[str, str]) -> dict:
 BATCH_TAG = "tape"
 
 
+@functools.cache
+def _batch_source() -> str:
+    return ('"""The tape interpreter of thrustwalk (model/tape.py), compiled by numba."""\n'
+            "import numpy as np\n\n\n" + interpreter_source())
+
+
 def batch_module(rebuild: bool = False) -> JitModule:
     """The compiled batch interpreter (compiled once per machine, for every robot)."""
-    source = ('"""The tape interpreter of thrustwalk (model/tape.py), compiled by numba."""\n'
-              "import numpy as np\n\n\n" + interpreter_source())
-    return load(BATCH_TAG, source, TAPE_SIGNATURES, rebuild=rebuild)
+    return load(BATCH_TAG, _batch_source(), TAPE_SIGNATURES, rebuild=rebuild)
 
 
 def run_batch(model: CompiledModel, program: str, x: np.ndarray, chunk: int = 64

@@ -11,6 +11,7 @@ integration tolerance. numba is imported only here, when a compiled run is asked
 
 from __future__ import annotations
 
+import functools
 import inspect
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -44,6 +45,7 @@ def _coefficients() -> str:
     return "\n".join(f"{k} = {arr(v)}" for k, v in parts.items())
 
 
+@functools.cache
 def kernel_source() -> str:
     """The kernel's source, the tape interpreter and the DOP853 coefficients (the last two
     replace its placeholders)."""
@@ -52,6 +54,7 @@ def kernel_source() -> str:
             + _coefficients() + "\n")
 
 
+@functools.cache
 def _names() -> dict[str, str]:
     """Every function to compile with its numba signature, callees first."""
     return {**TAPE_SIGNATURES, **K.SIGNATURES}
