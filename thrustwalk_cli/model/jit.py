@@ -26,6 +26,7 @@ import hashlib
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -40,16 +41,26 @@ from .tape import interpreter_source
 OPTIONS = "cache=True, nogil=True, error_model='numpy'"
 
 
-def _numba_version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
+@functools.cache
+def package_file(package: str, relative: str) -> str:
+    """The text of one file of an installed package, found without importing it (a cheap
+    stamp of its version: package metadata lookups cost tens of milliseconds)."""
+    import importlib.util
 
     try:
-        return version("numba")
-    except PackageNotFoundError:  # pragma: no cover - numba is a dependency
+        spec = importlib.util.find_spec(package)
+        return (Path(spec.origin).parent / relative).read_text()
+    except (ImportError, AttributeError, TypeError, OSError, ValueError):
         return "missing"
 
 
+def _numba_version() -> str:
+    return package_file("numba", "_version.py")
+
+
 def _digest(tag: str, source: str, names: dict[str, str]) -> str:
+    """Hash of a jit module's identity. ``source`` is the module's text or a fingerprint of
+    everything it is made from (cheaper: checking a warm cache must not build the text)."""
     key = (tag, id(source), id(names))
     hit = _DIGESTS.get(key)
     if hit is not None and hit[0] is source and hit[1] is names:
@@ -134,40 +145,50 @@ def _import(path: Path) -> ModuleType:
     return module
 
 
-def _place(tag: str, source: str, names: dict[str, str], rebuild: bool
-           ) -> tuple[Path, str]:
+def _place(tag: str, source: str | Callable[[], str], names: dict[str, str], rebuild: bool,
+           fingerprint: str | None = None) -> tuple[Path, str]:
     """Write the module file if needed; returns (path, note). Falls back to a private
-    temporary folder when the cache folder is unusable."""
-    text = _module_source(source, names)
+    temporary folder when the cache folder is unusable. ``source``: the text, or a function
+    that makes it (called only when the file must be written) with ``fingerprint``
+    identifying it."""
+    ident = fingerprint if fingerprint is not None else source
+    cached_text: list[str] = []
+
+    def text() -> str:
+        if not cached_text:
+            cached_text.append(_module_source(source() if callable(source) else source, names))
+        return cached_text[0]
     try:
-        path = entry_path(tag, source, names)
+        path = entry_path(tag, ident, names)
         if rebuild:
             for old in path.parent.glob(f"__pycache__/{path.stem}.*"):
                 old.unlink(missing_ok=True)
             path.with_suffix(".json").unlink(missing_ok=True)
         if rebuild or cache.verify_entry(path, path.stem) is not None:
-            cache.write_entry(path, path.stem, text)
+            cache.write_entry(path, path.stem, text())
             if cache.verify_entry(path, path.stem) is not None:
                 raise OSError(f"{path} reads back wrong")
         return path, ""
     except (OSError, cache.NoCacheDir) as exc:
-        path = entry_path(tag, source, names, _private_folder())
+        path = entry_path(tag, ident, names, _private_folder())
         if cache.verify_entry(path, path.stem) is not None:
-            cache.write_entry(path, path.stem, text)
+            cache.write_entry(path, path.stem, text())
         why = getattr(exc, "strerror", None) or str(exc) or exc.__class__.__name__
         return path, (f"cache folder unusable ({why}): the compiled kernel is kept in a "
                       f"temporary folder for this process only")
 
 
-def load(tag: str, source: str, names: dict[str, str], rebuild: bool = False) -> JitModule:
-    """The jit module for ``source``: written to the cache if missing, then imported, which
-    compiles every function in ``names`` (name -> numba signature, callees first) or loads
-    its machine code from numba's cache. ``rebuild``: discard both and compile again."""
-    key = _digest(tag, source, names)
+def load(tag: str, source: str | Callable[[], str], names: dict[str, str],
+         rebuild: bool = False, fingerprint: str | None = None) -> JitModule:
+    """The jit module for ``source`` (its text, or a function making it, identified by
+    ``fingerprint``): written to the cache if missing, then imported, which compiles every
+    function in ``names`` (name -> numba signature, callees first) or loads its machine code
+    from numba's cache. ``rebuild``: discard both and compile again."""
+    key = _digest(tag, fingerprint if fingerprint is not None else source, names)
     memo = _LOADED.get(key)
     if memo is not None and not rebuild:
         return memo
-    path, note = _place(tag, source, names, rebuild)
+    path, note = _place(tag, source, names, rebuild, fingerprint)
     t0 = time.perf_counter()
     if rebuild:
         sys.modules.pop(f"thrustwalk_jit_{path.stem.replace('-', '_')}", None)
@@ -181,8 +202,10 @@ def load(tag: str, source: str, names: dict[str, str], rebuild: bool = False) ->
     else:
         compile_seconds = seconds
         try:
+            import numba
+
             cache.write_meta(meta_path, {"compile_seconds": seconds,
-                                         "numba": _numba_version()})
+                                         "numba": numba.__version__})
         except OSError:
             pass
     jm = JitModule(module, path, seconds, hit, compile_seconds, note)
@@ -190,12 +213,12 @@ def load(tag: str, source: str, names: dict[str, str], rebuild: bool = False) ->
     return jm
 
 
-def status(tag: str, source: str, names: dict[str, str]) -> dict:
-    """Whether the jit module is on disk with numba's machine code and its recorded compile
-    time, checked without importing numba: ``{"cached": bool, "compile_seconds": float|None,
-    "entry": path}``."""
+def status(tag: str, ident: str, names: dict[str, str]) -> dict:
+    """Whether the jit module (``ident``: its text or fingerprint, as given to :func:`load`)
+    is on disk with numba's machine code and its recorded compile time, checked without
+    importing numba: ``{"cached": bool, "compile_seconds": float|None, "entry": path}``."""
     try:
-        path = entry_path(tag, source, names)
+        path = entry_path(tag, ident, names)
     except cache.NoCacheDir:
         return {"cached": False, "compile_seconds": None, "entry": ""}
     meta = cache.read_meta(path.with_suffix(".json"))

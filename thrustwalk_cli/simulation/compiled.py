@@ -15,6 +15,7 @@ import functools
 import inspect
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -22,8 +23,10 @@ from ..model import jit
 from ..model.tape import SIGNATURES as TAPE_SIGNATURES
 from ..model.tape import interpreter_source
 from . import kernel as K
-from .closed_loop import ClosedLoop, ScalarGait, SimConfig
 from .records import EVENT_REASONS, Segment, StepRecord
+
+if TYPE_CHECKING:  # the closed loop (and the zero dynamics under it) load when a run needs them
+    from .closed_loop import ClosedLoop, SimConfig
 
 TAG = "sim"
 KINDS = {"constant": K.K_CONSTANT, "first-order": K.K_FIRST, "second-order": K.K_SECOND,
@@ -60,15 +63,30 @@ def _names() -> dict[str, str]:
     return {**TAPE_SIGNATURES, **K.SIGNATURES}
 
 
+@functools.cache
+def _fingerprint() -> str:
+    """What the kernel's module is made of, cheaply (no SciPy import, no source assembly):
+    the files of its source and SciPy's file of the DOP853 tableau."""
+    import hashlib
+    from pathlib import Path
+
+    h = hashlib.sha256()
+    here = Path(__file__).parent
+    for f in (here / "kernel.py", here / "compiled.py", here.parent / "model" / "tape.py"):
+        h.update(f.read_bytes())
+    h.update(jit.package_file("scipy", "integrate/_ivp/dop853_coefficients.py").encode())
+    return h.hexdigest()
+
+
 def kernel(rebuild: bool = False) -> jit.JitModule:
     """The compiled kernel (every robot): compiled once per machine (numba) or loaded from
     the cache."""
-    return jit.load(TAG, kernel_source(), _names(), rebuild=rebuild)
+    return jit.load(TAG, kernel_source, _names(), rebuild=rebuild, fingerprint=_fingerprint())
 
 
 def kernel_status() -> dict:
-    """Whether the compiled kernel is cached, without importing numba."""
-    return jit.status(TAG, kernel_source(), _names())
+    """Whether the compiled kernel is cached, without importing numba or SciPy."""
+    return jit.status(TAG, _fingerprint(), _names())
 
 
 # ----------------------------------------------------------------------------- parameters
@@ -93,6 +111,8 @@ class Packed:
 def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
     """Arrays for the kernel from a :class:`ClosedLoop` (the SciPy path's own setup, so both
     methods see the same breakpoints, thrust pieces and settings)."""
+    from .closed_loop import ScalarGait
+
     zd, th, cfg, model = cl.zd, cl.thrust, cl.config, cl.model
     N, m = model.n, model.n_thrusters
     rows = np.array(ScalarGait(zd.maps).rows, float)
