@@ -41,21 +41,8 @@ from .tape import interpreter_source
 OPTIONS = "cache=True, nogil=True, error_model='numpy'"
 
 
-@functools.cache
-def package_file(package: str, relative: str) -> str:
-    """The text of one file of an installed package, found without importing it (a cheap
-    stamp of its version: package metadata lookups cost tens of milliseconds)."""
-    import importlib.util
-
-    try:
-        spec = importlib.util.find_spec(package)
-        return (Path(spec.origin).parent / relative).read_text()
-    except (ImportError, AttributeError, TypeError, OSError, ValueError):
-        return "missing"
-
-
 def _numba_version() -> str:
-    return package_file("numba", "_version.py")
+    return cache.package_file("numba", "_version.py")
 
 
 def _digest(tag: str, source: str, names: dict[str, str]) -> str:

@@ -67,15 +67,14 @@ def _names() -> dict[str, str]:
 def _fingerprint() -> str:
     """What the kernel's module is made of, cheaply (no SciPy import, no source assembly):
     the files of its source and SciPy's file of the DOP853 tableau."""
-    import hashlib
     from pathlib import Path
 
-    h = hashlib.sha256()
+    from ..model import cache
+
     here = Path(__file__).parent
-    for f in (here / "kernel.py", here / "compiled.py", here.parent / "model" / "tape.py"):
-        h.update(f.read_bytes())
-    h.update(jit.package_file("scipy", "integrate/_ivp/dop853_coefficients.py").encode())
-    return h.hexdigest()
+    return cache.files_digest(
+        [here / "kernel.py", here / "compiled.py", here.parent / "model" / "tape.py"],
+        cache.package_file("scipy", "integrate/_ivp/dop853_coefficients.py"))
 
 
 def kernel(rebuild: bool = False) -> jit.JitModule:
