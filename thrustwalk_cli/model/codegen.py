@@ -250,6 +250,41 @@ class _TapeBuilder:
         return r
 
 
+def _fuse(order: list[tuple[int, int, int, int]], outs: list[int], ops: dict[str, int]
+          ) -> list[tuple[int, int, int, int, int]]:
+    """Fold a product read once into the sum or difference that reads it: ``a b + c``
+    (fma), ``a b - c`` (fms), ``c - a b`` (fnma), rounded twice as before (numba does not
+    contract them into hardware fused multiply-adds), one instruction fewer each."""
+    mul, add, sub = ops["mul"], ops["add"], ops["sub"]
+    unary = {ops[k] for k in ("neg", "sin", "cos")}
+    uses: dict[int, int] = {}
+    for op, _, x, y in order:
+        for a in ((x,) if op in unary else (x, y)):
+            uses[a] = uses.get(a, 0) + 1
+    for r in outs:
+        uses[r] = uses.get(r, 0) + 1
+    prods = {d: (x, y) for op, d, x, y in order if op == mul}
+    gone: set[int] = set()
+
+    def single(r: int) -> bool:
+        return r in prods and uses.get(r) == 1 and r not in gone
+    out: list[tuple[int, int, int, int, int]] = []
+    for op, d, x, y in order:
+        if op == add and (single(x) or single(y)):
+            p, other = (x, y) if single(x) else (y, x)
+            gone.add(p)
+            out.append((ops["fma"], d, *prods[p], other))
+        elif op == sub and single(x):
+            gone.add(x)
+            out.append((ops["fms"], d, *prods[x], y))
+        elif op == sub and single(y):
+            gone.add(y)
+            out.append((ops["fnma"], d, *prods[y], x))
+        else:
+            out.append((op, d, x, y, 0))
+    return [ins for ins in out if not (ins[0] == mul and ins[1] in gone)]
+
+
 def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
                   inputs: list[sp.Symbol]) -> dict:
     """Compile groups of expressions into one tape (plain data, see
@@ -276,8 +311,9 @@ def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
     n_in_all, n_const = len(inputs), len(b.consts)
     base = n_in_all + n_const  # first temporary register
     unary = {b.op_code[k] for k in ("neg", "sin", "cos")}
-    if base + max((len(v[2]) for v in raw.values()), default=0) >= 1 << 20:
-        raise ValueError("tape: more than 2^20 registers")
+    if base + max((len(v[2]) for v in raw.values()), default=0) >= 1 << 19:
+        raise ValueError("tape: more than 2^19 registers")
+
     code: list[int] = []
     offsets: dict[str, int] = {}
     nreg = base
@@ -285,12 +321,13 @@ def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
         level: dict[int, int] = {}
         for op, d, x, y in live:
             level[d] = 1 + max(level.get(a, 0) for a in ((x,) if op in unary else (x, y)))
-        order = sorted(live, key=lambda ins: (level[ins[1]], ins[0]))
-        where = {d: base + j for j, (_, d, _, _) in enumerate(order)}
+        order = _fuse(sorted(live, key=lambda ins: (level[ins[1]], ins[0])), outs, b.op_code)
+        where = {ins[1]: base + j for j, ins in enumerate(order)}
         where.update({r: n_in_all + (-1 - r) for r in range(-n_const, 0)})  # constants
         enc: list[int] = []
-        for op, _, x, y in order:  # one integer per instruction: op << 40 | a << 20 | b
-            enc.append(op << 40 | where.get(x, x) << 20 | (0 if op in unary else where.get(y, y)))
+        for op, _, x, y, z in order:  # one integer: op << 57 | a << 38 | b << 19 | c
+            enc.append(op << 57 | where.get(x, x) << 38
+                       | (0 if op in unary else where.get(y, y)) << 19 | where.get(z, z))
         offsets[name] = len(code)
         code += [n_in, len(outs), len(order), base, *(where.get(r, r) for r in outs), *enc]
         nreg = max(nreg, base + len(order))
