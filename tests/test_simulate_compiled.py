@@ -3,8 +3,8 @@
 The SciPy path (``method="scipy"``: ``solve_ivp`` with Python event functions) is the
 independent computation: every step's zeta^- must agree to 1e-9 relative on both bundled
 robots and every thrust model, every failure must be detected at the same step with the same
-kind, and the step statistics must agree. The kernel is compiled once per robot and cached
-beside the model: a second process loads it without compiling.
+kind, and the step statistics must agree. The kernel is compiled once per machine (the robot
+is its tape) and cached: a second process loads it without compiling.
 """
 
 from __future__ import annotations
