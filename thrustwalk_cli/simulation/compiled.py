@@ -110,11 +110,9 @@ class Packed:
 def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
     """Arrays for the kernel from a :class:`ClosedLoop` (the SciPy path's own setup, so both
     methods see the same breakpoints, thrust pieces and settings)."""
-    from .closed_loop import ScalarGait
-
-    zd, th, cfg, model = cl.zd, cl.thrust, cl.config, cl.model
+    th, cfg, model = cl.thrust, cl.config, cl.model
     N, m = model.n, model.n_thrusters
-    rows = np.array(ScalarGait(zd.maps).rows, float)
+    rows = np.array(cl.gait_s.rows, float)
     nbrk = len(cl.breaks)
     tape = model.tape
     ip = np.array(K.layout(N, m, th.n_states, len(model.robot.links), rows.shape[1], nbrk,
@@ -227,9 +225,20 @@ class Stepper:
         self.n = 2 * N + self.packed.nz
         self.width = record_width(N, self.packed.nz, m)
         self.par = self.packed.par.copy()
-        self._w = np.zeros(self.packed.ip[K.W_SIZE])
         self._buf = np.zeros((BUF_ROWS, 2 + 8 * self.n))
         self._calls = np.zeros((256, K.N_CALL))
+        # the kernel's one-run arguments, reused from step to step
+        p = self.packed
+        self._X0 = np.zeros((1, self.n))
+        self._T0 = np.zeros(1)
+        self._K0 = np.zeros(1, np.int64)
+        self._recs = np.zeros((1, 1, self.width))
+        self._outs = np.zeros((1, K.N_OUT))
+        self._XN = np.zeros((1, self.n))
+        self._info = np.zeros((1, 2), np.int64)
+        self._done = np.zeros(1, np.int64)
+        self._gains = np.array([[p.fs[K.F_KP], p.fs[K.F_KD]]])
+        self._nopush = np.full((1, 6), -1.0)
 
     def set_thrust(self, target=None, seg_force=None, seg_T=None) -> None:
         """Thrust values for the following steps (see :func:`with_thrust`)."""
@@ -241,17 +250,16 @@ class Stepper:
         """Step ``k`` (1-based) from the post-impact state ``x0`` at time ``t0`` [s];
         ``push``: ``[k, s, link index, lambda, P_x, P_y]`` (see ``kernel.apply_push``)."""
         p = self.packed
-        X0 = np.ascontiguousarray(np.asarray(x0, float).reshape(1, self.n))
-        recs = np.zeros((1, 1, self.width))
-        outs = np.zeros((1, K.N_OUT))
-        XN = np.zeros((1, self.n))
-        info = np.zeros((1, 2), np.int64)
-        pu = np.full((1, 6), -1.0) if push is None else np.asarray(push, float).reshape(1, 6)
-        gains = np.array([[p.fs[K.F_KP], p.fs[K.F_KD]]])
+        X0, recs, outs, XN, info = self._X0, self._recs, self._outs, self._XN, self._info
+        X0[0] = np.asarray(x0, float).reshape(self.n)
+        self._T0[0] = t0
+        self._K0[0] = k
+        pu = self._nopush if push is None else np.ascontiguousarray(
+            np.asarray(push, float).reshape(1, 6))
         while True:
-            self.jm.module.run(X0, np.array([float(t0)]), np.array([int(k)], np.int64), 1,
-                               p.fs, p.ip, self.par[None, :], gains, pu, recs, outs,
-                               np.zeros(1, np.int64), XN, info, 0, 1, self._buf, self._calls)
+            self.jm.module.run(X0, self._T0, self._K0, 1, p.fs, p.ip, self.par[None, :],
+                               self._gains, pu, recs, outs, self._done, XN, info, 0, 1,
+                               self._buf, self._calls)
             if int(outs[0, K.O_STATUS]) != K.FAIL_BUFFER or self._buf.shape[0] >= 1 << 18:
                 break
             self._buf = np.zeros((4 * self._buf.shape[0], self._buf.shape[1]))
@@ -264,7 +272,7 @@ class Stepper:
                 rows = self._buf[int(first):int(last)]
                 pieces.append((float(ta), float(tb), int(seg),
                                DenseSolution(rows, float(ta), float(tb), self.n)))
-        return StepOutcome(status, recs[0, 0], outs[0], XN[0], pieces)
+        return StepOutcome(status, recs[0, 0].copy(), outs[0].copy(), XN[0].copy(), pieces)
 
 
 def failure_text(out: np.ndarray, cfg: SimConfig, t_max: float) -> tuple[str, str]:
