@@ -90,9 +90,10 @@ class Tape:
 # ------------------------------------------------------------------ interpreter (numba)
 # Plain Python that numba compiles (see jit.py); the op codes are repeated as literals so
 # the functions need no globals.
-def tape_run(code, p, x, r, out):
+def tape_run(code, p, x, r, o):
     """Run the program at ``code[p]``: inputs ``x[:n_in]`` into the registers ``r`` (whose
-    constants are in place), outputs into ``out[:n_out]``."""
+    constants are in place), outputs into ``r[o:o + n_out]`` (an offset rather than a view:
+    a view costs two atomic reference-count updates per call)."""
     n_in = code[p]
     n_out = code[p + 1]
     base = code[p + 3]
@@ -127,9 +128,9 @@ def tape_run(code, p, x, r, out):
         else:
             v = a ** b
         r[base + j] = v
-    o = p + 4
+    k = p + 4
     for i in range(n_out):
-        out[i] = r[code[o + i]]
+        r[o + i] = r[code[k + i]]
     return n_out
 
 
@@ -201,7 +202,7 @@ def tape_batch(code, p, consts, c0, nreg, X, out, chunk):
 
 
 SIGNATURES = {
-    "tape_run": "(int64[::1], int64, float64[::1], float64[::1], float64[::1])",
+    "tape_run": "(int64[::1], int64, float64[::1], float64[::1], int64)",
     "tape_batch": "(int64[::1], int64, float64[::1], int64, int64, float64[:, ::1], "
                   "float64[:, ::1], int64)",
 }
