@@ -22,6 +22,7 @@ test: $(STAMP)
 	$(BIN)/ruff check .
 
 bench: $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[bench]' || echo "bench extra (pin) not installed: the Pinocchio comparison prints 'skipped'"
 	MPLBACKEND=Agg $(BIN)/python bench/run.py
 
 lint: $(STAMP)

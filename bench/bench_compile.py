@@ -1,8 +1,10 @@
-"""Model benchmarks (robot-model issue): compile/load times, D and bias evaluation, start-up.
+"""Model benchmarks (robot-model issue, issue 13): compile/load times, the one-time numba
+kernel, D and bias evaluation, start-up, warm commands.
 
 Baselines measured in the same run: a bare ``python -c pass`` start (for start-up and warm
 load), a SymPy ``lambdify`` of the same expressions (per call), a Python loop over the
-generated scalar functions (per state in a batch).
+generated scalar functions (per state in a batch), the generated NumPy batch (for the
+compiled batch D + C q' + G).
 """
 
 from __future__ import annotations
@@ -26,6 +28,15 @@ def _sub(code: str, env: dict | None = None) -> float:
     return time.perf_counter() - t0
 
 
+def _cpu(cmd: list[str], env: dict) -> float:
+    """CPU time (user + system) of a child process [s]."""
+    before = os.times()
+    subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
+    after = os.times()
+    return (after.children_user - before.children_user
+            + after.children_system - before.children_system)
+
+
 def main() -> None:
     base = min(_sub("pass") for _ in range(3))
     report("python -c pass (baseline)", base)
@@ -37,22 +48,58 @@ def main() -> None:
         ts.append(time.perf_counter() - t0)
     help_t = min(ts)
     report("thrustwalk --help start-up (target < 0.3 s)", help_t, base)
+    # the numba kernel: compiled once per machine (a fresh cache folder), shared by robots
+    cache = tempfile.mkdtemp(prefix="tw-bench-")
+    env = dict(os.environ, THRUSTWALK_CACHE_DIR=cache)
+    kcode = ("from thrustwalk_cli.simulation.compiled import kernel; "
+             "jm = kernel(); assert not jm.cache_hit")
+    t_kernel = _sub(kcode, env)
+    t_kload = min(_sub("from thrustwalk_cli.simulation.compiled import kernel; "
+                       "assert kernel().cache_hit", env) for _ in range(3))
+    report("numba kernel: one-time compile (per machine), whole process", t_kernel, base)
+    report("numba kernel: load from the cache, whole process", t_kload, base)
     for name in ROBOTS:
-        cache = tempfile.mkdtemp(prefix="tw-bench-")
-        env = dict(os.environ, THRUSTWALK_CACHE_DIR=cache)
+        rcache = tempfile.mkdtemp(prefix="tw-bench-")
+        # the kernel is shared: copy the compiled one, so the robot's cold compile is measured
+        subprocess.run(["cp", "-r", f"{cache}/.", rcache], check=True)
+        renv = dict(os.environ, THRUSTWALK_CACHE_DIR=rcache)
         code = ("from thrustwalk_cli.files.robot_file import load_robot;"
                 "from thrustwalk_cli.model.compiler import load_model;"
                 f"m = load_model(load_robot({name!r}))")
-        cold = _sub(code, env)
-        warm = min(_sub(code + "; import sys; assert 'sympy' not in sys.modules", env)
+        cold = _sub(code, renv)
+        warm = min(_sub(code + "; import sys; assert 'sympy' not in sys.modules", renv)
                    for _ in range(3))
-        report(f"{name}: cold compile, whole process", cold, base)
+        report(f"{name}: cold compile (SymPy + tape), whole process (target < 5 s)", cold,
+               base)
         report(f"{name}: warm load, whole process (target < 0.3 s)", warm, base)
+        gait = {"three_link": "three_link_walk", "rabbit": "rabbit_walk"}[name]
+        scode = ("import numpy as np\n"
+                 "from thrustwalk_cli.walker import load_walker\n"
+                 "from thrustwalk_cli.simulation.closed_loop import SimConfig, ThrustModel\n"
+                 "from thrustwalk_cli.simulation.full_order import simulate\n"
+                 f"w = load_walker({name!r}, {gait!r})\n"
+                 "r = simulate(w.zd, ThrustModel('constant', np.zeros(w.model.n_thrusters)),"
+                 " SimConfig(steps=1))\n"
+                 "assert r.success\n")
+        rcache2 = tempfile.mkdtemp(prefix="tw-bench-")
+        subprocess.run(["cp", "-r", f"{cache}/.", rcache2], check=True)
+        first = _sub(scode, dict(os.environ, THRUSTWALK_CACHE_DIR=rcache2))
+        report(f"{name}: new robot to its first compiled step, whole process", first, base)
+        # as installed: byte code cached (PYTHONDONTWRITEBYTECODE would recompile every
+        # module of every command); the first run writes it
+        cenv = {k: v for k, v in renv.items() if k != "PYTHONDONTWRITEBYTECODE"}
+        for cmd in (["compile", name, "-q"], ["inspect", name, "--q",
+                                              ",".join(["0.1"] * (3 if name == "three_link"
+                                                                  else 5))]):
+            argv = [sys.executable, "-m", "thrustwalk_cli", *cmd]
+            _cpu(argv, cenv)
+            cpu = min(_cpu(argv, cenv) for _ in range(3))
+            report(f"{name}: warm `thrustwalk {cmd[0]}`, CPU (target < 0.3 s)", cpu)
 
     from sympy import lambdify
 
     from thrustwalk_cli.files.robot_file import load_robot
-    from thrustwalk_cli.model import derive
+    from thrustwalk_cli.model import derive, jit
     from thrustwalk_cli.model.compiler import load_model
 
     rng = np.random.default_rng(0)
@@ -76,8 +123,12 @@ def main() -> None:
                              repeat=3) / 10000
         t_batch = median_time(lambda: (m.D(Q), m.h(Q, DQ)), repeat=5) / 10000
         report(f"{name}: D+h per state, loop over scalar (baseline)", t_loop, unit="us")
-        report(f"{name}: D+h per state, batch of 10,000 (target < 1 us)", t_batch, t_loop,
+        report(f"{name}: D+h per state, generated NumPy batch of 10,000", t_batch, t_loop,
                unit="us")
+        jit.D_h_batch(m, Q[:10], DQ[:10])
+        t_jit = median_time(lambda: jit.D_h_batch(m, Q, DQ), repeat=7) / 10000
+        report(f"{name}: D+h per state, compiled tape batch (ratio to NumPy; target "
+               "<= 0.3 us)", t_jit, t_batch, unit="us")
 
 
 if __name__ == "__main__":

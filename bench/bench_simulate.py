@@ -1,21 +1,32 @@
-"""Full-order simulation benchmark (SPEC 7): one step, right-hand side, fixed point by simulation.
+"""Full-order simulation benchmark (SPEC 7): compiled vs SciPy per step, the right-hand side
+per call (vs Pinocchio's ABA), the 1,000-run batch, the fixed point by simulation vs the
+zero-dynamics route.
 
-Baselines measured in the same run:
-* "compiled dynamics": the passive pinned model ``q'' = D^-1 (-h)`` from the same generated
-  scalar functions plus ``numpy.linalg.solve``, integrated by the same ``solve_ivp`` over the
-  same time without events (the least any closed-loop right-hand side can cost);
-* "zero-dynamics formula": ``zeta* = V_Z(alpha_f)/(1 - delta_zero^2)`` (one limit cycle, and
-  with the precomputation of V_Z) against simulating until ``zeta^-`` settles to 1e-6.
+Baselines measured in the same run (medians):
+* one simulated step: the SciPy reference (``solve_ivp`` DOP853 with Python events, the same
+  steps and records) over the same 10 steps from the same start, rtol = atol = 1e-9;
+* right-hand side per call: Pinocchio's ABA from Python on the same robot (links, masses,
+  inertias, joints; ``pip install -e '.[bench]'``), printed as "skipped" when missing;
+* 1,000 runs of 10 steps: threads (the batch API, ``workers=2``) vs a pool of 2 processes,
+  each loading the compiled kernel from the cache;
+* the fixed point: the zero-dynamics route (the formula and one whole limit cycle, the
+  gait's precomputation excluded and included) vs the SciPy reference simulation until
+  ``zeta^-`` is within 1e-6 of ``zeta*``.
 """
 
 from __future__ import annotations
 
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 from timing import median_time, report
 
 REPO = Path(__file__).resolve().parents[1]
+STEPS = 10
 
 
 def _gaits() -> list[str]:
@@ -23,67 +34,143 @@ def _gaits() -> list[str]:
             if (REPO / "gaits" / f"{g}.yaml").is_file()]
 
 
+def _pinocchio(robot):
+    """The robot as a Pinocchio model (planar: revolute joints about z in the link frames,
+    the root at the stance foot), or None without Pinocchio."""
+    try:
+        import pinocchio as pin
+    except ImportError:
+        return None
+    model = pin.Model()
+    ids = {}
+    for lk in robot.links:  # parents come first
+        parent = 0 if lk.parent is None else ids[lk.parent]
+        at = robot.stance_foot.point if lk.parent is None else lk.joint
+        place = pin.SE3(np.eye(3), np.array([at[0], at[1], 0.0]))
+        jid = model.addJoint(parent, pin.JointModelRZ(), place, lk.name)
+        inertia = pin.Inertia(lk.mass, np.array([lk.com[0], lk.com[1], 0.0]),
+                              np.diag([1e-6, 1e-6, max(lk.inertia, 1e-9)]))
+        model.appendBodyToJoint(jid, inertia, pin.SE3.Identity())
+        ids[lk.name] = jid
+    model.gravity.linear = np.array([0.0, -robot.gravity, 0.0])
+    return pin, model, model.createData()
+
+
+def _batch_part(args):
+    """One process's share of the 1,000 runs (the kernel comes from the cache)."""
+    gait, X0, steps = args
+    from thrustwalk_cli.simulation.batch import simulate_batch
+    from thrustwalk_cli.simulation.closed_loop import SimConfig, ThrustModel
+    from thrustwalk_cli.walker import load_walker
+
+    w = load_walker(None, gait)
+    th = ThrustModel("constant", np.zeros(w.model.n_thrusters))
+    res = simulate_batch(w.zd, th, X0, SimConfig(steps=steps), workers=1)
+    return int(res.success.sum())
+
+
 def main() -> None:
-    from scipy.integrate import solve_ivp
+    import numba
 
     from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles, zero_dynamics
-    from thrustwalk_cli.simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel
-    from thrustwalk_cli.simulation.full_order import Start, simulate
+    from thrustwalk_cli.simulation import kernel as K
+    from thrustwalk_cli.simulation.batch import simulate_batch, start_states
+    from thrustwalk_cli.simulation.closed_loop import (
+        ClosedLoop,
+        SimConfig,
+        ThrustModel,
+        predicted_cycle,
+    )
+    from thrustwalk_cli.simulation.compiled import Stepper, kernel, run_steps
+    from thrustwalk_cli.simulation.full_order import Start, _one_step, initial_state, simulate
     from thrustwalk_cli.walker import load_walker
+
+    jm = kernel()
+    rhs_eval = jm.module.rhs_eval
+
+    @numba.njit(nogil=True)
+    def rhs_loop(x, fs, ip, par, w, dx, n):  # the kernel's right-hand side, n calls
+        for _ in range(n):
+            x[0] += 1e-12
+            rhs_eval(0.0, x, 0, fs, ip, par, w, dx)
+        return dx[0]
 
     for gait in _gaits():
         walker = load_walker(None, gait)
         model, g, zd = walker.model, walker.gait, walker.zd
         N, m = model.n, model.n_thrusters
         th = ThrustModel("constant", np.zeros(m))
-        cfg = SimConfig(steps=1, rtol=1e-9, atol=1e-9)
-        res = simulate(zd, th, cfg)
-        T = res.steps[0].step_time
-        t_step = median_time(lambda: simulate(zd, th, cfg), repeat=5)
-        report(f"{gait}: one simulated step at rtol 1e-9 ({res.nfev} RHS calls)", t_step,
-               unit="ms")
-
-        x0 = np.concatenate([zd.maps.q_plus, res.steps[0].dq_minus])
-
-        def passive(t, x):
-            q, dq = x[:N].tolist(), x[N:].tolist()
-            ddq = np.linalg.solve(np.array(model.D_s(q)).reshape(N, N),
-                                  -np.array(model.h_s(q, dq)))
-            return np.concatenate([x[N:], ddq])
-
-        t_base = median_time(lambda: solve_ivp(passive, (0, T), x0, method="DOP853",
-                                               rtol=1e-9, atol=1e-9, dense_output=True),
-                             repeat=5)
-        report(f"{gait}: baseline: passive compiled dynamics over the same time", t_base,
-               unit="ms")
-        report(f"{gait}: one step (ratio to the compiled-dynamics baseline)", t_step, t_base,
-               unit="ms")
-
+        cfg = SimConfig(steps=STEPS, rtol=1e-9, atol=1e-9)
         cl = ClosedLoop(zd, th, cfg)
-        x = np.concatenate([zd.maps.q_plus, np.ones(N)])
-        n = 2000
-        t_rhs = median_time(lambda: cl.rhs(0.0, x, 0), repeat=7, number=n)
-        t_prhs = median_time(lambda: passive(0.0, x), repeat=7, number=n)
-        report(f"{gait}: baseline RHS: passive D_s + h_s + numpy solve", t_prhs, unit="us")
-        report(f"{gait}: closed-loop RHS (ratio to the passive RHS)", t_rhs, t_prhs, unit="us")
-        print(f"{gait + ': closed-loop RHS evaluations per second':<58s} {1 / t_rhs:12.4g}",
-              flush=True)
+        t_max = 10.0 * predicted_cycle(zd, th).step_time
+        x0 = initial_state(zd, th, Start(perturb=0.1))
 
-        # the fixed point: simulate from 30 % off until zeta^- is within 1e-6 of zeta*, vs the
-        # formula zeta* = V_Z(alpha_f)/(1 - delta_zero^2) (alone, as a whole limit cycle, and
-        # with the precomputation of V_Z)
+        def scipy_steps():
+            x, t, segs = x0, 0.0, []
+            for k in range(1, STEPS + 1):
+                _, x, t = _one_step(cl, k, t, x, t_max, segs)
+
+        run_steps(cl, x0, t_max, STEPS)
+        # side by side: each SciPy run next to compiled runs (the machine's load drifts)
+        refs, cmps, ratios = [], [], []
+        for _ in range(5):
+            t_r = median_time(scipy_steps, repeat=1) / STEPS
+            t_c = median_time(lambda: run_steps(cl, x0, t_max, STEPS), repeat=5) / STEPS
+            refs.append(t_r)
+            cmps.append(t_c)
+            ratios.append(t_r / t_c)
+        t_ref, t_cmp = float(np.median(refs)), float(np.median(cmps))
+        report(f"{gait}: one step, SciPy reference, rtol 1e-9 (baseline)", t_ref, unit="ms")
+        report(f"{gait}: one step, compiled kernel (ratio; target <= 1/40)", t_cmp, t_ref,
+               unit="ms")
+        print(f"{gait + ': compiled vs SciPy per step (median of 5 pairs)':<58s} "
+              f"{float(np.median(ratios)):10.1f} x  (pairs {min(ratios):.1f}-{max(ratios):.1f}"
+              "; target >= 40 x)", flush=True)
+
+        # -- right-hand side per call
+        st = Stepper(cl, t_max, dense=False)
+        p = st.packed
+        w = np.zeros(p.ip[K.W_SIZE])
+        w[p.ip[K.I_C0]:p.ip[K.I_C0] + p.ip[K.I_NCONST]] = p.fs[K.N_FS:]
+        x = np.ascontiguousarray(np.concatenate([zd.maps.q_plus, np.ones(N)]))
+        dx = np.zeros(2 * N)
+        rhs_loop(x.copy(), p.fs, p.ip, p.par, w, dx, 10)
+        n = 20000
+        t_rhs = median_time(lambda: rhs_loop(x.copy(), p.fs, p.ip, p.par, w, dx, n),
+                            repeat=7) / n
+        t_py = median_time(lambda: cl.rhs(0.0, x, 0), repeat=7, number=2000)
+        pin_model = _pinocchio(model.robot)
+        if pin_model is None:
+            print(f"{gait + ': Pinocchio ABA from Python':<58s} {'skipped':>12s} (pip install "
+                  "-e '.[bench]')", flush=True)
+            report(f"{gait}: closed-loop RHS, SciPy path (Python)", t_py, unit="us")
+            report(f"{gait}: closed-loop RHS, compiled kernel (ratio to Python)", t_rhs, t_py,
+                   unit="us")
+        else:
+            pin, pm, pdata = pin_model
+            qv, vv, tau = np.zeros(pm.nq), np.ones(pm.nv), np.zeros(pm.nv)
+            t_aba = median_time(lambda: pin.aba(pm, pdata, qv, vv, tau), repeat=7,
+                                number=2000)
+            report(f"{gait}: Pinocchio ABA from Python (baseline)", t_aba, unit="us")
+            report(f"{gait}: closed-loop RHS, SciPy path (Python)", t_py, t_aba, unit="us")
+            report(f"{gait}: closed-loop RHS, compiled kernel (target ratio <= 1)", t_rhs,
+                   t_aba, unit="us")
+
+        # -- the fixed point: zero-dynamics route vs the SciPy reference simulation to 1e-6
         sched = Schedule.constant(zd, np.zeros((1, m)))
         zs = limit_cycles(zd, sched)[0].zeta_star
         start = Start(perturb=0.3)
         probe = simulate(zd, th, SimConfig(steps=80, rtol=1e-9, atol=1e-9), start)
-        z = np.array([st.zeta_minus for st in probe.steps])
+        z = np.array([s.zeta_minus for s in probe.steps])
         done = np.nonzero(np.abs(z / zs - 1) < 1e-6)[0]
         if not probe.success or done.size == 0:
             print(f"{gait}: simulation did not settle: {probe.reason}")
             continue
         n_steps = int(done[0]) + 1
         conv = SimConfig(steps=n_steps, rtol=1e-9, atol=1e-9)
-        t_sim = median_time(lambda: simulate(zd, th, conv, start), repeat=3)
+        t_sim = median_time(lambda: simulate(zd, th, replace(conv, method="scipy"), start),
+                            repeat=3)
+        t_csim = median_time(lambda: simulate(zd, th, conv, start), repeat=3)
         af = np.array(zd.alpha_f)
         t_formula = median_time(
             lambda: zd.V_Z(af, sched) / (1.0 - zd.delta_zero_sq), repeat=7, number=200)
@@ -91,15 +178,40 @@ def main() -> None:
         t_full = median_time(lambda: limit_cycles(zero_dynamics(model, g), sched), repeat=5)
         print(f"{gait + ': steps to zeta* within 1e-6 by simulation':<58s} {n_steps:12d}",
               flush=True)
-        report(f"{gait}: baseline: zeta* by the formula V_Z(af)/(1-d0^2)", t_formula,
-               unit="us")
-        report(f"{gait}: zeta* by simulation (ratio to the formula)", t_sim, t_formula,
+        report(f"{gait}: zeta* by the SciPy reference simulation (baseline)", t_sim,
                unit="ms")
-        report(f"{gait}: ... ratio to one whole limit cycle (orbit, T)", t_sim, t_cycle,
+        report(f"{gait}: zeta* by the compiled simulation (ratio)", t_csim, t_sim, unit="ms")
+        report(f"{gait}: zeta* = V_Z(af)/(1-d0^2) (ratio; target <= 1/1000)", t_formula,
+               t_sim, unit="us")
+        report(f"{gait}: one whole limit cycle (orbit, T, extrema) (ratio)", t_cycle, t_sim,
                unit="ms")
-        report(f"{gait}: ... ratio to limit cycle incl. V_Z precomputation", t_sim, t_full,
+        report(f"{gait}: ... incl. the gait's precomputation (ratio)", t_full, t_sim,
                unit="ms")
+
+        # -- 1,000 runs of 10 steps from perturbed starts (3-link): threads vs processes
+        if gait != "three_link_walk":
+            continue
+        rng = np.random.default_rng(0)
+        starts = [Start(perturb=float(v)) for v in rng.uniform(-0.2, 0.2, 1000)]
+        X0 = start_states(zd, th, starts)
+        bcfg = SimConfig(steps=STEPS)
+        t0 = time.perf_counter()
+        res = simulate_batch(zd, th, X0, bcfg, workers=2)
+        t_thr = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        halves = [(gait, X0[:500], STEPS), (gait, X0[500:], STEPS)]
+        with ProcessPoolExecutor(max_workers=2) as pool:
+            ok = sum(pool.map(_batch_part, halves))
+        t_proc = time.perf_counter() - t0
+        report(f"{gait}: 1,000 runs x {STEPS} steps, 2 processes (baseline)", t_proc)
+        report(f"{gait}: 1,000 runs x {STEPS} steps, 2 threads (target < 15 s)", t_thr,
+               t_proc)
+        print(f"{'  completed runs (threads / processes)':<58s} "
+              f"{int(res.success.sum()):5d} / {ok:d}", flush=True)
 
 
 if __name__ == "__main__":
+    import sys
+
+    sys.path.insert(0, os.path.dirname(__file__))
     main()

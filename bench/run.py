@@ -23,6 +23,7 @@ def main() -> None:
             continue
         spec = importlib.util.spec_from_file_location(path.stem, path)
         mod = importlib.util.module_from_spec(spec)
+        sys.modules[path.stem] = mod  # a process pool pickles its functions by module name
         spec.loader.exec_module(mod)
         print(f"== {path.stem} ==", flush=True)
         mod.main()

@@ -271,3 +271,41 @@ def test_four_processes_compiling_a_new_robot_leave_one_valid_entry(tmp_path, fr
     files = sorted(x.name for x in fresh_cache.iterdir())
     assert len(files) == 1 and files[0].startswith("three_link_heavy-"), files
     assert cache.verify_entry(fresh_cache / files[0], results[0]["key"]) is None
+
+
+def test_compiled_simulation_runs_with_an_unusable_cache(fresh_cache, walker3, monkeypatch):
+    """A model kept in memory (``cache_path`` None) needs no file of its own for the compiled
+    simulation: the robot is its tape, the kernel is shared; the run equals the one of the
+    session's cached model bit for bit, and warns nothing."""
+    from thrustwalk_cli.hzd.zero_dynamics import zero_dynamics
+    from thrustwalk_cli.simulation.closed_loop import SimConfig, ThrustModel
+    from thrustwalk_cli.simulation.full_order import Start, simulate
+
+    _cache_path_is_a_file(fresh_cache, walker3.model)
+    model = load_model(walker3.robot)
+    assert model.cache_path is None and model.notes
+    th = ThrustModel("second-order", np.array([-3.0, 0.0]), wn=3.0, xi=0.7)
+    cfg = SimConfig(steps=2)
+    got = simulate(zero_dynamics(model, walker3.gait), th, cfg, Start(perturb=0.05))
+    ref = simulate(walker3.zd, th, cfg, Start(perturb=0.05))
+    assert got.success, got.reason
+    assert [s.zeta_minus for s in got.steps] == [s.zeta_minus for s in ref.steps]
+
+
+def test_jit_module_falls_back_to_a_private_folder(fresh_cache, monkeypatch):
+    """When the cache folder cannot hold the compiled kernel, its module goes to a private
+    temporary folder for this process, with a one-line note (no compile here: placing the
+    file is what can fail)."""
+    from thrustwalk_cli.model import jit
+
+    fresh_cache.parent.mkdir(parents=True, exist_ok=True)
+    fresh_cache.write_text("a file where the cache folder should be\n")
+    path, note = jit._place("probe", "def f(x):\n    return x\n", {"f": "(float64,)"}, False)
+    assert path.is_file() and fresh_cache not in path.parents
+    assert path.parent == jit._private_folder()
+    assert "cache folder unusable" in note and "this process only" in note
+    assert fresh_cache.read_text().startswith("a file"), "the user's file must not change"
+    monkeypatch.setenv("THRUSTWALK_CACHE_DIR", str(fresh_cache.parent / "fine"))
+    path2, note2 = jit._place("probe", "def f(x):\n    return x\n", {"f": "(float64,)"},
+                              False)
+    assert note2 == "" and path2.parent == fresh_cache.parent / "fine"

@@ -3,8 +3,8 @@
 The SciPy path (``method="scipy"``: ``solve_ivp`` with Python event functions) is the
 independent computation: every step's zeta^- must agree to 1e-9 relative on both bundled
 robots and every thrust model, every failure must be detected at the same step with the same
-kind, and the step statistics must agree. The kernel is compiled once per robot and cached
-beside the model: a second process loads it without compiling.
+kind, and the step statistics must agree. The kernel is compiled once per machine (the robot
+is its tape) and cached: a second process loads it without compiling.
 """
 
 from __future__ import annotations
@@ -168,16 +168,24 @@ def test_unknown_method_and_integrator_are_parameter_errors():
 
 @pytest.mark.slow
 def test_second_process_loads_the_compiled_kernel_from_the_cache(_cache_dir, walker3):
-    """The kernel compiled by this session (cached beside the model) is loaded, not
-    recompiled, by a new process: numba reports only cache hits."""
+    """The kernel compiled by this session (cached in the thrustwalk cache folder, the same
+    for every robot) is loaded, not recompiled, by a new process that simulates a robot:
+    numba reports only cache hits."""
     from thrustwalk_cli.simulation.compiled import kernel
 
-    kernel(walker3.model)  # compiled (or loaded) here
-    code = ("from thrustwalk_cli.walker import load_walker\n"
+    kernel()  # compiled (or loaded) here
+    code = ("import numpy as np\n"
+            "from thrustwalk_cli.walker import load_walker\n"
+            "from thrustwalk_cli.simulation.closed_loop import SimConfig, ThrustModel\n"
+            "from thrustwalk_cli.simulation.full_order import simulate\n"
             "from thrustwalk_cli.simulation.compiled import kernel\n"
-            "jm = kernel(load_walker('three_link', 'three_link_walk').model)\n"
+            "w = load_walker('rabbit', 'rabbit_walk')\n"
+            "th = ThrustModel('constant', np.zeros(w.model.n_thrusters))\n"
+            "res = simulate(w.zd, th, SimConfig(steps=1))\n"
+            "jm = kernel()\n"
             "st = jm.module.run.stats\n"
-            "print(jm.cache_hit, sum(st.cache_hits.values()), sum(st.cache_misses.values()))\n")
+            "print(jm.cache_hit and res.success, sum(st.cache_hits.values()), "
+            "sum(st.cache_misses.values()))\n")
     env = dict(os.environ, THRUSTWALK_CACHE_DIR=str(_cache_dir))
     res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                          text=True, timeout=600)

@@ -20,15 +20,17 @@ import pytest
 
 pytest.importorskip("distributed")
 
-# 6 feasibility points of ~0.1-0.3 s: slow enough to kill mid-run, fast enough for CI
+# 21 feasibility points of ~0.02-0.1 s each (three robot models): enough that a kill after
+# 5 points lands mid-run even on an idle machine, few enough for CI
+N_POINTS = 21
 SWEEP = """\
 name: cluster
 study: feasibility
 robot: three_link
 gait: three_link_walk
 grid:
-  robot.MT: {values: [9, 11], unit: kg}
-  thrust: {values: [0, -15, -30]}
+  robot.MT: {values: [9, 10, 11], unit: kg}
+  thrust: {values: [0, -5, -10, -15, -20, -25, -30]}
 collect: [feasible, min_vertical_force, max_friction_ratio, zeta_star]
 """
 LC = """\
@@ -281,13 +283,13 @@ def test_a_sweep_killed_at_several_points_resumes_exactly(reference, tmp_path, _
         assert not (out / "results.csv").exists()
     assert all(rc == -signal.SIGKILL for rc in killed), killed
     done = len(list((out / "points").glob("*.json")))
-    assert 1 <= done < 6, done
+    assert 1 <= done < N_POINTS, done
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=240)
     assert res.returncode == 0, res.stderr
     doc = json.loads((out / "sweep.json").read_text())
-    assert doc["counts"]["skipped"] == done and doc["counts"]["computed"] == 6 - done
+    assert doc["counts"]["skipped"] == done and doc["counts"]["computed"] == N_POINTS - done
     assert (out / "results.csv").read_bytes() == (ref / "results.csv").read_bytes()
     assert _records(out) == _records(ref)
     keys = [p.stem for p in (out / "points").iterdir()]
-    assert len(keys) == len(set(keys)) == 6
+    assert len(keys) == len(set(keys)) == N_POINTS
     assert not [p for p in out.rglob(".*") if p.name != ".thrustwalk-sweep.json"]

@@ -12,10 +12,11 @@ from .options import QuietOpt, RobotArg
 HELP = """Compile a robot file with SymPy into cached numeric dynamics.
 
 Derives D, C, G, B_F, the unpinned model, swing-foot kinematics and the impact map, generates
-vectorised code with common-subexpression elimination and caches it by content hash; then
-compiles the full-order simulation kernel with numba (once per robot, cached beside the
-model). Prints links, coordinates, total mass [kg], thrusters, times [s] and the cache
-entries.
+vectorised code with common-subexpression elimination and the instruction tape that the
+compiled simulation interprets, and caches them by content hash (the per-robot cost: SymPy
+and code generation). The compiled simulation kernel is the same for every robot: numba
+compiles it once per machine, the first time it is needed, and caches it. Prints links,
+coordinates, total mass [kg], thrusters, times [s] and the cache entries.
 """
 EPILOG = "Example: thrustwalk compile rabbit --rebuild"
 
@@ -26,7 +27,7 @@ def run_compile(robot: str, rebuild: bool = False, kernel: bool = True) -> dict:
 
     model = load_model(robot, rebuild)
     out = model.summary()
-    out["kernel"] = compile_kernel(model, rebuild) if kernel else None
+    out["kernel"] = compile_kernel() if kernel else None
     return out
 
 
@@ -36,10 +37,13 @@ def register(app: typer.Typer) -> None:
         ctx: typer.Context,
         robot: RobotArg = "three_link",
         rebuild: Annotated[bool, typer.Option(
-            "--rebuild", help="Ignore the cache and compile again.")] = False,
+            "--rebuild", help="Ignore the cache and compile the robot again (the "
+                              "simulation kernel, shared by every robot, is compiled only "
+                              "when missing).")] = False,
         kernel: Annotated[bool, typer.Option(
-            "--kernel/--no-kernel", help="Also compile the numba simulation kernel (once "
-                                         "per robot, cached).")] = True,
+            "--kernel/--no-kernel", help="Also make sure the numba simulation kernel is "
+                                         "compiled (once per machine, for every robot; "
+                                         "cached).")] = True,
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
@@ -56,13 +60,22 @@ def register(app: typer.Typer) -> None:
             t.add_row("total mass", f"{s['total_mass']:.4g} kg")
             t.add_row("gravity", f"{s['gravity']:.4g} m/s^2")
             t.add_row("thrusters", ", ".join(s["thrusters"]) or "none")
-            how = "cache hit" if s["cache_hit"] else "compiled"
+            how = ("cache hit" if s["cache_hit"]
+                   else "compiled: SymPy, generated code and tape, per robot")
             t.add_row("time", f"{s['seconds']:.3f} s ({how})")
+            tp = s["tape"]
+            t.add_row("tape", f"{tp['instructions']} instructions ({tp['instructions_accel']} "
+                              f"per right-hand side), {tp['registers']} registers")
             t.add_row("cache entry", s["cache_entry"])
+            for note in s["notes"]:
+                t.add_row("note", note)
             k = s["kernel"]
             if k is not None:
                 secs = "?" if k["seconds"] is None else f"{k['seconds']:.1f} s"
-                t.add_row("numba kernel", f"cache hit (compiled once in {secs})"
-                          if k["cache_hit"] else f"compiled in {secs} (once per robot)")
+                t.add_row("numba kernel", f"cache hit (compiled once in {secs}, shared by "
+                          "every robot)" if k["cache_hit"] else
+                          f"compiled in {secs} (once per machine, for every robot)")
                 t.add_row("kernel entry", k["entry"])
+                if k["note"]:
+                    t.add_row("note", k["note"])
             console().print(t)

@@ -187,7 +187,7 @@ def register(app: typer.Typer) -> None:
         atol: Annotated[float, typer.Option(
             "--atol", help="Integrator absolute tolerance [rad, rad/s].")] = 1e-9,
         method: Annotated[str, typer.Option(
-            "--method", help="compiled (numba kernel, DOP853; compiled once per robot) or "
+            "--method", help="compiled (numba kernel, DOP853; compiled once per machine) or "
                              "scipy (solve_ivp, the reference). A solve_ivp name (DOP853, "
                              "RK45, Radau, LSODA, BDF) means scipy with that "
                              "integrator.")] = "compiled",

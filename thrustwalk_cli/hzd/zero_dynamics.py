@@ -27,6 +27,8 @@ to about 1e-12, not grid-limited.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -111,7 +113,7 @@ class LimitCycle:
     min_zeta: float | None = None
     alpha_at_min_zeta: float | None = None
     touchdown_velocity: float | None = None
-    orbit: dict[str, np.ndarray] | None = field(default=None, repr=False)
+    orbit: Mapping[str, np.ndarray] | None = field(default=None, repr=False)
 
 
 @dataclass
@@ -223,6 +225,14 @@ class ZeroDynamics:
             self.__dict__["_extrema_series"] = cached
         return cached
 
+    @property
+    def step_length(self) -> float:
+        """Horizontal distance from the stance foot to the swing foot at impact [m]."""
+        v = self.__dict__.get("_step_length")
+        if v is None:
+            v = self.__dict__["_step_length"] = float(self.model.p_swing(self.maps.q_minus)[0])
+        return v
+
     def touchdown_velocity(self, alpha_dot_minus: float) -> float:
         """Vertical swing-foot velocity just before impact [m/s] on Z:
         ``E_2y(q^-) Phi(alpha_f) alpha'^-`` (negative: the foot moves down onto the ground)."""
@@ -330,8 +340,145 @@ def zero_dynamics(model: CompiledModel, gait: Gait, rtol: float = RTOL,
     return ZeroDynamics(model, gait, maps, n, V0, Gamma, B, err, scale, delta, ok, why, E)
 
 
-def _step_times(zd: ZeroDynamics, schedule: Schedule, zeta_plus: np.ndarray
+LOCAL_POINTS = 10  # Chebyshev points per grid bracket of the local interpolants (degree 9)
+
+
+class _Orbit(Mapping):
+    """The sampled phase-plane curve of one orbit (``alpha`` [rad], ``alpha_dot`` [rad/s],
+    ``sigma`` [kg m^2/s], ``zeta`` [kg^2 m^4/s^2]), built when first read: a sweep of
+    thousands of orbits that writes none of them never samples them."""
+
+    def __init__(self, grid: np.ndarray, k1: np.ndarray, zeta: np.ndarray, sgn: float):
+        self._args = (grid, k1, zeta, sgn)
+        self._data: dict[str, np.ndarray] | None = None
+
+    def _built(self) -> dict[str, np.ndarray]:
+        if self._data is None:
+            grid, k1, zeta, sgn = self._args
+            sigma = sgn * np.sqrt(2.0 * zeta)
+            self._data = {"alpha": grid, "alpha_dot": k1 * sigma, "sigma": sigma,
+                          "zeta": zeta}
+        return self._data
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        return self._built()[key]
+
+    def __iter__(self):
+        return iter(("alpha", "alpha_dot", "sigma", "zeta"))
+
+    def __len__(self) -> int:
+        return 4
+
+
+class _OrbitBasis:
+    """Everything :func:`limit_cycles` needs that does not depend on the thrust values, for
+    one gait, one set of knots and one grid (SPEC 3, 4), computed once and kept on the
+    :class:`ZeroDynamics`:
+
+    * the grid (``samples`` points plus the knots), ``kappa_1`` on it, and ``V_0``, the
+      per-interval increments of ``Gamma`` and ``b_F`` on it and at ``alpha_f``, so that
+      ``V_Z(grid)`` of a batch is one tensor contraction with the thrust values;
+    * the Lobatto nodes of each knot interval for the step time, with ``kappa_1`` and the
+      same increments there (per node count, on demand);
+    * per grid point, degree-9 Chebyshev interpolants on its bracket (the neighbouring grid
+      points) of ``V_0, Gamma, b_F``, their first two derivatives and ``E = 1/kappa_1`` with
+      its two derivatives (from the spectral series of :meth:`ZeroDynamics.extrema_series`):
+      the Newton polish of the orbit extrema evaluates these (ten terms) instead of the whole
+      series; on a bracket of two grid spacings they agree with it to rounding.
+    """
+
+    def __init__(self, zd: ZeroDynamics, knots: np.ndarray, samples: int):
+        a_i, a_f = zd.alpha_i, zd.alpha_f
+        kn = np.asarray(knots, float)
+        self.knots = kn
+        grid = np.unique(np.concatenate([np.linspace(a_i, a_f, samples), kn]))
+        if a_f < a_i:
+            grid = grid[::-1]
+        self.grid = grid
+        self.k1 = zd.terms(grid)["kappa1"]
+        self.m = m = zd.Gamma.coef.shape[1]
+        self.w = 2 + m
+        self.lo, self.hi = np.minimum(kn[:-1], kn[1:]), np.maximum(kn[:-1], kn[1:])
+        zs = ChebSeries(zd.V0.a, zd.V0.b, np.column_stack([zd.V0.coef, zd.Gamma.coef,
+                                                           zd.B.coef]))
+        self.zseries = zs
+        self.at_knots = zs(kn)  # (n, 2 + m): V_0, Gamma, b_F at the knots
+        self.V0g, self.dGg, self.dBg = self._pieces(zs(grid), grid)
+        self.V0f, dGf, dBf = self._pieces(zs(np.array([a_f])), np.array([a_f]))
+        self.dGf, self.dBf = dGf[:, 0], dBf[:, 0]
+        self.nodes: dict[tuple[int, int], tuple] = {}
+        self.zd = zd
+        # local interpolants on the bracket of every grid point
+        lo, hi = neighbours(grid, np.arange(grid.size))
+        self.blo, self.bhi = lo, hi
+        L = LOCAL_POINTS
+        theta = np.pi * (np.arange(L) + 0.5) / L
+        t = np.cos(theta)
+        pts = 0.5 * (lo + hi)[:, None] + 0.5 * (hi - lo)[:, None] * t[None, :]  # (g, L)
+        vals = np.concatenate([zd.extrema_series()(pts), zs(pts)], axis=-1)  # (g, L, C)
+        T = np.cos(np.outer(np.arange(L), theta)) * (2.0 / L)  # DCT-II: values -> coef
+        T[0] *= 0.5
+        self.local = np.einsum("rl,glc->rgc", T, vals)  # (L, g, C)
+
+    def _pieces(self, v: np.ndarray, alpha: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``V_0`` (p,) and per knot interval j the increments ``Gamma(clip(alpha)) -
+        Gamma(knot_j)`` (n-1, p, m) and of ``b_F`` (n-1, p) from series values ``v``."""
+        m, zs = self.m, self.zseries
+        dG, dB = [], []
+        for j in range(len(self.knots) - 1):
+            inside = (alpha >= self.lo[j]) & (alpha <= self.hi[j])
+            c = zs(np.clip(alpha, self.lo[j], self.hi[j]))
+            c[inside] = v[inside]
+            dG.append(c[:, 1:1 + m] - self.at_knots[j, 1:1 + m])
+            dB.append(c[:, 1 + m] - self.at_knots[j, 1 + m])
+        return (v[:, 0], np.array(dG).reshape(len(dB), alpha.size, m),
+                np.array(dB).reshape(len(dB), alpha.size))
+
+    @staticmethod
+    def combine(V0: np.ndarray, dG: np.ndarray, dB: np.ndarray, sched: Schedule
+                ) -> np.ndarray:
+        """``V_Z`` (k, p) of every schedule from the pieces (SPEC 3, 4)."""
+        return (V0[None, :] + np.einsum("jpm,kjm->kp", dG, sched.force)
+                + np.einsum("jp,kj->kp", dB, sched.generalized))
+
+    def step_nodes(self, j: int, n: int) -> tuple:
+        """Lobatto nodes of knot interval ``j`` with ``kappa_1`` and the ``V_Z`` pieces."""
+        key = (j, n)
+        if key not in self.nodes:
+            p = lobatto(self.knots[j], self.knots[j + 1], n)
+            self.nodes[key] = (p, self.zd.terms(p)["kappa1"],
+                               *self._pieces(self.zseries(p), p))
+        return self.nodes[key]
+
+    def evaluate(self, coef: np.ndarray, x: np.ndarray, lo: np.ndarray, hi: np.ndarray
+                 ) -> np.ndarray:
+        """The local interpolants ``coef`` (L, P, C) (gathered for the points' brackets
+        ``[lo, hi]``) at ``x`` (P,), by Clenshaw's recurrence: (P, C)."""
+        span = np.where(hi > lo, hi - lo, 1.0)
+        t = ((2.0 * x - (lo + hi)) / span)[:, None]
+        b1 = np.zeros(coef.shape[1:])
+        b2 = np.zeros(coef.shape[1:])
+        for r in range(coef.shape[0] - 1, 0, -1):
+            b1, b2 = 2.0 * t * b1 - b2 + coef[r], b1
+        return coef[0] + t * b1 - b2
+
+
+def orbit_basis(zd: ZeroDynamics, knots: np.ndarray, samples: int = 201) -> _OrbitBasis:
+    """The thrust-independent :class:`_OrbitBasis` of ``zd`` for ``knots`` and a grid of
+    ``samples`` points, computed on first use and kept."""
+    cache = zd.__dict__.setdefault("_orbit_bases", {})
+    key = (tuple(np.asarray(knots, float).tolist()), int(samples))
+    basis = cache.get(key)
+    if basis is None:
+        if len(cache) > 64:
+            cache.clear()
+        basis = cache[key] = _OrbitBasis(zd, knots, samples)
+    return basis
+
+
+def _step_times(zd: ZeroDynamics, schedule: Schedule, zeta_plus: np.ndarray,
+                basis: _OrbitBasis) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``T = int dalpha / alpha'`` for a batch, per knot interval (spectral, nested estimate).
 
     Nodes double on each interval until the estimate is below ``0.1 RTOL`` relative for the
@@ -344,9 +491,8 @@ def _step_times(zd: ZeroDynamics, schedule: Schedule, zeta_plus: np.ndarray
     for j in range(len(kn) - 1):
         n_p = 33
         while True:
-            p = lobatto(kn[j], kn[j + 1], n_p)
-            k1p = zd.terms(p)["kappa1"]
-            zpnl = zeta_plus[:, None] + zd.V_Z(p, schedule)
+            p, k1p, V0, dG, dB = basis.step_nodes(j, n_p)
+            zpnl = zeta_plus[:, None] + basis.combine(V0, dG, dB, schedule)
             bad = np.any(zpnl <= 0, axis=1)
             f = 1.0 / (k1p * sgn * np.sqrt(2.0 * np.where(zpnl > 0, zpnl, 1.0)))
             val, err = integrate(p[0], p[-1], f)
@@ -360,27 +506,25 @@ def _step_times(zd: ZeroDynamics, schedule: Schedule, zeta_plus: np.ndarray
     return T, T_err, ok
 
 
-def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> list[LimitCycle]:
+def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> LimitCycles:
     """Fixed points, stability and orbits for a batch of thrust schedules (SPEC 3, 4).
 
     Exists  <=>  the gait is hybrid-invariant, kappa_1 keeps its sign, 0 < delta_zero^2 != 1,
     zeta* > 0 and delta_zero^2 zeta* + min V_Z > 0. Stable  <=>  exists and delta_zero^2 < 1.
     The step time ``T = int dalpha / alpha'`` is integrated per knot interval (spectral, with a
     nested error estimate); alpha' = kappa_1 sigma_N, sigma_N = sgn sqrt(2 zeta).
-    Everything is vectorised over the batch: a sweep costs little more than one orbit.
+    Everything that does not depend on the thrust values is computed once per gait and knots
+    (:func:`orbit_basis`); the rest is vectorised over the batch and the sampled orbits are
+    built when read (:class:`LimitCycles`, a sequence of :class:`LimitCycle`), so a sweep
+    costs little more than one orbit.
     """
     d2 = zd.delta_zero_sq
-    a_i, a_f = zd.alpha_i, zd.alpha_f
     kn = schedule.knots
-    Vf = zd.V_Z(np.array(a_f), schedule)  # (k,)
-    # dense grid for min V_Z / min |alpha'| and the sampled orbit (includes the knots)
-    grid = np.unique(np.concatenate([np.linspace(a_i, a_f, samples), kn]))
-    if a_f < a_i:
-        grid = grid[::-1]
-    k1 = zd.terms(grid)["kappa1"]
-    VZ = zd.V_Z(grid, schedule)  # (k, g)
-    step_length = float(zd.model.p_swing(zd.maps.q_minus)[0])
-    sgn = zd.sigma_sign
+    basis = orbit_basis(zd, kn, samples)
+    grid, k1 = basis.grid, basis.k1
+    Vf = (basis.V0f[0] + np.einsum("jm,kjm->k", basis.dGf, schedule.force)
+          + np.einsum("j,kj->k", basis.dBf, schedule.generalized))  # (k,)
+    VZ = basis.combine(basis.V0g, basis.dGg, basis.dBg, schedule)  # (k, g)
     with np.errstate(divide="ignore", invalid="ignore"):
         zstar = Vf / (1.0 - d2)
     zp = d2 * zstar
@@ -394,63 +538,97 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> li
     T_ok = np.zeros(len(Vf), bool)
     if live.size:
         sub = Schedule(kn, schedule.force[live], schedule.generalized[live])
-        T[live], T_err[live], T_ok[live] = _step_times(zd, sub, zp[live])
+        T[live], T_err[live], T_ok[live] = _step_times(zd, sub, zp[live], basis)
     ext = _orbit_extrema(zd, Schedule(kn, schedule.force[live], schedule.generalized[live]),
-                         zp[live], grid, k1, zeta[live]) if live.size else {}
-    pos = {int(i): r for r, i in enumerate(live)}
-    out = []
-    for i in range(len(Vf)):
+                         zp[live], grid, k1, zeta[live], basis) if live.size else {}
+    return LimitCycles(zd, grid, k1, Vf, zstar, zp, zeta, zmin, jmin, T, T_err, T_ok, live,
+                       ext)
+
+
+class LimitCycles(Sequence):
+    """The limit cycles of a batch of schedules (what :func:`limit_cycles` returns): a
+    sequence of :class:`LimitCycle`, each built from the batch's arrays when first read."""
+
+    def __init__(self, zd, grid, k1, Vf, zstar, zp, zeta, zmin, jmin, T, T_err, T_ok, live,
+                 ext):
+        self._zd, self._grid, self._k1 = zd, grid, k1
+        self._arrays = (Vf, zstar, zp, zeta, zmin, jmin, T, T_err, T_ok)
+        self._pos = {int(i): r for r, i in enumerate(live)}
+        self._ext = ext
+        self._built: dict[int, LimitCycle] = {}
+
+    def __len__(self) -> int:
+        return len(self._arrays[0])
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(len(self)))]
+        n = len(self)
+        i = int(i)
+        if i < 0:
+            i += n
+        if not 0 <= i < n:
+            raise IndexError("limit cycle index out of range")
+        lc = self._built.get(i)
+        if lc is None:
+            lc = self._built[i] = self._build(i)
+        return lc
+
+    def _build(self, i: int) -> LimitCycle:
+        zd, grid, k1 = self._zd, self._grid, self._k1
+        Vf, zstar, zp, zeta, zmin, jmin, T, T_err, T_ok = self._arrays
+        d2 = zd.delta_zero_sq
         base = dict(delta_zero_sq=d2, V_f=float(Vf[i]))
         zs = float(zstar[i])
         if not zd.valid:
-            out.append(LimitCycle(False, False, zd.invalid_reason, **base))
-        elif d2 == 1.0 or d2 <= 0.0:
-            out.append(LimitCycle(False, False,
-                                  f"delta_zero^2 = {d2:.6g}: no isolated fixed point", **base))
-        elif zs <= 0.0:
+            return LimitCycle(False, False, zd.invalid_reason, **base)
+        if d2 == 1.0 or d2 <= 0.0:
+            return LimitCycle(False, False, f"delta_zero^2 = {d2:.6g}: no isolated fixed point",
+                              **base)
+        if zs <= 0.0:
             why = (f"no periodic orbit: zeta* = V_Z(alpha_f)/(1 - delta_zero^2) = {zs:.6g} <= 0"
                    if d2 < 1 else
                    f"no periodic orbit with zeta* > 0 (delta_zero^2 = {d2:.6g} >= 1, "
                    f"V_Z(alpha_f) = {Vf[i]:.6g})")
-            out.append(LimitCycle(False, False, why, **base))
-        elif zmin[i] <= 0.0:
-            out.append(LimitCycle(
+            return LimitCycle(False, False, why, **base)
+        if zmin[i] <= 0.0:
+            return LimitCycle(
                 False, False,
                 f"the walker stops before the end of the step: zeta reaches 0 near alpha = "
                 f"{grid[jmin[i]]:.6g} rad (delta_zero^2 zeta* + min V_Z = {zmin[i]:.6g} <= 0)",
-                zeta_star=zs, **base))
-        elif not T_ok[i]:
-            out.append(LimitCycle(False, False, "the walker stops inside the step (zeta <= 0 "
-                                  "between grid points)", zeta_star=zs, **base))
-        elif not (np.isfinite(T[i]) and T[i] > 0):
-            out.append(LimitCycle(False, False, f"step time integral failed (T = {T[i]})",
-                                  zeta_star=zs, **base))
-        else:
-            sigma = sgn * np.sqrt(2.0 * zeta[i])
-            adot = k1 * sigma
-            r = pos[i]
-            s_minus = sgn * np.sqrt(2.0 * zs)
-            s_plus = zd.delta_zero * s_minus
-            stable = d2 < 1.0
-            reason = "stable periodic orbit" if stable else (
-                f"periodic orbit exists but is unstable (delta_zero^2 = {d2:.6g} >= 1)")
-            out.append(LimitCycle(
-                exists=True, stable=stable, reason=reason, zeta_star=zs, zeta_plus=float(zp[i]),
-                sigma_minus=float(s_minus), sigma_plus=float(s_plus),
-                alpha_dot_minus=float(k1[-1] * s_minus), alpha_dot_plus=float(k1[0] * s_plus),
-                step_time=float(T[i]), step_time_error=float(T_err[i]),
-                step_length=step_length, speed=step_length / float(T[i]),
-                min_abs_alpha_dot=float(ext["min_adot"][r]), alpha_at_min=float(ext["a_min"][r]),
-                max_abs_alpha_dot=float(ext["max_adot"][r]), alpha_at_max=float(ext["a_max"][r]),
-                min_zeta=float(ext["min_zeta"][r]), alpha_at_min_zeta=float(ext["a_zeta"][r]),
-                touchdown_velocity=zd.touchdown_velocity(float(k1[-1] * s_minus)),
-                orbit={"alpha": grid, "alpha_dot": adot, "sigma": sigma, "zeta": zeta[i]},
-                **base))
-    return out
+                zeta_star=zs, **base)
+        if not T_ok[i]:
+            return LimitCycle(False, False, "the walker stops inside the step (zeta <= 0 "
+                              "between grid points)", zeta_star=zs, **base)
+        if not (np.isfinite(T[i]) and T[i] > 0):
+            return LimitCycle(False, False, f"step time integral failed (T = {T[i]})",
+                              zeta_star=zs, **base)
+        r = self._pos[i]
+        ext = self._ext
+        sgn = zd.sigma_sign
+        s_minus = sgn * math.sqrt(2.0 * zs)
+        s_plus = zd.delta_zero * s_minus
+        stable = d2 < 1.0
+        reason = "stable periodic orbit" if stable else (
+            f"periodic orbit exists but is unstable (delta_zero^2 = {d2:.6g} >= 1)")
+        k1f = float(k1[-1])
+        step_length = zd.step_length
+        return LimitCycle(
+            exists=True, stable=stable, reason=reason, zeta_star=zs, zeta_plus=float(zp[i]),
+            sigma_minus=s_minus, sigma_plus=s_plus,
+            alpha_dot_minus=k1f * s_minus, alpha_dot_plus=float(k1[0]) * s_plus,
+            step_time=float(T[i]), step_time_error=float(T_err[i]),
+            step_length=step_length, speed=step_length / float(T[i]),
+            min_abs_alpha_dot=float(ext["min_adot"][r]), alpha_at_min=float(ext["a_min"][r]),
+            max_abs_alpha_dot=float(ext["max_adot"][r]), alpha_at_max=float(ext["a_max"][r]),
+            min_zeta=float(ext["min_zeta"][r]), alpha_at_min_zeta=float(ext["a_zeta"][r]),
+            touchdown_velocity=zd.touchdown_velocity(k1f * s_minus),
+            orbit=_Orbit(grid, k1, zeta[i], sgn), **base)
 
 
 def _orbit_extrema(zd: ZeroDynamics, sched: Schedule, zeta_plus: np.ndarray, grid: np.ndarray,
-                   k1: np.ndarray, zeta: np.ndarray, iterations: int = 8) -> dict[str, np.ndarray]:
+                   k1: np.ndarray, zeta: np.ndarray, basis: _OrbitBasis,
+                   iterations: int = 8) -> dict[str, np.ndarray]:
     """Exact min/max of ``|alpha'| = |kappa_1| sqrt(2 zeta)`` and min of ``zeta`` along the step
     for a batch of orbits (``zeta``: (k, g) on ``grid``).
 
@@ -460,33 +638,53 @@ def _orbit_extrema(zd: ZeroDynamics, sched: Schedule, zeta_plus: np.ndarray, gri
     ``|alpha'|``, ``h = zeta'`` for ``zeta``. ``zeta', zeta''`` come from the integrands' series
     (V_0, Gamma, b_F differentiated, with the thrust of the point's knot interval), ``E`` and
     its derivatives from ``1/kappa_1`` interpolated on the quadrature nodes (spectrally
-    accurate); one series evaluation per iteration for the whole batch. The reported values are
-    the model's at the points found, and never worse than the grid's."""
+    accurate), all through the local interpolants of :class:`_OrbitBasis` on each point's
+    bracket. The reported values are never worse than the grid's."""
     k = zeta.shape[0]
-    m = zd.Gamma.coef.shape[1]
-    series = zd.extrema_series()
-    zeta_at = ZetaAt(zd, sched)
+    m, w = basis.m, basis.w
     ks = (np.asarray(sched.knots, float) - zd.alpha_i) / (zd.alpha_f - zd.alpha_i)
     rows = np.arange(k)
     # three problems stacked: min |alpha'|, max |alpha'|, min zeta
     adot = np.abs(k1)[None, :] * np.sqrt(2.0 * np.maximum(zeta, 0.0))
     j = np.concatenate([np.argmin(adot, 1), np.argmax(adot, 1), np.argmin(zeta, 1)])
-    lo, hi = neighbours(grid, j)
+    lo, hi = basis.blo[j], basis.bhi[j]
+    coef = basis.local[:, j, :]  # (L, 3k, C): the interpolants of each point's bracket
     x = grid[j]
     rr = np.tile(rows, 3)
     F, T = sched.force[rr], sched.generalized[rr]
+    zp3 = np.asarray(zeta_plus, float)[rr]
     e = np.arange(3 * k)
     is_speed = e < 2 * k
-    w = 2 + m
+    kn_at = basis.at_knots
+    lo_j, hi_j = basis.lo, basis.hi
+
+    def zeta_of(v: np.ndarray) -> np.ndarray:
+        """``zeta = zeta^+ + V_Z(x)`` from the local values ``v`` of V_0, Gamma, b_F at x."""
+        z = zp3 + v[:, 0]
+        for jj in range(len(lo_j)):
+            below, above = x < lo_j[jj], x > hi_j[jj]
+            c = np.where(below[:, None], edge_lo[jj], np.where(above[:, None], edge_hi[jj],
+                                                                v[:, 1:]))
+            z = z + np.einsum("em,em->e", c[:, :m] - kn_at[jj, 1:1 + m], F[:, jj, :]) \
+                + (c[:, m] - kn_at[jj, 1 + m]) * T[:, jj]
+        return z
+
+    kn_at_alpha = np.asarray(sched.knots, float)
+    # V_0, Gamma, b_F at the low and high end of each knot interval (for clipped points)
+    ends_lo = np.where((kn_at_alpha[:-1] <= kn_at_alpha[1:])[:, None], kn_at[:-1], kn_at[1:])
+    ends_hi = np.where((kn_at_alpha[:-1] <= kn_at_alpha[1:])[:, None], kn_at[1:], kn_at[:-1])
+    edge_lo, edge_hi = ends_lo[:, 1:], ends_hi[:, 1:]
+    c_ext = 2 * w + 3  # columns of the extrema series, then V_0, Gamma, b_F
     for _ in range(iterations):
         s = (x - zd.alpha_i) / (zd.alpha_f - zd.alpha_i)
         jj = np.clip(np.searchsorted(ks, s, side="right") - 1, 0, len(ks) - 2)
-        v = series.at_few(x)  # (3k, 2 w + 3)
+        vall = basis.evaluate(coef, x, lo, hi)
+        v = vall[:, :c_ext]
         Fj, Tj = F[e, jj], T[e, jj]  # thrust of each point's knot interval
         d1 = v[:, 0] + np.einsum("em,em->e", v[:, 1:1 + m], Fj) + v[:, 1 + m] * Tj
         d2 = v[:, w] + np.einsum("em,em->e", v[:, w + 1:w + 1 + m], Fj) + v[:, w + 1 + m] * Tj
         e0, e1, e2 = v[:, 2 * w], v[:, 2 * w + 1], v[:, 2 * w + 2]
-        z = zeta_at(zeta_plus, x.reshape(3, k).T).T.ravel()
+        z = zeta_of(vall[:, c_ext:])
         h = np.where(is_speed, d1 * e0 - 2.0 * z * e1, d1)
         dh = np.where(is_speed, d2 * e0 - d1 * e1 - 2.0 * z * e2, d2)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -497,10 +695,12 @@ def _orbit_extrema(zd: ZeroDynamics, sched: Schedule, zeta_plus: np.ndarray, gri
         x = x_new
         if np.all(moved <= 1e-14 * (1.0 + np.abs(x))):
             break
+    vall = basis.evaluate(coef, x, lo, hi)
+    z_exact = zeta_of(vall[:, c_ext:])
+    E = vall[:, 2 * w]
+    speed = np.sqrt(2.0 * np.maximum(z_exact[:2 * k], 0.0)) / np.abs(E[:2 * k])
+    zmin = z_exact[2 * k:]
     xs, xz = x[:2 * k], x[2 * k:]
-    z_exact = zeta_at(zeta_plus, xs.reshape(2, k).T).T.ravel()
-    speed = np.sqrt(2.0 * np.maximum(z_exact, 0.0)) / np.abs(zd.terms(xs)["eDPhi"])
-    zmin = zeta_at(zeta_plus, xz)
     g_min, g_max = adot[rows, j[:k]], adot[rows, j[k:2 * k]]
     g_z = zeta[rows, j[2 * k:]]
     take = speed[:k] < g_min

@@ -8,6 +8,7 @@ truncated) is reported as a miss and rebuilt by the caller.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.util
 import os
@@ -164,3 +165,26 @@ def read_meta(path: Path) -> dict | None:
         return json.loads(path.read_text())
     except (OSError, ValueError):
         return None
+
+
+@functools.cache
+def package_file(package: str, relative: str) -> str:
+    """The text of one file of an installed package, found without importing it: a cheap
+    stamp of its version for cache keys (package metadata lookups cost tens of
+    milliseconds). ``"missing"`` when it cannot be read."""
+    import importlib.util
+
+    try:
+        spec = importlib.util.find_spec(package)
+        return (Path(spec.origin).parent / relative).read_text()
+    except (ImportError, AttributeError, TypeError, OSError, ValueError):
+        return "missing"
+
+
+def files_digest(paths: list[Path], extra: str = "") -> str:
+    """SHA-256 of the bytes of ``paths`` (thrustwalk's own sources) and ``extra``."""
+    h = hashlib.sha256()
+    for p in paths:
+        h.update(Path(p).read_bytes())
+    h.update(extra.encode())
+    return h.hexdigest()

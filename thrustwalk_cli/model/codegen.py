@@ -6,9 +6,11 @@ Each quantity becomes two functions with common-subexpression elimination:
   shape ``(..., rows, cols)`` (or ``(..., rows)`` for vectors). Constant entries broadcast.
 * ``NAME_s(*args)``: one state, ``math`` functions, sequences in, flat row-major list out
   (the fast path inside ODE right-hand sides; see shared/PERF_NOTES.md).
-* ``NAME_nb(*args, out)`` (``numba=True``): one state, ``math`` functions, 1-D float arrays in,
-  the flat row-major result written into ``out``; plain Python that numba compiles as it is
-  (the compiled simulation jit-compiles these, see :mod:`thrustwalk_cli.model.jit`).
+
+and :func:`generate_tape` turns groups of expressions into a *tape*, plain data that the
+robot-independent interpreter of :mod:`thrustwalk_cli.model.tape` evaluates in compiled code
+(the compiled simulation and the batch evaluators): a new robot costs SymPy and this
+translation, never a numba compile.
 
 The generated module imports only ``math`` and ``numpy``.
 """
@@ -42,10 +44,8 @@ def generate_function(
     args: list[tuple[str, list[sp.Symbol]]],
     doc: str,
     vector: bool = False,
-    numba: bool = False,
 ) -> str:
-    """Source of ``name`` (vectorised) and ``name_s`` (scalar) evaluating matrix ``M``, and
-    with ``numba`` also ``name_nb`` (scalar, array in, written into ``out``).
+    """Source of ``name`` (vectorised) and ``name_s`` (scalar) evaluating matrix ``M``.
 
     ``args``: ``[(argument_name, [symbols in order])]``; the docstring lists the order.
     ``vector``: a column matrix is returned as a vector ``(..., rows)``.
@@ -93,19 +93,6 @@ def generate_function(
     items = ", ".join(m_p.doprint(sp.Float(e) if e.is_Number else e) for e in reduced)
     lines.append(f"    return [{items}]")
     lines.append("")
-    if numba:
-        lines.append(f"def {name}_nb({sig}, out):")
-        lines.append(f'    """Scalar {name} into ``out`` (flat, row-major, {len(reduced)} '
-                     f'values). {order}."""')
-        for a, syms in args:
-            for i, s in enumerate(syms):
-                if s in used:
-                    lines.append(f"    {s} = {a}[{i}]")
-        for s, e in repl:
-            lines.append(f"    {s} = {m_p.doprint(e)}")
-        for k, e in enumerate(reduced):
-            lines.append(f"    out[{k}] = {m_p.doprint(sp.Float(e) if e.is_Number else e)}")
-        lines.append("")
     return "\n".join(lines)
 
 
@@ -117,3 +104,235 @@ def generate_module(header: str, functions: list[str], constants: dict[str, obje
     out.append("")
     out.extend(functions)
     return "\n".join(out) + "\n"
+
+
+# ----------------------------------------------------------------------------- tapes
+class _TapeBuilder:
+    """Expression trees -> instructions ``(op, dst, a, b)`` on a register file.
+
+    Registers ``0 .. n_in-1`` hold the inputs, then the constants (shared by every program),
+    then temporaries. Identical subtrees and identical instructions are computed once (value
+    numbering). ``sin``/``cos`` of an integer combination of inputs come from the sines and
+    cosines of the inputs themselves by the angle-addition formulas (one ``sin`` and one
+    ``cos`` per input angle instead of one call per distinct argument).
+    """
+
+    def __init__(self, inputs: list[sp.Symbol]):
+        from .tape import OPS
+
+        self.op_code = OPS
+        self.inputs = {s: i for i, s in enumerate(inputs)}
+        self.consts: dict[float, int] = {}
+
+    def start(self) -> None:
+        self.reg = dict(self.inputs)
+        self.ins: list[tuple[int, int, int, int]] = []
+        self.vn: dict[tuple[int, int, int], int] = {}
+        self.memo: dict[sp.Expr, int] = {}
+        self.trig: dict[tuple, tuple[int, int]] = {}
+        self.next = 0  # temporaries are numbered from 0 here, placed after the constants
+
+    def const(self, v) -> int:
+        v = float(v)
+        if v not in self.consts:
+            self.consts[v] = len(self.consts)
+        return -1 - self.consts[v]  # constants: negative ids until the layout is fixed
+
+    def op(self, name: str, a: int, b: int = 0) -> int:
+        code = self.op_code[name]
+        if name in ("add", "mul") and a > b:
+            a, b = b, a
+        key = (code, a, b)
+        if key in self.vn:
+            return self.vn[key]
+        d = len(self.inputs) + 1_000_000 + self.next  # a temporary (renumbered later)
+        self.next += 1
+        self.ins.append((code, d, a, b))
+        self.vn[key] = d
+        return d
+
+    def emit(self, e: sp.Expr) -> int:
+        r = self.memo.get(e)
+        if r is None:
+            r = self._emit(e)
+            self.memo[e] = r
+        return r
+
+    def _signed(self, e: sp.Expr) -> tuple[int, int]:
+        c, _ = e.as_coeff_Mul()
+        if c.is_Number and c < 0:
+            return -1, self.emit(-e)
+        return 1, self.emit(e)
+
+    def _emit(self, e: sp.Expr) -> int:
+        if e.is_Symbol:
+            if e not in self.reg:
+                raise ValueError(f"tape: unknown symbol {e}")
+            return self.reg[e]
+        if e.is_Number:
+            return self.const(e)
+        if e.is_Add:
+            terms = [self._signed(a) for a in e.args]
+            pos = [r for s, r in terms if s > 0]
+            neg = [r for s, r in terms if s < 0]
+            if pos:
+                acc = pos[0]
+                for r in pos[1:]:
+                    acc = self.op("add", acc, r)
+            else:
+                acc = self.op("neg", neg[0])
+                neg = neg[1:]
+            for r in neg:
+                acc = self.op("sub", acc, r)
+            return acc
+        if e.is_Mul:
+            c, rest = e.as_coeff_Mul()
+            if c.is_Number and c != 1:
+                r = self.emit(rest)
+                return self.op("neg", r) if c == -1 else self.op("mul", self.const(c), r)
+            factors = [self.emit(a) for a in e.args]
+            acc = factors[0]
+            for r in factors[1:]:
+                acc = self.op("mul", acc, r)
+            return acc
+        if e.is_Pow:
+            base, x = e.args
+            if x.is_Integer and 0 < x <= 8:
+                rb = self.emit(base)
+                acc = rb
+                for _ in range(int(x) - 1):
+                    acc = self.op("mul", acc, rb)
+                return acc
+            if x.is_Integer and -8 <= x < 0:
+                return self.op("div", self.const(1.0), self.emit(base ** (-x)))
+            return self.op("pow", self.emit(base), self.emit(x))
+        if isinstance(e, (sp.sin, sp.cos)):
+            combo = self._linear(e.args[0])
+            if combo is not None:
+                s, c = self._sincos(combo)
+                return s if isinstance(e, sp.sin) else c
+            return self.op("sin" if isinstance(e, sp.sin) else "cos", self.emit(e.args[0]))
+        raise ValueError(f"tape: unsupported expression {type(e).__name__}")
+
+    def _linear(self, a: sp.Expr) -> tuple | None:
+        """``a`` as ((input register, integer coefficient), ...), or None."""
+        combo = []
+        for k, v in a.as_coefficients_dict().items():
+            if k not in self.inputs or not v.is_Integer:
+                return None
+            combo.append((self.inputs[k], int(v)))
+        return tuple(sorted(combo)) or None
+
+    def _sincos(self, combo: tuple) -> tuple[int, int]:
+        """Registers of ``sin`` and ``cos`` of ``sum k_i x_i``: ``sin(a + b) = s_a c_b + c_a
+        s_b``, ``cos(a + b) = c_a c_b - s_a s_b``, ``sin(-a) = -sin a``."""
+        r = self.trig.get(combo)
+        if r is not None:
+            return r
+        if len(combo) == 1 and combo[0][1] == 1:
+            i = combo[0][0]
+            r = (self.op("sin", i), self.op("cos", i))
+        elif len(combo) == 1 and combo[0][1] == -1:
+            s, c = self._sincos(((combo[0][0], 1),))
+            r = (self.op("neg", s), c)
+        else:
+            if len(combo) == 1:
+                i, k = combo[0]
+                sgn = 1 if k > 0 else -1
+                a, b = ((i, k - sgn),), ((i, sgn),)
+            else:
+                a, b = combo[:-1], combo[-1:]
+            sa, ca = self._sincos(a)
+            sb, cb = self._sincos(b)
+            r = (self.op("add", self.op("mul", sa, cb), self.op("mul", ca, sb)),
+                 self.op("sub", self.op("mul", ca, cb), self.op("mul", sa, sb)))
+        self.trig[combo] = r
+        return r
+
+
+def _fuse(order: list[tuple[int, int, int, int]], outs: list[int], ops: dict[str, int]
+          ) -> list[tuple[int, int, int, int, int]]:
+    """Fold a product read once into the sum or difference that reads it: ``a b + c``
+    (fma), ``a b - c`` (fms), ``c - a b`` (fnma), rounded twice as before (numba does not
+    contract them into hardware fused multiply-adds), one instruction fewer each."""
+    mul, add, sub = ops["mul"], ops["add"], ops["sub"]
+    unary = {ops[k] for k in ("neg", "sin", "cos")}
+    uses: dict[int, int] = {}
+    for op, _, x, y in order:
+        for a in ((x,) if op in unary else (x, y)):
+            uses[a] = uses.get(a, 0) + 1
+    for r in outs:
+        uses[r] = uses.get(r, 0) + 1
+    prods = {d: (x, y) for op, d, x, y in order if op == mul}
+    gone: set[int] = set()
+
+    def single(r: int) -> bool:
+        return r in prods and uses.get(r) == 1 and r not in gone
+    out: list[tuple[int, int, int, int, int]] = []
+    for op, d, x, y in order:
+        if op == add and (single(x) or single(y)):
+            p, other = (x, y) if single(x) else (y, x)
+            gone.add(p)
+            out.append((ops["fma"], d, *prods[p], other))
+        elif op == sub and single(x):
+            gone.add(x)
+            out.append((ops["fms"], d, *prods[x], y))
+        elif op == sub and single(y):
+            gone.add(y)
+            out.append((ops["fnma"], d, *prods[y], x))
+        else:
+            out.append((op, d, x, y, 0))
+    return [ins for ins in out if not (ins[0] == mul and ins[1] in gone)]
+
+
+def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
+                  inputs: list[sp.Symbol]) -> dict:
+    """Compile groups of expressions into one tape (plain data, see
+    :mod:`thrustwalk_cli.model.tape` for its layout and interpreter).
+
+    ``programs``: name -> (number of inputs it reads, flat list of output expressions);
+    ``inputs``: the input symbols in register order (``q`` then ``q'``). Each program keeps
+    only the instructions its outputs need, ordered by depth (instructions of equal depth do
+    not depend on each other, which keeps the processor's pipelines full); instruction j
+    writes register ``base + j`` (each register written once).
+    """
+    b = _TapeBuilder(inputs)
+    raw = {}
+    for name, (n_in, exprs) in programs.items():
+        b.start()
+        outs = [b.emit(e) for e in exprs]
+        need, live = set(outs), []
+        for ins in reversed(b.ins):
+            if ins[1] in need:
+                live.append(ins)
+                need.update((ins[2], ins[3]))
+        live.reverse()
+        raw[name] = (n_in, outs, live)
+    n_in_all, n_const = len(inputs), len(b.consts)
+    base = n_in_all + n_const  # first temporary register
+    unary = {b.op_code[k] for k in ("neg", "sin", "cos")}
+    if base + max((len(v[2]) for v in raw.values()), default=0) >= 1 << 19:
+        raise ValueError("tape: more than 2^19 registers")
+
+    code: list[int] = []
+    offsets: dict[str, int] = {}
+    nreg = base
+    for name, (n_in, outs, live) in raw.items():
+        level: dict[int, int] = {}
+        for op, d, x, y in live:
+            level[d] = 1 + max(level.get(a, 0) for a in ((x,) if op in unary else (x, y)))
+        order = _fuse(sorted(live, key=lambda ins: (level[ins[1]], ins[0])), outs, b.op_code)
+        where = {ins[1]: base + j for j, ins in enumerate(order)}
+        where.update({r: n_in_all + (-1 - r) for r in range(-n_const, 0)})  # constants
+        enc: list[int] = []
+        for op, _, x, y, z in order:  # one integer: op << 57 | a << 38 | b << 19 | c
+            enc.append(op << 57 | where.get(x, x) << 38
+                       | (0 if op in unary else where.get(y, y)) << 19 | where.get(z, z))
+        offsets[name] = len(code)
+        code += [n_in, len(outs), len(order), base, *(where.get(r, r) for r in outs), *enc]
+        nreg = max(nreg, base + len(order))
+    consts = [0.0] * n_const
+    for v, i in b.consts.items():
+        consts[i] = v
+    return {"code": code, "consts": consts, "programs": offsets, "nreg": nreg,
+            "n_inputs": n_in_all}

@@ -20,6 +20,7 @@ from types import ModuleType
 import numpy as np
 
 from ..description.robot import Robot
+from .tape import Tape
 
 # name -> (argument list, doc) of every generated function
 FUNCTIONS: dict[str, tuple[tuple[str, ...], str]] = {
@@ -44,10 +45,6 @@ FUNCTIONS: dict[str, tuple[tuple[str, ...], str]] = {
     "link_points_J": (("q",), "Jacobian d(link_points)/dq (4 rows per link) [m]."),
 }
 
-# functions that also get a numba-ready scalar variant ``NAME_nb(args, out)`` (the compiled
-# simulation's right-hand side, events, impact and statistics; see model/jit.py)
-NUMBA = {"D", "h", "V", "B_F", "D_u", "h_u", "B_Fu", "p_swing", "E_swing", "E_swing_u",
-         "link_points", "link_points_J"}
 
 
 VECTORS = {"G", "h", "V", "h_u", "p_swing", "p_com", "link_points"}
@@ -95,6 +92,8 @@ class CompiledModel:
         for name in FUNCTIONS:
             setattr(self, name, getattr(module, name))
             setattr(self, name + "_s", getattr(module, name + "_s"))
+        #: the model as instruction tapes for the compiled interpreter (model/tape.py)
+        self.tape = Tape.from_data(module.TAPE)
 
     # -- derived quantities ----------------------------------------------------------------
     def energy(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
@@ -179,4 +178,7 @@ class CompiledModel:
             "notes": list(self.notes),
             "cache_hit": self.cache_hit,
             "seconds": self.load_seconds,
+            "tape": {"instructions": self.tape.instructions(),
+                     "instructions_accel": self.tape.instructions("accel"),
+                     "registers": self.tape.nreg},
         }

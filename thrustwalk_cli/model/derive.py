@@ -16,7 +16,7 @@ in ``q`` (so ``D' - 2C`` is skew-symmetric by construction).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import sympy as sp
 
@@ -33,6 +33,14 @@ class Derivation:
     dxy: list[sp.Symbol]
     F: list[sp.Symbol]
     exprs: dict[str, sp.Matrix]
+    #: absolute link angles theta = T q (placeholders), the pinned inertia matrix D_theta and
+    #: the foot-coupling block D_theta,x in them (before substituting theta = T q), T, the
+    #: total mass and g: the tape's bias terms are derived from these (tape_programs)
+    theta: list[sp.Symbol] = field(default_factory=list)
+    D_theta: sp.Matrix | None = None
+    Dx_theta: sp.Matrix | None = None
+    T: sp.Matrix | None = None
+    mg: sp.Expr = sp.Integer(0)
 
 
 def _rot(th: sp.Expr, v: tuple[float, float]) -> tuple[sp.Expr, sp.Expr]:
@@ -122,6 +130,7 @@ def derive(robot: Robot) -> Derivation:
             Dth[c, p] -= J
             Dth[p, c] -= J
     sub = dict(zip(th, theta))
+    D_theta, Dx_theta = Dth, Dthx
     Dth = Dth.subs(sub)
     Dthx = Dthx.subs(sub)
     D = T.T * Dth * T
@@ -220,4 +229,64 @@ def derive(robot: Robot) -> Derivation:
         "link_points": sp.Matrix(pts),
         "link_points_J": sp.Matrix(pts).jacobian(q),
     }
-    return Derivation(q=q, dq=dq, dxy=dxy, F=F, exprs=exprs)
+    return Derivation(q=q, dq=dq, dxy=dxy, F=F, exprs=exprs, theta=th, D_theta=D_theta,
+                      Dx_theta=Dx_theta, T=T, mg=mtot * g)
+
+
+def _bias_theta(der: Derivation) -> tuple[sp.Matrix, sp.Matrix]:
+    """The bias terms in absolute angles, a second derivation of ``h`` (SPEC 1) for the tape.
+
+    With ``theta = T q`` (T constant) the Lagrangian in ``q`` has ``D = T^T D_theta T``, so
+    ``C q' = T^T c_theta(theta, theta')`` with ``c_theta,k = sum_ij Gamma_kij theta_i'
+    theta_j'``, the Christoffel symbols of ``D_theta`` (whose entries depend on differences
+    of single angles, so they are short); ``h = T^T c_theta + G`` [N m]. The foot rows of the
+    unpinned bias at rest (``q_u' = [q'; 0; 0]``) are ``d/dt(D_theta,x^T) theta'``; row i of
+    ``D_theta,x`` depends on ``theta_i`` alone, so they are ``sum_i dD_theta,x[i]/dtheta_i
+    theta_i'^2``, plus ``(0, m g)`` [N].
+    """
+    n = len(der.q)
+    th, T = der.theta, der.T
+    dth = list(sp.symbols(f"dth0:{n}", real=True))
+    Dth, Dx = der.D_theta, der.Dx_theta
+    dD = [Dth.diff(a) for a in th]
+    c = []
+    for k in range(n):
+        acc = sp.Integer(0)
+        for i in range(n):
+            for j in range(n):
+                g = dD[i][k, j] + dD[j][k, i] - dD[k][i, j]
+                if g != 0:
+                    acc += g * dth[i] * dth[j] / 2
+        c.append(acc)
+    foot = [sum((sp.diff(Dx[i, r], th[i]) * dth[i] ** 2 for i in range(n)), sp.Integer(0))
+            for r in range(2)]
+    sub = dict(zip(th, list(T * sp.Matrix(der.q))))
+    sub.update(zip(dth, list(T * sp.Matrix(der.dq))))
+    h = T.T * sp.Matrix(c).subs(sub) + der.exprs["G"]
+    ground = sp.Matrix([foot[0].subs(sub), foot[1].subs(sub) + der.mg])
+    return h, ground
+
+
+def tape_programs(der: Derivation) -> dict[str, tuple[int, list[sp.Expr]]]:
+    """The expressions of every tape program (the table of :mod:`thrustwalk_cli.model.tape`):
+    name -> (number of inputs read, flat row-major outputs). Inputs are ``q`` then ``q'``.
+    The bias ``h`` and the ground-force bias rows come from :func:`_bias_theta` (shorter
+    than the Christoffel sums in ``q`` of the generated functions; the tests compare the
+    two)."""
+    n = len(der.q)
+    e = der.exprs
+    flat = lambda M: list(M) if M.shape[0] * M.shape[1] else []  # noqa: E731
+    h, h_foot = _bias_theta(der)
+    accel = flat(e["D"]) + flat(h) + flat(e["B_F"])
+    ground = flat(e["D_u"][n:n + 2, :n]) + flat(h_foot) + flat(e["B_Fu"][n:n + 2, :])
+    foot_vy = sum((e["E_swing"][1, j] * der.dq[j] for j in range(n)), sp.Integer(0))
+    return {
+        "accel": (2 * n, accel),
+        "force": (2 * n, accel + ground),
+        "height": (n, flat(e["p_swing"])),
+        "footvel": (2 * n, [foot_vy]),
+        "links": (n, flat(e["link_points"])),
+        "impact": (n, flat(e["D_u"]) + flat(e["E_swing_u"])),
+        "energy": (n, flat(e["D"]) + flat(e["V"])),
+        "push": (n, flat(e["D"]) + flat(e["link_points_J"])),
+    }

@@ -1,14 +1,19 @@
-"""numba-compiled functions of a model, cached on disk beside the model (PERF_NOTES).
+"""Robot-independent numba modules, compiled once per machine and cached (PERF_NOTES).
 
-A *jit module* is one generated Python file in the model cache: some numba-ready source (the
-compiled simulation kernel, or the batch evaluators below), then the model's own generated
-module (its ``NAME_nb`` scalar functions, whose definitions replace the placeholders of the
-source above them), then a footer that wraps the listed functions, callees first, in
-``numba.njit(signature, cache=True)``: explicit signatures compile each function once, when
-the module is imported. numba keeps the machine code in ``__pycache__`` beside that file,
-so a second process loads it instead of compiling (the file name carries a hash of everything
-that went into it; numba checks its own version and the CPU). A JSON sidecar records how long
-the one-time compile took, so ``thrustwalk compile`` can report it without importing numba.
+A *jit module* is one generated Python file in the thrustwalk cache folder: numba-ready
+source (the tape interpreter of :mod:`thrustwalk_cli.model.tape`, and for the simulation the
+kernel of :mod:`thrustwalk_cli.simulation.kernel`) followed by a footer that wraps the listed
+functions, callees first, in ``numba.njit(signature, cache=True)``: explicit signatures
+compile each function once, when the module is first imported on this machine. numba keeps
+the machine code in ``__pycache__`` beside that file, so every later process loads it
+instead of compiling (the file name carries a hash of everything that went into it; numba
+checks its own version and the CPU). Robots are data (tapes) passed to these functions, so a
+new robot never triggers a compile. A JSON sidecar records how long the one-time compile
+took, so ``thrustwalk compile`` can report it without importing numba.
+
+When the cache folder cannot be used (no home directory, read-only, full), the module is
+compiled into a private temporary folder for this process and :attr:`JitModule.note` says
+so in one line: slower (the compile is paid again by the next process), never an error.
 
 numba is imported only when a jit module is imported, never by ``import thrustwalk_cli`` or a
 cached model.
@@ -16,9 +21,12 @@ cached model.
 
 from __future__ import annotations
 
+import functools
 import hashlib
+import sys
+import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -27,80 +35,88 @@ import numpy as np
 
 from . import cache
 from .compiled import CompiledModel
+from .tape import SIGNATURES as TAPE_SIGNATURES
+from .tape import interpreter_source
 
 OPTIONS = "cache=True, nogil=True, error_model='numpy'"
 
 
 def _numba_version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("numba")
-    except PackageNotFoundError:  # pragma: no cover - numba is a dependency
-        return "missing"
+    return cache.package_file("numba", "_version.py")
 
 
-def model_signatures(model_names: Sequence[str]) -> dict[str, str]:
-    """numba signatures of the model's ``NAME_nb`` functions (1-D float arrays in, ``out``)."""
-    from .compiled import FUNCTIONS
-
-    return {f"{n}_nb": "(" + ", ".join(["float64[::1]"] * (len(FUNCTIONS[n][0]) + 1)) + ")"
-            for n in sorted(model_names)}
-
-
-def entry_path(model: CompiledModel, tag: str, source: str, names: dict[str, str],
-               inline: Sequence[str] = ()) -> Path:
-    """Where the jit module of ``model`` for ``source`` lives (a hash of all its inputs)."""
+def _digest(tag: str, source: str, names: dict[str, str]) -> str:
+    """Hash of a jit module's identity. ``source`` is the module's text or a fingerprint of
+    everything it is made from (cheaper: checking a warm cache must not build the text)."""
+    key = (tag, id(source), id(names))
+    hit = _DIGESTS.get(key)
+    if hit is not None and hit[0] is source and hit[1] is names:
+        return hit[2]
     h = hashlib.sha256()
-    for part in (model.key, tag, source, repr(sorted(names.items())), repr(tuple(inline)),
-                 OPTIONS, _numba_version()):
+    for part in (tag, source, repr(sorted(names.items())), OPTIONS, _numba_version(),
+                 sys.version):
         h.update(part.encode())
         h.update(b"\0")
-    return cache.entry_path(f"{model.robot.name}-{tag}", model.key[:10] + h.hexdigest()[:16])
+    _DIGESTS[key] = (source, names, h.hexdigest())
+    return h.hexdigest()
 
 
-def _module_source(model: CompiledModel, source: str, names: dict[str, str],
-                   inline: Sequence[str]) -> str:
-    body = cache.read_body(model.cache_path)
+_DIGESTS: dict[tuple, tuple[str, dict, str]] = {}  # the same source objects: hashed once
+
+
+def entry_path(tag: str, source: str, names: dict[str, str], folder: Path | None = None
+               ) -> Path:
+    """Where the jit module for ``source`` lives: ``jit-TAG-HASH.py`` in the cache folder
+    (or in ``folder``)."""
+    d = _digest(tag, source, names)
+    if folder is not None:
+        return folder / cache.entry_name(f"jit-{tag}", d)
+    return cache.entry_path(f"jit-{tag}", d)
+
+
+def _module_source(source: str, names: dict[str, str]) -> str:
     footer = [
         "", "# ---- numba: compile the functions above once, cache them beside this file",
         "import numba as _numba", "",
-        *([f"for _name in {tuple(inline)!r}:",
-           "    globals()[_name] = _numba.njit(inline='always', error_model='numpy')("
-           "globals()[_name])", ""] if inline else []),
         "_JIT = {",
         *[f"    {k!r}: {v!r}," for k, v in names.items()],
         "}",
         "for _name, _sig in _JIT.items():",
         f"    globals()[_name] = _numba.njit(_sig, {OPTIONS})(globals()[_name])", "",
     ]
-    return (source.rstrip() + "\n\n\n# ---- the model's generated functions\n" + body.rstrip()
-            + "\n" + "\n".join(footer))
+    return source.rstrip() + "\n" + "\n".join(footer)
 
 
 @dataclass
 class JitModule:
     """A loaded jit module. ``compile_seconds``: the one-time numba compile (measured now, or
-    as recorded when it happened); ``cache_hit``: the machine code came from the disk
-    cache; ``load_seconds``: this import."""
+    as recorded when it happened); ``cache_hit``: the machine code came from the disk cache;
+    ``load_seconds``: this import; ``note``: one line when the cache folder was unusable."""
 
     module: ModuleType
     path: Path
     load_seconds: float
     cache_hit: bool
     compile_seconds: float | None
+    note: str = ""
 
 
 _LOADED: dict[str, JitModule] = {}
+_PRIVATE: list[Path] = []  # this process's fallback folder, made on first need
 
 
-def _import(path: Path, key: str) -> ModuleType:
+def _private_folder() -> Path:
+    if not _PRIVATE:
+        _PRIVATE.append(Path(tempfile.mkdtemp(prefix="thrustwalk-jit-")))
+    return _PRIVATE[0]
+
+
+def _import(path: Path) -> ModuleType:
     """Import a verified jit module under a stable name (numba's cache refers to the
     compiled functions by module name when it loads them in another process)."""
     import importlib.util
-    import sys
 
-    name = f"thrustwalk_jit_{key.replace('-', '_')}"
+    name = f"thrustwalk_jit_{path.stem.replace('-', '_')}"
     if name in sys.modules:
         return sys.modules[name]
     spec = importlib.util.spec_from_file_location(name, path)
@@ -116,52 +132,82 @@ def _import(path: Path, key: str) -> ModuleType:
     return module
 
 
-def load(model: CompiledModel, tag: str, source: str, names: dict[str, str],
-         inline: Sequence[str] = (), rebuild: bool = False) -> JitModule:
-    """The jit module of ``model`` for ``source``: written to the cache if missing, then
-    imported, which compiles every function in ``names`` (name -> numba signature, callees
-    first) or loads its machine code from numba's cache; the functions in ``inline`` are
-    inlined into their callers. ``rebuild``: discard both."""
-    path = entry_path(model, tag, source, names, inline)
-    key = path.stem
-    memo = _LOADED.get(str(path))
+def _place(tag: str, source: str | Callable[[], str], names: dict[str, str], rebuild: bool,
+           fingerprint: str | None = None) -> tuple[Path, str]:
+    """Write the module file if needed; returns (path, note). Falls back to a private
+    temporary folder when the cache folder is unusable. ``source``: the text, or a function
+    that makes it (called only when the file must be written) with ``fingerprint``
+    identifying it."""
+    ident = fingerprint if fingerprint is not None else source
+    cached_text: list[str] = []
+
+    def text() -> str:
+        if not cached_text:
+            cached_text.append(_module_source(source() if callable(source) else source, names))
+        return cached_text[0]
+    try:
+        path = entry_path(tag, ident, names)
+        if rebuild:
+            for old in path.parent.glob(f"__pycache__/{path.stem}.*"):
+                old.unlink(missing_ok=True)
+            path.with_suffix(".json").unlink(missing_ok=True)
+        if rebuild or cache.verify_entry(path, path.stem) is not None:
+            cache.write_entry(path, path.stem, text())
+            if cache.verify_entry(path, path.stem) is not None:
+                raise OSError(f"{path} reads back wrong")
+        return path, ""
+    except (OSError, cache.NoCacheDir) as exc:
+        path = entry_path(tag, ident, names, _private_folder())
+        if cache.verify_entry(path, path.stem) is not None:
+            cache.write_entry(path, path.stem, text())
+        why = getattr(exc, "strerror", None) or str(exc) or exc.__class__.__name__
+        return path, (f"cache folder unusable ({why}): the compiled kernel is kept in a "
+                      f"temporary folder for this process only")
+
+
+def load(tag: str, source: str | Callable[[], str], names: dict[str, str],
+         rebuild: bool = False, fingerprint: str | None = None) -> JitModule:
+    """The jit module for ``source`` (its text, or a function making it, identified by
+    ``fingerprint``): written to the cache if missing, then imported, which compiles every
+    function in ``names`` (name -> numba signature, callees first) or loads its machine code
+    from numba's cache. ``rebuild``: discard both and compile again."""
+    key = _digest(tag, fingerprint if fingerprint is not None else source, names)
+    memo = _LOADED.get(key)
     if memo is not None and not rebuild:
         return memo
-    meta_path = path.with_suffix(".json")
-    if rebuild:
-        for old in path.parent.glob(f"__pycache__/{path.stem}.*"):
-            old.unlink(missing_ok=True)
-        meta_path.unlink(missing_ok=True)
-    if rebuild or cache.verify_entry(path, key) is not None:
-        cache.write_entry(path, key, _module_source(model, source, names, inline))
+    path, note = _place(tag, source, names, rebuild, fingerprint)
     t0 = time.perf_counter()
-    module = _import(path, key) if not rebuild else _reimport(path, key)
+    if rebuild:
+        sys.modules.pop(f"thrustwalk_jit_{path.stem.replace('-', '_')}", None)
+    module = _import(path)
     seconds = time.perf_counter() - t0
     misses = sum(sum(getattr(module, n).stats.cache_misses.values()) for n in names)
     hit = misses == 0
+    meta_path = path.with_suffix(".json")
     if hit:
         compile_seconds = (cache.read_meta(meta_path) or {}).get("compile_seconds")
     else:
         compile_seconds = seconds
-        cache.write_meta(meta_path, {"compile_seconds": seconds, "numba": _numba_version()})
-    jm = JitModule(module, path, seconds, hit, compile_seconds)
-    _LOADED[str(path)] = jm
+        try:
+            import numba
+
+            cache.write_meta(meta_path, {"compile_seconds": seconds,
+                                         "numba": numba.__version__})
+        except OSError:
+            pass
+    jm = JitModule(module, path, seconds, hit, compile_seconds, note)
+    _LOADED[key] = jm
     return jm
 
 
-def _reimport(path: Path, key: str) -> ModuleType:
-    import sys
-
-    sys.modules.pop(f"thrustwalk_jit_{key.replace('-', '_')}", None)
-    return _import(path, key)
-
-
-def status(model: CompiledModel, tag: str, source: str, names: dict[str, str],
-           inline: Sequence[str] = ()) -> dict:
-    """Whether the jit module is on disk with numba's machine code and its recorded compile
-    time, checked without importing numba: ``{"cached": bool, "compile_seconds": float|None,
-    "entry": path}``."""
-    path = entry_path(model, tag, source, names, inline)
+def status(tag: str, ident: str, names: dict[str, str]) -> dict:
+    """Whether the jit module (``ident``: its text or fingerprint, as given to :func:`load`)
+    is on disk with numba's machine code and its recorded compile time, checked without
+    importing numba: ``{"cached": bool, "compile_seconds": float|None, "entry": path}``."""
+    try:
+        path = entry_path(tag, ident, names)
+    except cache.NoCacheDir:
+        return {"cached": False, "compile_seconds": None, "entry": ""}
     meta = cache.read_meta(path.with_suffix(".json"))
     ok = (meta is not None and cache.verify_entry(path, path.stem) is None
           and any(path.parent.glob(f"__pycache__/{path.stem}.*.nbi")))
@@ -170,42 +216,41 @@ def status(model: CompiledModel, tag: str, source: str, names: dict[str, str],
 
 
 # ----------------------------------------------------------------- batch model evaluation
-BATCH_SOURCE = '''"""Batch evaluators of the model's scalar functions (numba loops over states)."""
-import numpy as np
+BATCH_TAG = "tape"
 
 
-def D_nb(q, out):  # placeholder: the model's generated function follows in this file
-    raise NotImplementedError
+@functools.cache
+def _batch_source() -> str:
+    return ('"""The tape interpreter of thrustwalk (model/tape.py), compiled by numba."""\n'
+            "import numpy as np\n\n\n" + interpreter_source())
 
 
-def h_nb(q, dq, out):  # placeholder
-    raise NotImplementedError
+def batch_module(rebuild: bool = False) -> JitModule:
+    """The compiled batch interpreter (compiled once per machine, for every robot)."""
+    return load(BATCH_TAG, _batch_source(), TAPE_SIGNATURES, rebuild=rebuild)
 
 
-def D_h_batch(Q, DQ, Dout, hout):
-    """``D(q_k)`` into ``Dout[k]`` (flat N*N) and ``h(q_k, q'_k)`` into ``hout[k]``."""
-    for k in range(Q.shape[0]):
-        D_nb(Q[k], Dout[k])
-        h_nb(Q[k], DQ[k], hout[k])
-    return 0
-'''
-BATCH_NAMES = {"D_h_batch": "(float64[:, ::1], float64[:, ::1], float64[:, ::1], "
-                             "float64[:, ::1])"}
-
-
-def batch_module(model: CompiledModel) -> JitModule:
-    """The compiled batch evaluators of ``model`` (compiled or loaded on first use)."""
-    return load(model, "batch", BATCH_SOURCE, {**model_signatures(["D", "h"]), **BATCH_NAMES})
+def run_batch(model: CompiledModel, program: str, x: np.ndarray, chunk: int = 64
+              ) -> np.ndarray:
+    """Outputs of one tape ``program`` (see :mod:`thrustwalk_cli.model.tape`) for K states
+    ``x`` (K, n_in) through compiled code: (K, n_out)."""
+    tape = model.tape
+    p = tape.programs[program]
+    n_in = int(tape.code[p])
+    X = np.ascontiguousarray(np.asarray(x, float).reshape(-1, n_in))
+    out = np.empty((X.shape[0], tape.n_out(program)))
+    batch_module().module.tape_batch(tape.code, p, tape.consts, tape.n_inputs, tape.nreg, X,
+                                     out, chunk)
+    return out
 
 
 def D_h_batch(model: CompiledModel, q: np.ndarray, dq: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray]:
     """``D(q)`` (K, N, N) [kg m^2] and ``h = C q' + G`` (K, N) [N m] for K states through
-    compiled code (the same values as ``model.D``/``model.h``)."""
+    compiled code (the tape's ``accel`` program: the same values as ``model.D``/``model.h``
+    to rounding). SPEC 1."""
     n = model.n
-    Q = np.ascontiguousarray(np.asarray(q, float).reshape(-1, n))
-    DQ = np.ascontiguousarray(np.asarray(dq, float).reshape(-1, n))
-    Dout = np.empty((Q.shape[0], n * n))
-    hout = np.empty((Q.shape[0], n))
-    batch_module(model).module.D_h_batch(Q, DQ, Dout, hout)
-    return Dout.reshape(-1, n, n), hout
+    Q = np.asarray(q, float).reshape(-1, n)
+    DQ = np.asarray(dq, float).reshape(-1, n)
+    out = run_batch(model, "accel", np.concatenate([Q, DQ], axis=1))
+    return out[:, :n * n].reshape(-1, n, n), out[:, n * n:n * n + n]

@@ -133,7 +133,7 @@ def simulate_batch(zd: ZeroDynamics, thrust: ThrustModel, x0: np.ndarray,
     pred = predicted_cycle(zd, thrust)
     t_max = config.max_step_time or (10.0 * pred.step_time if pred.exists else 10.0)
     p = C.pack(cl, t_max)
-    jm = C.kernel(zd.model)
+    jm = C.kernel()
     N, m, nz = cl.N, cl.m, p.nz
     n = 2 * N + nz
     X0 = np.ascontiguousarray(np.asarray(x0, float).reshape(-1, n))

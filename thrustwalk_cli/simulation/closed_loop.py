@@ -154,7 +154,7 @@ class SimConfig:
 
     steps: number of steps. rtol/atol: integrator tolerances (``atol`` on rad and rad/s).
     method: ``compiled`` (the numba kernel: DOP853 with solve_ivp's step-size control and
-    event location, compiled once per robot) or ``scipy`` (``solve_ivp``, the reference).
+    event location, compiled once per machine) or ``scipy`` (``solve_ivp``, the reference).
     integrator: the ``solve_ivp`` method (``scipy`` only; the compiled kernel is DOP853).
     samples_per_step: stored trajectory samples per step.
     torque_limit: |u| bound [N m] (None: unlimited). scuff_tol: how far below the ground the

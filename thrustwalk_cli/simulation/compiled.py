@@ -1,26 +1,32 @@
 """The compiled full-order simulation (SPEC 7): the numba kernel of :mod:`.kernel`, its
 parameters, and results in the same form as the SciPy reference path.
 
-One kernel per robot is generated from the model's scalar functions and the kernel source,
-compiled by numba once and cached beside the model (:mod:`thrustwalk_cli.model.jit`). It
-integrates with DOP853 (same tolerance semantics, step-size control and events as
-``solve_ivp``), so its steps agree with the SciPy path (``method="scipy"``) to the
+One kernel serves every robot: the kernel source and the tape interpreter, compiled by numba
+once per machine and cached in the thrustwalk cache folder (:mod:`thrustwalk_cli.model.jit`);
+the robot enters as data, its tape (:mod:`thrustwalk_cli.model.tape`) appended to the integer
+settings. It integrates with DOP853 (same tolerance semantics, step-size control and events
+as ``solve_ivp``), so its steps agree with the SciPy path (``method="scipy"``) to the
 integration tolerance. numba is imported only here, when a compiled run is asked for.
 """
 
 from __future__ import annotations
 
+import functools
 import inspect
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..model import jit
-from ..model.compiled import CompiledModel
+from ..model.tape import SIGNATURES as TAPE_SIGNATURES
+from ..model.tape import interpreter_source
 from . import kernel as K
-from .closed_loop import ClosedLoop, ScalarGait, SimConfig
 from .records import EVENT_REASONS, Segment, StepRecord
+
+if TYPE_CHECKING:  # the closed loop (and the zero dynamics under it) load when a run needs them
+    from .closed_loop import ClosedLoop, SimConfig
 
 TAG = "sim"
 KINDS = {"constant": K.K_CONSTANT, "first-order": K.K_FIRST, "second-order": K.K_SECOND,
@@ -42,29 +48,44 @@ def _coefficients() -> str:
     return "\n".join(f"{k} = {arr(v)}" for k, v in parts.items())
 
 
+@functools.cache
 def kernel_source() -> str:
-    """The kernel's source followed by the DOP853 coefficients (they replace its
-    placeholders)."""
-    return inspect.getsource(K) + "\n\n# ---- DOP853 tableau (scipy.integrate.DOP853)\n" + \
-        _coefficients() + "\n"
+    """The kernel's source, the tape interpreter and the DOP853 coefficients (the last two
+    replace its placeholders)."""
+    return (inspect.getsource(K) + "\n\n# ---- the tape interpreter (model/tape.py)\n"
+            + interpreter_source() + "\n\n# ---- DOP853 tableau (scipy.integrate.DOP853)\n"
+            + _coefficients() + "\n")
 
 
+@functools.cache
 def _names() -> dict[str, str]:
     """Every function to compile with its numba signature, callees first."""
-    from ..model.compiled import NUMBA
-
-    return {**jit.model_signatures(NUMBA), **K.SIGNATURES}
+    return {**TAPE_SIGNATURES, **K.SIGNATURES}
 
 
-def kernel(model: CompiledModel, rebuild: bool = False) -> jit.JitModule:
-    """The compiled kernel of ``model``: compiled once per robot (numba) or loaded from the
-    cache."""
-    return jit.load(model, TAG, kernel_source(), _names(), K.INLINE, rebuild=rebuild)
+@functools.cache
+def _fingerprint() -> str:
+    """What the kernel's module is made of, cheaply (no SciPy import, no source assembly):
+    the files of its source and SciPy's file of the DOP853 tableau."""
+    from pathlib import Path
+
+    from ..model import cache
+
+    here = Path(__file__).parent
+    return cache.files_digest(
+        [here / "kernel.py", here / "compiled.py", here.parent / "model" / "tape.py"],
+        cache.package_file("scipy", "integrate/_ivp/dop853_coefficients.py"))
 
 
-def kernel_status(model: CompiledModel) -> dict:
-    """Whether the compiled kernel of ``model`` is cached, without importing numba."""
-    return jit.status(model, TAG, kernel_source(), _names(), K.INLINE)
+def kernel(rebuild: bool = False) -> jit.JitModule:
+    """The compiled kernel (every robot): compiled once per machine (numba) or loaded from
+    the cache."""
+    return jit.load(TAG, kernel_source, _names(), rebuild=rebuild, fingerprint=_fingerprint())
+
+
+def kernel_status() -> dict:
+    """Whether the compiled kernel is cached, without importing numba or SciPy."""
+    return jit.status(TAG, _fingerprint(), _names())
 
 
 # ----------------------------------------------------------------------------- parameters
@@ -89,17 +110,25 @@ class Packed:
 def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
     """Arrays for the kernel from a :class:`ClosedLoop` (the SciPy path's own setup, so both
     methods see the same breakpoints, thrust pieces and settings)."""
-    zd, th, cfg, model = cl.zd, cl.thrust, cl.config, cl.model
+    th, cfg, model = cl.thrust, cl.config, cl.model
     N, m = model.n, model.n_thrusters
-    rows = np.array(ScalarGait(zd.maps).rows, float)
+    rows = np.array(cl.gait_s.rows, float)
     nbrk = len(cl.breaks)
-    ip = np.array(K.layout(N, m, th.n_states, len(model.robot.links), rows.shape[1], nbrk),
-                  np.int64)
+    tape = model.tape
+    ip = np.array(K.layout(N, m, th.n_states, len(model.robot.links), rows.shape[1], nbrk,
+                           tape.nreg), np.int64)
+    for slot, name in ((K.T_ACCEL, "accel"), (K.T_FORCE, "force"), (K.T_HEIGHT, "height"),
+                       (K.T_FOOTVEL, "footvel"), (K.T_LINKS, "links"),
+                       (K.T_IMPACT, "impact"), (K.T_ENERGY, "energy"), (K.T_PUSH, "push")):
+        ip[slot] = K.N_IP + tape.programs[name]
+    ip[K.I_NCONST], ip[K.I_C0], ip[K.I_NREG] = tape.consts.size, tape.n_inputs, tape.nreg
+    ip = np.concatenate([ip, tape.code])
     ip[K.I_KIND] = KINDS[th.kind]
     ip[K.I_ROOT_END] = cl.root_end
     ip[K.I_GUARD_IDX] = cl.breaks.index(cl.arm_s)
     ip[K.I_GRID] = grid
-    fs = np.zeros(K.N_FS)
+    fs = np.zeros(K.N_FS + tape.consts.size)
+    fs[K.N_FS:] = tape.consts
     fs[K.F_AI], fs[K.F_SPAN], fs[K.F_DIR] = cl.ai, cl.span, cl.direction
     fs[K.F_KP], fs[K.F_KD] = cl.kp, cl.kd
     fs[K.F_RTOL], fs[K.F_ATOL] = cfg.rtol, cfg.atol
@@ -190,15 +219,26 @@ class Stepper:
         self.cl = cl
         self.model = cl.model
         self.packed = pack(cl, t_max)
-        self.jm = kernel(self.model)
+        self.jm = kernel()
         self.dense = dense
         N, m = self.model.n, self.model.n_thrusters
         self.n = 2 * N + self.packed.nz
         self.width = record_width(N, self.packed.nz, m)
         self.par = self.packed.par.copy()
-        self._w = np.zeros(self.packed.ip[K.W_SIZE])
         self._buf = np.zeros((BUF_ROWS, 2 + 8 * self.n))
         self._calls = np.zeros((256, K.N_CALL))
+        # the kernel's one-run arguments, reused from step to step
+        p = self.packed
+        self._X0 = np.zeros((1, self.n))
+        self._T0 = np.zeros(1)
+        self._K0 = np.zeros(1, np.int64)
+        self._recs = np.zeros((1, 1, self.width))
+        self._outs = np.zeros((1, K.N_OUT))
+        self._XN = np.zeros((1, self.n))
+        self._info = np.zeros((1, 2), np.int64)
+        self._done = np.zeros(1, np.int64)
+        self._gains = np.array([[p.fs[K.F_KP], p.fs[K.F_KD]]])
+        self._nopush = np.full((1, 6), -1.0)
 
     def set_thrust(self, target=None, seg_force=None, seg_T=None) -> None:
         """Thrust values for the following steps (see :func:`with_thrust`)."""
@@ -210,17 +250,16 @@ class Stepper:
         """Step ``k`` (1-based) from the post-impact state ``x0`` at time ``t0`` [s];
         ``push``: ``[k, s, link index, lambda, P_x, P_y]`` (see ``kernel.apply_push``)."""
         p = self.packed
-        X0 = np.ascontiguousarray(np.asarray(x0, float).reshape(1, self.n))
-        recs = np.zeros((1, 1, self.width))
-        outs = np.zeros((1, K.N_OUT))
-        XN = np.zeros((1, self.n))
-        info = np.zeros((1, 2), np.int64)
-        pu = np.full((1, 6), -1.0) if push is None else np.asarray(push, float).reshape(1, 6)
-        gains = np.array([[p.fs[K.F_KP], p.fs[K.F_KD]]])
+        X0, recs, outs, XN, info = self._X0, self._recs, self._outs, self._XN, self._info
+        X0[0] = np.asarray(x0, float).reshape(self.n)
+        self._T0[0] = t0
+        self._K0[0] = k
+        pu = self._nopush if push is None else np.ascontiguousarray(
+            np.asarray(push, float).reshape(1, 6))
         while True:
-            self.jm.module.run(X0, np.array([float(t0)]), np.array([int(k)], np.int64), 1,
-                               p.fs, p.ip, self.par[None, :], gains, pu, recs, outs,
-                               np.zeros(1, np.int64), XN, info, 0, 1, self._buf, self._calls)
+            self.jm.module.run(X0, self._T0, self._K0, 1, p.fs, p.ip, self.par[None, :],
+                               self._gains, pu, recs, outs, self._done, XN, info, 0, 1,
+                               self._buf, self._calls)
             if int(outs[0, K.O_STATUS]) != K.FAIL_BUFFER or self._buf.shape[0] >= 1 << 18:
                 break
             self._buf = np.zeros((4 * self._buf.shape[0], self._buf.shape[1]))
@@ -233,7 +272,7 @@ class Stepper:
                 rows = self._buf[int(first):int(last)]
                 pieces.append((float(ta), float(tb), int(seg),
                                DenseSolution(rows, float(ta), float(tb), self.n)))
-        return StepOutcome(status, recs[0, 0], outs[0], XN[0], pieces)
+        return StepOutcome(status, recs[0, 0].copy(), outs[0].copy(), XN[0].copy(), pieces)
 
 
 def failure_text(out: np.ndarray, cfg: SimConfig, t_max: float) -> tuple[str, str]:

@@ -1,11 +1,14 @@
-"""The compiled closed loop of SPEC 7: source that numba compiles once per robot.
+"""The compiled closed loop of SPEC 7: source that numba compiles once per machine.
 
 This module is plain Python written in the subset numba compiles. It is never jit-compiled
 where it stands: :mod:`thrustwalk_cli.simulation.compiled` concatenates this source with the
-model's generated scalar functions (``D_nb``, ``h_nb``, ... of :mod:`thrustwalk_cli.model.
-codegen`, whose definitions come later in the file and so replace the placeholders below) and
-the DOP853 coefficients of :class:`scipy.integrate.DOP853`, and caches the compiled result
-beside the model (:mod:`thrustwalk_cli.model.jit`).
+tape interpreter of :mod:`thrustwalk_cli.model.tape` (whose definition comes later in the
+file and so replaces the placeholder below) and the DOP853 coefficients of
+:class:`scipy.integrate.DOP853`, and caches the compiled result in the thrustwalk cache
+folder (:mod:`thrustwalk_cli.model.jit`). No robot appears in the code: the model (D, h,
+B_F, the ground-force rows, swing-foot kinematics, impact terms) is the robot's *tape*,
+appended to the integer settings ``ip`` and run by the interpreter, so one compiled kernel
+serves every robot.
 
 What it computes is, equation for equation, the SciPy reference path of
 :mod:`thrustwalk_cli.simulation.full_order` and :class:`~thrustwalk_cli.simulation.
@@ -32,55 +35,15 @@ import math
 
 import numpy as np
 
-# ------------------------------------------------------------------ placeholders (replaced)
-# the model's generated scalar functions, defined again (for real) later in the compiled file
+# ------------------------------------------------------------------ placeholder (replaced)
+# the tape interpreter (model/tape.py), defined again (for real) later in the compiled file
 
 
-def D_nb(q, out):  # noqa: D103
+def tape_run(code, p, x, r, o):  # noqa: D103
     raise NotImplementedError
 
 
-def h_nb(q, dq, out):  # noqa: D103
-    raise NotImplementedError
-
-
-def V_nb(q, out):  # noqa: D103
-    raise NotImplementedError
-
-
-def B_F_nb(q, out):  # noqa: D103
-    raise NotImplementedError
-
-
-def D_u_nb(q, out):  # noqa: D103
-    raise NotImplementedError
-
-
-def h_u_nb(q, dq_u, out):  # noqa: D103
-    raise NotImplementedError
-
-
-def B_Fu_nb(q, out):  # noqa: D103
-    raise NotImplementedError
-
-
-def p_swing_nb(q, out):  # noqa: D103
-    raise NotImplementedError
-
-
-def E_swing_nb(q, out):  # noqa: D103
-    raise NotImplementedError
-
-
-def E_swing_u_nb(q, out):  # noqa: D103
-    raise NotImplementedError
-
-
-def link_points_nb(q, out):  # noqa: D103
-    raise NotImplementedError
-
-
-def link_points_J_nb(q, out):  # noqa: D103
+def tape_batch(code, p, consts, c0, nreg, X, out, chunk):  # noqa: D103
     raise NotImplementedError
 
 
@@ -102,13 +65,16 @@ N_FS = 16
 # integer settings ip[...]: sizes, then offsets into par (P_*) and into the work array (W_*)
 I_N, I_M, I_NZ, I_KIND, I_ROOT_END, I_GUARD_IDX, I_GRID, I_NLINKS, I_NCOL, I_NBRK = range(10)
 P_ROWS, P_C, P_BRK, P_SEGF, P_SEGT, P_TGT, P_R, P_B, P_SIZE = range(10, 19)
-(W_D, W_H, W_BF, W_RHS, W_F, W_GH, W_BY, W_DDQ, W_U, W_A, W_DU, W_HU, W_BFU, W_DQU, W_P2,
- W_E, W_EU, W_LP, W_LPJ, W_V, W_Y, W_YT, W_K, W_SC, W_Y1, W_F1, W_XS, W_YE, W_FF, W_FN,
- W_YN, W_X, W_XE, W_DQI, W_ACC, W_G, W_GN, W_ROOTS, W_LOWS, W_GRID2, W_OUT,
- W_SIZE) = range(19, 61)
-N_IP = 61
+(W_D, W_H, W_BF, W_GR, W_RHS, W_F, W_GH, W_BY, W_DDQ, W_U, W_A, W_TO, W_P2, W_FV, W_LP,
+ W_Y, W_YT, W_K, W_SC, W_Y1, W_F1, W_XS, W_YE, W_FF, W_FN, W_YN, W_X, W_XE, W_DQI, W_ACC,
+ W_G, W_GN, W_ROOTS, W_LOWS, W_GRID2, W_OUT, W_SIZE) = range(19, 56)
+# the model's tape (appended to ``ip``): offsets of its programs, the number of constants
+# (in ``fs`` from N_FS on) and their first register; registers are ``w[:nreg]``
+T_ACCEL, T_FORCE, T_HEIGHT, T_FOOTVEL, T_LINKS, T_IMPACT, T_ENERGY, T_PUSH = range(56, 64)
+I_NCONST, I_C0, I_NREG = 64, 65, 66
+N_IP = 67
 # what evaluate() computes (bit flags) and where its scalar results go (w[W_OUT + ...])
-E_ACCEL, E_U, E_FORCE, E_HEIGHT, E_FOOTVEL, E_ROOT = 1, 2, 4, 8, 16, 32
+E_ACCEL, E_U, E_FORCE, E_HEIGHT, E_FOOTVEL, E_ROOT, E_PRE = 1, 2, 4, 8, 16, 32, 64
 V_FH, V_FV, V_HEIGHT, V_FOOTVEL, V_ROOT, V_SAT = 0, 1, 2, 3, 4, 5
 # thrust kinds
 K_CONSTANT, K_FIRST, K_SECOND, K_PIECEWISE = 0, 1, 2, 3
@@ -137,8 +103,9 @@ SAFETY, MIN_FACTOR, MAX_FACTOR, ERR_EXP = 0.9, 0.2, 10.0, -1.0 / 8.0
 EPS = 2.220446049250313e-16
 
 
-def layout(N, m, nz, nlinks, ncol, nbrk):
-    """Sizes and offsets for ``ip`` (plain Python, used to build the kernel's arguments)."""
+def layout(N, m, nz, nlinks, ncol, nbrk, nreg):
+    """Sizes and offsets for ``ip`` (plain Python, used to build the kernel's arguments);
+    the work array ``w`` starts with the tape's ``nreg`` registers."""
     n = 2 * N + nz
     n2 = N + 2
     mm = max(m, 1)
@@ -153,15 +120,16 @@ def layout(N, m, nz, nlinks, ncol, nbrk):
         ip[key] = off
         off += size
     ip[P_SIZE] = off
-    work = [(W_D, N * N), (W_H, N), (W_BF, N * mm), (W_RHS, N), (W_F, mm), (W_GH, 3 * nb),
-            (W_BY, nb), (W_DDQ, N), (W_U, nb), (W_A, n2 * (n2 + 2)), (W_DU, n2 * n2),
-            (W_HU, n2), (W_BFU, n2 * mm), (W_DQU, n2), (W_P2, 2), (W_E, 2 * N),
-            (W_EU, 2 * n2), (W_LP, 4 * nlinks), (W_LPJ, 4 * nlinks * N), (W_V, 1), (W_Y, n),
+    # D, h, B_F and the ground-force rows are contiguous: the tape's accel/force outputs
+    to = max(N * N + 1, n2 * n2 + 2 * n2, N * N + 4 * nlinks * N)
+    work = [(W_D, N * N), (W_H, N), (W_BF, N * m), (W_GR, 2 * N + 2 + 2 * m + 1), (W_RHS, N),
+            (W_F, mm), (W_GH, 3 * nb), (W_BY, nb), (W_DDQ, N), (W_U, nb),
+            (W_A, n2 * (n2 + 2)), (W_TO, to), (W_P2, 2), (W_FV, 1), (W_LP, 4 * nlinks), (W_Y, n),
             (W_YT, n), (W_K, 16 * n), (W_SC, n), (W_Y1, n), (W_F1, n), (W_XS, n), (W_YE, n),
             (W_FF, n), (W_FN, n), (W_YN, n), (W_X, n), (W_XE, n), (W_DQI, n2), (W_ACC, 8),
             (W_G, MAX_EVENTS), (W_GN, MAX_EVENTS), (W_ROOTS, MAX_EVENTS), (W_LOWS, MAX_LOWS),
             (W_GRID2, 65), (W_OUT, 8)]
-    off = 0
+    off = nreg
     for key, size in work:
         ip[key] = off
         off += size
@@ -246,53 +214,48 @@ def evaluate(x, seg, fs, ip, par, w, what):
     N, m, kind = ip[I_N], ip[I_M], ip[I_KIND]
     nb = N - 1
     vo = ip[W_OUT]
-    q = x[:N]
     if what & E_HEIGHT:
-        p2 = w[ip[W_P2]:ip[W_P2] + 2]
-        p_swing_nb(q, p2)
-        w[vo + V_HEIGHT] = p2[1]
+        tape_run(ip, ip[T_HEIGHT], x, w, ip[W_P2])
+        w[vo + V_HEIGHT] = w[ip[W_P2] + 1]
     if what & E_FOOTVEL:
-        E = w[ip[W_E]:ip[W_E] + 2 * N]
-        E_swing_nb(q, E)
-        acc = 0.0
-        for j in range(N):
-            acc += E[N + j] * x[N + j]
-        w[vo + V_FOOTVEL] = acc
+        tape_run(ip, ip[T_FOOTVEL], x, w, ip[W_FV])
+        w[vo + V_FOOTVEL] = w[ip[W_FV]]
     if what & E_ROOT:
-        lp = w[ip[W_LP]:ip[W_LP] + 4 * ip[I_NLINKS]]
-        link_points_nb(q, lp)
-        w[vo + V_ROOT] = lp[ip[I_ROOT_END]]
+        tape_run(ip, ip[T_LINKS], x, w, ip[W_LP])
+        w[vo + V_ROOT] = w[ip[W_LP] + ip[I_ROOT_END]]
     if not what & (E_ACCEL | E_U | E_FORCE):
         return True
-    D, h, BF, rhs, F = w[ip[W_D]:], w[ip[W_H]:], w[ip[W_BF]:], w[ip[W_RHS]:], w[ip[W_F]:]
-    H, by, ddq, u, A = w[ip[W_GH]:], w[ip[W_BY]:], w[ip[W_DDQ]:], w[ip[W_U]:], w[ip[W_A]:]
+    # offsets into w, not views of it: a view costs two atomic reference-count updates
+    # (measured: this function 25 % faster)
+    oD, oh, oBF, orhs, oF = ip[W_D], ip[W_H], ip[W_BF], ip[W_RHS], ip[W_F]
+    oH, oby, oddq, ou, oA = ip[W_GH], ip[W_BY], ip[W_DDQ], ip[W_U], ip[W_A]
     c0 = ip[P_C]
     for k in range(m):
         if kind == K_PIECEWISE:
-            F[k] = par[ip[P_SEGF] + seg * m + k]
+            w[oF + k] = par[ip[P_SEGF] + seg * m + k]
         elif kind == K_CONSTANT:
-            F[k] = par[ip[P_TGT] + k]
+            w[oF + k] = par[ip[P_TGT] + k]
         else:
-            F[k] = x[2 * N + k]
-    dq = x[N:2 * N]
-    D_nb(q, D[:N * N])
-    h_nb(q, dq, h[:N])
+            w[oF + k] = x[2 * N + k]
+    # D, h, B_F (and with E_FORCE the ground-force rows) from the model's tape (already in
+    # place with E_PRE)
+    if not what & E_PRE:
+        tape_run(ip, ip[T_FORCE] if what & E_FORCE else ip[T_ACCEL], x, w, oD)
     for i in range(N):
-        rhs[i] = -h[i]
+        w[orhs + i] = -w[oh + i]
     if m > 0:
-        B_F_nb(q, BF[:N * m])
         for i in range(N):
             acc = 0.0
             for k in range(m):
-                acc += BF[i * m + k] * F[k]
-            rhs[i] += acc
+                acc += w[oBF + i * m + k] * w[oF + k]
+            w[orhs + i] += acc
     if kind == K_PIECEWISE:
-        rhs[N - 1] += par[ip[P_SEGT] + seg]
+        w[orhs + N - 1] += par[ip[P_SEGT] + seg]
     alpha = 0.0
     adot = 0.0
     for i in range(N):
-        alpha += par[c0 + i] * q[i]
-        adot += par[c0 + i] * dq[i]
+        alpha += par[c0 + i] * x[i]
+        adot += par[c0 + i] * x[N + i]
     # gait values [h_d; h_d'; h_d''] from power-basis rows (ScalarGait)
     s = (alpha - fs[F_AI]) / fs[F_SPAN]
     ncol = ip[I_NCOL]
@@ -303,30 +266,31 @@ def evaluate(x, seg, fs, ip, par, w, what):
         for k in range(ncol):
             acc += par[r0 + i * ncol + k] * pw
             pw *= s
-        H[i] = acc
+        w[oH + i] = acc
     kp, kd = fs[F_KP], fs[F_KD]
     ad2 = adot * adot
     for i in range(nb):
-        by[i] = -kp * (q[i] - H[i]) - kd * (dq[i] - H[nb + i] * adot) + H[2 * nb + i] * ad2
+        w[oby + i] = (-kp * (x[i] - w[oH + i]) - kd * (x[N + i] - w[oH + nb + i] * adot)
+                      + w[oH + 2 * nb + i] * ad2)
     # the 2 x 2 system in (alpha'', q_N'') of ClosedLoop._accel
     a11 = 1.0
     a21 = 0.0
     r1 = 0.0
-    r2 = rhs[N - 1]
+    r2 = w[orhs + N - 1]
     for i in range(nb):
-        a11 -= par[c0 + i] * H[nb + i]
-        a21 += D[(N - 1) * N + i] * H[nb + i]
-        r1 += par[c0 + i] * by[i]
-        r2 -= D[(N - 1) * N + i] * by[i]
-    DNN = D[(N - 1) * N + nb]
+        a11 -= par[c0 + i] * w[oH + nb + i]
+        a21 += w[oD + (N - 1) * N + i] * w[oH + nb + i]
+        r1 += par[c0 + i] * w[oby + i]
+        r2 -= w[oD + (N - 1) * N + i] * w[oby + i]
+    DNN = w[oD + (N - 1) * N + nb]
     cN = par[c0 + nb]
     det = a11 * DNN + cN * a21
     if det == 0.0:
         return False
     a = (r1 * DNN + cN * r2) / det
     for i in range(nb):
-        ddq[i] = by[i] + H[nb + i] * a
-    ddq[N - 1] = (a11 * r2 - a21 * r1) / det
+        w[oddq + i] = w[oby + i] + w[oH + nb + i] * a
+    w[oddq + N - 1] = (a11 * r2 - a21 * r1) / det
     lim = fs[F_TLIM]
     w[vo + V_SAT] = 0.0
     if what & E_U or lim < np.inf:
@@ -334,41 +298,32 @@ def evaluate(x, seg, fs, ip, par, w, what):
         for i in range(nb):
             acc = 0.0
             for j in range(N):
-                acc += D[i * N + j] * ddq[j]
-            u[i] = acc - rhs[i]
-            if abs(u[i]) > big:
-                big = abs(u[i])
+                acc += w[oD + i * N + j] * w[oddq + j]
+            w[ou + i] = acc - w[orhs + i]
+            if abs(w[ou + i]) > big:
+                big = abs(w[ou + i])
         if lim < np.inf and big > lim:
             w[vo + V_SAT] = 1.0
             for i in range(nb):
-                u[i] = min(max(u[i], -lim), lim)
+                w[ou + i] = min(max(w[ou + i], -lim), lim)
             for i in range(N):
                 for j in range(N):
-                    A[i * (N + 1) + j] = D[i * N + j]
-                A[i * (N + 1) + N] = rhs[i] + (u[i] if i < nb else 0.0)
-            if not gauss(A, N, 1):
+                    w[oA + i * (N + 1) + j] = w[oD + i * N + j]
+                w[oA + i * (N + 1) + N] = w[orhs + i] + (w[ou + i] if i < nb else 0.0)
+            if not gauss(w[oA:], N, 1):
                 return False
             for i in range(N):
-                ddq[i] = A[i * (N + 1) + N]
+                w[oddq + i] = w[oA + i * (N + 1) + N]
     if what & E_FORCE:
-        n2 = N + 2
-        Du, hu, BFu, dqu = w[ip[W_DU]:], w[ip[W_HU]:], w[ip[W_BFU]:], w[ip[W_DQU]:]
-        D_u_nb(q, Du[:n2 * n2])
-        for i in range(N):
-            dqu[i] = x[N + i]
-        dqu[N] = 0.0
-        dqu[N + 1] = 0.0
-        h_u_nb(q, dqu[:n2], hu[:n2])
-        if m > 0:
-            B_Fu_nb(q, BFu[:n2 * m])
+        # rows N, N+1 of D_u (first N columns), of h_u(q, [q'; 0; 0]) and of B_Fu
+        ogr = ip[W_GR]
         for r in range(2):
-            row = N + r
             acc = 0.0
             for j in range(N):
-                acc += Du[row * n2 + j] * ddq[j]
-            acc += hu[row]
+                acc += w[ogr + r * N + j] * w[oddq + j]
+            acc += w[ogr + 2 * N + r]
             for k in range(m):
-                acc -= BFu[row * m + k] * F[k]
+                acc -= w[ogr + 2 * N + 2 + r * m + k] * w[oF + k]
             w[vo + V_FH + r] = acc
     return True
 
@@ -773,46 +728,73 @@ def integrate(t0, x0, t_bound, seg, ev, nev, fs, ip, par, w, buf, nbuf, a_next, 
 
 
 # ------------------------------------------------------------------ one walking step
-def details_at(x, seg, fs, ip, par, w):
+def stat_times(calls, ci, buf, ng, t0, t1, store, n, SX, k0):
+    """The states where a step's statistics are taken within integration call ``ci`` (as
+    ``_impact_and_record``): its start, the integrator's nodes inside it, its end, and the
+    points of the uniform ``ng``-point grid of the step ``[t0, t1]`` that fall in it. With
+    ``store`` they go into the rows ``k0, k0 + 1, ...`` of ``SX``; returns their number."""
+    c0, c1 = int(calls[ci, 1]), int(calls[ci, 2])
+    ta, tb = calls[ci, 3], calls[ci, 4]
+    cnt = 0
+    for j in range(c0 - 1, c1 + ng):
+        if j == c0 - 1:
+            tt = ta
+        elif j < c1 - 1:
+            tt = buf[j, 1]
+            if not (tt >= ta and tt <= tb):
+                continue
+        elif j == c1 - 1:
+            tt = tb
+        else:
+            gi = j - c1
+            tt = t0 + gi * ((t1 - t0) / (ng - 1.0)) if gi < ng - 1 else t1
+            if not (tt >= ta and tt <= tb):
+                continue
+        if store:
+            solution_at(buf, c0, c1, tt, n, SX[k0 + cnt])
+        cnt += 1
+    return cnt
+
+
+def details_at(x, seg, fs, ip, par, w, flags):
     """Fold one state's statistics into ``w[W_ACC]`` = [min F_v, max |F_h|/F_v (over
     F_v > 0), all F_v > 0, max |y|, max |y'|, max |u|, any saturated] (as
-    ``ClosedLoop.details``)."""
+    ``ClosedLoop.details``). ``flags``: ``E_PRE`` when the force program's outputs are in
+    place."""
     N = ip[I_N]
     nb = N - 1
-    acc = w[ip[W_ACC]:]
-    if not evaluate(x, seg, fs, ip, par, w, E_U | E_FORCE):
+    oacc, oH, ou = ip[W_ACC], ip[W_GH], ip[W_U]  # offsets into w (no views)
+    if not evaluate(x, seg, fs, ip, par, w, E_U | E_FORCE | flags):
         return
     vo = ip[W_OUT]
     fh, fv = w[vo + V_FH], w[vo + V_FV]
-    if fv < acc[0]:
-        acc[0] = fv
+    if fv < w[oacc + 0]:
+        w[oacc + 0] = fv
     if fv > 0:
         r = abs(fh) / fv
-        if r > acc[1]:
-            acc[1] = r
+        if r > w[oacc + 1]:
+            w[oacc + 1] = r
     else:
-        acc[2] = 0.0
-    H, u = w[ip[W_GH]:], w[ip[W_U]:]
+        w[oacc + 2] = 0.0
     adot = alpha_rate(x, ip, par)
     for i in range(nb):
-        y = abs(x[i] - H[i])
-        dy = abs(x[N + i] - H[nb + i] * adot)
-        if y > acc[3]:
-            acc[3] = y
-        if dy > acc[4]:
-            acc[4] = dy
-        if abs(u[i]) > acc[5]:
-            acc[5] = abs(u[i])
+        y = abs(x[i] - w[oH + i])
+        dy = abs(x[N + i] - w[oH + nb + i] * adot)
+        if y > w[oacc + 3]:
+            w[oacc + 3] = y
+        if dy > w[oacc + 4]:
+            w[oacc + 4] = dy
+        if abs(w[ou + i]) > w[oacc + 5]:
+            w[oacc + 5] = abs(w[ou + i])
     if w[vo + V_SAT] > 0:
-        acc[6] = 1.0
+        w[oacc + 6] = 1.0
 
 
 def sigma_energy(q, dq, ip, w):
     """``sigma_N = e_N^T D q'`` [kg m^2/s] and ``E = 1/2 q'^T D q' + V`` [J]."""
     N = ip[I_N]
-    D, V = w[ip[W_D]:ip[W_D] + N * N], w[ip[W_V]:ip[W_V] + 1]
-    D_nb(q, D)
-    V_nb(q, V)
+    tape_run(ip, ip[T_ENERGY], q, w, ip[W_TO])
+    D = w[ip[W_TO]:]
     sig = 0.0
     kin = 0.0
     for i in range(N):
@@ -822,7 +804,7 @@ def sigma_energy(q, dq, ip, w):
         kin += dq[i] * row
         if i == N - 1:
             sig = row
-    return sig, 0.5 * kin + V[0]
+    return sig, 0.5 * kin + D[N * N]
 
 
 def impact(q, dq, ip, par, w, q_plus, dq_plus):
@@ -832,10 +814,10 @@ def impact(q, dq, ip, par, w, q_plus, dq_plus):
     foot)."""
     N = ip[I_N]
     n2 = N + 2
-    Du, Eu, A, dqu = w[ip[W_DU]:], w[ip[W_EU]:], w[ip[W_A]:], w[ip[W_DQI]:]
+    Du, A, dqu = w[ip[W_TO]:], w[ip[W_A]:], w[ip[W_DQI]:]
     r0, b0 = ip[P_R], ip[P_B]
-    D_u_nb(q, Du[:n2 * n2])
-    E_swing_u_nb(q, Eu[:2 * n2])
+    tape_run(ip, ip[T_IMPACT], q, w, ip[W_TO])
+    Eu = Du[n2 * n2:]
     wd = n2 + 2  # [D_u | E^T] -> D_u^-1 E^T  (n2 x 2)
     for i in range(n2):
         for j in range(n2):
@@ -881,10 +863,10 @@ def apply_push(x, push, ip, w):
     at the point ``(1 - lambda) origin + lambda end`` of the link [N s]. False if D is
     singular."""
     N = ip[I_N]
-    D, lpJ, A = w[ip[W_D]:], w[ip[W_LPJ]:], w[ip[W_A]:]
+    D, A = w[ip[W_TO]:], w[ip[W_A]:]
     q = x[:N]
-    D_nb(q, D[:N * N])
-    link_points_J_nb(q, lpJ[:4 * ip[I_NLINKS] * N])
+    tape_run(ip, ip[T_PUSH], q, w, ip[W_TO])
+    lpJ = D[N * N:]
     li = int(push[2])
     lam = push[3]
     for i in range(N):
@@ -1072,25 +1054,29 @@ def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
     for i in range(1, 7):
         acc[i] = 0.0
     acc[2] = 1.0
+    # the states first (nodes and ends of every integration call, the grid), then the
+    # model's force program on all of them at once (the batch interpreter), then each state
     ng = ip[I_GRID]
+    cnt = 0
     for ci in range(ncalls):
-        cseg = int(calls[ci, 0])
-        c0, c1 = int(calls[ci, 1]), int(calls[ci, 2])
-        ta, tb = calls[ci, 3], calls[ci, 4]
-        solution_at(buf, c0, c1, ta, n, xs[:n])
-        details_at(xs, cseg, fs, ip, par, w)
-        for j in range(c0, c1 - 1):
-            tt = buf[j, 1]
-            if tt >= ta and tt <= tb:
-                solution_at(buf, c0, c1, tt, n, xs[:n])
-                details_at(xs, cseg, fs, ip, par, w)
-        solution_at(buf, c0, c1, tb, n, xs[:n])
-        details_at(xs, cseg, fs, ip, par, w)
-        for gi in range(ng):
-            tt = t0 + gi * ((t - t0) / (ng - 1.0)) if gi < ng - 1 else t
-            if tt >= ta and tt <= tb:
-                solution_at(buf, c0, c1, tt, n, xs[:n])
-                details_at(xs, cseg, fs, ip, par, w)
+        cnt += stat_times(calls, ci, buf, ng, t0, t, False, n, buf, 0)
+    SX = np.empty((cnt, n))
+    SS = np.empty(cnt, np.int64)
+    cnt = 0
+    for ci in range(ncalls):
+        k0 = cnt
+        cnt += stat_times(calls, ci, buf, ng, t0, t, True, n, SX, cnt)
+        for i in range(k0, cnt):
+            SS[i] = int(calls[ci, 0])
+    nout = ip[ip[T_FORCE] + 1]
+    SO = np.empty((cnt, nout))
+    tape_batch(ip, ip[T_FORCE], fs[N_FS:N_FS + ip[I_NCONST]], ip[I_C0], ip[I_NREG], SX, SO,
+               32)
+    D = w[ip[W_D]:]
+    for i in range(cnt):
+        for j in range(nout):
+            D[j] = SO[i, j]
+        details_at(SX[i], SS[i], fs, ip, par, w, E_PRE)
     sig_m, e_m = sigma_energy(x[:N], x[N:2 * N], ip, w)
     sig_p, e_p = sigma_energy(x_next[:N], x_next[N:2 * N], ip, w)
     sig_0, e_0 = sigma_energy(x0[:N], x0[N:2 * N], ip, w)
@@ -1155,6 +1141,8 @@ def run(X0, T0, K0, n_steps, fs, ip, PAR, GAINS, PUSH, recs, outs, done, XN, inf
     N, nz = ip[I_N], ip[I_NZ]
     n = 2 * N + nz
     w = np.zeros(ip[W_SIZE])
+    for i in range(ip[I_NCONST]):  # the tape's constants into their registers
+        w[ip[I_C0] + i] = fs[N_FS + i]
     fsr = fs.copy()
     x = np.empty(n)
     x_next = np.empty(n)
@@ -1187,13 +1175,12 @@ def run(X0, T0, K0, n_steps, fs, ip, PAR, GAINS, PUSH, recs, outs, done, XN, inf
 
 
 # numba signatures (argument types only), callees before callers: each function is compiled
-# once, when the generated module is imported, so a constant argument never makes a second
-# specialisation; the model's code is compiled once, in ``evaluate`` and its three siblings
+# once, when the generated module is imported (once per machine: no robot appears in the
+# code), so a constant argument never makes a second specialisation
 _F, _I, _B = "float64", "int64", "boolean"
 _A, _A2, _A3 = "float64[::1]", "float64[:, ::1]", "float64[:, :, ::1]"
 _IA, _IA2 = "int64[::1]", "int64[:, ::1]"
 _CTX = f"{_A}, {_IA}, {_A}, {_A}"  # fs, ip, par, w
-INLINE = ()
 SIGNATURES = {
     "pymax": f"({_F}, {_F})",
     "pymin": f"({_F}, {_F})",
@@ -1215,7 +1202,8 @@ SIGNATURES = {
     "brent": f"({_I}, {_F}, {_F}, {_F}, {_F}, {_A2}, {_I}, {_I}, {_I}, {_CTX}, {_I}, {_F}, "
              f"{_F}, {_F}, {_F})",
     "integrate": f"({_F}, {_A}, {_F}, {_I}, {_IA2}, {_I}, {_CTX}, {_A2}, {_I}, {_F}, {_F})",
-    "details_at": f"({_A}, {_I}, {_CTX})",
+    "stat_times": f"({_A2}, {_I}, {_A2}, {_I}, {_F}, {_F}, {_B}, {_I}, {_A2}, {_I})",
+    "details_at": f"({_A}, {_I}, {_CTX}, {_I})",
     "sigma_energy": f"({_A}, {_A}, {_IA}, {_A})",
     "impact": f"({_A}, {_A}, {_IA}, {_A}, {_A}, {_A}, {_A})",
     "apply_push": f"({_A}, {_A}, {_IA}, {_A})",

@@ -15,16 +15,19 @@ def compile_robot(robot: str, rebuild: bool = False) -> CompiledModel:
     return load_model(load_robot(robot), rebuild=rebuild)
 
 
-def compile_kernel(model: CompiledModel, rebuild: bool = False) -> dict:
-    """The compiled simulation kernel of ``model`` (SPEC 7): compiled by numba once per robot
-    and cached beside the model. ``{"cache_hit": bool, "seconds": float | None, "entry":
-    path}``: whether it came from the cache and how long the one-time numba compile took
-    (measured now, or as recorded then). A warm cache is checked without importing numba."""
+def compile_kernel(rebuild: bool = False) -> dict:
+    """The compiled simulation kernel (SPEC 7), the same for every robot: compiled by numba
+    once per machine and cached. ``{"cache_hit": bool, "seconds": float | None, "entry":
+    path, "note": str}``: whether it came from the cache and how long the one-time numba
+    compile took (measured now, or as recorded then); ``note`` says when the cache folder
+    was unusable. A warm cache is checked without importing numba."""
     from ..simulation.compiled import kernel, kernel_status
 
     if not rebuild:
-        st = kernel_status(model)
+        st = kernel_status()
         if st["cached"]:
-            return {"cache_hit": True, "seconds": st["compile_seconds"], "entry": st["entry"]}
-    jm = kernel(model, rebuild=rebuild)
-    return {"cache_hit": jm.cache_hit, "seconds": jm.compile_seconds, "entry": str(jm.path)}
+            return {"cache_hit": True, "seconds": st["compile_seconds"], "entry": st["entry"],
+                    "note": ""}
+    jm = kernel(rebuild=rebuild)
+    return {"cache_hit": jm.cache_hit, "seconds": jm.compile_seconds, "entry": str(jm.path),
+            "note": jm.note}

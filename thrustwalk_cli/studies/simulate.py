@@ -496,7 +496,7 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
     zero-thrust one (``"nominal"``), with ``zeta^-`` scaled by ``1 + perturb`` or given as
     ``zeta0`` [kg^2 m^4/s^2], or the explicit state ``q0`` [rad], ``dq0`` [rad/s].
     ``reduced``: only the reduced cascade (SPEC 3). ``method``: ``compiled`` (the numba
-    kernel, compiled once per robot) or ``scipy`` (``solve_ivp`` with ``integrator``, the
+    kernel, compiled once per machine) or ``scipy`` (``solve_ivp`` with ``integrator``, the
     reference); a ``solve_ivp`` name as ``method`` (e.g. ``"LSODA"``) means ``scipy`` with that
     integrator. ``progress(1)`` after every step.
     A physical failure (a fall, a scuff, no periodic orbit for that thrust) is a run with
