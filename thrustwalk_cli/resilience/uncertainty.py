@@ -70,9 +70,9 @@ def fixed_sample(zd: ZeroDynamics, strategy: Strategy, *, mu: float, eps: float 
         return SampleResult(False, f"no stable orbit: {lc.reason}", basin=b)
     if not b.exists:
         return SampleResult(False, b.reason, lc.zeta_star, basin=b)
-    scuff = scuff_reason(swing_clearance(zd.model, zd))
-    if scuff:
-        return SampleResult(False, scuff, lc.zeta_star, basin=b)
+    sw = swing_clearance(zd.model, zd)
+    if sw["scuffs"]:
+        return SampleResult(False, scuff_reason(sw), lc.zeta_star, basin=b)
     return SampleResult(True, f"walks at {lc.speed:.4g} m/s (zeta* = {lc.zeta_star:.6g})",
                         float(lc.zeta_star), float(lc.speed), float(lc.step_time), basin=b)
 
@@ -88,9 +88,9 @@ def controlled_sample(plant: ZeroDynamics, planner: Planner, x_ref: float,
     imp = impact_data(plant.model, plant)
     if not imp.admissible(mu):
         return SampleResult(False, "the impact is inadmissible: " + "; ".join(imp.reasons(mu)))
-    scuff = scuff_reason(swing_clearance(plant.model, plant))
-    if scuff:
-        return SampleResult(False, scuff)
+    sw = swing_clearance(plant.model, plant)
+    if sw["scuffs"]:
+        return SampleResult(False, scuff_reason(sw))
     kn = knots_alpha(plant, np.asarray(fractions, float))
     thrust = IdealThrust(plant, kn, driven)
     alpha, idx = step_grid(kn, planner.st.points)
