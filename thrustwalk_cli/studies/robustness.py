@@ -52,6 +52,7 @@ from .sweep_studies import STUDIES, _realized, run_point
 UNITS = units("impulse", "zeta", "speed", "force", "friction_ratio", "sigma_N", "output_rate",
               "output_y", "step_time", "delta_zero_sq", "alpha", phase="1", duration="s")
 MAX_TRIALS = 100_000
+RENAMED = {"transverse": "basin_joint", "schedule": "strategy"}  # study -> this study
 MAX_SAMPLES = 100_000
 
 
@@ -219,12 +220,18 @@ def plan_robustness(walker: Walker, *, push_impulse: Sequence[float] | None = No
               "rtol": float(rtol), "atol": float(atol)}
     # the strategies made concrete here: every problem before any trial (and the basins)
     realized, warnings = [], []
-    from .sweep_studies import _check_push_trial
+    from .sweep_studies import _check_strategy, _trial_setup
 
+    try:
+        _trial_setup(walker, {**_defaults("push-trial"), **common})
+    except InputError as exc:
+        raise InputError([InputError.param(RENAMED.get(pr.params[0], pr.params[0]),
+                                           pr.message).problems[0]
+                          for pr in exc.problems]) from None
     for s in strategies:
         p = {**_defaults("push-trial"), **common, **s.parameters()}
-        for name, msg in _check_push_trial(walker, p):
-            raise InputError.param(name, f"{s.label}: {msg}")
+        for name, msg in _check_strategy(walker, p):
+            raise InputError.param(RENAMED.get(name, name), f"{s.label}: {msg}")
         real, _ = _realized(walker, p)
         realized.append(real)
         warnings += [f"{s.label}: {n}" for n in real.notes]
