@@ -38,6 +38,9 @@ Studies (one per command)
     ControlResult       controlled vs uncontrolled runs, certificate per step, export, figures
     stability           Floquet multipliers of the full-order loop -> :class:`StabilityResult`
     StabilityResult     fixed point, Jacobian two ways, multipliers, verdicts, figures
+    robustness          push maps, survivable pushes, basins, uncertainty per thrust strategy
+                        (SPEC 12; trials on the sweep engine) -> :class:`RobustnessResult`
+    RobustnessResult    outcomes per trial, survivable impulses, basins, samples, figures
     design_gait         design a stable, walkable gait -> :class:`DesignGaitResult`
     DesignSpec          what a gait design asks for (speed, step length, margins, ...)
     DesignGaitResult    the designed gait, its re-check and report
@@ -73,6 +76,7 @@ _HOMES = {
     "simulate": "studies.simulate", "SimulationResult": "studies.simulate",
     "control": "studies.control", "ControlResult": "studies.control",
     "stability": "studies.stability", "StabilityResult": "studies.stability",
+    "robustness": "studies.robustness", "RobustnessResult": "studies.robustness",
     "design_gait": "studies.design_gait", "DesignGaitResult": "studies.design_gait",
     "DesignSpec": "design.spec",
     "load_sweep": "studies.sweep", "Sweep": "studies.sweep", "run_sweep": "studies.sweep",

@@ -22,6 +22,7 @@ from .commands import (
     limit_cycle,
     optimize,
     report,
+    robustness,
     shape,
     simulate,
     stability,
@@ -30,7 +31,7 @@ from .commands import (
 
 # Help lists the commands in this order.
 COMMANDS = (compile, inspect, limit_cycle, shape, feasibility, optimize, simulate, control,
-            stability, design_gait, sweep, report)
+            stability, robustness, design_gait, sweep, report)
 
 class _OneLineErrors(TyperGroup):
     """The command group, with usage errors (an unknown option, a value of the wrong type, a

@@ -82,7 +82,7 @@ class Run:
     steps: list[StepLog]
 
 
-def _segment_intervals(cl: ClosedLoop, knots: np.ndarray, zd: ZeroDynamics) -> np.ndarray:
+def segment_intervals(cl: ClosedLoop, knots: np.ndarray, zd: ZeroDynamics) -> np.ndarray:
     """Knot interval of each simulation segment (breakpoints at the knots and the guard)."""
     edges = [-np.inf] + list(cl.breaks) + [np.inf]
     mids = [0.5 * (max(lo, 0.0) + min(hi, 1.0)) for lo, hi in zip(edges[:-1], edges[1:])]
@@ -115,7 +115,7 @@ def run_loop(plant: ZeroDynamics, planner: Planner | None, *, label: str, steps:
                     min_impact_s=config.min_impact_s, torque_limit=config.torque_limit)
     cl = ClosedLoop(plant, th, cfg)
     stepper = Stepper(cl, t_max, dense=True)
-    seg_int = _segment_intervals(cl, knots, plant) if dynamics is None else None
+    seg_int = segment_intervals(cl, knots, plant) if dynamics is None else None
     x = initial_state(plant, th, Start(zeta_minus=x0))
     N, nz = model.n, th.n_states
     rng = np.random.default_rng(seed)

@@ -38,7 +38,8 @@ import numpy as np
 from scipy.optimize import linprog
 
 from ..contact.terms import impact_data
-from ..hzd.zero_dynamics import ZeroDynamics
+from ..errors import InputError
+from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
 from ..optimize.qp import ConvexQP, normalise_rows
 from .step_model import IdealThrust, ResponseThrust, Rows, Terms, rows, step_grid
 
@@ -331,3 +332,43 @@ def predicted_margins(plan: Plan, rw: Rows, mu: float, E: np.ndarray) -> dict:
             "min_vertical_force_bound": worst_v, "max_friction_ratio_bound": worst_r,
             "fit_error_bound": float(np.max(E, initial=0.0)),
             "feasible": bool(worst_v >= 0 and worst_r <= mu)}
+
+
+def regulator(zd: ZeroDynamics, knots: np.ndarray, driven: list[int], *, mu: float,
+              eps: float = 0.0, zeta_min: float | None = None, max_thrust: float | None = None,
+              rate_limit: float | None = None, tracking_weight: float | None = None,
+              effort_weight: float = 1.0, rate_weight: float = 0.0, noise: float = 0.0,
+              points: int = 401, terms: Terms | None = None,
+              thrust: IdealThrust | ResponseThrust | None = None
+              ) -> tuple[Planner, LimitCycle]:
+    """The SPEC 11 planner of ``thrustwalk control`` for thrust on ``knots`` [rad] (alpha
+    values) of the ``driven`` thrusters, and the zero-thrust periodic orbit it is scaled by
+    (and regulates to with the reference ``nominal``). Thrust bounds: the robot file's
+    ``limits`` of each driven thruster, within ``max_thrust`` [N]; they must include 0 N.
+    ``zeta_min`` default: 1 % of the nominal zeta*. ``thrust`` default: ideal thrust on the
+    knots; ``terms`` default: the exact Lambda terms."""
+    model, robot = zd.model, zd.model.robot
+    if not zd.valid:
+        raise InputError.param("gait", f"the gait has no walking orbit to control: "
+                                       f"{zd.invalid_reason}")
+    lc0 = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, model.n_thrusters))))[0]
+    if not lc0.exists:
+        raise InputError.param("gait", f"no zero-thrust periodic orbit to start from or "
+                                       f"regulate to: {lc0.reason}")
+    lo = np.array([robot.thrusters[t].limits[0] for t in driven], float)
+    hi = np.array([robot.thrusters[t].limits[1] for t in driven], float)
+    if max_thrust is not None:
+        lo, hi = np.maximum(lo, -max_thrust), np.minimum(hi, max_thrust)
+    if np.any(lo > 0) or np.any(hi < 0):
+        raise InputError.param("thruster", "the thrust limits must include 0 N (the "
+                                           "uncontrolled walker and the start)")
+    force_scale = float(max(np.max(np.abs(lo)), np.max(np.abs(hi)), 1.0))
+    zs0 = float(lc0.zeta_star)
+    st = Settings(mu=float(mu), eps=float(eps),
+                  zeta_min=0.01 * zs0 if zeta_min is None else float(zeta_min), lo=lo, hi=hi,
+                  rate=rate_limit, tracking=tracking_weight, effort=float(effort_weight),
+                  smooth=float(rate_weight), noise=float(noise), points=int(points),
+                  zeta_scale=zs0, force_scale=force_scale)
+    terms = Terms(model, zd) if terms is None else terms
+    thrust = IdealThrust(zd, np.asarray(knots, float), driven) if thrust is None else thrust
+    return Planner(zd, terms, thrust, st), lc0

@@ -339,12 +339,14 @@ class SweepFolder:
     for the whole run; a killed run releases it) too. Then it removes the temporaries a killed
     run left and writes the marker. ``finished()`` reads the point records written so far,
     ``write_point(record)`` writes one (atomically: never a half-written point file),
-    ``path(name)`` is where a summary file goes; ``close()`` releases the lock."""
+    ``path(name)`` is where a summary file goes; ``close()`` releases the lock. ``records``:
+    the subfolder of the point records (``points``; a robustness run's ``trials``)."""
 
     POINTS = "points"
 
-    def __init__(self, target: Path, marker: dict):
+    def __init__(self, target: Path, marker: dict, records: str = POINTS):
         t = self.target = Path(target)
+        self.records = records
         check_target(t, whole=False)
         if t.is_dir() and any(t.iterdir()):
             own = _read_json(t / SWEEP_MARKER)
@@ -359,14 +361,14 @@ class SweepFolder:
                     f"{own.get('points')} points); a sweep resumes only into its own folder: "
                     "give another folder, or remove this one"))
         try:
-            (t / self.POINTS).mkdir(parents=True, exist_ok=True)
+            (t / self.records).mkdir(parents=True, exist_ok=True)
         except (FileExistsError, NotADirectoryError):
             raise InputError.param("out", f"cannot create {t}: a part of the path is a "
                                           "file") from None
         self._fd = _try_lock(t)
         if self._fd is False:
             raise InputError.param("out", f"another thrustwalk sweep is running into {t}")
-        for folder in (t, t / self.POINTS):
+        for folder in (t, t / self.records):
             for tmp in folder.glob(".*.tmp"):  # left by a killed run (we hold the lock)
                 tmp.unlink(missing_ok=True)
         if not (t / SWEEP_MARKER).is_file():
@@ -375,7 +377,7 @@ class SweepFolder:
         self.notes: list[str] = []
 
     def point_path(self, key: str) -> Path:
-        return self.target / self.POINTS / f"{key[:20]}.json"
+        return self.target / self.records / f"{key[:20]}.json"
 
     def finished(self, keys: Iterable[str]) -> dict[str, dict]:
         """The records of the points ``keys`` already written (key -> record). A point file

@@ -11,9 +11,11 @@ from .output import write_text_atomic
 from .robot_file import ROBOT_SCHEMA
 from .schema import markdown_table
 from .sweep_file import STUDY_PARAMETERS, SWEEP_SCHEMA
+from .uncertainty_file import UNCERTAINTY_SCHEMA
 
 SECTIONS = {"robot-keys": ROBOT_SCHEMA, "gait-keys": GAIT_SCHEMA, "sweep-keys": SWEEP_SCHEMA,
-            **{f"sweep-{study}-settings": kind for study, kind in STUDY_PARAMETERS.items()}}
+            **{f"sweep-{study}-settings": kind for study, kind in STUDY_PARAMETERS.items()},
+            "uncertainty-keys": UNCERTAINTY_SCHEMA}
 
 
 def render(text: str) -> str:

@@ -63,6 +63,28 @@ _SCHEDULE = field("schedule", null_or(mapping(
 _MU = field("mu", null_or(number("1", gt=0)), "friction coefficient (default: the gait's)",
             default=None)
 
+# the thrust strategy of a push trial or a reduced walk (SPEC 4, 11, 12)
+_STRATEGY = (
+    field("strategy", choice("none", "constant", "schedule", "control"), "none (no thrust), "
+          "constant (`thrust` on `thruster`; no value: the gait's thrust: section, else 0), "
+          "schedule (the `schedule`) or control (the step-to-step controller of thrustwalk "
+          "control, regulating to the zero-thrust orbit; with robot axes it keeps the base "
+          "robot's model)", default="none"),
+    field("strategy_label", null_or(string()), "the strategy's name in outputs (default: "
+          "from the strategy)", default=None),
+    _THRUSTER,
+    field("thrust", null_or(number("N")), "constant thrust of the constant strategy (default: "
+          "the gait's thrust: section, else 0)", default=None),
+    _SCHEDULE,
+    field("knots", vector(min_len=2, max_len=MAX_KNOTS + 1), "control: knots as fractions of "
+          "the step, 0 first and 1 last", default=[0.0, 0.5, 1.0]),
+    field("max_thrust", null_or(number("N", gt=0)), "control: thrust bound within the "
+          "thruster's limits", default=None),
+    _MU,
+    field("min_vertical_force", number("N", ge=0), "least vertical ground force F^v (a step "
+          "below it is lifted)", default=0.0),
+)
+
 STUDY_PARAMETERS: dict[str, Kind] = {
     "limit-cycle": mapping(
         _THRUSTER,
@@ -108,6 +130,42 @@ STUDY_PARAMETERS: dict[str, Kind] = {
               "(solve_ivp, the reference)", default="compiled"),
         field("rtol", number("1", gt=0, lt=1), "relative integration tolerance", default=1e-9),
         field("atol", number("1", gt=0), "absolute integration tolerance", default=1e-9),
+    ),
+    "push-trial": mapping(
+        *_STRATEGY,
+        field("push_impulse", number("N s"), "signed size of the push along `push_direction` "
+              "(0: no push)", default=0.0),
+        field("push_phase", number("1", ge=0, le=1), "phase s of step 1 at which the push acts "
+              "(1: just before the impact)", default=0.5),
+        field("push_direction", vector(2), "direction of a positive push in the world frame "
+              "(normalised; 1,0: forward)", default=[1.0, 0.0]),
+        field("push_link", null_or(string()), "link pushed (default: the stance link, whose "
+              "end is the hip)", default=None),
+        field("push_at", number("1", ge=0, le=1), "point of the link: (1 - at) joint + at end",
+              default=1.0),
+        field("push_duration", number("s", ge=0, le=1), "duration for the stance foot's "
+              "check of the push (0: impulsive, SPEC 12)", default=0.0),
+        field("start_sigma", number("1", gt=-1, le=100), "start off the orbit: sigma_N^+ "
+              "scaled by 1 + start_sigma (a basin trial; no push then)", default=0.0),
+        field("start_rate", number("rad/s", ge=-1000, le=1000), "start off the orbit: the "
+              "post-impact rate of the `transverse` output changed by this, sigma_N kept",
+              default=0.0),
+        field("transverse", null_or(string()), "actuated coordinate whose output rate "
+              "`start_rate` perturbs (default: the first)", default=None),
+        field("steps", integer("1", ge=1, le=1000), "steps of each trial (the pushed one "
+              "included)", default=10),
+        field("recovery_tol", number("1", gt=0, lt=1), "recovered: the last zeta^- within "
+              "this fraction of the orbit's", default=0.05),
+        field("output_tol", number("rad", gt=0), "recovered: max |y| over the last step at "
+              "most this", default=1e-3),
+        field("rtol", number("1", gt=0, lt=1), "relative integration tolerance",
+              default=1e-9),
+        field("atol", number("1", gt=0), "absolute integration tolerance", default=1e-9),
+    ),
+    "reduced-walk": mapping(
+        *_STRATEGY,
+        field("points", integer("1", ge=21, le=10_000), "alpha grid points of the contact "
+              "conditions", default=401),
     ),
     "design-gait": mapping(
         field("target_speed", null_or(number("m/s", gt=0, le=20)), "target average speed",

@@ -28,7 +28,7 @@ from scipy.optimize import brentq
 from ..contact.evaluate import check_contact_options
 from ..contact.terms import fit_terms, impact_data
 from ..controller.loop import Push, Run, run_loop
-from ..controller.planner import Planner, Settings
+from ..controller.planner import Planner, regulator
 from ..controller.step_model import IdealThrust, ResponseThrust, Terms, ThrusterDynamics
 from ..errors import InputError
 from ..hzd.zero_dynamics import Schedule, ZeroDynamics, limit_cycles
@@ -522,33 +522,18 @@ def control(walker: Walker, *, reference: str = "speed",
     if not zd.valid:
         raise InputError.param("gait", f"the gait has no walking orbit to control: "
                                        f"{zd.invalid_reason}")
-    lc0 = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, model.n_thrusters))))[0]
-    if not lc0.exists:
-        raise InputError.param("gait", f"no zero-thrust periodic orbit to start from or "
-                                       f"regulate to: {lc0.reason}")
-    lo = np.array([robot.thrusters[t].limits[0] for t in driven], float)
-    hi = np.array([robot.thrusters[t].limits[1] for t in driven], float)
-    if max_thrust is not None:
-        lo, hi = np.maximum(lo, -max_thrust), np.minimum(hi, max_thrust)
-    if np.any(lo > 0) or np.any(hi < 0):
-        raise InputError.param("thruster", "the thrust limits must include 0 N (the "
-                                           "uncontrolled walker and the start)")
-    force_scale = float(max(np.max(np.abs(lo)), np.max(np.abs(hi)), 1.0))
-    zs0 = float(lc0.zeta_star)
-    settings_qp = Settings(
-        mu=mu, eps=float(min_vertical_force),
-        zeta_min=0.01 * zs0 if zeta_min is None else float(zeta_min), lo=lo, hi=hi,
-        rate=rate_limit, tracking=tracking_weight, effort=float(effort_weight),
-        smooth=float(rate_weight), noise=float(noise), points=int(points),
-        zeta_scale=zs0, force_scale=force_scale)
     span = zd.alpha_f - zd.alpha_i
     kn = zd.alpha_i + np.array(fr) * span
     fits = fit_terms(model, zd, tol=fit_tol) if terms == "fitted" else None
     tm = Terms(model, zd, fits)
     dyn = None if thrust_model == "ideal" else ThrusterDynamics(thrust_model, wn, xi, tau)
-    thrust = (IdealThrust(zd, kn, driven) if dyn is None else
-              ResponseThrust(zd, dyn, driven))
-    planner = Planner(zd, tm, thrust, settings_qp)
+    planner, lc0 = regulator(
+        zd, kn, driven, mu=mu, eps=min_vertical_force, zeta_min=zeta_min,
+        max_thrust=max_thrust, rate_limit=rate_limit, tracking_weight=tracking_weight,
+        effort_weight=effort_weight, rate_weight=rate_weight, noise=noise, points=points,
+        terms=tm, thrust=None if dyn is None else ResponseThrust(zd, dyn, driven))
+    settings_qp = planner.st
+    lo, hi, zs0 = settings_qp.lo, settings_qp.hi, settings_qp.zeta_scale
     # references
     ideal = IdealThrust(zd, kn, driven)
     weights = np.diag(planner.W) if dyn is None else np.ones(len(driven))

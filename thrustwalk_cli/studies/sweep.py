@@ -174,6 +174,14 @@ def sweep_executor(sweep: Sweep, workers: int | None = None, scheduler: str | No
     processes (default: one per core; 1 runs in this process). Before local processes start,
     the first point's model (and the study's one-time preparation, e.g. the simulation
     kernel) is made here, so that workers inherit or load it instead of each making it."""
+    return task_executor(sweep.tasks, sweep.study, dict(sweep.spec.settings), workers,
+                         scheduler, todo)
+
+
+def task_executor(tasks, study: SweepStudy, settings: dict, workers: int | None = None,
+                  scheduler: str | None = None, todo: int | None = None):
+    """:func:`sweep_executor` for any tasks of ``study`` (``settings``: what its one-time
+    preparation needs)."""
     if workers is not None and scheduler is not None:
         raise InputError.param(("workers", "scheduler"), "give one of them, not both")
     if workers is not None and not 1 <= workers <= 1024:
@@ -181,12 +189,12 @@ def sweep_executor(sweep: Sweep, workers: int | None = None, scheduler: str | No
     if scheduler is not None:
         return DaskCluster(scheduler)
     n = default_workers() if workers is None else workers
-    n = max(1, min(n, len(sweep.tasks) if todo is None else todo))
-    first = next(iter(sweep.tasks))
+    n = max(1, min(n, len(tasks) if todo is None else todo))
+    first = next(iter(tasks))
     try:
-        base = point_walker(first) if sweep.study.uses_gait else point_model(first)
-        if sweep.study.prepare is not None:
-            sweep.study.prepare(base, dict(sweep.spec.settings))
+        base = point_walker(first) if study.uses_gait else point_model(first)
+        if study.prepare is not None:
+            study.prepare(base, settings)
     except InputError:
         pass  # the first point's own problem: it is recorded when it runs
     return InProcess() if n == 1 else LocalProcesses(n)

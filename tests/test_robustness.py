@@ -1,0 +1,400 @@
+"""Robustness (SPEC 12): impulsive pushes, the exact basin of the reduced walker, push and basin
+trials of the full-order closed loop, parameter uncertainty, the maps' summaries and the
+command (outputs, resuming, bad options), on the bundled 3-link walker only (one compiled
+kernel).
+
+Independent computations: the reduced basin's bounds from an adaptive quadrature of
+``V_Z`` (SciPy ``quad``, not the Chebyshev series) and the ground force of the full-order
+closed loop's own dynamics (``ClosedLoop.details``, not the Lambda terms), each extremum over
+alpha found by SciPy's bounded Brent search; the push's ground reaction against the robot's
+linear momentum (``J_com``) and its rate jump against the angular momentum about the stance
+foot; the controlled basin's ends against the QP's own feasibility; the Monte-Carlo draws
+against numpy's generator called directly; survivable pushes against grids worked out by
+hand.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+from scipy.optimize import minimize_scalar
+
+from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.resilience.basin import reduced_basin
+from thrustwalk_cli.resilience.maps import summary_impulse, survivable
+from thrustwalk_cli.resilience.push import push_point, rate_jump, stance_impulse
+from thrustwalk_cli.resilience.strategy import Strategy, realize
+from thrustwalk_cli.resilience.trials import Trial, TrialRunner
+from thrustwalk_cli.resilience.uncertainty import controlled_sample, fixed_sample
+from thrustwalk_cli.simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel
+from thrustwalk_cli.studies.robustness import plan_robustness, robustness, run_robustness
+
+MU = 0.7
+STRATEGIES = (Strategy("none"), Strategy("constant", thrust=-20.0), Strategy("control"))
+
+
+@pytest.fixture(scope="module")
+def realized(walker3):
+    """The three strategies made concrete for the 3-link walker (mu = 0.7)."""
+    return {s.label: realize(walker3.zd, s, mu=MU) for s in STRATEGIES}
+
+
+def _runner(walker3, real, steps=10, **kw):
+    return TrialRunner(walker3.zd, real, push_point(walker3.model), steps=steps, mu=MU, **kw)
+
+
+# ------------------------------------------------------------------- the reduced basin
+def _independent_bounds(walker, F: float, mu: float) -> tuple[float, float]:
+    """SPEC 12's closed form computed another way: V_Z by adaptive quadrature of
+    ``(kappa_2 + beta F)/kappa_1``; F_1 from the full-order closed loop on Z at zeta = 0 and 1
+    (affine in zeta); each row's bound ``-g/c`` extremised over alpha on a grid, then by
+    bounded Brent between the neighbouring grid points."""
+    zd, model = walker.zd, walker.model
+    d2 = zd.delta_zero_sq
+    Fv = np.zeros(model.n_thrusters)
+    Fv[0] = F
+
+    def integrand(a):
+        t = zd.terms(np.array([a]))
+        return float((t["kappa2"][0] + t["beta"][0] @ Fv) / t["kappa1"][0])
+
+    def VZ(a):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return quad(integrand, zd.alpha_i, a, epsabs=0, epsrel=1e-12, limit=200)[0]
+
+    cl = ClosedLoop(zd, ThrustModel("constant", Fv), SimConfig())
+
+    def F1(a, zeta):
+        t = zd.terms(np.atleast_1d(a))
+        dq = t["Phi"] * (t["kappa1"] * zd.sigma_sign * np.sqrt(2.0 * zeta))[:, None]
+        return cl.details(np.hstack([t["q"], dq]), np.zeros(1, int))["F1"][0]
+
+    def rows(a):
+        A = F1(a, 0.0)
+        B = F1(a, 1.0) - A
+        v = VZ(a)
+        F0, dF = A + B * v, B * d2
+        return [(v, d2), (F0[1], dF[1]), (mu * F0[1] - F0[0], mu * dF[1] - dF[0]),
+                (mu * F0[1] + F0[0], mu * dF[1] + dF[0])]
+
+    grid = np.linspace(zd.alpha_i, zd.alpha_f, 201)
+    table = [rows(a) for a in grid]
+    lo, hi = -np.inf, np.inf
+    for r in range(4):
+        g = np.array([t[r][0] for t in table])
+        c = np.array([t[r][1] for t in table])
+        for sign in (1.0, -1.0):
+            with np.errstate(divide="ignore"):
+                b = np.where(sign * c > 0, -g / c, -sign * np.inf)
+            if not np.any(np.isfinite(b)):
+                continue
+            j = int(np.argmax(b) if sign > 0 else np.argmin(b))
+            br = (grid[max(j - 1, 0)], grid[min(j + 1, grid.size - 1)])
+            res = minimize_scalar(lambda a, r=r, sign=sign: sign * rows(a)[r][0] / rows(a)[r][1],
+                                  bounds=br, method="bounded", options={"xatol": 1e-13})
+            best = -sign * res.fun
+            if sign > 0:
+                lo = max(lo, best, b[j])
+            else:
+                hi = min(hi, best, b[j])
+    return lo, hi
+
+
+@pytest.mark.parametrize("F", [0.0, -20.0])
+def test_reduced_basin_bounds_equal_the_closed_form(walker3, F):
+    zd = walker3.zd
+    sched = Schedule.constant(zd, np.array([[F, 0.0]]))
+    b = reduced_basin(zd, sched, mu=MU)
+    lo, hi = _independent_bounds(walker3, F, MU)
+    assert b.exists, b.reason
+    assert b.lower.value == pytest.approx(lo, rel=1e-9), (b.lower, lo)
+    assert b.upper.value == pytest.approx(hi, rel=1e-9), (b.upper, hi)
+    # the stop bound is -min V_Z / delta_zero^2 (SPEC 12): the walker nearly stops there
+    assert b.lower.family == "stop"
+    lc = limit_cycles(zd, sched)[0]
+    assert lo < lc.zeta_star < hi and b.zeta_star == pytest.approx(lc.zeta_star, rel=1e-12)
+    # inside converges without leaving (map contracts into the interval); just outside not
+    d2, V = zd.delta_zero_sq, float(zd.V_Z(np.array(zd.alpha_f), sched)[0])
+    for x in (lo * (1 + 1e-6), hi * (1 - 1e-6)):
+        for _ in range(50):
+            x = d2 * x + V
+            assert lo < x <= hi
+        assert x == pytest.approx(lc.zeta_star, rel=1e-5)
+    assert not b.contains(lo * (1 - 1e-9)) and not b.contains(hi * (1 + 1e-9))
+
+
+def test_controlled_basin_ends_are_where_the_qp_stops_being_feasible(realized):
+    """The controlled basin's ends (two LPs over (x, u)) against the planner's own QP: just
+    inside a thrust exists, just outside the step is infeasible. It is wider than the
+    uncontrolled one, and iterating the controlled map from across it converges."""
+    r = realized["control"]
+    b = r.basin
+    assert b.exists, b.reason
+    for x, inside in ((b.lower.value * (1 + 1e-6), True), (b.upper.value * (1 - 1e-6), True),
+                      (b.lower.value * (1 - 1e-3), False), (b.upper.value * (1 + 1e-3), False)):
+        plan = r.planner.plan(x, r.zeta_ref, np.zeros(r.planner.nu))
+        assert (plan.status != "infeasible") == inside, (x, plan.status)
+    none = realized["none"].basin
+    assert b.lower.value < none.lower.value and b.upper.value > none.upper.value
+    assert b.verified["converged"] == b.verified["starts"] == 41
+
+
+# ------------------------------------------------------------------------------ pushes
+def test_push_reaction_conserves_linear_and_angular_momentum(walker3):
+    """For a push P at the hip with the stance foot pinned: the robot's linear momentum
+    changes by P + F (F the foot's impulsive reaction), and sigma_N, the angular momentum about
+    the stance foot, by (p x P)_z (the reaction has no moment about the foot)."""
+    model, zd = walker3.model, walker3.zd
+    pt = push_point(model)
+    M = model.robot.total_mass
+    for s in (0.1, 0.5, 0.9):
+        q = zd.maps.q_Z(np.array(zd.alpha_i + s * (zd.alpha_f - zd.alpha_i)))
+        P = np.array([7.0, -3.0])
+        dq = rate_jump(model, q, pt, P)
+        F = stance_impulse(model, q, pt, P)
+        dv_com = model.J_com(q) @ dq
+        np.testing.assert_allclose(M * dv_com, P + F, rtol=0, atol=1e-10)
+        hip = model.link_points(q)[4 * pt.index + 2:4 * pt.index + 4]
+        d_sigma = model.D(q)[-1] @ dq
+        assert d_sigma == pytest.approx(hip[0] * P[1] - hip[1] * P[0], abs=1e-10)
+
+
+def test_zero_push_always_recovers(walker3, realized):
+    """Every strategy, pushes of 0 N s at the start, mid-step and just before the impact: the
+    walker stays on its orbit (zeta^- to the integration tolerance)."""
+    for label, r in realized.items():
+        run = _runner(walker3, r, steps=3)
+        for s in (0.0, 0.5, 1.0):
+            res = run.run(Trial(0.0, s))
+            assert res.outcome == "recovered", (label, s, res.reason)
+            assert res.relative_error < 1e-8, (label, s, res.relative_error)
+            assert res.push is None
+
+
+def test_push_outcomes_and_the_controllers_advantage(walker3, realized):
+    """A backward push early in the step pulls the stance foot up (its impulsive reaction is
+    not pressing: lifted, SPEC 12); a small forward push recovers; a larger one leaves the
+    uncontrolled walker 7 % off its orbit after 4 steps (unsettled, converging), and 6 steps
+    later the error has contracted by exactly delta_zero^2 per step (the reduced map, once the
+    outputs have settled); the controller is back after one step (deadbeat)."""
+    none, ctl = _runner(walker3, realized["none"], 4), _runner(walker3, realized["control"], 4)
+    res = none.run(Trial(-4.0, 0.1))
+    assert res.outcome == "lifted" and res.step == 1 and res.push["reaction"][1] <= 0
+    res = none.run(Trial(2.0, 0.1))
+    assert res.outcome == "recovered" and res.pushed and res.push["ratio"] < MU
+    a, b = none.run(Trial(4.0, 0.1)), ctl.run(Trial(4.0, 0.1))
+    assert a.outcome == "unsettled" and a.converging and a.relative_error > 0.05, a.reason
+    assert b.outcome == "recovered" and b.relative_error < 1e-8, b.reason
+    c = _runner(walker3, realized["none"], 10).run(Trial(4.0, 0.1))
+    assert c.outcome == "recovered"
+    assert c.relative_error / a.relative_error == pytest.approx(
+        walker3.zd.delta_zero_sq ** 6, rel=1e-4)
+
+
+def test_basin_slice_agrees_with_the_reduced_basin_along_sigma(walker3, realized):
+    """Started on Z (zero output rate) with sigma_N^+ scaled by 1 + e, the full-order walker
+    converges exactly where the reduced walker's basin says (zeta^- = (1 + e)^2 zeta*), except
+    within the recovery test's tolerance of an end (15 steps: every start inside is back or
+    converging)."""
+    for label in ("none", "constant:-20"):
+        r = realized[label]
+        run = _runner(walker3, r, steps=15, recovery_tol=0.05)
+        zs, b = r.zeta_ref, r.basin
+        lo, hi = b.lower.value, b.upper.value
+        es = np.sort(np.concatenate([np.sqrt(np.array([lo, hi]) / zs) - 1.0 + d
+                                     for d in (-0.05, -0.01, 0.01, 0.05)]))
+        for e in np.concatenate([es, [-0.5, 0.0, 0.3]]):
+            x = zs * (1 + e) ** 2
+            if min(abs(x - lo), abs(x - hi)) <= 0.05 * zs:
+                continue  # within the recovery tolerance of an end
+            res = run.run(Trial(sigma=float(e)))
+            assert res.converging == b.contains(x), (label, e, x, lo, hi, res.reason)
+
+
+# ------------------------------------------------------------------------- uncertainty
+def test_reduced_samples_of_the_nominal_robot_walk_its_orbit(walker3, realized):
+    """A sample that is the nominal robot: every fixed strategy walks its own orbit (the limit
+    cycle's speed), the controller settles at once on its reference."""
+    zd = walker3.zd
+    res = fixed_sample(zd, Strategy("constant", thrust=-20.0), mu=MU)
+    lc = limit_cycles(zd, Schedule.constant(zd, np.array([[-20.0, 0.0]])))[0]
+    assert res.success and res.speed == pytest.approx(lc.speed, rel=1e-12)
+    r = realized["control"]
+    res = controlled_sample(zd, r.planner, r.zeta_ref, (0.0, 0.5, 1.0), r.driven, mu=MU)
+    assert res.success and res.steps == 1, res.reason
+    assert res.zeta_star == pytest.approx(r.zeta_ref, rel=1e-9)
+
+
+def _uncertainty_file(tmp_path, seed=7):
+    p = tmp_path / f"unc{seed}.yaml"
+    p.write_text(f"seed: {seed}\nparameters:\n"
+                 "  MT: {distribution: normal, mean: 10.0, std: 1.0, unit: kg}\n"
+                 "  MH: {distribution: uniform, low: 14.0, high: 16.0}\n")
+    return p
+
+
+def test_monte_carlo_draws_are_reproducible_from_the_seed(walker3, tmp_path):
+    kw = dict(push_impulse=[0.0], push_phase=[0.5], strategy=["none"], basin_grid=0,
+              samples=5)
+    a = plan_robustness(walker3, uncertainty=_uncertainty_file(tmp_path), **kw)
+    b = plan_robustness(walker3, uncertainty=_uncertainty_file(tmp_path), **kw)
+    c = plan_robustness(walker3, uncertainty=_uncertainty_file(tmp_path, seed=8), **kw)
+    rng = np.random.default_rng(7)  # numpy's generator directly: parameters in file order
+    mt, mh = rng.normal(10.0, 1.0, 5), rng.uniform(14.0, 16.0, 5)
+    np.testing.assert_array_equal(a.draws["robot.MT"], mt)
+    np.testing.assert_array_equal(a.draws["robot.MH"], mh)
+    assert a.draws == b.draws and a.identity == b.identity
+    assert a.draws["robot.MT"] != c.draws["robot.MT"] and a.identity != c.identity
+    samples = [dict(t.values) for t, k in zip(a.tasks, a.kinds) if k == "sample"]
+    assert [s["robot.MT"] for s in samples] == list(mt)
+
+
+# --------------------------------------------------------------------------- the maps
+def test_survivable_push_from_a_grid():
+    imp = [-6.0, -4.0, -2.0, 0.0, 2.0, 4.0, 6.0]
+    row = ["fell", "recovered", "recovered", "recovered", "recovered", "slipped", "recovered"]
+    assert survivable(imp, row, 1.0) == (2.0, "failed")  # 6 recovers, 4 does not: 2
+    assert survivable(imp, row, -1.0) == (4.0, "failed")
+    assert survivable(imp, ["recovered"] * 7, 1.0) == (6.0, "grid edge")
+    assert survivable(imp, row[:4] + ["error", "recovered", "recovered"], 1.0) == (0.0, "error")
+    assert survivable(imp, row[:5] + [None, "recovered"], 1.0) == (2.0, "not run")
+    assert survivable([0.0, 2.0], ["recovered"] * 2, -1.0) == (None, "none")
+    assert summary_impulse([2.0, 4.0], [4.0, None]) == pytest.approx((3.0 + 4.0) / 2)
+
+
+# ---------------------------------------------------------------- the study and command
+@pytest.mark.slow
+def test_command_writes_every_output_and_resumes(tmp_path, cli, walker3):
+    out = tmp_path / "rob"
+    unc = _uncertainty_file(tmp_path)
+    args = ("robustness", "three_link", "three_link_walk", "--push-impulse", "-4,0,4,12",
+            "--push-phase", "0.1,0.6,1", "--strategy", "none,constant:-20,control", "--steps",
+            "4", "--basin-grid", "3", "--uncertainty", str(unc), "--samples", "2",
+            "--workers", "1", "--out", str(out))
+    res = cli(*args, "-q")
+    assert res.exit_code == 0, res.output
+    names = {p.name for p in out.iterdir()}
+    for f in ("robustness.json", "trials.csv", "uncertainty.csv", "push_map.png",
+              "push_map.pdf", "survivable_push.png", "survivable_push.pdf", "basin.png",
+              "basin.pdf", "uncertainty.png", "uncertainty.pdf", "trials"):
+        assert f in names, f
+    text = (out / "robustness.json").read_text()
+    assert "NaN" not in text and "Infinity" not in text
+    doc = json.loads(text)
+    for key in ("schema_version", "units", "success", "reason", "warnings", "provenance",
+                "settings", "strategies", "definitions"):
+        assert key in doc, key
+    assert doc["units"]["impulse"] == "N s" and doc["units"]["zeta"] == "kg^2 m^4/s^2"
+    assert doc["success"] and doc["counts"]["trials"] == 3 * (12 + 9)
+    assert doc["counts"]["samples"] == 6
+    assert len(list((out / "trials").glob("*.json"))) == 3 * 21 + 6
+    import pandas as pd
+
+    df = pd.read_csv(out / "trials.csv")
+    assert len(df) == 63 and "push_impulse_Ns" in df.columns and "speed_m_s" in df.columns
+    zero = df[(df.kind == "push") & (df.push_impulse_Ns == 0)]
+    assert set(zero.outcome) == {"recovered"}
+    # the document's map is the trials' outcomes; the study in Python gives the same numbers
+    ctl = next(s for s in doc["strategies"] if s["label"] == "control")
+    assert ctl["orbit"]["zeta_star"] == pytest.approx(limit_cycles(
+        walker3.zd, Schedule.constant(walker3.zd, np.zeros((1, 2))))[0].zeta_star)
+    # the same command again: every trial kept, none computed, the same document
+    res = cli(*args, "-q")
+    assert res.exit_code == 0, res.output
+    again = json.loads((out / "robustness.json").read_text())
+    assert again["counts"]["skipped"] == 69 and again["counts"]["computed"] == 0
+    assert again["strategies"] == doc["strategies"]
+    # another set of trials is refused in this folder, nothing replaced
+    res = cli("robustness", "--push-impulse", "0", "--push-phase", "0.5", "--out", str(out),
+              "-q")
+    assert res.exit_code == 2 and "holds another sweep" in res.output
+
+
+def test_a_trial_is_the_same_in_process_and_on_2_local_workers(walker3):
+    kw = dict(push_impulse=[-4.0, 4.0, 12.0], push_phase=[0.1, 0.6], strategy=["none",
+                                                                               "control"],
+              steps=3, basin_grid=0)
+    a = robustness(walker3, workers=1, **kw)
+    b = robustness(walker3, workers=2, **kw)
+    strip = [{k: v for k, v in r.items() if k != "seconds"} for r in a.records]
+    assert strip == [{k: v for k, v in r.items() if k != "seconds"} for r in b.records]
+    assert b.executor["kind"] == "local" and a.executor["kind"] == "in-process"
+
+
+@pytest.mark.slow
+def test_a_trial_is_the_same_on_a_dask_cluster(walker3, tmp_path):
+    """A scheduler and a worker as separate processes on 127.0.0.1 (bounded in time, stopped
+    here): every trial's record equals the local one."""
+    pytest.importorskip("distributed")
+    from test_sweep_cluster import Cluster
+
+    plan = plan_robustness(walker3, push_impulse=[-4.0, 0.0, 4.0, 12.0], push_phase=[0.1, 0.8],
+                           strategy=["none", "control"], steps=3, basin_grid=2,
+                           basin_rate=0.0)
+    local = run_robustness(plan, workers=1)
+    cluster = Cluster(tmp_path, workers=1)
+    try:
+        remote = run_robustness(plan, scheduler=cluster.address)
+    finally:
+        cluster.stop()
+    assert remote.executor["kind"] == "dask" and remote.executor["workers"] == 1
+
+    def strip(res):
+        return [{k: v for k, v in r.items() if k != "seconds"} for r in res.records]
+
+    assert strip(remote) == strip(local), cluster.logs()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--strategy", "foo"], "option --strategy: unknown strategy 'foo'"),
+    (["--strategy", "constant:fast"], "option --strategy: constant:F needs a thrust"),
+    (["--strategy", "none,none"], "option --strategy: strategy none is given twice"),
+    (["--strategy", "constant:-500"], "option --strategy: constant:-500: -500 N is outside"),
+    (["--strategy", "schedule:gaits/three_link_walk.yaml"], "option --strategy:"),
+    (["--push-phase", "0.5,1.5"], "option --push-phase: phases are fractions"),
+    (["--push-impulse", "a:b"], "option --push-impulse:"),
+    (["--push-direction", "0,0"], "option --push-direction: a direction is two numbers"),
+    (["--push-direction", "1"], "option --push-direction:"),
+    (["--push-link", "tail"], "option --push-link: unknown link 'tail'"),
+    (["--push-at", "2"], "option --push-at: must lie in [0, 1]"),
+    (["--steps", "0"], "option --steps:"),
+    (["--recovery-tol", "1.5"], "option --recovery-tol:"),
+    (["--basin-sigma", "1:-1"], "option --basin-sigma:"),
+    (["--basin-grid", "1"], "option --basin-grid:"),
+    (["--basin-joint", "q9"], "option --basin-joint: unknown actuated coordinate 'q9'"),
+    (["--strategy", "control", "--thruster", "nozzle"],
+     "option --thruster: control: unknown thruster 'nozzle'"),
+    (["--strategy", "control", "--knots", "0,0.6,0.4,1"], "option --knots:"),
+    (["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "options --workers/--scheduler"),
+    (["--uncertainty", "missing.yaml"], "missing.yaml: file not found"),
+    (["--samples", "0", "--uncertainty", "UNC"], "option --samples:"),
+])
+def test_bad_options_are_one_line_exit_two(tmp_path, cli, args, message):
+    unc = tmp_path / "unc.yaml"
+    unc.write_text("parameters:\n  MT: {distribution: normal, mean: 10, std: 1}\n")
+    args = [str(unc) if a == "UNC" else a for a in args]
+    out = tmp_path / "bad"
+    res = cli("robustness", "--push-impulse", "0", "--push-phase", "0.5", "--basin-grid", "0",
+              "--strategy", "none", *args, "--out", str(out), "-q")
+    assert res.exit_code == 2, res.output
+    assert message in res.output, res.output
+    lines = [ln for ln in res.output.splitlines() if ln.startswith("error:")]
+    assert len(lines) == 1 and "Traceback" not in res.output
+    assert not out.exists()
+
+
+def test_uncertainty_file_problems_name_file_line_and_key(tmp_path, cli):
+    unc = tmp_path / "unc.yaml"
+    unc.write_text("seed: 1\nparameters:\n  MT: {distribution: normal, mean: 10, std: 1}\n"
+                   "  MX: {distribution: uniform, low: 1, high: 2}\n")
+    out = tmp_path / "bad"
+    res = cli("robustness", "--push-impulse", "0", "--push-phase", "0.5", "--basin-grid", "0",
+              "--strategy", "none", "--uncertainty", str(unc), "--out", str(out), "-q")
+    assert res.exit_code == 2, res.output
+    assert f"{unc}:4: parameters.MX: no parameter 'MX' in robot three_link" in res.output
+    assert not out.exists()

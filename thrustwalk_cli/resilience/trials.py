@@ -1,0 +1,313 @@
+"""Push trials and basin trials of the full-order closed loop (SPEC 7, 11, 12).
+
+A trial starts just after an impact on the orbit of its strategy
+(:class:`~.strategy.Realized`: ``zeta^- = zeta_ref``) and either
+
+* is pushed in its first step: an impulse ``value * direction`` [N s] at the push point at
+  phase ``s`` of the step (:mod:`.push`; ``q' += D^-1 J_p^T P``, the stance foot pinned), or
+* starts off the orbit (a basin trial): ``sigma_N^+`` scaled by ``1 + sigma`` (on Z, i.e. a
+  start after an impact with ``zeta^- = (1 + sigma)^2 zeta_ref``) and the post-impact rate of
+  one output changed by ``rate`` [rad/s] along the direction that leaves ``sigma_N`` unchanged
+  (``[J_y; e_N^T D] dq' = [rate e_j; 0]``, ``J_y = H_0 - h_d'(alpha) c``);
+
+then the compiled closed loop (:class:`~thrustwalk_cli.simulation.compiled.Stepper`) walks
+``steps`` steps in all (the pushed step is step 1), with the strategy's thrust (``control``:
+the SPEC 11 QP at every impact, on the measured zeta^-).
+
+Outcome, the first that applies, with the step and the reason:
+
+* ``lifted`` / ``slipped``: the push's impulsive ground reaction leaves ``F^v > 0`` / the
+  friction cone (SPEC 12, checked on the orbit state at the push: :func:`.push.check_push`);
+  a step whose stance force drops to ``F^v <= eps`` (or negative: the run stops) / whose
+  ``|F^h|/F^v`` exceeds ``mu`` anywhere, or whose impact impulse does; an impact whose
+  vertical impulse is not positive is ``lifted``;
+* ``stopped``: alpha reverses (the walker stops and falls back);
+* ``fell``: the stance leg passes the horizontal, or the swing foot misses the ground;
+* ``scuffed``: the swing foot strikes the ground before the guard (an early strike), or the
+  trailing foot does not lift off at impact;
+* ``error``: the trial could not be computed (integrator or controller failure) — not a
+  verdict on the walker, counted apart and reported;
+* ``recovered``: every step done and the last one back within ``recovery_tol`` of the orbit:
+  ``|zeta^-_M - zeta_ref| <= recovery_tol zeta_ref`` and its outputs settled
+  (``max |y| <= output_tol`` over the last step);
+* ``unsettled``: every step done, not yet within the tolerance (``converging`` says whether it
+  is on its way: outputs settled, ``zeta^-_M`` inside the strategy's reduced basin and closer
+  to the orbit than the step before; by SPEC 12 it then converges).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..contact.terms import stance_terms
+from ..controller.loop import segment_intervals
+from ..controller.step_model import interval_of
+from ..hzd.zero_dynamics import ZeroDynamics
+from ..simulation.batch import FIELDS, push_row
+from ..simulation.closed_loop import ClosedLoop, SimConfig
+from ..simulation.compiled import Stepper, failure_text, step_record
+from ..simulation.full_order import Start, initial_state
+from ..simulation.records import EVENT_REASONS
+from .push import PushPoint, check_push, stance_impulse
+from .strategy import Realized
+
+OUTCOMES = ("recovered", "unsettled", "fell", "slipped", "lifted", "scuffed", "stopped",
+            "error")
+FAILED = ("fell", "slipped", "lifted", "scuffed", "stopped")
+LAST_PHASE = 1.0 - 1e-6  # a push at phase 1 is applied just before the impact
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One trial: a push of signed size ``impulse`` [N s] along the push direction at phase
+    ``phase`` [1] of step 1, or a start off the orbit (``sigma`` [1]: relative change of
+    sigma_N^+; ``rate`` [rad/s]: change of the transverse output's rate)."""
+
+    impulse: float = 0.0
+    phase: float = 0.0
+    sigma: float = 0.0
+    rate: float = 0.0
+
+
+@dataclass(frozen=True)
+class TrialResult:
+    """What a trial did (module docstring for the outcomes). ``step``: the step of the
+    outcome (None for recovered/unsettled); per completed step ``zeta_minus`` [kg^2 m^4/s^2];
+    ``relative_error`` of the last one against ``zeta_ref`` [1]; ``push``: the push's ground
+    reaction check; ``qp``: the controller's statuses by count (control)."""
+
+    outcome: str
+    step: int | None
+    reason: str
+    steps_completed: int
+    zeta_ref: float | None
+    zeta_minus: tuple[float, ...]
+    relative_error: float | None
+    converging: bool
+    speed: float | None
+    max_friction_ratio: float | None
+    min_vertical_force: float | None
+    max_abs_output_last: float | None
+    push: dict | None
+    pushed: bool
+    qp: dict = field(default_factory=dict)
+
+    @property
+    def recovered(self) -> bool:
+        return self.outcome == "recovered"
+
+    def fields(self) -> dict:
+        """The collectable fields of a push-trial point (SI)."""
+        return {"outcome": self.outcome, "recovered": self.recovered,
+                "converging": self.converging, "failed_step": self.step,
+                "steps_completed": self.steps_completed,
+                "final_zeta_minus": self.zeta_minus[-1] if self.zeta_minus else None,
+                "relative_error": self.relative_error, "zeta_ref": self.zeta_ref,
+                "speed": self.speed, "max_friction_ratio": self.max_friction_ratio,
+                "min_vertical_force": self.min_vertical_force,
+                "push_friction_ratio": None if self.push is None else self.push["ratio"],
+                "push_vertical_impulse": None if self.push is None else
+                self.push["reaction"][1]}
+
+    def document(self) -> dict:
+        return {"outcome": self.outcome, "step": self.step, "reason": self.reason,
+                "steps_completed": self.steps_completed, "zeta_ref": self.zeta_ref,
+                "zeta_minus": list(self.zeta_minus), "relative_error": self.relative_error,
+                "converging": self.converging, "speed": self.speed,
+                "max_friction_ratio": self.max_friction_ratio,
+                "min_vertical_force": self.min_vertical_force,
+                "max_abs_output_last_step": self.max_abs_output_last, "push": self.push,
+                "pushed": self.pushed, "qp": self.qp}
+
+
+def _failure_outcome(kind: str, text: str) -> str:
+    """The outcome of a simulation failure (its kind and wording, ``simulation.records``)."""
+    if kind == "fall":
+        if text.startswith(EVENT_REASONS["reverse"][1]):
+            return "stopped"
+        if text.startswith(EVENT_REASONS["horizontal"][1]):
+            return "fell"
+        return "lifted"  # the vertical ground force becomes (or starts) negative
+    if kind == "scuff":
+        return "scuffed"
+    if kind == "impact":
+        return "lifted" if "vertical impulse" in text else "scuffed"
+    if kind == "no-impact":
+        return "fell"
+    return "error"
+
+
+class TrialRunner:
+    """Runs trials of one strategy on one walker (the compiled closed loop is set up once).
+
+    ``steps``: steps per trial (the pushed step included); ``mu`` [1], ``eps`` [N]: the cone
+    and least vertical force every step is checked against; ``recovery_tol`` [1] and
+    ``output_tol`` [rad]: the recovery test; ``transverse``: index of the actuated coordinate
+    whose rate a basin trial perturbs; ``duration`` [s]: the push's duration for the stance
+    check (0: impulsive, SPEC 12)."""
+
+    def __init__(self, zd: ZeroDynamics, realized: Realized, point: PushPoint, *,
+                 steps: int = 10, mu: float = 0.7, eps: float = 0.0,
+                 recovery_tol: float = 0.05, output_tol: float = 1e-3, rtol: float = 1e-9,
+                 atol: float = 1e-9, transverse: int = 0, duration: float = 0.0):
+        self.zd, self.r, self.point = zd, realized, point
+        self.model = zd.model
+        self.steps, self.mu, self.eps = int(steps), float(mu), float(eps)
+        self.recovery_tol, self.output_tol = float(recovery_tol), float(output_tol)
+        self.transverse, self.duration = int(transverse), float(duration)
+        self.config = SimConfig(steps=1, rtol=rtol, atol=atol)
+        self.cl = ClosedLoop(zd, realized.thrust, self.config)
+        ts = realized.cycle.step_time if realized.cycle.exists else None
+        self.t_max = 10.0 * ts if ts else 10.0
+        self.stepper = Stepper(self.cl, self.t_max, dense=False)
+        self.seg_int = (segment_intervals(self.cl, realized.knots, zd)
+                        if realized.planner is not None else None)
+
+    # -- the start -------------------------------------------------------------------------
+    def start_state(self, trial: Trial) -> np.ndarray:
+        """The post-impact state ``[q; q'; z]`` of a trial (module docstring)."""
+        zd, r = self.zd, self.r
+        x = initial_state(zd, r.thrust, Start(zeta_minus=r.zeta_ref * (1.0 + trial.sigma) ** 2))
+        if trial.rate:
+            N = self.model.n
+            q = x[:N]
+            alpha = float(zd.maps.c @ q)
+            phi = zd.maps.Phi(np.array(alpha))
+            Jy = np.hstack([np.eye(N - 1), np.zeros((N - 1, 1))]) - np.outer(phi[:N - 1],
+                                                                             zd.maps.c)
+            eD = self.model.D(q)[N - 1]
+            rhs = np.zeros(N)
+            rhs[self.transverse] = trial.rate
+            x[N:2 * N] += np.linalg.solve(np.vstack([Jy, eD]), rhs)
+        return x
+
+    def push_check(self, trial: Trial) -> tuple[dict | None, str, str]:
+        """The stance foot's impulsive reaction to the trial's push on the orbit state at its
+        phase (SPEC 12): ``(record, outcome, reason)``, outcome ``""`` when it stays pinned."""
+        if trial.impulse == 0.0:
+            return None, "", ""
+        zd = self.zd
+        s = min(trial.phase, LAST_PHASE)
+        alpha = zd.alpha_i + s * (zd.alpha_f - zd.alpha_i)
+        q = zd.maps.q_Z(np.array(alpha))
+        P = self.point.impulse(trial.impulse)
+        F = stance_impulse(self.model, q, self.point, P)
+        stance = None
+        if self.duration > 0:
+            stance = self._orbit_force(alpha)
+        chk = check_push(F, self.mu, stance, self.duration)
+        rec = {"impulse": P.tolist(), "reaction": list(chk.impulse), "ratio": chk.ratio,
+               "phase_applied": s, "link": self.point.link, "at": self.point.at,
+               "duration": self.duration}
+        return rec, chk.outcome, chk.reason
+
+    def _orbit_force(self, alpha: float) -> np.ndarray:
+        """The stance force F_1 [N] of the strategy's orbit at ``alpha`` (SPEC 5)."""
+        zd, r = self.zd, self.r
+        sched = r.schedule
+        a = np.array([alpha])
+        zeta = zd.delta_zero_sq * r.zeta_ref + zd.V_Z(a, sched)[0]
+        j = int(interval_of(sched.knots, a)[0])
+        t = stance_terms(self.model, zd.maps, a)
+        F = (np.einsum("gim,m->gi", t.L2, sched.force[0, j]) + t.L1 * zeta[:, None] + t.L0
+             + t.LT * sched.generalized[0, j])
+        return F[0]
+
+    # -- the run ---------------------------------------------------------------------------
+    def run(self, trial: Trial) -> TrialResult:
+        r, model = self.r, self.model
+        if r.zeta_ref is None:
+            return self._result("error", None, f"no orbit to start on: {r.cycle.reason}", [],
+                                None, None, False)
+        push, outcome, reason = self.push_check(trial)
+        if outcome:
+            return self._result(outcome, 1, f"step 1: {reason}", [], push, None, False)
+        N, m, nz = model.n, model.n_thrusters, r.thrust.n_states
+        x = self.start_state(trial)
+        row = None
+        if trial.impulse != 0.0:
+            row = push_row(model, 1, min(trial.phase, LAST_PHASE),
+                           self.point.impulse(trial.impulse), self.point.link, self.point.at)
+        t, x_true = 0.0, float(r.zeta_ref * (1.0 + trial.sigma) ** 2)
+        u_prev = None if r.planner is None else np.zeros(r.planner.nu)
+        recs = []
+        qp: dict[str, int] = {}
+        pushed = False
+        for k in range(1, self.steps + 1):
+            if r.planner is not None:
+                plan = r.planner.plan(x_true, r.zeta_ref, u_prev)
+                qp[plan.status] = qp.get(plan.status, 0) + 1
+                per = plan.u.reshape(-1, len(r.driven))
+                seg_force = np.zeros((len(self.seg_int), m))
+                seg_force[:, r.driven] = per[self.seg_int]
+                self.stepper.set_thrust(seg_force=seg_force)
+                u_prev = plan.u
+            res = self.stepper.step(k, t, x, push=row if k == 1 else None)
+            if res.status != 0:
+                kind, text = failure_text(res.outcome, self.config, self.t_max)
+                out = _failure_outcome(kind, text)
+                if out == "error":
+                    text = f"the trial could not be computed ({kind}): {text}"
+                return self._result(out, k, f"step {k}: {text}", recs, push, None, pushed, qp)
+            rec = step_record(res.record, N, nz, m)
+            pushed = pushed or bool(res.record[FIELDS["pushed"]])
+            recs.append(rec)
+            bad = self._cone(rec)
+            if bad:
+                return self._result(bad[0], k, f"step {k}: {bad[1]}", recs, push, None,
+                                    pushed, qp)
+            x, t, x_true = res.x_next, rec.t_impact, rec.zeta_minus
+        if row is not None and not pushed:  # pragma: no cover - the push event always fires
+            return self._result("error", 1, "step 1: the push was not applied", recs, push,
+                                None, False, qp)
+        err = abs(recs[-1].zeta_minus - r.zeta_ref) / r.zeta_ref
+        y_last = recs[-1].max_abs_output
+        settled = y_last <= self.output_tol
+        if err <= self.recovery_tol and settled:
+            return self._result("recovered", None, f"back within {self.recovery_tol:g} of the "
+                                f"orbit after {self.steps} steps (zeta^- {err:.3g} from it, "
+                                f"outputs {y_last:.2g} rad)", recs, push, True, pushed, qp)
+        prev = abs(recs[-2].zeta_minus - r.zeta_ref) if len(recs) > 1 else np.inf
+        converging = bool(settled and r.basin.contains(recs[-1].zeta_minus)
+                          and abs(recs[-1].zeta_minus - r.zeta_ref) < prev)
+        what = (f"zeta^- {err:.3g} from the orbit" if not settled or err > self.recovery_tol
+                else "")
+        if not settled:
+            what += f"{', ' if what else ''}outputs {y_last:.2g} rad > {self.output_tol:g}"
+        tail = ("; converging (inside the reduced basin, closer each step): more steps would "
+                "settle it" if converging else "")
+        return self._result("unsettled", None, f"not yet back after {self.steps} steps "
+                            f"({what}){tail}", recs, push, converging, pushed, qp)
+
+    def _cone(self, rec) -> tuple[str, str] | None:
+        """A completed step that left the friction cone or ``F^v > eps``, or whose impact
+        impulse left the cone."""
+        if rec.max_friction_ratio is None or rec.min_vertical_force <= self.eps:
+            return "lifted", (f"the vertical ground force drops to {rec.min_vertical_force:.4g} "
+                              f"N (<= {self.eps:g} N): the stance foot would lift off")
+        if rec.max_friction_ratio > self.mu:
+            return "slipped", (f"the stance force leaves the friction cone (|F^h|/F^v = "
+                               f"{rec.max_friction_ratio:.4g} > mu = {self.mu:g})")
+        if rec.impulse_friction_ratio > self.mu:
+            return "slipped", (f"the impact impulse leaves the friction cone (|F_2^h|/F_2^v = "
+                               f"{rec.impulse_friction_ratio:.4g} > mu = {self.mu:g})")
+        return None
+
+    def _result(self, outcome: str, step: int | None, reason: str, recs: list, push,
+                converging: bool | None, pushed: bool, qp: dict | None = None) -> TrialResult:
+        zref = self.r.zeta_ref
+        zm = tuple(float(rc.zeta_minus) for rc in recs)
+        err = abs(zm[-1] - zref) / zref if zm and zref else None
+        speed = None
+        if recs:
+            last = recs[-1]
+            speed = float(self.model.p_swing(np.asarray(last.q_minus))[0]) / last.step_time
+        fr = [rc.max_friction_ratio for rc in recs if rc.max_friction_ratio is not None]
+        return TrialResult(
+            outcome, step, reason, len(recs), zref, zm, err,
+            bool(outcome == "recovered" or (outcome == "unsettled" and converging)), speed,
+            max(fr) if fr else None,
+            min(rc.min_vertical_force for rc in recs) if recs else None,
+            float(recs[-1].max_abs_output) if recs else None, push, pushed, dict(qp or {}))
