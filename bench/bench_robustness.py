@@ -86,7 +86,7 @@ def main(trials: int = 1953) -> None:
     from thrustwalk_cli.walker import load_walker
 
     w = load_walker("three_link", "three_link_walk")
-    compile_kernel(w.model)
+    compile_kernel()
     tmp = Path(tempfile.mkdtemp(prefix="tw-bench-robustness-"))
     print(f"{'machine ceiling, 2 processes vs 1, before':<58s} {ceiling():12.3f}", flush=True)
     for name, kw in _mixes(trials).items():

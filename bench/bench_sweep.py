@@ -71,9 +71,8 @@ def main() -> None:
 
     from thrustwalk_cli.studies.compile import compile_kernel
     from thrustwalk_cli.studies.sweep import load_sweep
-    from thrustwalk_cli.walker import load_walker
 
-    compile_kernel(load_walker("three_link", "three_link_walk").model)
+    compile_kernel()
     tmp = Path(tempfile.mkdtemp(prefix="tw-bench-sweep-"))
     path = tmp / "bench.yaml"
     path.write_text(textwrap.dedent(SWEEP))

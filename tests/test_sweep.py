@@ -502,3 +502,30 @@ def test_heat_map_cells_are_centred_on_the_values():
 
     assert _edges(np.array([0.0, 1.0, 3.0])).tolist() == [-0.5, 0.5, 2.0, 4.0]
     assert _edges(np.array([2.0])).tolist() == [1.5, 2.5]
+
+
+def test_a_compiled_simulate_sweep_reuses_the_cached_kernel(tmp_path, _cache_dir):
+    """Preparing a sweep makes sure the kernel is compiled once; it must load the cached
+    kernel, not rebuild it (the entry's file and numba's machine code stay untouched)."""
+    import thrustwalk_cli as tw
+    from thrustwalk_cli.simulation.compiled import kernel, kernel_status
+
+    kernel()  # compiled (or loaded) before the sweep
+    entry = Path(kernel_status()["entry"])
+    stamps = {p: p.stat().st_mtime_ns
+              for p in [entry, *entry.parent.glob(f"__pycache__/{entry.stem}.*")]}
+    assert len(stamps) > 1
+    text = textwrap.dedent("""\
+        name: compiled
+        study: simulate
+        robot: three_link
+        gait: three_link_walk
+        settings: {steps: 2, method: compiled}
+        grid:
+          thrust: {values: [0, -10]}
+        collect: [final_zeta_minus]
+        """)
+    res = tw.run_sweep(tw.load_sweep(sweep_file(tmp_path, text)), workers=1)
+    assert all(r["status"] == "ok" for r in res.records)
+    assert kernel_status()["cached"]
+    assert {p: p.stat().st_mtime_ns for p in stamps} == stamps

@@ -15,7 +15,7 @@ def compile_robot(robot: str, rebuild: bool = False) -> CompiledModel:
     return load_model(load_robot(robot), rebuild=rebuild)
 
 
-def compile_kernel(rebuild: bool = False) -> dict:
+def compile_kernel(*, rebuild: bool = False) -> dict:
     """The compiled simulation kernel (SPEC 7), the same for every robot: compiled by numba
     once per machine and cached. ``{"cache_hit": bool, "seconds": float | None, "entry":
     path, "note": str}``: whether it came from the cache and how long the one-time numba

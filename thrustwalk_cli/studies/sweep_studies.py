@@ -273,7 +273,7 @@ def _prepare_simulate(walker: Walker, settings: dict) -> None:
     if settings.get("method") == "compiled":
         from .compile import compile_kernel
 
-        compile_kernel(walker.model)
+        compile_kernel()
 
 
 _DG_FIELDS = {
@@ -538,7 +538,7 @@ def _prepare_trials(walker: Walker, settings: dict) -> None:
     """Compile the simulation kernel once here, not in every worker at the same time."""
     from .compile import compile_kernel
 
-    compile_kernel(walker.model)
+    compile_kernel()
 
 
 STUDIES: dict[str, SweepStudy] = {
