@@ -50,10 +50,10 @@ schedule:FILE (the thrust: section of a gait file).
 
 Per strategy: the outcome map over (phase, impulse); the largest survivable push forward and
 backward per phase (a lower bound within one grid step) and its mean over phases [N s]; the
-exact basin of the reduced walker (closed form, docs/commands.md) and a full-order slice over sigma_N^+ and one
-output rate (--basin-grid, --basin-sigma, --basin-rate); with --uncertainty FILE, --samples
-robots drawn from the file's distributions (reduced model): the fraction that walks and the
-spread of the converged speed.
+exact basin of the reduced walker (in closed form) and a full-order slice over sigma_N^+
+and one output rate (--basin-grid, --basin-sigma, --basin-rate); with --uncertainty FILE,
+--samples robots drawn from the file's distributions (reduced model): the fraction that walks
+and the spread of the converged speed.
 
 Every trial is a task of the sweep engine: --workers local processes (default: one per core)
 or the Dask cluster of --scheduler. DIR is written incrementally like a sweep's folder: each
