@@ -493,17 +493,25 @@ def test_cache_corrupted_entry_is_detected_and_rebuilt(kind, fresh_cache, three_
 
 
 def test_cache_stale_key_and_rebuild_flag(fresh_cache, three_link):
-    """A changed robot has a new key: it is compiled afresh (G scales with g) and does not
-    reuse the old entry; ``rebuild=True`` recompiles a valid entry."""
+    """New numbers (gravity) reuse the entry, bound to the new value (G scales with g); a
+    changed structure (the torso's centre of mass off its axis: a zero becomes a number)
+    has a new key, is compiled afresh and does not reuse the old entry; ``rebuild=True``
+    recompiles a valid entry."""
     old_path = _seed_entry(three_link)
     assert load_model(three_link.robot).cache_hit
     heavier = dataclasses.replace(three_link.robot, gravity=9.81)
     model = load_model(heavier)
-    assert not model.cache_hit, "robot with a new gravity must not hit the old entry"
-    assert model.key != three_link.key and model.cache_path != old_path
+    assert model.cache_hit, "new numbers must reuse the compiled structure"
+    assert model.key == three_link.key and model.cache_path == old_path
     q, _ = _states(3, 5, seed=17)
     _assert_close("three_link", "G after gravity change", model.G(q),
                   three_link.G(q) * (9.81 / 9.8), rel=1e-13)
+    links = list(three_link.robot.links)
+    links[1] = dataclasses.replace(links[1], com=(0.01, links[1].com[1]))  # the torso
+    skewed = dataclasses.replace(three_link.robot, links=tuple(links))
+    model = load_model(skewed)
+    assert not model.cache_hit, "a robot with a new structure must not hit the old entry"
+    assert model.key != three_link.key and model.cache_path != old_path
     assert cache.verify_entry(old_path, model.key) == "stale key"
     forced = load_model(three_link.robot, rebuild=True)
     assert not forced.cache_hit

@@ -9,7 +9,7 @@ Loading
     load_walker         robot + gait -> :class:`Walker` (compiled model, zero dynamics)
     Walker              a robot, its gait, the compiled model and the zero dynamics
     load_robot          a robot file or bundled name -> :class:`Robot`
-    load_model          :class:`Robot` -> :class:`CompiledModel` (cached by content hash)
+    load_model          :class:`Robot` -> :class:`CompiledModel` (cached by structure)
     compile_robot       a robot file or bundled name -> :class:`CompiledModel`
     Robot               an immutable robot description (links, coordinates, thrusters)
     Gait                an immutable gait description (Bezier virtual constraints)

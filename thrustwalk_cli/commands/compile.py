@@ -13,10 +13,12 @@ HELP = """Compile a robot file with SymPy into cached numeric dynamics.
 
 Derives D, C, G, B_F, the unpinned model, swing-foot kinematics and the impact map, generates
 vectorised code with common-subexpression elimination and the instruction tape that the
-compiled simulation interprets, and caches them by content hash (the per-robot cost: SymPy
-and code generation). The compiled simulation kernel is the same for every robot: numba
-compiles it once per machine, the first time it is needed, and caches it. Prints links,
-coordinates, total mass [kg], thrusters, times [s] and the cache entries.
+compiled simulation interprets, and caches them by the robot's structure (the per-robot cost:
+SymPy and code generation). The robot's numbers (masses, lengths, inertias, gravity) are
+inputs of the compiled model, not part of its code: a robot that differs only in its numbers
+(another torso mass) reuses the cached model. The compiled simulation kernel is the same for
+every robot: numba compiles it once per machine, the first time it is needed, and caches it.
+Prints links, coordinates, total mass [kg], thrusters, times [s] and the cache entries.
 """
 EPILOG = "Example: thrustwalk compile rabbit --rebuild"
 
@@ -61,11 +63,13 @@ def register(app: typer.Typer) -> None:
             t.add_row("gravity", f"{s['gravity']:.4g} m/s^2")
             t.add_row("thrusters", ", ".join(s["thrusters"]) or "none")
             how = ("cache hit" if s["cache_hit"]
-                   else "compiled: SymPy, generated code and tape, per robot")
+                   else "compiled: SymPy, generated code and tape, per robot structure")
             t.add_row("time", f"{s['seconds']:.3f} s ({how})")
             tp = s["tape"]
             t.add_row("tape", f"{tp['instructions']} instructions ({tp['instructions_accel']} "
                               f"per right-hand side), {tp['registers']} registers")
+            t.add_row("numbers", f"{s['numbers']} inputs of the compiled model (masses, "
+                                 "lengths, inertias, gravity; zeros are part of the structure)")
             t.add_row("cache entry", s["cache_entry"])
             for note in s["notes"]:
                 t.add_row("note", note)

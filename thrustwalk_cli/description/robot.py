@@ -199,8 +199,52 @@ class Robot:
     def b(self) -> np.ndarray:
         return np.array(self.relabel_b, dtype=float)
 
+    def numbers(self) -> list[tuple[str, float]]:
+        """Every physical number the compiled model depends on, as ``(name, value)`` in a
+        fixed order that the robot's :meth:`structure` determines: gravity [m/s^2], the total
+        mass [kg] (the sum of the link masses, given once so that ``D_u``'s mass block is
+        exactly ``total_mass``), per link its joint [m], mass [kg], centre of mass [m],
+        inertia [kg m^2], end point [m] and rotor inertia [kg m^2], the foot points [m], and
+        per thruster its point [m] and unit direction. These are the compiled model's inputs
+        (SPEC 1): robots that differ only in them share one compiled model."""
+        out: list[tuple[str, float]] = [("gravity", self.gravity),
+                                        ("total_mass", self.total_mass)]
+
+        def vec(name: str, v: Vec2) -> None:
+            out.extend(((f"{name}.x", v[0]), (f"{name}.y", v[1])))
+        for lk in self.links:
+            p = f"links.{lk.name}"
+            vec(p + ".joint", lk.joint)
+            out.append((p + ".mass", lk.mass))
+            vec(p + ".com", lk.com)
+            out.append((p + ".inertia", lk.inertia))
+            vec(p + ".end", lk.end)
+            out.append((p + ".rotor_inertia", lk.rotor_inertia))
+        vec("feet.stance", self.stance_foot.point)
+        vec("feet.swing", self.swing_foot.point)
+        for t in self.thrusters:
+            vec(f"thrusters.{t.name}.point", t.point)
+            vec(f"thrusters.{t.name}.direction", t.direction)
+        return [(k, float(v)) for k, v in out]
+
+    def structure(self) -> dict:
+        """What the compiled code depends on besides the values of :meth:`numbers`: names,
+        the link tree, the coordinates, the feet's links, the relabelling ``R``, ``b``, the
+        thrusters' links and frames, and which numbers are zero (a zero is folded into the
+        code, every other number is an input). The model cache key is its hash."""
+        return {
+            "links": [[lk.name, lk.parent] for lk in self.links],
+            "coordinates": [[c.name, c.link, c.actuated] for c in self.coordinates],
+            "feet": [self.stance_foot.link, self.swing_foot.link],
+            "R": [list(r) for r in self.relabel_R],
+            "b": list(self.relabel_b),
+            "thrusters": [[t.name, t.link, t.frame] for t in self.thrusters],
+            "zero": [name for name, v in self.numbers() if v == 0.0],
+        }
+
     def canonical(self) -> dict:
-        """Content that determines the compiled model (the cache key is its hash)."""
+        """Content that determines the compiled model's numbers: its :meth:`structure` and
+        the values of its :meth:`numbers`."""
         return {
             "links": [
                 [lk.name, lk.parent, list(lk.joint), lk.mass, list(lk.com), lk.inertia,

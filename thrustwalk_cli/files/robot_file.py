@@ -144,6 +144,10 @@ def _combine(mass: float, com: list[float], inertia: float, points: list[dict]
     M = sum(m for m, _, _ in items)
     if M <= 0:
         return 0.0, (0.0, 0.0), 0.0
+    massive = [it for it in items if it[0] != 0]
+    if len(massive) == 1:  # exactly its own centre and inertia (a zero stays zero, whatever
+        m, x, i = massive[0]  # the mass: the compiled model's structure depends on zeros)
+        return float(m), (float(x[0]), float(x[1])), float(i)
     c = sum(m * x for m, x, _ in items) / M
     I = sum(i + m * float((x - c) @ (x - c)) for m, x, i in items)
     return float(M), (float(c[0]), float(c[1])), float(I)

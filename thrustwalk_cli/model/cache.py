@@ -1,4 +1,4 @@
-"""Disk cache of compiled models, keyed by content hash. Never imports SymPy.
+"""Disk cache of compiled models, keyed by a hash of the robot's structure. Never imports SymPy.
 
 An entry is one generated Python file whose first line records the key and the SHA-256 of
 the rest. Entries are written to a unique temporary file and renamed into place, so readers

@@ -12,6 +12,12 @@ robot-independent interpreter of :mod:`thrustwalk_cli.model.tape` evaluates in c
 (the compiled simulation and the batch evaluators): a new robot costs SymPy and this
 translation, never a numba compile.
 
+The robot's numbers are inputs: the generated module's ``bind(P)`` takes them (in the order
+of ``PARAMS``, ``Robot.numbers()``), computes every coefficient that depends on them alone
+once (:class:`Hoist`: ``k0 = P3*P7**2 + ...``) and returns the functions above as closures
+over those coefficients, plus ``_consts``, the tape's constants for those numbers. So one
+generated module (and one tape) serves every value of the numbers.
+
 The generated module imports only ``math`` and ``numpy``.
 """
 
@@ -96,13 +102,91 @@ def generate_function(
     return "\n".join(lines)
 
 
-def generate_module(header: str, functions: list[str], constants: dict[str, object]) -> str:
-    """Assemble a self-contained module: imports, constants, functions."""
+class Hoist:
+    """Coefficients that depend on the robot's numbers alone, computed once per bound
+    vector instead of at every call: each maximal such subexpression (the number factors of a
+    product, the number terms of a sum, a whole entry) becomes a symbol ``k<j>``; equal
+    subexpressions share one."""
+
+    def __init__(self, inputs: set[sp.Symbol]):
+        self.P = set(inputs)
+        self.table: dict[sp.Expr, sp.Symbol] = {}
+        self.memo: dict[sp.Expr, sp.Expr] = {}
+
+    @property
+    def symbols(self) -> set[sp.Symbol]:
+        return set(self.table.values())
+
+    def k(self, e: sp.Expr) -> sp.Expr:
+        if e.is_Number:
+            return e
+        s = self.table.get(e)
+        if s is None:
+            s = sp.Symbol(f"k{len(self.table)}", real=True)
+            self.table[e] = s
+        return s
+
+    def __call__(self, e: sp.Expr) -> sp.Expr:
+        if not self.P:
+            return e
+        r = self.memo.get(e)
+        if r is None:
+            r = self._hoist(e)
+            self.memo[e] = r
+        return r
+
+    def _hoist(self, e: sp.Expr) -> sp.Expr:
+        fs = e.free_symbols
+        if not fs & self.P:
+            return e
+        if fs <= self.P:
+            return self.k(e)
+        if e.is_Add or e.is_Mul:
+            own = [a for a in e.args if a.free_symbols <= self.P]
+            rest = [self(a) for a in e.args if not a.free_symbols <= self.P]
+            if any(a.free_symbols for a in own):
+                return e.func(self.k(e.func(*own)), *rest)
+            return e.func(*own, *rest)
+        return e.func(*[self(a) for a in e.args])
+
+    def matrix(self, M: sp.Matrix) -> sp.Matrix:
+        return M.applyfunc(self) if self.P and M.shape[0] * M.shape[1] else M
+
+    def source(self, params: list[sp.Symbol]) -> list[str]:
+        """Lines (indented for ``bind``) unpacking ``P`` and computing every ``k``."""
+        m_p = _MathPrinter()
+        exprs = list(self.table)
+        used = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
+        names = [str(s) if s in used else "_" for s in params]
+        lines = [f"    {', '.join(names)}{',' if len(names) == 1 else ''} = P"] if params \
+            else []
+        if exprs:
+            repl, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("x_"), order="none")
+            lines += [f"    {s} = {m_p.doprint(e)}" for s, e in repl]
+            lines += [f"    {self.table[e]} = {m_p.doprint(sp.Float(r) if r.is_Number else r)}"
+                      for e, r in zip(exprs, reduced)]
+        return lines
+
+
+def generate_module(header: str, functions: list[str], constants: dict[str, object],
+                    bind_lines: list[str], exports: list[str], tape_consts: list) -> str:
+    """Assemble a self-contained module: imports, constants, and ``bind(P)``, which runs
+    ``bind_lines`` (the numbers' coefficients, :meth:`Hoist.source`) and returns the
+    ``functions`` (defined inside it: closures over those coefficients) by name, with
+    ``_consts``, the tape's constants (numbers, and coefficients by name)."""
     out = [f'"""{header}"""', "import math as _m", "import numpy as _np", ""]
     for k, v in constants.items():
         out.append(f"{k} = {v!r}")
-    out.append("")
-    out.extend(functions)
+    out.append(f"_EXPORTS = {tuple(exports)!r}")
+    out += ["", "", "def bind(P):",
+            '    """The model\'s functions for the numbers ``P`` (in the order of ``PARAMS``):',
+            '    name -> function, and ``_consts`` (the tape\'s constants)."""']
+    out += bind_lines
+    for f in functions:
+        out += [("    " + ln) if ln else "" for ln in f.split("\n")]
+    consts = ", ".join(c if isinstance(c, str) else repr(float(c)) for c in tape_consts)
+    out += [f"    _consts = [{consts}]", "    _l = locals()",
+            "    return {_n: _l[_n] for _n in _EXPORTS + ('_consts',) if _n in _l}", ""]
     return "\n".join(out) + "\n"
 
 
@@ -117,12 +201,13 @@ class _TapeBuilder:
     ``cos`` per input angle instead of one call per distinct argument).
     """
 
-    def __init__(self, inputs: list[sp.Symbol]):
+    def __init__(self, inputs: list[sp.Symbol], params: set[sp.Symbol] = frozenset()):
         from .tape import OPS
 
         self.op_code = OPS
         self.inputs = {s: i for i, s in enumerate(inputs)}
-        self.consts: dict[float, int] = {}
+        self.params = params
+        self.consts: dict[float | sp.Symbol, int] = {}
 
     def start(self) -> None:
         self.reg = dict(self.inputs)
@@ -133,7 +218,9 @@ class _TapeBuilder:
         self.next = 0  # temporaries are numbered from 0 here, placed after the constants
 
     def const(self, v) -> int:
-        v = float(v)
+        """The register of a number, or of a coefficient ``k`` of the robot's numbers
+        (:class:`Hoist`: a constant whose value the bound model supplies)."""
+        v = v if isinstance(v, sp.Symbol) else float(v)
         if v not in self.consts:
             self.consts[v] = len(self.consts)
         return -1 - self.consts[v]  # constants: negative ids until the layout is fixed
@@ -166,6 +253,8 @@ class _TapeBuilder:
 
     def _emit(self, e: sp.Expr) -> int:
         if e.is_Symbol:
+            if e in self.params:
+                return self.const(e)
             if e not in self.reg:
                 raise ValueError(f"tape: unknown symbol {e}")
             return self.reg[e]
@@ -286,7 +375,7 @@ def _fuse(order: list[tuple[int, int, int, int]], outs: list[int], ops: dict[str
 
 
 def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
-                  inputs: list[sp.Symbol]) -> dict:
+                  inputs: list[sp.Symbol], params: set[sp.Symbol] = frozenset()) -> dict:
     """Compile groups of expressions into one tape (plain data, see
     :mod:`thrustwalk_cli.model.tape` for its layout and interpreter).
 
@@ -294,9 +383,11 @@ def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
     ``inputs``: the input symbols in register order (``q`` then ``q'``). Each program keeps
     only the instructions its outputs need, ordered by depth (instructions of equal depth do
     not depend on each other, which keeps the processor's pipelines full); instruction j
-    writes register ``base + j`` (each register written once).
+    writes register ``base + j`` (each register written once). ``params``: symbols that are
+    constants whose values come with the bound model (the coefficients of the robot's
+    numbers): ``consts`` names them, and the bound model supplies their values.
     """
-    b = _TapeBuilder(inputs)
+    b = _TapeBuilder(inputs, params)
     raw = {}
     for name, (n_in, exprs) in programs.items():
         b.start()
@@ -331,8 +422,8 @@ def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
         offsets[name] = len(code)
         code += [n_in, len(outs), len(order), base, *(where.get(r, r) for r in outs), *enc]
         nreg = max(nreg, base + len(order))
-    consts = [0.0] * n_const
+    consts: list = [0.0] * n_const
     for v, i in b.consts.items():
-        consts[i] = v
+        consts[i] = str(v) if isinstance(v, sp.Symbol) else v
     return {"code": code, "consts": consts, "programs": offsets, "nreg": nreg,
             "n_inputs": n_in_all}

@@ -9,6 +9,12 @@ without Python loops over states:
 Unpinned quantities (``q_u = [q; x_1; y_1]``) do not depend on the foot position, so they
 take ``q`` (N) and, where needed, ``dq_u`` (N+2). Models are built and cached by
 :mod:`thrustwalk_cli.model.compiler`; loading a cached model never imports SymPy.
+
+The generated code takes the robot's numbers (``Robot.numbers()``) as inputs: a
+:class:`CompiledModel` binds one robot's numbers to it (its functions are closures over the
+coefficients computed from them, and its tape carries them as constants), so callers write
+``model.D(q)`` whatever the robot, and robots differing only in their numbers share the
+generated code, the tape's instructions and the compiled kernel.
 """
 
 from __future__ import annotations
@@ -68,15 +74,28 @@ class ImpactResult:
 
 
 class CompiledModel:
-    """A robot description plus its generated numeric functions.
+    """A robot description plus its generated numeric functions, bound to its numbers.
 
-    The description is immutable; per-run buffers never live here.
+    The description is immutable; per-run buffers never live here. Raises ``ImportError``
+    when the generated module does not provide what the robot needs (a broken cache entry:
+    the compiler rebuilds it).
     """
 
     def __init__(self, robot: Robot, module: ModuleType, path: Path | None, key: str,
                  cache_hit: bool, seconds: float, notes: tuple[str, ...] = ()):
         self.robot = robot
         self._m = module
+        numbers = robot.numbers()
+        if list(getattr(module, "PARAMS", ())) != [name for name, _ in numbers]:
+            raise ImportError("the generated model's inputs are not this robot's numbers")
+        #: the robot's numbers bound to the generated code, in the order of
+        #: ``Robot.numbers()`` (SI units)
+        self.numbers = np.array([v for _, v in numbers], float)
+        self.numbers.setflags(write=False)
+        fns = module.bind(self.numbers.tolist())
+        missing = [f for name in FUNCTIONS for f in (name, name + "_s") if f not in fns]
+        if missing or "_consts" not in fns or not hasattr(module, "TAPE"):
+            raise ImportError(f"functions missing: {', '.join(missing) or 'TAPE'}")
         #: the cache entry, or None when the model lives only in memory (see ``notes``)
         self.cache_path = path
         #: one-line remarks about the cache (an entry rebuilt, the cache unusable)
@@ -90,10 +109,11 @@ class CompiledModel:
         self.b = robot.b
         self.B_tau = np.vstack([np.eye(self.n - 1), np.zeros((1, self.n - 1))])
         for name in FUNCTIONS:
-            setattr(self, name, getattr(module, name))
-            setattr(self, name + "_s", getattr(module, name + "_s"))
-        #: the model as instruction tapes for the compiled interpreter (model/tape.py)
-        self.tape = Tape.from_data(module.TAPE)
+            setattr(self, name, fns[name])
+            setattr(self, name + "_s", fns[name + "_s"])
+        #: the model as instruction tapes for the compiled interpreter (model/tape.py): the
+        #: instructions of the robot's structure (shared), the constants of its numbers
+        self.tape = Tape.from_data(module.TAPE, fns["_consts"])
 
     # -- derived quantities ----------------------------------------------------------------
     def energy(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
@@ -178,6 +198,7 @@ class CompiledModel:
             "notes": list(self.notes),
             "cache_hit": self.cache_hit,
             "seconds": self.load_seconds,
+            "numbers": len(self.numbers),
             "tape": {"instructions": self.tape.instructions(),
                      "instructions_accel": self.tape.instructions("accel"),
                      "registers": self.tape.nreg},

@@ -59,7 +59,12 @@ PROGRAMS = ("accel", "force", "height", "footvel", "links", "impact", "energy", 
 @dataclass(frozen=True)
 class Tape:
     """A robot's tape: ``code`` (int64), ``consts`` (float64, registers ``n_inputs ..``),
-    ``programs`` (name -> offset in ``code``), ``nreg`` registers, ``n_inputs`` (2N)."""
+    ``programs`` (name -> offset in ``code``), ``nreg`` registers, ``n_inputs`` (2N).
+
+    ``code`` depends on the robot's structure alone; ``consts`` holds the numbers of the
+    code and the coefficients computed from the robot's numbers (the model binds them), so
+    the interpreters read every number from an input array and one ``code`` serves every
+    value of the robot's numbers."""
 
     code: np.ndarray
     consts: np.ndarray
@@ -68,9 +73,16 @@ class Tape:
     n_inputs: int
 
     @classmethod
-    def from_data(cls, data: dict) -> Tape:
-        return cls(np.asarray(data["code"], np.int64), np.asarray(data["consts"], float),
-                   dict(data["programs"]), int(data["nreg"]), int(data["n_inputs"]))
+    def from_data(cls, data: dict, consts=None) -> Tape:
+        """The tape of generated ``data``; ``consts``: the bound constants (a list as long
+        as ``data["consts"]``, whose entries name the coefficients of the numbers)."""
+        code = _CODE.get(id(data))
+        if code is None or code[0] is not data:
+            code = (data, np.asarray(data["code"], np.int64))
+            _CODE[id(data)] = code
+        c = np.asarray(data["consts"] if consts is None else consts, float)
+        return cls(code[1], c, dict(data["programs"]), int(data["nreg"]),
+                   int(data["n_inputs"]))
 
     def n_out(self, program: str) -> int:
         return int(self.code[self.programs[program] + 1])
@@ -85,6 +97,9 @@ class Tape:
         r = np.zeros(self.nreg)
         r[self.n_inputs:self.n_inputs + self.consts.size] = self.consts
         return r
+
+
+_CODE: dict[int, tuple[dict, np.ndarray]] = {}  # one code array per generated tape
 
 
 # ------------------------------------------------------------------ interpreter (numba)

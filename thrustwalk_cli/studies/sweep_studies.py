@@ -587,12 +587,14 @@ def point_robot(task: PointTask) -> Robot:
     """The robot of one point: the base robot file with the point's ``robot.NAME`` values
     substituted for its named parameters, exactly as if edited into the file. The one place a
     sweep turns robot parameters into a robot; its model comes from
-    :func:`~thrustwalk_cli.model.compiler.load_model`, however that model is made."""
+    :func:`~thrustwalk_cli.model.compiler.load_model`, which binds the robot's numbers to the
+    model compiled once for the robot's structure (no compile per parameter value)."""
     return load_robot_text(task.robot_text, task.robot_file, task.overrides("robot"))
 
 
 def point_model(task: PointTask) -> CompiledModel:
-    """The compiled model of the point's robot (kept per process)."""
+    """The compiled model of the point's robot (kept per process): the model of the base
+    robot's structure with the point's numbers bound (compiled once for every value)."""
     key = ("model", task.robot_text, task.robot_file,
            tuple(sorted(task.overrides("robot").items())))
     return _cached(key, lambda: load_model(point_robot(task)))
