@@ -303,6 +303,21 @@ def test_progress_lines_when_standard_error_is_not_a_terminal(tmp_path, cli):
     assert all("eta" in ln for ln in lines)
 
 
+def test_progress_in_a_log_is_a_line_per_tenth_not_per_unit(capsys):
+    """Standard error not a terminal: 1,000 units write the first, every tenth and the last,
+    each with the counts and an ETA."""
+    from thrustwalk_cli.commands.common import progress
+
+    with progress("trials", 1000, quiet=False) as advance:
+        for _ in range(1000):
+            advance()
+    lines = capsys.readouterr().err.splitlines()
+    counts = [int(ln.split(": ")[1].split("/")[0]) for ln in lines]
+    assert counts[0] == 1 and counts[-1] == 1000
+    assert set(range(100, 1001, 100)) <= set(counts) and len(lines) <= 11 + 2
+    assert all("eta" in ln for ln in lines)
+
+
 def test_help_cites_no_internal_document_and_completion_is_on(cli):
     from thrustwalk_cli.cli import COMMANDS
 

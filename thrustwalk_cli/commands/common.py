@@ -273,6 +273,10 @@ def check_out(out: Path, *, whole: bool = True, json: str | None = None) -> None
         check_file_target(Path(json))
 
 
+#: the longest interval [s] between two progress lines written to a log (not a terminal)
+LOG_SECONDS = 5.0
+
+
 @contextlib.contextmanager
 def progress(description: str, total: int, quiet: bool) -> Iterator:
     """A rich progress bar with an ETA on stderr (silent with --quiet); yields
@@ -282,14 +286,24 @@ def progress(description: str, total: int, quiet: bool) -> Iterator:
         yield lambda n=1, note=None: None
         return
     con = console(stderr=True)
-    if not con.is_terminal:  # a log, not a terminal: one line per finished unit
+    if not con.is_terminal:
+        # a log, not a terminal: a line for the first and the last unit, at every tenth of
+        # the total and at least every LOG_SECONDS in between (not one per unit: a sweep of
+        # 10,000 trials would write 10,000 lines)
         t0 = time.monotonic()
-        done = 0
+        done, shown, last = 0, -1, t0
 
         def line(n: int = 1, note: str | None = None) -> None:
-            nonlocal done
+            nonlocal done, shown, last
+            before = done
             done += n
-            el = time.monotonic() - t0
+            now = time.monotonic()
+            tenth = 10 * done // max(total, 1)
+            if not (before == 0 or done >= total or tenth > 10 * before // max(total, 1)
+                    or now - last >= LOG_SECONDS) or done == shown:
+                return
+            shown, last = done, now
+            el = now - t0
             eta = el / done * (total - done) if done else 0.0
             extra = f", {note}" if note else ""
             sys.stderr.write(f"{description}: {done}/{total}{extra} ({el:.1f} s, eta "
