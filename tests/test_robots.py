@@ -183,6 +183,39 @@ def test_robot_without_thrusters_through_every_analysis(tmp_path, walk3, cli):
     assert run["final_zeta_minus"] == pytest.approx(ref.zeta_star, rel=1e-6)
 
 
+@pytest.mark.slow
+def test_robot_without_thrusters_in_stability_and_robustness(tmp_path, walk3, cli):
+    """The later commands on `thrusters: []`: stability's zero-dynamics multiplier is the
+    3-link's delta_zero^2 (thrusters do not enter the dynamics); robustness compares the one
+    strategy a thruster-free robot has (none), whose reduced basin equals the 3-link's
+    zero-thrust basin."""
+    _, _, zd3 = walk3
+    res = cli("stability", BARE, BARE_WALK, "-q", "--formats", "none", "--out",
+              tmp_path / "st")
+    assert res.exit_code == 0, res.output
+    doc = _json(tmp_path / "st" / "stability.json")
+    (case,) = doc["cases"]
+    assert case["verdict"] == "stable" and case["thruster"] is None
+    assert case["zero_dynamics"]["delta_zero_sq"] == pytest.approx(zd3.delta_zero_sq,
+                                                                   rel=1e-12)
+    assert case["zero_dynamics"]["multiplier"]["re"] == pytest.approx(zd3.delta_zero_sq,
+                                                                      rel=1e-6)
+    res = cli("robustness", BARE, BARE_WALK, "--push-impulse", "-2:2:2", "--push-phase", "0.5",
+              "--steps", "3", "--basin-grid", "0", "--workers", "1", "-q", "--formats", "none",
+              "--out", tmp_path / "rb")
+    assert res.exit_code == 0, res.output
+    doc = _json(tmp_path / "rb" / "robustness.json")
+    assert [s["strategy"] for s in doc["settings"]["strategies"]] == ["none"]
+    (none,) = doc["strategies"]
+    assert none["reduced_basin"]["exists"]
+    assert none["reduced_basin"]["zeta_star"] == pytest.approx(
+        limit_cycles(zd3, Schedule.constant(
+            zd3, np.zeros((1, zd3.model.n_thrusters))))[0].zeta_star, rel=1e-12)
+    res = cli("robustness", BARE, BARE_WALK, "--strategy", "control", "--out", tmp_path / "x")
+    assert res.exit_code == 2 and "no thruster" in res.output
+    assert not (tmp_path / "x").exists()
+
+
 @pytest.mark.parametrize("args, flag", [
     (["limit-cycle", BARE, BARE_WALK, "--thrust", "0,-10"], "--thrust"),
     (["limit-cycle", BARE, BARE_WALK, "--thruster", "hip_x"], "--thruster"),
