@@ -19,6 +19,7 @@ writes files, so workers never need the result folder.
 from __future__ import annotations
 
 import os
+import queue
 import sys
 import threading
 import time
@@ -82,6 +83,10 @@ class LocalProcesses:
     def __init__(self, workers: int):
         self.workers = workers
         self.restarts = 0
+        # finished futures, put by their done-callbacks: waiting costs O(1) per task (waiting
+        # on every future in flight each time costs O(tasks) per wait, O(tasks^2) a sweep)
+        self._done: queue.SimpleQueue = queue.SimpleQueue()
+        self._pools: dict[int, futures.ProcessPoolExecutor] = {}  # id(future) -> its pool
         self._pool = self._start()
 
     def _start(self) -> futures.ProcessPoolExecutor:
@@ -98,18 +103,32 @@ class LocalProcesses:
         return {"kind": self.kind, "workers": self.workers, "restarts": self.restarts}
 
     def submit(self, fn: Callable, task: Any) -> futures.Future:
-        return self._pool.submit(fn, task)
+        f = self._pool.submit(fn, task)
+        self._pools[id(f)] = self._pool
+        f.add_done_callback(self._done.put)
+        return f
 
     def wait(self, handles: Iterable) -> list[Outcome]:
-        done, _ = futures.wait(list(handles), return_when=futures.FIRST_COMPLETED)
+        """Every task submitted and not yet returned that has finished (at least one; the
+        ``handles`` are all of those, as the runner keeps them)."""
+        done = [self._done.get()]
+        while True:
+            try:
+                done.append(self._done.get_nowait())
+            except queue.Empty:
+                break
         out: list[Outcome] = []
         broken = False
         for f in done:
-            err = f.exception()
+            pool = self._pools.pop(id(f), None)
+            err = futures.CancelledError() if f.cancelled() else f.exception()
             if err is None:
                 out.append((f, f.result(), None))
             else:
-                broken = broken or isinstance(err, futures.process.BrokenProcessPool)
+                # only a future of the current pool restarts it (the old pool's other futures
+                # may arrive in a later wait)
+                broken = broken or (isinstance(err, futures.process.BrokenProcessPool)
+                                    and pool is self._pool)
                 out.append((f, None, err))
         if broken:  # a worker died: every task in flight is lost with the pool
             self._pool.shutdown(wait=False, cancel_futures=True)
