@@ -176,6 +176,22 @@ def test_zero_push_always_recovers(walker3, realized):
             assert res.push is None
 
 
+def test_a_push_at_a_breakpoints_phase_is_applied(walker3, realized):
+    """A push at exactly s = min_impact_s (where the guard is armed, 0.75) meets the
+    breakpoint at the same alpha: both must take effect (once, the bug: one located first
+    hid the other, the push was lost or the guard never armed and the step ended in a false
+    early strike). The outcome is continuous in the phase: at 0.75 it equals the outcomes at
+    0.75 -+ 1e-4, and the post-push error lies between theirs."""
+    for label in ("none", "constant:-20"):
+        run = _runner(walker3, realized[label], steps=3)
+        res = {s: run.run(Trial(-2.0, s)) for s in (0.7499, 0.75, 0.7501)}
+        assert all(r.pushed for r in res.values()), (label, {s: r.reason for s, r in
+                                                             res.items()})
+        assert {r.outcome for r in res.values()} == {"recovered"}, label
+        lo, mid, hi = (res[s].relative_error for s in (0.7499, 0.75, 0.7501))
+        assert min(lo, hi) - 1e-6 <= mid <= max(lo, hi) + 1e-6, (label, lo, mid, hi)
+
+
 def test_push_outcomes_and_the_controllers_advantage(walker3, realized):
     """A backward push early in the step pulls the stance foot up (its impulsive reaction is
     not pressing: lifted, SPEC 12); a small forward push recovers; a larger one leaves the

@@ -1017,19 +1017,35 @@ def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
         if name == EV_NONE:
             return (fail(out, FAIL_NO_IMPACT, k, t, 0.0, alpha_of(x, ip, par), EV_NONE),
                     ncalls, nbuf)
-        if name == EV_BREAK:
-            seg += 1
-            # watch the swing foot's next extremum from here: a foot already moving down when
-            # the guard is armed must be watched for its lowest point (a shallow dip below the
-            # ground at a slow touchdown lies between two integrator steps), not for an apex
-            rising = foot_velocity(x, fs, ip, par, w) >= 0.0
+        if name == EV_BREAK or name == EV_PUSH:
+            if name == EV_BREAK:
+                seg += 1
+                # watch the swing foot's next extremum from here: a foot already moving down
+                # when the guard is armed must be watched for its lowest point (a shallow dip
+                # below the ground at a slow touchdown lies between two integrator steps),
+                # not for an apex
+                rising = foot_velocity(x, fs, ip, par, w) >= 0.0
+            else:
+                if not apply_push(x, push, ip, w):
+                    return (fail(out, FAIL_CONTROLLER, k, t, push[1], 0.0, EV_PUSH), ncalls,
+                            nbuf)
+                push_pending = False
+                pushed = 1.0
+                # ``rising`` is kept, as at a breakpoint: a zero push changes nothing
+            # events due at the same alpha (a push at a breakpoint's phase, e.g. at
+            # min_impact_s): the one located first leaves the others at a value >= 0, where
+            # the next call would see no crossing and miss them (the guard never armed)
+            a_here = d * alpha_of(x, ip, par)
+            while seg < nbk and a_here >= d * (ai + par[brk + seg] * span):
+                seg += 1
+                rising = foot_velocity(x, fs, ip, par, w) >= 0.0
+            if push_pending and a_here >= d * a_push:
+                if not apply_push(x, push, ip, w):
+                    return (fail(out, FAIL_CONTROLLER, k, t, push[1], 0.0, EV_PUSH), ncalls,
+                            nbuf)
+                push_pending = False
+                pushed = 1.0
             continue
-        if name == EV_PUSH:
-            if not apply_push(x, push, ip, w):
-                return fail(out, FAIL_CONTROLLER, k, t, push[1], 0.0, EV_PUSH), ncalls, nbuf
-            push_pending = False
-            pushed = 1.0
-            continue  # ``rising`` is kept, as at a breakpoint: a zero push changes nothing
         if name == EV_GUARD:
             break
         s = (alpha_of(x, ip, par) - ai) / span
