@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -271,6 +272,17 @@ def test_monte_carlo_draws_are_reproducible_from_the_seed(walker3, tmp_path):
 
 
 # --------------------------------------------------------------------------- the maps
+def test_the_documented_uncertainty_example_plans_on_the_bundled_robot(walker3):
+    """docs/examples/torso_mass.yaml (the example of docs/commands.md) names parameters of
+    the bundled 3-link robot; its draws follow its seed."""
+    path = Path(__file__).resolve().parents[1] / "docs" / "examples" / "torso_mass.yaml"
+    plan = plan_robustness(walker3, push_impulse=[0.0], push_phase=[0.5], strategy=["none"],
+                           steps=2, basin_grid=0, uncertainty=path, samples=3)
+    rng = np.random.default_rng(7)
+    np.testing.assert_array_equal(plan.draws["robot.MT"], rng.normal(10.0, 1.0, 3))
+    np.testing.assert_array_equal(plan.draws["robot.MH"], rng.uniform(13.5, 16.5, 3))
+
+
 def test_survivable_push_from_a_grid():
     imp = [-6.0, -4.0, -2.0, 0.0, 2.0, 4.0, 6.0]
     row = ["fell", "recovered", "recovered", "recovered", "recovered", "slipped", "recovered"]
