@@ -147,7 +147,9 @@ def run_control(robot: str | None, gait: str | None, *, reference: str, profile:
     doc = write_result(result, out, prov, json=json, formats=formats, titles=titles)
     if export is not None:
         output.write_json(export, {"provenance": prov, **result.export_document()})
-    if doc["status"] != "ok":
+    if doc["status"] == "warning":
+        warn([f"control: {doc['reason']}"])
+    elif doc["status"] != "ok":
         warn([f"control: {doc['status']}: {doc['reason']}"])
     if not quiet and json != "-":
         _table(doc)
