@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from thrustwalk_cli._version import __version__
-from thrustwalk_cli.cli import COMMANDS
+from thrustwalk_cli.cli import COMMANDS, app, invoked_app
 
 REPO = Path(__file__).resolve().parents[1]
 ROBOT = (REPO / "robots" / "three_link.yaml").read_text()
@@ -33,6 +33,41 @@ def test_every_subcommand_help_has_example_and_units(command, cli):
     assert res.exit_code == 0, res.output
     assert "Example: thrustwalk " + command in res.output, command
     assert re.search(r"\[(N|m|rad|s|kg m\^2|N m|m/s|rad/s)\]", res.output), command
+
+
+@pytest.mark.parametrize("command", commands())
+def test_a_command_line_builds_only_its_command(command):
+    """``main`` hands typer only the named command; its help is the full app's, word for word."""
+    from typer.testing import CliRunner
+
+    one = invoked_app([command, "--out", "x"])
+    assert [c.name for c in one.registered_commands] == [command]
+    assert len(app.registered_commands) == len(COMMANDS)  # the shared app is untouched
+    runner = CliRunner()
+    full = runner.invoke(app, [command, "--help"], prog_name="thrustwalk")
+    lazy = runner.invoke(one, [command, "--help"], prog_name="thrustwalk")
+    assert lazy.exit_code == full.exit_code == 0
+    assert lazy.output == full.output
+
+
+@pytest.mark.parametrize("args", [[], ["--help"], ["--version"], ["complie"]])
+def test_tool_help_and_unknown_names_keep_every_command(args, monkeypatch):
+    monkeypatch.delenv("_THRUSTWALK_COMPLETE", raising=False)
+    assert invoked_app(args) is app
+
+
+def test_shell_completion_keeps_every_command(monkeypatch):
+    monkeypatch.setenv("_THRUSTWALK_COMPLETE", "complete_bash")
+    assert invoked_app(["compile"]) is app
+
+
+def test_unknown_command_suggests_the_known_one():
+    out = subprocess.run([sys.executable, "-m", "thrustwalk_cli", "complie"],
+                         capture_output=True, text=True)
+    assert out.returncode == 2
+    assert out.stderr.strip().splitlines() == [
+        "error: no such command 'complie'. Did you mean 'compile'? "
+        "(see 'python -m thrustwalk_cli --help')"]
 
 
 def test_python_dash_m_entry_point():
