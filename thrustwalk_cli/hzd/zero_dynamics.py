@@ -418,7 +418,7 @@ class _OrbitBasis:
         vals = np.concatenate([zd.extrema_series()(pts), zs(pts)], axis=-1)  # (g, L, C)
         T = np.cos(np.outer(np.arange(L), theta)) * (2.0 / L)  # DCT-II: values -> coef
         T[0] *= 0.5
-        self.local = np.einsum("rl,glc->rgc", T, vals)  # (L, g, C)
+        self.local = np.einsum("rl,glc->grc", T, vals)  # (g, L, C)
 
     def _pieces(self, v: np.ndarray, alpha: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -453,15 +453,20 @@ class _OrbitBasis:
 
     def evaluate(self, coef: np.ndarray, x: np.ndarray, lo: np.ndarray, hi: np.ndarray
                  ) -> np.ndarray:
-        """The local interpolants ``coef`` (L, P, C) (gathered for the points' brackets
-        ``[lo, hi]``) at ``x`` (P,), by Clenshaw's recurrence: (P, C)."""
+        """The local interpolants ``coef`` (P, L, C) (gathered for the points' brackets
+        ``[lo, hi]``) at ``x`` (P,): ``sum_r c_r T_r(t)``, ``t`` the point mapped to [-1, 1]
+        (the ``T_r(t)`` by their three-term recurrence, bounded by 1 on the bracket), then one
+        contraction: (P, C)."""
         span = np.where(hi > lo, hi - lo, 1.0)
-        t = ((2.0 * x - (lo + hi)) / span)[:, None]
-        b1 = np.zeros(coef.shape[1:])
-        b2 = np.zeros(coef.shape[1:])
-        for r in range(coef.shape[0] - 1, 0, -1):
-            b1, b2 = 2.0 * t * b1 - b2 + coef[r], b1
-        return coef[0] + t * b1 - b2
+        t = (2.0 * x - (lo + hi)) / span
+        L = coef.shape[1]
+        Tv = np.empty((t.size, L))
+        Tv[:, 0] = 1.0
+        if L > 1:
+            Tv[:, 1] = t
+        for r in range(2, L):
+            Tv[:, r] = 2.0 * t * Tv[:, r - 1] - Tv[:, r - 2]
+        return np.einsum("pl,plc->pc", Tv, coef)
 
 
 def orbit_basis(zd: ZeroDynamics, knots: np.ndarray, samples: int = 201) -> _OrbitBasis:
@@ -648,7 +653,7 @@ def _orbit_extrema(zd: ZeroDynamics, sched: Schedule, zeta_plus: np.ndarray, gri
     adot = np.abs(k1)[None, :] * np.sqrt(2.0 * np.maximum(zeta, 0.0))
     j = np.concatenate([np.argmin(adot, 1), np.argmax(adot, 1), np.argmin(zeta, 1)])
     lo, hi = basis.blo[j], basis.bhi[j]
-    coef = basis.local[:, j, :]  # (L, 3k, C): the interpolants of each point's bracket
+    coef = basis.local[j]  # (3k, L, C): the interpolants of each point's bracket
     x = grid[j]
     rr = np.tile(rows, 3)
     F, T = sched.force[rr], sched.generalized[rr]
