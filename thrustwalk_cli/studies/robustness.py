@@ -675,9 +675,9 @@ def _fraction(outcomes: Sequence[str | None], good: tuple[str, ...]) -> float | 
 def trial_chunk(todo: int, workers: int, steps: int) -> int:
     """Trials per engine task for ``todo`` trials of ``steps`` steps on ``workers`` workers:
     :func:`~thrustwalk_cli.sweep.runner.chunk_size`, i.e. ``ceil(todo / (8 workers))`` (at
-    least 8 tasks per worker), at most ``STEPS_PER_CHUNK // steps`` trials (320 simulated
-    steps: 32 trials of 10 steps, tens of milliseconds of work against the engine's 1-2 ms
-    per task) and at least 1."""
+    least 8 tasks per worker when there are that many trials: balance and progress), at most
+    ``STEPS_PER_CHUNK // steps`` trials (320 simulated steps: 32 trials of 10 steps, tens of
+    milliseconds of work against the engine's 1-2 ms per task) and at least 1."""
     return chunk_size(todo, workers, most=max(1, STEPS_PER_CHUNK // max(1, int(steps))))
 
 
@@ -724,7 +724,7 @@ def robustness(walker: Walker, *, workers: int | None = None, scheduler: str | N
     """Push maps, survivable pushes, basins and parameter uncertainty per thrust strategy
     (SPEC 12; module docstring); ``options`` as :func:`plan_robustness`. Runs on ``workers``
     local processes (default: one per core) or the Dask cluster at ``scheduler``;
-    ``progress(1)`` after every trial."""
+    ``progress(1)`` for every trial's record (those of a chunk together, as it returns)."""
     plan = plan_robustness(walker, **options)
     return run_robustness(plan, workers=workers, scheduler=scheduler,
                           on_record=None if progress is None else (lambda r: progress(1)))
