@@ -1,7 +1,9 @@
 """Robustness benchmark (SPEC 12): push trials of the 3-link walker, 10 steps each, on the local
 executor (2 worker processes), against the same trials in this process (1 worker, the baseline
-measured in the same run). Every trial's record is written to a fresh trials folder, as the
-command does.
+measured in the same run). The trials run in chunks of the size the command picks
+(``trial_chunk``: several trials per engine task, printed); the 2 workers are also timed with
+one trial per task (``chunk=1``, how the command ran before chunks), for the engine's cost per
+task. Every trial's record is written to a fresh trials folder, as the command does.
 
 Two trial mixes:
 
@@ -13,8 +15,9 @@ Two trial mixes:
 * "walk": zero pushes, which recover, every trial walking all 10 steps (the slowest trials; a
   third as many as the map): the worst case of any mix.
 
-Reported per mix: trials per second with 1 and 2 workers, the speed-up, and the projected time
-of 10,000 trials on 2 workers (target: under 5 minutes on 2 cores with the local executor).
+Reported per mix: trials per second with 1 and 2 workers, the speed-up, 2 workers with one
+trial per task, and the projected time of 10,000 trials on 2 workers (target: under 5 minutes
+on 2 cores with the local executor).
 Before and after, the speed-up this machine allows two processes at that moment (two
 pure-Python loops, as in bench_sweep) is printed, since the machine may be shared.
 
@@ -41,7 +44,7 @@ TARGET = 300.0  # [s] for 10,000 trials
 STRATEGIES = ["none", "constant:-20", "control"]
 
 
-def _run(plan, workers: int, folder: Path):
+def _run(plan, workers: int, folder: Path, chunk: int | None = None):
     from thrustwalk_cli.files.output import SweepFolder
     from thrustwalk_cli.studies.robustness import run_robustness
 
@@ -49,7 +52,7 @@ def _run(plan, workers: int, folder: Path):
                                "points": len(plan.tasks)}, records="trials")
     try:
         t0 = time.perf_counter()
-        res = run_robustness(plan, workers=workers, on_record=out.write_point)
+        res = run_robustness(plan, workers=workers, on_record=out.write_point, chunk=chunk)
         return res, time.perf_counter() - t0
     finally:
         out.close()
@@ -82,7 +85,7 @@ def main(trials: int = 1953) -> None:
 
     from thrustwalk_cli.studies import sweep_studies
     from thrustwalk_cli.studies.compile import compile_kernel
-    from thrustwalk_cli.studies.robustness import plan_robustness
+    from thrustwalk_cli.studies.robustness import plan_robustness, trial_chunk
     from thrustwalk_cli.walker import load_walker
 
     w = load_walker("three_link", "three_link_walk")
@@ -98,6 +101,7 @@ def main(trials: int = 1953) -> None:
               f"{setup:12.2f} s", flush=True)
         runs = {workers: _run(plan, workers, tmp / f"{name}-{workers}") for workers in (1, 2)}
         (res1, dt1), (res, dt2) = runs[1], runs[2]
+        res_single, dt_single = _run(plan, 2, tmp / f"{name}-2-single", chunk=1)
         out1 = [r["fields"]["outcome"] for r in res1.records]
         out2 = [r["fields"]["outcome"] for r in res.records]
         counts: dict[str, int] = {}
@@ -106,13 +110,17 @@ def main(trials: int = 1953) -> None:
         steps = np.mean([r["fields"]["steps_completed"] for r in res.records])
         rate1, rate2 = n / dt1, n / dt2
         proj = 10_000 / rate2
+        same = out1 == out2 == [r["fields"]["outcome"] for r in res_single.records]
         print(f"{name}: {n} trials, outcomes {counts}, mean steps simulated {steps:.1f}"
-              f"{'' if out1 == out2 else ' (OUTCOMES DIFFER between 1 and 2 workers)'}",
-              flush=True)
+              f"{'' if same else ' (OUTCOMES DIFFER between the runs)'}", flush=True)
+        print(f"{name}: trials per task, 1 / 2 workers: {trial_chunk(n, 1, 10)} / "
+              f"{trial_chunk(n, 2, 10)}", flush=True)
         print(f"{f'{name}: 1 worker (in process, baseline)':<58s} {rate1:12.1f} trials/s",
               flush=True)
         print(f"{f'{name}: 2 local worker processes':<58s} {rate2:12.1f} trials/s  "
               f"speed-up {dt1 / dt2:.2f}", flush=True)
+        print(f"{f'{name}: 2 local worker processes, one trial per task':<58s} "
+              f"{n / dt_single:12.1f} trials/s  speed-up {dt1 / dt_single:.2f}", flush=True)
         print(f"{f'{name}: projected 10,000 trials, 2 workers':<58s} {proj:12.1f} s  "
               f"(target < {TARGET:.0f} s: {'met' if proj < TARGET else 'NOT met'})", flush=True)
     print(f"{'machine ceiling, 2 processes vs 1, after':<58s} {ceiling():12.3f}", flush=True)

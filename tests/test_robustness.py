@@ -354,17 +354,212 @@ def test_a_trial_is_the_same_in_process_and_on_2_local_workers(walker3):
     assert b.executor["kind"] == "local" and a.executor["kind"] == "in-process"
 
 
+def _strip(res) -> list[dict | None]:
+    """The records of a result without their wall time (the one field that differs by run)."""
+    return [None if r is None else {k: v for k, v in r.items() if k != "seconds"}
+            for r in res.records]
+
+
+def _outputs(res, folder: Path) -> tuple[str, dict[str, bytes]]:
+    """robustness.json's document (without what differs by run: wall time, executor, what this
+    run computed) as canonical JSON, and the bytes of the CSV files as the command writes
+    them."""
+    from thrustwalk_cli.files import output
+
+    doc = res.document()
+    for key in ("wall_time", "executor", "counts"):
+        doc.pop(key)
+    folder.mkdir(parents=True, exist_ok=True)
+    csv = {}
+    for name, t in res.tables().items():
+        csv[name] = output.write_csv(folder / f"{name}.csv", t.header, t.rows).read_bytes()
+    return json.dumps(output.jsonable(doc), sort_keys=True), csv
+
+
+class _Counting:
+    """An in-process executor that counts the engine tasks submitted."""
+
+    def __init__(self):
+        from thrustwalk_cli.sweep.executors import InProcess
+
+        self.inner, self.submitted, self.workers = InProcess(), 0, 1
+
+    def submit(self, fn, task):
+        self.submitted += 1
+        return self.inner.submit(fn, task)
+
+    def wait(self, handles):
+        return self.inner.wait(handles)
+
+    def close(self):
+        self.inner.close()
+
+    def describe(self):
+        return self.inner.describe()
+
+
+@pytest.fixture(scope="module")
+def mixed_plan(walker3, tmp_path_factory):
+    """Push trials, basin trials and samples of three strategies (63 trials, 6 samples)."""
+    unc = _uncertainty_file(tmp_path_factory.mktemp("unc"))
+    return plan_robustness(walker3, push_impulse=[-4.0, 0.0, 4.0, 12.0],
+                           push_phase=[0.1, 0.6, 1.0], strategy=["none", "constant:-20",
+                                                                 "control"],
+                           steps=3, basin_grid=3, uncertainty=unc, samples=2)
+
+
+@pytest.fixture(scope="module")
+def one_per_task(mixed_plan):
+    """The plan run the way it ran before chunks: one trial per engine task."""
+    return run_robustness(mixed_plan, workers=1, chunk=1)
+
+
+def test_trials_in_chunks_equal_one_trial_per_task(mixed_plan, one_per_task, tmp_path):
+    """The trials run in chunks (the automatic size in this process and on 2 local workers,
+    and 5 per task: chunks that straddle phases and strategies) give every trial the record
+    of the run with one trial per task, and bit-for-bit the same robustness.json and CSV
+    files; the samples run one per task."""
+    plan = mixed_plan
+    n_trials = sum(kd != "sample" for kd in plan.kinds)
+    ref = _outputs(one_per_task, tmp_path / "ref")
+    ex = _Counting()
+    runs = {"auto-1": run_robustness(plan, executor=ex), "auto-2":
+            run_robustness(plan, workers=2), "5-1": run_robustness(plan, workers=1, chunk=5)}
+    # 63 trials on 1 worker: ceil(63 / 8) = 8 per task -> 8 tasks; 6 samples one each
+    assert ex.submitted == 8 + 6
+    assert runs["auto-2"].executor["kind"] == "local"
+    for name, res in runs.items():
+        assert res.counts.ok + res.counts.failed == n_trials + 6, name
+        assert _strip(res) == _strip(one_per_task), name
+        assert _outputs(res, tmp_path / name) == ref, name
+
+
+def test_a_trial_that_raises_keeps_the_other_trials_of_its_chunk(mixed_plan, one_per_task,
+                                                                  monkeypatch):
+    """A push trial whose computation raises inside a chunk is recorded as an error with its
+    reason, as it is with one trial per task; every other trial of the chunk keeps its own
+    record (equal to the run without the failure)."""
+    from dataclasses import replace
+
+    from thrustwalk_cli.studies import sweep_studies
+
+    study = sweep_studies.STUDIES["push-trial"]
+
+    def point(walker, p, start):
+        if p["push_impulse"] == 4.0 and p["push_phase"] == 0.6:
+            raise FloatingPointError("injected")
+        return study.point(walker, p, start)
+
+    monkeypatch.setitem(sweep_studies.STUDIES, "push-trial", replace(study, point=point))
+    plan = mixed_plan
+    single = run_robustness(plan, workers=1, chunk=1)
+    chunked = run_robustness(plan, workers=1, chunk=8)
+    assert _strip(chunked) == _strip(single)
+    bad = [i for i, t in enumerate(plan.tasks) if dict(t.values).get("push_impulse") == 4.0
+           and dict(t.values).get("push_phase") == 0.6]
+    assert len(bad) == 3
+    for i, (a, b) in enumerate(zip(_strip(chunked), _strip(one_per_task))):
+        if i in bad:
+            assert a["status"] == "failed" and "FloatingPointError: injected" in a["reason"]
+            assert chunked._outcome(a) == "error"
+        else:
+            assert a == b, i
+    assert chunked.errors == 3 and "3 trial(s) could not be computed" in chunked.reason
+
+
+def test_a_stopped_chunked_run_resumes_to_the_same_result(mixed_plan, one_per_task,
+                                                          tmp_path):
+    """A run stopped after some records (the caller stops mid-chunk) resumes with the records
+    it has: none is computed again, the others are, and the result equals the run with one
+    trial per task."""
+    class Stop(Exception):
+        pass
+
+    plan = mixed_plan
+    kept: dict[str, dict] = {}
+
+    def on_record(rec):
+        kept[rec["key"]] = rec
+        if len(kept) == 20:
+            raise Stop
+
+    with pytest.raises(Stop):
+        run_robustness(plan, workers=2, on_record=on_record)
+    assert len(kept) == 20
+    computed: list[str] = []
+    res = run_robustness(plan, workers=2, finished=dict(kept),
+                         on_record=lambda r: computed.append(r["key"]))
+    assert res.counts.skipped == 20 and not set(computed) & set(kept)
+    assert sorted(computed + list(kept)) == sorted(t.key for t in plan.tasks)
+    assert _strip(res) == _strip(one_per_task)
+    assert _outputs(res, tmp_path / "resumed") == _outputs(one_per_task, tmp_path / "ref")
+
+
+@pytest.mark.slow
+def test_a_robustness_run_killed_mid_run_resumes_exactly(tmp_path, cli):
+    """SIGKILL of the command (2 local worker processes, trials in chunks) once some trials
+    are recorded; the same command again runs only the trials without a record and writes
+    the same robustness.json (but for what differs by run: provenance's command line and
+    time, counts, executor, wall time), trials.csv and trial records as an uninterrupted run
+    in this process."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    args = ["robustness", "three_link", "three_link_walk", "--push-impulse", "0,2",
+            "--push-phase", "0:1:0.02", "--strategy", "none,constant:-20,control", "--steps",
+            "10", "--basin-grid", "0", "--formats", "csv", "-q"]
+    ref = tmp_path / "ref"
+    assert cli(*args, "--workers", "1", "--out", ref).exit_code == 0
+    out = tmp_path / "o"
+    cmd = [sys.executable, "-m", "thrustwalk_cli", *args, "--workers", "2", "--out", str(out)]
+    proc = subprocess.Popen(cmd, stderr=subprocess.DEVNULL)
+    try:
+        t0 = time.monotonic()
+        while not any((out / "trials").glob("*.json")) if (out / "trials").is_dir() \
+                else True:
+            assert proc.poll() is None and time.monotonic() - t0 < 120, "no trial recorded"
+            time.sleep(0.01)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    done = len(list((out / "trials").glob("*.json")))
+    total = 2 * 51 * 3
+    if done == total:  # pragma: no cover - the run outran the kill
+        pytest.skip("every trial had finished before the kill")
+    assert not (out / "robustness.json").exists()
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    a, b = (json.loads((d / "robustness.json").read_text()) for d in (out, ref))
+    assert a["counts"]["skipped"] == done and a["counts"]["computed"] == total - done
+    for doc in (a, b):
+        for key in ("wall_time", "executor", "counts", "provenance"):
+            doc.pop(key)
+    assert a == b
+    assert (out / "trials.csv").read_bytes() == (ref / "trials.csv").read_bytes()
+
+    def records(folder):
+        recs = [json.loads(p.read_text()) for p in sorted((folder / "trials").glob("*.json"))]
+        return [{k: v for k, v in r.items() if k != "seconds"} for r in recs]
+
+    assert records(out) == records(ref) and len(records(out)) == total
+
+
 @pytest.mark.slow
 def test_a_trial_is_the_same_on_a_dask_cluster(walker3, tmp_path):
     """A scheduler and a worker as separate processes on 127.0.0.1 (bounded in time, stopped
-    here): every trial's record equals the local one."""
+    here), the trials in chunks (20 trials on 1 worker: 3 per task): every trial's record
+    equals the local one, run one trial per task."""
     pytest.importorskip("distributed")
     from test_sweep_cluster import Cluster
 
     plan = plan_robustness(walker3, push_impulse=[-4.0, 0.0, 4.0, 12.0], push_phase=[0.1, 0.8],
                            strategy=["none", "control"], steps=3, basin_grid=2,
                            basin_rate=0.0)
-    local = run_robustness(plan, workers=1)
+    local = run_robustness(plan, workers=1, chunk=1)  # one trial per task
     cluster = Cluster(tmp_path, workers=1)
     try:
         remote = run_robustness(plan, scheduler=cluster.address)

@@ -529,3 +529,128 @@ def test_a_compiled_simulate_sweep_reuses_the_cached_kernel(tmp_path, _cache_dir
     assert all(r["status"] == "ok" for r in res.records)
     assert kernel_status()["cached"]
     assert {p: p.stat().st_mtime_ns for p in stamps} == stamps
+
+
+# ------------------------------------------------------------------------- the runner
+def _toy_tasks(n: int, folder: str = "", study: str = "toy") -> list:
+    """``n`` synthetic points (the runner does not look inside them): values x = index."""
+    from thrustwalk_cli.sweep.tasks import PointTask
+
+    return [PointTask(i, f"{study}-key-{i:03d}", study, (("x", float(i)),),
+                      (("folder", folder),), "robot.yaml", "", None, None) for i in range(n)]
+
+
+def _toy_point(task) -> dict:
+    """A point's record computed from its value alone (x^2); point 3 raises; with a folder
+    setting, point 5 kills its worker process the first time it runs (a marker file)."""
+    import os
+
+    x = dict(task.values)["x"]
+    folder = dict(task.settings)["folder"]
+    if x == 5.0 and folder and not os.path.exists(os.path.join(folder, "crashed")):
+        open(os.path.join(folder, "crashed"), "w").close()
+        os._exit(1)
+    if x == 3.0:
+        raise ValueError("point 3 cannot be computed")
+    return {"key": task.key, "index": task.index, "status": "ok", "reason": "",
+            "fields": {"y": x * x}, "document": {"x": x}, "next_start": None, "seconds": 0.0}
+
+
+class _Counting:
+    """An executor that counts the tasks submitted to the one it wraps."""
+
+    def __init__(self, inner):
+        self.inner, self.submitted, self.workers = inner, 0, inner.workers
+
+    def submit(self, fn, task):
+        self.submitted += 1
+        return self.inner.submit(fn, task)
+
+    def wait(self, handles):
+        return self.inner.wait(handles)
+
+    def close(self):
+        self.inner.close()
+
+
+def test_chunk_size_rule():
+    """ceil(points / (8 workers)), clipped to [1, most]."""
+    from thrustwalk_cli.sweep.runner import chunk_size
+
+    assert chunk_size(1953, 2) == 32 and chunk_size(1953, 2, most=200) == 123
+    assert chunk_size(100, 2) == 7 and chunk_size(100, 1) == 13
+    assert chunk_size(10, 4) == 1 and chunk_size(0, 2) == 1 and chunk_size(5, 2, most=0) == 1
+
+
+@pytest.mark.parametrize("local", [False, True])
+def test_points_in_chunks_get_the_records_of_one_point_per_task(local):
+    """13 points, one raising: in chunks of 4 (in this process, or on 2 local worker
+    processes) every point is handed over once with the record it gets as a task of its own;
+    the raising point's record is failed with its reason, its chunk's other points are ok."""
+    from thrustwalk_cli.sweep.executors import InProcess, LocalProcesses
+    from thrustwalk_cli.sweep.runner import run_tasks
+
+    tasks = _toy_tasks(13)
+    single: dict[str, dict] = {}
+    ex = _Counting(InProcess())
+    run_tasks(tasks, _toy_point, ex, single, lambda r: None)
+    assert ex.submitted == 13
+    assert single["toy-key-003"]["status"] == "failed"
+    assert single["toy-key-003"]["reason"] == ("the task could not run (ValueError: point 3 "
+                                               "cannot be computed)")
+    for chunk in (4, {"toy": 4}):
+        ex = _Counting(LocalProcesses(2) if local else InProcess())
+        seen: list[dict] = []
+        got: dict[str, dict] = {}
+        try:
+            counts = run_tasks(tasks, _toy_point, ex, got, seen.append, chunk=chunk)
+        finally:
+            ex.close()
+        assert ex.submitted == 4  # 4 + 4 + 4 + 1
+        assert sorted(r["key"] for r in seen) == [t.key for t in tasks]
+        assert got == single and counts.ok == 12 and counts.failed == 1
+    # a study not named in the mapping runs one point per task
+    ex = _Counting(InProcess())
+    run_tasks(tasks, _toy_point, ex, {}, lambda r: None, chunk={"other": 4})
+    assert ex.submitted == 13
+
+
+def test_finished_points_are_left_out_of_the_chunks():
+    """A resumed run chunks only the points without a record: none is computed twice."""
+    from thrustwalk_cli.sweep.executors import InProcess
+    from thrustwalk_cli.sweep.runner import run_tasks
+
+    tasks = _toy_tasks(10)
+    done: dict[str, dict] = {}
+    run_tasks(tasks, _toy_point, InProcess(), done, lambda r: None)
+    partial = {k: v for k, v in done.items() if int(k[-3:]) % 3 == 0}
+    seen: list[str] = []
+    counts = run_tasks(tasks, _toy_point, InProcess(), partial, lambda r: seen.append(r["key"]),
+                       chunk=3)
+    assert sorted(seen) == sorted(set(done) - {t.key for t in tasks if t.index % 3 == 0})
+    assert counts.skipped == 4 and partial == done
+
+
+def test_a_chunk_lost_with_its_worker_runs_again_point_by_point(tmp_path):
+    """Point 5 kills its worker process once: its chunk (and every task in flight with the
+    broken pool) is submitted again point by point; every point is recorded once, as in a run
+    without the crash."""
+    from thrustwalk_cli.sweep.executors import InProcess, LocalProcesses
+    from thrustwalk_cli.sweep.runner import run_tasks
+
+    (tmp_path / "ref").mkdir()
+    (tmp_path / "ref" / "crashed").touch()  # the reference never crashes
+    ref: dict[str, dict] = {}
+    run_tasks(_toy_tasks(20, str(tmp_path / "ref")), _toy_point, InProcess(), ref,
+              lambda r: None)
+    ex = LocalProcesses(2)
+    got: dict[str, dict] = {}
+    seen: list[str] = []
+    try:
+        counts = run_tasks(_toy_tasks(20, str(tmp_path)), _toy_point, ex, got,
+                           lambda r: seen.append(r["key"]), chunk=4)
+    finally:
+        ex.close()
+    assert (tmp_path / "crashed").exists() and ex.restarts >= 1
+    assert counts.resubmitted >= 4  # at least the crashed chunk's 4 points
+    assert sorted(seen) == sorted(ref) and got == ref

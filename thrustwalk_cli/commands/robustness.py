@@ -1,5 +1,5 @@
 """``thrustwalk robustness``: push maps, survivable pushes, basins of attraction and parameter
-uncertainty per thrust strategy (SPEC 12), every trial a resumable task of the sweep engine."""
+uncertainty per thrust strategy (SPEC 12), every trial a resumable point of the sweep engine."""
 
 from __future__ import annotations
 
@@ -55,11 +55,11 @@ and one output rate (--basin-grid, --basin-sigma, --basin-rate); with --uncertai
 --samples robots drawn from the file's distributions (reduced model): the fraction that walks
 and the spread of the converged speed.
 
-Every trial is a task of the sweep engine: --workers local processes (default: one per core)
-or the Dask cluster of --scheduler. DIR is written incrementally like a sweep's folder: each
-trial's record in DIR/trials/ as it finishes; run the same command again to resume. Writes
-DIR/robustness.json, DIR/trials.csv (and uncertainty.csv) and the figures push_map,
-survivable_push, basin (and uncertainty), PNG/PDF.
+Every trial is a point of the sweep engine (consecutive trials share a task): --workers local
+processes (default: one per core) or the Dask cluster of --scheduler. DIR is written
+incrementally like a sweep's folder: each trial's record in DIR/trials/ as it finishes; run
+the same command again to resume. Writes DIR/robustness.json, DIR/trials.csv (and
+uncertainty.csv) and the figures push_map, survivable_push, basin (and uncertainty), PNG/PDF.
 """
 
 EPILOG = ("Example: thrustwalk robustness three_link three_link_walk --push-impulse -30:30:2 "

@@ -18,10 +18,13 @@ control) it computes
   robot, :mod:`~thrustwalk_cli.resilience.uncertainty`): the fraction that walks and the
   spread of the converged speed.
 
-Every trial and sample is a task of the sweep engine (studies ``push-trial`` and
+Every trial and sample is a point of the sweep engine (studies ``push-trial`` and
 ``reduced-walk`` of :mod:`.sweep_studies`): keyed by content, run on local worker processes or
 a Dask cluster, recorded one by one (``on_record``) so that a stopped run resumes with the
-records it has (``finished``). Units SI.
+records it has (``finished``). A trial takes milliseconds, about as long as the engine's own
+cost per task, so consecutive trials run in chunks, several per task (:func:`trial_chunk`);
+each keeps its own record, identical to a run of one trial per task. A sample (a robot built
+and reduced: about 0.1 s) is a task of its own. Units SI.
 """
 
 from __future__ import annotations
@@ -43,7 +46,7 @@ from ..resilience.maps import mean_of, outcome_counts, spread, summary_impulse, 
 from ..resilience.strategy import KINDS, Realized, Strategy, labels_unique, schedule_of_file
 from ..resilience.trials import OUTCOMES
 from ..sweep.points import draw
-from ..sweep.runner import RunCounts, run_tasks
+from ..sweep.runner import RunCounts, chunk_size, run_tasks
 from ..sweep.tasks import PointTask, identity, task_key
 from ..walker import Walker
 from .records import SCHEMA_VERSION, Table, col, gait_record, robot_record, units
@@ -54,6 +57,7 @@ UNITS = units("impulse", "zeta", "speed", "force", "friction_ratio", "sigma_N", 
 MAX_TRIALS = 100_000
 RENAMED = {"transverse": "basin_joint", "schedule": "strategy"}  # study -> this study
 MAX_SAMPLES = 100_000
+STEPS_PER_CHUNK = 320  # trial_chunk: simulated steps per task at most (32 ten-step trials)
 
 
 # ------------------------------------------------------------------------------ strategies
@@ -668,15 +672,30 @@ def _fraction(outcomes: Sequence[str | None], good: tuple[str, ...]) -> float | 
 
 
 # ------------------------------------------------------------------------------ running
+def trial_chunk(todo: int, workers: int, steps: int) -> int:
+    """Trials per engine task for ``todo`` trials of ``steps`` steps on ``workers`` workers:
+    :func:`~thrustwalk_cli.sweep.runner.chunk_size`, i.e. ``ceil(todo / (8 workers))`` (at
+    least 8 tasks per worker when there are that many trials: balance and progress), at most
+    ``STEPS_PER_CHUNK // steps`` trials (320 simulated steps: 32 trials of 10 steps, tens of
+    milliseconds of work against the engine's 1-2 ms per task) and at least 1."""
+    return chunk_size(todo, workers, most=max(1, STEPS_PER_CHUNK // max(1, int(steps))))
+
+
 def run_robustness(plan: RobustnessPlan, *, workers: int | None = None,
                    scheduler: str | None = None, executor=None,
                    finished: Mapping[str, dict] | None = None,
-                   on_record: Callable[[dict], None] | None = None) -> RobustnessResult:
+                   on_record: Callable[[dict], None] | None = None,
+                   chunk: int | None = None) -> RobustnessResult:
     """Run every task of ``plan`` without a record in ``finished`` (key -> record) on
     ``executor`` (default: ``workers`` local processes, or the Dask cluster of
-    ``scheduler``); ``on_record(record)`` as each finishes."""
+    ``scheduler``); ``on_record(record)`` as each finishes (the trials of a chunk one after
+    the other as the chunk returns). ``chunk``: push and basin trials per engine task
+    (default :func:`trial_chunk` of the trials to run and the executor's workers; 1: one per
+    task; samples always run one per task); the records do not depend on it."""
     from .sweep import task_executor
 
+    if chunk is not None and not chunk >= 1:
+        raise InputError.param("chunk", f"must be >= 1 trial per task (got {chunk})")
     t0 = time.perf_counter()
     done = {k: v for k, v in (finished or {}).items() if k in {t.key for t in plan.tasks}}
     todo = sum(t.key not in done for t in plan.tasks)
@@ -684,10 +703,14 @@ def run_robustness(plan: RobustnessPlan, *, workers: int | None = None,
     if own:
         executor = task_executor(plan.tasks, STUDIES["push-trial"], {}, workers, scheduler,
                                  todo)
+    if chunk is None:
+        trials = sum(t.key not in done for t, kd in zip(plan.tasks, plan.kinds)
+                     if kd != "sample")
+        chunk = trial_chunk(trials, getattr(executor, "workers", 1), plan.settings["steps"])
     try:
-        counts = run_tasks(plan.tasks, run_point, executor, done,
-                           on_record or (lambda r: None)) if todo else RunCounts(
-            skipped=len(plan.tasks))
+        counts = (run_tasks(plan.tasks, run_point, executor, done,
+                            on_record or (lambda r: None), chunk={"push-trial": int(chunk)})
+                  if todo else RunCounts(skipped=len(plan.tasks)))
     finally:
         if own:
             executor.close()
@@ -701,7 +724,7 @@ def robustness(walker: Walker, *, workers: int | None = None, scheduler: str | N
     """Push maps, survivable pushes, basins and parameter uncertainty per thrust strategy
     (SPEC 12; module docstring); ``options`` as :func:`plan_robustness`. Runs on ``workers``
     local processes (default: one per core) or the Dask cluster at ``scheduler``;
-    ``progress(1)`` after every trial."""
+    ``progress(1)`` for every trial's record (those of a chunk together, as it returns)."""
     plan = plan_robustness(walker, **options)
     return run_robustness(plan, workers=workers, scheduler=scheduler,
                           on_record=None if progress is None else (lambda r: progress(1)))

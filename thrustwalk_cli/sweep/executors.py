@@ -4,8 +4,8 @@ existing Dask distributed cluster.
 Every executor has the same three calls: ``submit(fn, task)`` returns a handle, ``wait(handles)``
 blocks until at least one has finished and returns ``(handle, result, error)`` for each
 finished one (``error`` an exception that lost the task: a worker process that died, a worker
-lost by the cluster), and ``close()``. Results travel back to the calling process, which alone
-writes files, so workers never need the result folder.
+lost by the cluster; or the exception the task raised), and ``close()``. Results travel back
+to the calling process, which alone writes files, so workers never need the result folder.
 
 * :class:`InProcess` (one worker): the tasks run here, one after the other.
 * :class:`LocalProcesses` (``workers`` > 1): a pool of worker processes on this machine; they
@@ -52,11 +52,16 @@ class InProcess:
         return self._next
 
     def wait(self, handles: Iterable) -> list[Outcome]:
+        """Run the first task submitted of ``handles``: its result, or the exception it
+        raised (as a worker process would hand it back)."""
         wanted = set(handles)
         for i, (h, fn, task) in enumerate(self._queue):
             if h in wanted:
                 del self._queue[i]
-                return [(h, fn(task), None)]
+                try:
+                    return [(h, fn(task), None)]
+                except Exception as exc:  # noqa: BLE001 - the task's error is its outcome
+                    return [(h, None, exc)]
         raise RuntimeError("nothing to wait for")
 
     def close(self) -> None:
