@@ -108,30 +108,35 @@ _CODE: dict[int, tuple[dict, np.ndarray]] = {}  # one code array per generated t
 def tape_run(code, p, x, r, o):
     """Run the program at ``code[p]``: inputs ``x[:n_in]`` into the registers ``r`` (whose
     constants are in place), outputs into ``r[o:o + n_out]`` (an offset rather than a view:
-    a view costs two atomic reference-count updates per call)."""
+    a view costs two atomic reference-count updates per call). Register numbers are unsigned
+    inside the loop: numba then skips its negative-index correction (measured: 12-15 %
+    faster)."""
     n_in = code[p]
     n_out = code[p + 1]
-    base = code[p + 3]
     for i in range(n_in):
         r[i] = x[i]
-    k0 = p + 4 + n_out
+    k0 = np.uint64(p + 4 + n_out)
+    base = np.uint64(code[p + 3])
+    mask = np.uint64(524287)
+    sa, sb, sop = np.uint64(38), np.uint64(19), np.uint64(57)
     for j in range(code[p + 2]):
-        c = code[k0 + j]
-        op = c >> 57
-        a = r[(c >> 38) & 524287]
-        b = r[(c >> 19) & 524287]
+        uj = np.uint64(j)
+        c = np.uint64(code[k0 + uj])
+        op = c >> sop
+        a = r[(c >> sa) & mask]
+        b = r[(c >> sb) & mask]
         if op == 0:
             v = a * b
         elif op == 8:
-            v = a * b + r[c & 524287]
+            v = a * b + r[c & mask]
         elif op == 1:
             v = a + b
         elif op == 2:
             v = a - b
         elif op == 10:
-            v = r[c & 524287] - a * b
+            v = r[c & mask] - a * b
         elif op == 9:
-            v = a * b - r[c & 524287]
+            v = a * b - r[c & mask]
         elif op == 3:
             v = -a
         elif op == 4:
@@ -142,7 +147,7 @@ def tape_run(code, p, x, r, o):
             v = a / b
         else:
             v = a ** b
-        r[base + j] = v
+        r[base + uj] = v
     k = p + 4
     for i in range(n_out):
         r[o + i] = r[code[k + i]]
@@ -153,11 +158,18 @@ def tape_batch(code, p, consts, c0, nreg, X, out, chunk):
     """Run the program at ``code[p]`` for every row of ``X`` (states, inputs) into the rows
     of ``out`` (states, outputs), ``chunk`` states at a time: each instruction is a loop
     over the states of the chunk (registers are rows of a (nreg, chunk) array)."""
+    return tape_chunks(code, p, consts, c0, np.empty((nreg, chunk)), X, out)
+
+
+def tape_chunks(code, p, consts, c0, r, X, out):
+    """:func:`tape_batch` with its registers ``r`` (nreg, chunk) given: allocates nothing,
+    so it is compiled without reference counting (the four row views an instruction takes
+    cost no atomic updates; measured: about twice as fast)."""
     n_in = code[p]
     n_out = code[p + 1]
     base = code[p + 3]
     K = X.shape[0]
-    r = np.empty((nreg, chunk))
+    chunk = r.shape[1]
     for i in range(consts.shape[0]):
         for s in range(chunk):
             r[c0 + i, s] = consts[i]
@@ -218,11 +230,14 @@ def tape_batch(code, p, consts, c0, nreg, X, out, chunk):
 
 SIGNATURES = {
     "tape_run": "(int64[::1], int64, float64[::1], float64[::1], int64)",
+    "tape_chunks": "(int64[::1], int64, float64[::1], int64, float64[:, ::1], "
+                   "float64[:, ::1], float64[:, ::1])",
     "tape_batch": "(int64[::1], int64, float64[::1], int64, int64, float64[:, ::1], "
                   "float64[:, ::1], int64)",
 }
+NRT_FREE = frozenset({"tape_run", "tape_chunks"})  # allocate nothing (see model/jit.py)
 
 
 def interpreter_source() -> str:
     """The interpreter's source, for the jit modules that compile it."""
-    return "\n\n".join(inspect.getsource(f) for f in (tape_run, tape_batch))
+    return "\n\n".join(inspect.getsource(f) for f in (tape_run, tape_batch, tape_chunks))

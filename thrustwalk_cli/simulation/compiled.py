@@ -80,12 +80,13 @@ def _fingerprint() -> str:
 def kernel(rebuild: bool = False) -> jit.JitModule:
     """The compiled kernel (every robot): compiled once per machine (numba) or loaded from
     the cache."""
-    return jit.load(TAG, kernel_source, _names(), rebuild=rebuild, fingerprint=_fingerprint())
+    return jit.load(TAG, kernel_source, _names(), rebuild=rebuild, fingerprint=_fingerprint(),
+                    nrt_free=K.NRT_FREE)
 
 
 def kernel_status() -> dict:
     """Whether the compiled kernel is cached, without importing numba or SciPy."""
-    return jit.status(TAG, _fingerprint(), _names())
+    return jit.status(TAG, _fingerprint(), _names(), K.NRT_FREE)
 
 
 # ----------------------------------------------------------------------------- parameters
