@@ -175,12 +175,16 @@ class DenseSolution:
     ``OdeSolution`` (a time on a node belongs to the step that ends there). ``ts``: nodes."""
 
     def __init__(self, rows: np.ndarray, t0: float, t1: float, n: int):
-        self.t_old = rows[:, 0].copy()
-        self.t_new = rows[:, 1].copy()
-        self.y_old = rows[:, 2:2 + n].copy()
-        self.F = rows[:, 2 + n:2 + 8 * n].reshape(-1, 7, n).copy()
+        rows = rows[:, :2 + 8 * n].copy()  # one copy; the parts are views of it
+        self.t_old = rows[:, 0]
+        self.t_new = rows[:, 1]
+        self.y_old = rows[:, 2:2 + n]
+        self.F = rows[:, 2 + n:].reshape(-1, 7, n)
         self.n = n
-        self.ts = np.concatenate([[t0], self.t_new[:-1], [t1]])
+        self.ts = np.empty(rows.shape[0] + 1)
+        self.ts[0] = t0
+        self.ts[1:-1] = self.t_new[:-1]
+        self.ts[-1] = t1
 
     def __call__(self, t):
         t = np.asarray(t, float)
@@ -317,28 +321,28 @@ def failure_text(out: np.ndarray, cfg: SimConfig, t_max: float) -> tuple[str, st
 
 def step_record(rec: np.ndarray, N: int, nz: int, m: int):
     """A :class:`~thrustwalk_cli.simulation.full_order.StepRecord` from a kernel record."""
+    r = rec.tolist()  # Python floats, converted at once
     o = K.N_REC0
-    q, dq = rec[o:o + N], rec[o + N:o + 2 * N]
-    z0 = rec[o + 2 * N:o + 2 * N + nz]
-    F = rec[o + 2 * N + 2 * nz:o + 2 * N + 2 * nz + m]
-    fr = rec[K.R_MAXFR]
-    sm, sp, s0 = rec[K.R_SIGM], rec[K.R_SIGP], rec[K.R_SIG0]
-    Fx, Fy = float(rec[K.R_FX]), float(rec[K.R_FY])
+    q, dq = r[o:o + N], r[o + N:o + 2 * N]
+    z0 = r[o + 2 * N:o + 2 * N + nz]
+    F = r[o + 2 * N + 2 * nz:o + 2 * N + 2 * nz + m]
+    fr = r[K.R_MAXFR]
+    sm, sp, s0 = r[K.R_SIGM], r[K.R_SIGP], r[K.R_SIG0]
+    Fx, Fy = r[K.R_FX], r[K.R_FY]
     return StepRecord(
-        step=int(rec[K.R_STEP]), t_start=float(rec[K.R_T0]), t_impact=float(rec[K.R_T1]),
-        step_time=float(rec[K.R_T1] - rec[K.R_T0]), alpha_start=float(rec[K.R_ALPHA0]),
-        z_start=tuple(map(float, z0)), alpha_minus=float(rec[K.R_ALPHAM]),
-        s_minus=float(rec[K.R_SM]), sigma_start=float(s0), zeta_start=0.5 * float(s0) ** 2,
-        sigma_minus=float(sm), zeta_minus=0.5 * float(sm) ** 2, sigma_plus=float(sp),
-        zeta_plus=0.5 * float(sp) ** 2, impulse=(Fx, Fy), impulse_friction_ratio=abs(Fx) / Fy,
-        trailing_foot_lift_velocity=float(rec[K.R_LIFT]),
-        thrust_at_impact=tuple(map(float, F)), min_vertical_force=float(rec[K.R_MINFV]),
-        max_friction_ratio=None if np.isnan(fr) else float(fr),
-        max_abs_output=float(rec[K.R_MAXY]), max_abs_output_rate=float(rec[K.R_MAXDY]),
-        max_abs_torque=float(rec[K.R_MAXU]), torque_saturated=bool(rec[K.R_SAT]),
-        energy_minus=float(rec[K.R_EM]), energy_plus=float(rec[K.R_EP]),
-        q_minus=tuple(map(float, q)), dq_minus=tuple(map(float, dq)),
-        nfev=int(rec[K.R_NFEV]))
+        step=int(r[K.R_STEP]), t_start=r[K.R_T0], t_impact=r[K.R_T1],
+        step_time=float(rec[K.R_T1] - rec[K.R_T0]), alpha_start=r[K.R_ALPHA0],
+        z_start=tuple(z0), alpha_minus=r[K.R_ALPHAM],
+        s_minus=r[K.R_SM], sigma_start=s0, zeta_start=0.5 * s0 ** 2,
+        sigma_minus=sm, zeta_minus=0.5 * sm ** 2, sigma_plus=sp,
+        zeta_plus=0.5 * sp ** 2, impulse=(Fx, Fy), impulse_friction_ratio=abs(Fx) / Fy,
+        trailing_foot_lift_velocity=r[K.R_LIFT],
+        thrust_at_impact=tuple(F), min_vertical_force=r[K.R_MINFV],
+        max_friction_ratio=None if fr != fr else fr,
+        max_abs_output=r[K.R_MAXY], max_abs_output_rate=r[K.R_MAXDY],
+        max_abs_torque=r[K.R_MAXU], torque_saturated=bool(r[K.R_SAT]),
+        energy_minus=r[K.R_EM], energy_plus=r[K.R_EP],
+        q_minus=tuple(q), dq_minus=tuple(dq), nfev=int(r[K.R_NFEV]))
 
 
 def run_steps(cl: ClosedLoop, x0: np.ndarray, t_max: float, steps: int,
