@@ -212,7 +212,6 @@ def evaluate(x, seg, fs, ip, par, w, what):
     end [m]. Returns False if the decoupling matrix (or D, when torques saturate) is
     singular."""
     N, m, kind = ip[I_N], ip[I_M], ip[I_KIND]
-    nb = N - 1
     vo = ip[W_OUT]
     if what & E_HEIGHT:
         tape_run(ip, ip[T_HEIGHT], x, w, ip[W_P2])
@@ -226,50 +225,51 @@ def evaluate(x, seg, fs, ip, par, w, what):
     if not what & (E_ACCEL | E_U | E_FORCE):
         return True
     # offsets into w, not views of it: a view costs two atomic reference-count updates
-    # (measured: this function 25 % faster)
-    oD, oh, oBF, orhs, oF = ip[W_D], ip[W_H], ip[W_BF], ip[W_RHS], ip[W_F]
-    oH, oby, oddq, ou, oA = ip[W_GH], ip[W_BY], ip[W_DDQ], ip[W_U], ip[W_A]
-    c0 = ip[P_C]
-    for k in range(m):
+    # (measured: this function 25 % faster); unsigned, so that numba skips its
+    # negative-index correction (measured: another 20-25 %)
+    u = np.uint64
+    uN, um = u(N), u(m)
+    unb = uN - u(1)
+    oD, oh, oBF, orhs, oF = u(ip[W_D]), u(ip[W_H]), u(ip[W_BF]), u(ip[W_RHS]), u(ip[W_F])
+    oH, oby, oddq, ou = u(ip[W_GH]), u(ip[W_BY]), u(ip[W_DDQ]), u(ip[W_U])
+    c0 = u(ip[P_C])
+    for k in range(um):
         if kind == K_PIECEWISE:
-            w[oF + k] = par[ip[P_SEGF] + seg * m + k]
+            w[oF + k] = par[u(ip[P_SEGF] + seg * m) + k]
         elif kind == K_CONSTANT:
-            w[oF + k] = par[ip[P_TGT] + k]
+            w[oF + k] = par[u(ip[P_TGT]) + k]
         else:
-            w[oF + k] = x[2 * N + k]
+            w[oF + k] = x[u(2 * N) + k]
     # D, h, B_F (and with E_FORCE the ground-force rows) from the model's tape (already in
     # place with E_PRE)
     if not what & E_PRE:
-        tape_run(ip, ip[T_FORCE] if what & E_FORCE else ip[T_ACCEL], x, w, oD)
-    for i in range(N):
+        tape_run(ip, ip[T_FORCE] if what & E_FORCE else ip[T_ACCEL], x, w, ip[W_D])
+    for i in range(uN):
         w[orhs + i] = -w[oh + i]
     if m > 0:
-        for i in range(N):
+        for i in range(uN):
             acc = 0.0
-            for k in range(m):
-                acc += w[oBF + i * m + k] * w[oF + k]
+            for k in range(um):
+                acc += w[oBF + i * um + k] * w[oF + k]
             w[orhs + i] += acc
     if kind == K_PIECEWISE:
-        w[orhs + N - 1] += par[ip[P_SEGT] + seg]
+        w[orhs + unb] += par[ip[P_SEGT] + seg]
     alpha = 0.0
     adot = 0.0
-    for i in range(N):
+    for i in range(uN):
         alpha += par[c0 + i] * x[i]
-        adot += par[c0 + i] * x[N + i]
+        adot += par[c0 + i] * x[uN + i]
     # gait values [h_d; h_d'; h_d''] from power-basis rows (ScalarGait)
     s = (alpha - fs[F_AI]) / fs[F_SPAN]
-    ncol = ip[I_NCOL]
-    r0 = ip[P_ROWS]
-    # unsigned offsets in this, the hottest loop: numba then skips its negative-index
-    # correction (measured: the controller's own work 25 % faster)
-    nrow = np.uint64(3 * nb)
-    ucol = np.uint64(ncol)
-    one = np.uint64(1)
-    ri = np.uint64(0)
+    ucol = u(ip[I_NCOL])
+    r0 = u(ip[P_ROWS])
+    nrow = u(3) * unb
+    one = u(1)
+    ri = u(0)
     while ri < nrow:  # two rows at a time: two independent chains of additions
         ri2 = ri + one if ri + one < nrow else ri
-        o1 = np.uint64(r0) + ri * ucol
-        o2 = np.uint64(r0) + ri2 * ucol
+        o1 = r0 + ri * ucol
+        o2 = r0 + ri2 * ucol
         a0 = 0.0
         a1 = 0.0
         pw = 1.0
@@ -277,67 +277,74 @@ def evaluate(x, seg, fs, ip, par, w, what):
             a0 += par[o1 + k] * pw
             a1 += par[o2 + k] * pw
             pw *= s
-        w[np.uint64(oH) + ri] = a0
-        w[np.uint64(oH) + ri2] = a1
-        ri += np.uint64(2)
+        w[oH + ri] = a0
+        w[oH + ri2] = a1
+        ri += u(2)
     kp, kd = fs[F_KP], fs[F_KD]
     ad2 = adot * adot
-    for i in range(nb):
-        w[oby + i] = (-kp * (x[i] - w[oH + i]) - kd * (x[N + i] - w[oH + nb + i] * adot)
-                      + w[oH + 2 * nb + i] * ad2)
+    oH1, oH2 = oH + unb, oH + u(2) * unb
+    for i in range(unb):
+        w[oby + i] = (-kp * (x[i] - w[oH + i]) - kd * (x[uN + i] - w[oH1 + i] * adot)
+                      + w[oH2 + i] * ad2)
     # the 2 x 2 system in (alpha'', q_N'') of ClosedLoop._accel
     a11 = 1.0
     a21 = 0.0
     r1 = 0.0
-    r2 = w[orhs + N - 1]
-    for i in range(nb):
-        a11 -= par[c0 + i] * w[oH + nb + i]
-        a21 += w[oD + (N - 1) * N + i] * w[oH + nb + i]
+    r2 = w[orhs + unb]
+    oDN = oD + unb * uN  # the last row of D
+    for i in range(unb):
+        a11 -= par[c0 + i] * w[oH1 + i]
+        a21 += w[oDN + i] * w[oH1 + i]
         r1 += par[c0 + i] * w[oby + i]
-        r2 -= w[oD + (N - 1) * N + i] * w[oby + i]
-    DNN = w[oD + (N - 1) * N + nb]
-    cN = par[c0 + nb]
+        r2 -= w[oDN + i] * w[oby + i]
+    DNN = w[oDN + unb]
+    cN = par[c0 + unb]
     det = a11 * DNN + cN * a21
     if det == 0.0:
         return False
     a = (r1 * DNN + cN * r2) / det
-    for i in range(nb):
-        w[oddq + i] = w[oby + i] + w[oH + nb + i] * a
-    w[oddq + N - 1] = (a11 * r2 - a21 * r1) / det
+    for i in range(unb):
+        w[oddq + i] = w[oby + i] + w[oH1 + i] * a
+    w[oddq + unb] = (a11 * r2 - a21 * r1) / det
     lim = fs[F_TLIM]
     w[vo + V_SAT] = 0.0
     if what & E_U or lim < np.inf:
         big = 0.0
-        for i in range(nb):
+        for i in range(unb):
             acc = 0.0
-            for j in range(N):
-                acc += w[oD + i * N + j] * w[oddq + j]
+            oDi = oD + i * uN
+            for j in range(uN):
+                acc += w[oDi + j] * w[oddq + j]
             w[ou + i] = acc - w[orhs + i]
             if abs(w[ou + i]) > big:
                 big = abs(w[ou + i])
         if lim < np.inf and big > lim:
             w[vo + V_SAT] = 1.0
-            for i in range(nb):
+            for i in range(unb):
                 w[ou + i] = min(max(w[ou + i], -lim), lim)
-            for i in range(N):
-                for j in range(N):
-                    w[oA + i * (N + 1) + j] = w[oD + i * N + j]
-                w[oA + i * (N + 1) + N] = w[orhs + i] + (w[ou + i] if i < nb else 0.0)
-            if not gauss(w[oA:], N, 1):
+            oA = u(ip[W_A])
+            uN1 = uN + u(1)
+            for i in range(uN):
+                for j in range(uN):
+                    w[oA + i * uN1 + j] = w[oD + i * uN + j]
+                w[oA + i * uN1 + uN] = w[orhs + i] + (w[ou + i] if i < unb else 0.0)
+            if not gauss(w[ip[W_A]:], N, 1):
                 return False
-            for i in range(N):
-                w[oddq + i] = w[oA + i * (N + 1) + N]
+            for i in range(uN):
+                w[oddq + i] = w[oA + i * uN1 + uN]
     if what & E_FORCE:
         # rows N, N+1 of D_u (first N columns), of h_u(q, [q'; 0; 0]) and of B_Fu
-        ogr = ip[W_GR]
-        for r in range(2):
+        ogr = u(ip[W_GR])
+        ohg, obg = ogr + u(2) * uN, ogr + u(2) * uN + u(2)
+        for r in range(u(2)):
             acc = 0.0
-            for j in range(N):
-                acc += w[ogr + r * N + j] * w[oddq + j]
-            acc += w[ogr + 2 * N + r]
-            for k in range(m):
-                acc -= w[ogr + 2 * N + 2 + r * m + k] * w[oF + k]
-            w[vo + V_FH + r] = acc
+            ogn = ogr + r * uN
+            for j in range(uN):
+                acc += w[ogn + j] * w[oddq + j]
+            acc += w[ohg + r]
+            for k in range(um):
+                acc -= w[obg + r * um + k] * w[oF + k]
+            w[u(vo + V_FH) + r] = acc
     return True
 
 
