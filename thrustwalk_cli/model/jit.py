@@ -9,7 +9,9 @@ the machine code in ``__pycache__`` beside that file, so every later process loa
 instead of compiling (the file name carries a hash of everything that went into it; numba
 checks its own version and the CPU). Robots are data (tapes) passed to these functions, so a
 new robot never triggers a compile. A JSON sidecar records how long the one-time compile
-took, so ``thrustwalk compile`` can report it without importing numba.
+took, so ``thrustwalk compile`` can report it without importing numba. The functions a module
+names as allocation-free are compiled without numba's reference counting (``_nrt=False``):
+there an array argument or a view costs nothing, elsewhere two atomic updates.
 
 When the cache folder cannot be used (no home directory, read-only, full), the module is
 compiled into a private temporary folder for this process and :attr:`JitModule.note` says

@@ -29,6 +29,16 @@ closed_loop.ClosedLoop`:
 Arrays are flat and row-major (parameters in `par`, scratch in `w`, offsets in `ip`: few
 arguments per call keep both the compile time and the call overhead low); units SI. Status
 codes and record layouts are the constants below, read by :mod:`.compiled`.
+
+Speed (issue 13's target of 40 times the SciPy path per step; measured, none of it changes a
+value: the same operations in the same order): every function that allocates nothing is
+compiled without numba's reference counting (:data:`NRT_FREE`, see
+:mod:`thrustwalk_cli.model.jit`: an array argument or a view would otherwise cost two atomic
+updates); the vertical ground force at an integrator node, the event ``force``, comes with
+the right-hand side of the step's last stage (:func:`rhs_node`: the force program is a
+superset of the acceleration program) instead of a second evaluation; the controller's
+loops index with unsigned offsets (numba then skips its negative-index correction) and
+evaluate the gait's rows two at a time; the Runge-Kutta stage sums run column by column.
 """
 
 import math
