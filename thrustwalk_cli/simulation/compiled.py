@@ -172,19 +172,33 @@ def record_width(N: int, nz: int, m: int) -> int:
 # ----------------------------------------------------------------------------- dense output
 class DenseSolution:
     """The dense DOP853 solution of one integration call, evaluated like SciPy's
-    ``OdeSolution`` (a time on a node belongs to the step that ends there). ``ts``: nodes."""
+    ``OdeSolution`` (a time on a node belongs to the step that ends there). ``ts``: nodes.
+    Made for every piece of every step, evaluated for few: it keeps one copy of the rows and
+    takes its parts from it when first asked."""
 
     def __init__(self, rows: np.ndarray, t0: float, t1: float, n: int):
-        rows = rows[:, :2 + 8 * n].copy()  # one copy; the parts are views of it
-        self.t_old = rows[:, 0]
-        self.t_new = rows[:, 1]
-        self.y_old = rows[:, 2:2 + n]
-        self.F = rows[:, 2 + n:].reshape(-1, 7, n)
-        self.n = n
-        self.ts = np.empty(rows.shape[0] + 1)
-        self.ts[0] = t0
-        self.ts[1:-1] = self.t_new[:-1]
-        self.ts[-1] = t1
+        self.rows = rows[:, :2 + 8 * n].copy()
+        self.t0, self.t1, self.n = t0, t1, n
+
+    @functools.cached_property
+    def t_old(self) -> np.ndarray:
+        return self.rows[:, 0]
+
+    @functools.cached_property
+    def t_new(self) -> np.ndarray:
+        return self.rows[:, 1]
+
+    @functools.cached_property
+    def y_old(self) -> np.ndarray:
+        return self.rows[:, 2:2 + self.n]
+
+    @functools.cached_property
+    def F(self) -> np.ndarray:
+        return self.rows[:, 2 + self.n:].reshape(-1, 7, self.n)
+
+    @functools.cached_property
+    def ts(self) -> np.ndarray:
+        return np.concatenate([[self.t0], self.t_new[:-1], [self.t1]])
 
     def __call__(self, t):
         t = np.asarray(t, float)
@@ -230,7 +244,8 @@ class Stepper:
         self.n = 2 * N + self.packed.nz
         self.width = record_width(N, self.packed.nz, m)
         self.par = self.packed.par.copy()
-        self._buf = np.zeros((BUF_ROWS, 2 + 8 * self.n))
+        # (rows are read only after the kernel wrote them: no need to zero 300 kB per run)
+        self._buf = np.empty((BUF_ROWS, 2 + 8 * self.n))
         self._calls = np.zeros((256, K.N_CALL))
         # the kernel's one-run arguments, reused from step to step
         p = self.packed
@@ -267,7 +282,7 @@ class Stepper:
                                self._buf, self._calls)
             if int(outs[0, K.O_STATUS]) != K.FAIL_BUFFER or self._buf.shape[0] >= 1 << 18:
                 break
-            self._buf = np.zeros((4 * self._buf.shape[0], self._buf.shape[1]))
+            self._buf = np.empty((4 * self._buf.shape[0], self._buf.shape[1]))
             self._calls = np.zeros((4 * self._calls.shape[0], K.N_CALL))
         status, ncalls = int(outs[0, K.O_STATUS]), int(info[0, 0])
         pieces = []
