@@ -600,18 +600,24 @@ def dense_coefficients(t_old, h, seg, fs, ip, par, w, n, Fout):
 
 
 def dense_at(buf, k, t, n, out):
-    """Evaluate stored step ``k`` of ``buf`` at time ``t`` (SciPy's Dop853DenseOutput)."""
-    t_old = buf[k, 0]
-    x = (t - t_old) / (buf[k, 1] - t_old)
-    for i in range(n):
+    """Evaluate stored step ``k`` of ``buf`` at time ``t`` (SciPy's Dop853DenseOutput).
+    Unsigned offsets into the row (numba then skips its negative-index correction)."""
+    row = buf[k]
+    t_old = row[0]
+    x = (t - t_old) / (row[1] - t_old)
+    x1 = 1.0 - x
+    un = np.uint64(n)
+    for i in range(un):
         acc = 0.0
+        o = np.uint64(2) + np.uint64(7) * un + i  # coefficient 6, then 5, ..., 0
         for r in range(7):
-            acc += buf[k, 2 + n + (6 - r) * n + i]
+            acc += row[o]
             if r % 2 == 0:
                 acc *= x
             else:
-                acc *= 1.0 - x
-        out[i] = acc + buf[k, 2 + i]
+                acc *= x1
+            o -= un
+        out[i] = acc + row[np.uint64(2) + i]
 
 
 def solution_at(buf, first, last, t, n, out):
