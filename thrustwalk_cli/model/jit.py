@@ -45,7 +45,8 @@ OPTIONS = "cache=True, nogil=True, error_model='numpy'"
 # for the functions a module lists as allocation-free: compiled without numba's reference
 # counting (``_nrt=False``), so an array argument or a view costs no atomic increment and
 # decrement (measured: an event function 85 -> 10 ns; a simulated step 20-35 % faster). Such
-# a function must not allocate an array (numba refuses to compile it then).
+# a function must not allocate an array (numba refuses to compile it then). Where numba does
+# not know the option, they are compiled as the others.
 NRT_FREE_OPTION = "_nrt=False"
 
 
@@ -92,12 +93,12 @@ def _module_source(source: str, names: dict[str, str],
         *[f"    {k!r}: {v!r}," for k, v in names.items()],
         "}",
         f"_NRT_FREE = {sorted(nrt_free)!r}  # allocation-free: no reference counting",
+        "import numba.core.cpu as _cpu",
+        "_NO_RC = ({'_nrt': False} if hasattr(_cpu.CPUTargetOptions, '_nrt')",
+        "          else {})  # (an option numba might rename: then reference counting)",
         "for _name, _sig in _JIT.items():",
-        "    if _name in _NRT_FREE:",
-        f"        globals()[_name] = _numba.njit(_sig, {OPTIONS}, {NRT_FREE_OPTION})("
-        "globals()[_name])",
-        "    else:",
-        f"        globals()[_name] = _numba.njit(_sig, {OPTIONS})(globals()[_name])", "",
+        "    _kw = _NO_RC if _name in _NRT_FREE else {}",
+        f"    globals()[_name] = _numba.njit(_sig, {OPTIONS}, **_kw)(globals()[_name])", "",
     ]
     return source.rstrip() + "\n" + "\n".join(footer)
 

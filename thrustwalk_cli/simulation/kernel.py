@@ -37,8 +37,9 @@ compiled without numba's reference counting (:data:`NRT_FREE`, see
 updates); the vertical ground force at an integrator node, the event ``force``, comes with
 the right-hand side of the step's last stage (:func:`rhs_node`: the force program is a
 superset of the acceleration program) instead of a second evaluation; the controller's
-loops index with unsigned offsets (numba then skips its negative-index correction) and
-evaluate the gait's rows two at a time; the Runge-Kutta stage sums run column by column.
+loops and the dense output index with unsigned offsets (numba then skips its negative-index
+correction), and the gait's rows are evaluated two at a time; the Runge-Kutta stage sums run
+column by column.
 """
 
 import math
