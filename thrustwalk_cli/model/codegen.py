@@ -374,6 +374,25 @@ def _fuse(order: list[tuple[int, int, int, int]], outs: list[int], ops: dict[str
     return [ins for ins in out if not (ins[0] == mul and ins[1] in gone)]
 
 
+def _pair_trig(order: list[tuple[int, int, int, int, int]], ops: dict[str, int]
+               ) -> list[tuple[int, int, int, int, int]]:
+    """``sin x`` directly followed by ``cos x`` -> ``sincos x`` (both values: the sine in its
+    register, the cosine in the next) and a ``skip`` that holds the cosine's register."""
+    out: list[tuple[int, int, int, int, int]] = []
+    i = 0
+    while i < len(order):
+        ins = order[i]
+        nxt = order[i + 1] if i + 1 < len(order) else None
+        if ins[0] == ops["sin"] and nxt is not None and nxt[0] == ops["cos"] \
+                and nxt[2] == ins[2]:
+            out += [(ops["sincos"], ins[1], ins[2], 0, 0), (ops["skip"], nxt[1], 0, 0, 0)]
+            i += 2
+        else:
+            out.append(ins)
+            i += 1
+    return out
+
+
 def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
                   inputs: list[sp.Symbol], params: set[sp.Symbol] = frozenset()) -> dict:
     """Compile groups of expressions into one tape (plain data, see
@@ -383,9 +402,11 @@ def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
     ``inputs``: the input symbols in register order (``q`` then ``q'``). Each program keeps
     only the instructions its outputs need, ordered by depth (instructions of equal depth do
     not depend on each other, which keeps the processor's pipelines full); instruction j
-    writes register ``base + j`` (each register written once). ``params``: symbols that are
-    constants whose values come with the bound model (the coefficients of the robot's
-    numbers): ``consts`` names them, and the bound model supplies their values.
+    writes register ``base + j`` (each register written once; ``sincos`` also the next, whose
+    instruction is a ``skip``: the sine and cosine of one angle are one library call).
+    ``params``: symbols that are constants whose values come with the bound model (the
+    coefficients of the robot's numbers): ``consts`` names them, and the bound model
+    supplies their values.
     """
     b = _TapeBuilder(inputs, params)
     raw = {}
@@ -401,7 +422,14 @@ def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
         raw[name] = (n_in, outs, live)
     n_in_all, n_const = len(inputs), len(b.consts)
     base = n_in_all + n_const  # first temporary register
-    unary = {b.op_code[k] for k in ("neg", "sin", "cos")}
+    unary = {b.op_code[k] for k in ("neg", "sin", "cos", "sincos", "skip")}
+    sin, cos = b.op_code["sin"], b.op_code["cos"]
+
+    def rank(ins: tuple[int, int, int, int]) -> tuple:
+        """Sort key: depth, then operation; ``cos x`` right after ``sin x``."""
+        if ins[0] in (sin, cos):
+            return (level[ins[1]], sin, ins[2], ins[0] == cos)
+        return (level[ins[1]], ins[0])
     if base + max((len(v[2]) for v in raw.values()), default=0) >= 1 << 19:
         raise ValueError("tape: more than 2^19 registers")
 
@@ -412,7 +440,7 @@ def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
         level: dict[int, int] = {}
         for op, d, x, y in live:
             level[d] = 1 + max(level.get(a, 0) for a in ((x,) if op in unary else (x, y)))
-        order = _fuse(sorted(live, key=lambda ins: (level[ins[1]], ins[0])), outs, b.op_code)
+        order = _pair_trig(_fuse(sorted(live, key=rank), outs, b.op_code), b.op_code)
         where = {ins[1]: base + j for j, ins in enumerate(order)}
         where.update({r: n_in_all + (-1 - r) for r in range(-n_const, 0)})  # constants
         enc: list[int] = []

@@ -80,12 +80,13 @@ def _fingerprint() -> str:
 def kernel(rebuild: bool = False) -> jit.JitModule:
     """The compiled kernel (every robot): compiled once per machine (numba) or loaded from
     the cache."""
-    return jit.load(TAG, kernel_source, _names(), rebuild=rebuild, fingerprint=_fingerprint())
+    return jit.load(TAG, kernel_source, _names(), rebuild=rebuild, fingerprint=_fingerprint(),
+                    nrt_free=K.NRT_FREE)
 
 
 def kernel_status() -> dict:
     """Whether the compiled kernel is cached, without importing numba or SciPy."""
-    return jit.status(TAG, _fingerprint(), _names())
+    return jit.status(TAG, _fingerprint(), _names(), K.NRT_FREE)
 
 
 # ----------------------------------------------------------------------------- parameters
@@ -171,15 +172,33 @@ def record_width(N: int, nz: int, m: int) -> int:
 # ----------------------------------------------------------------------------- dense output
 class DenseSolution:
     """The dense DOP853 solution of one integration call, evaluated like SciPy's
-    ``OdeSolution`` (a time on a node belongs to the step that ends there). ``ts``: nodes."""
+    ``OdeSolution`` (a time on a node belongs to the step that ends there). ``ts``: nodes.
+    Made for every piece of every step, evaluated for few: it keeps one copy of the rows and
+    takes its parts from it when first asked."""
 
     def __init__(self, rows: np.ndarray, t0: float, t1: float, n: int):
-        self.t_old = rows[:, 0].copy()
-        self.t_new = rows[:, 1].copy()
-        self.y_old = rows[:, 2:2 + n].copy()
-        self.F = rows[:, 2 + n:2 + 8 * n].reshape(-1, 7, n).copy()
-        self.n = n
-        self.ts = np.concatenate([[t0], self.t_new[:-1], [t1]])
+        self.rows = rows[:, :2 + 8 * n].copy()
+        self.t0, self.t1, self.n = t0, t1, n
+
+    @functools.cached_property
+    def t_old(self) -> np.ndarray:
+        return self.rows[:, 0]
+
+    @functools.cached_property
+    def t_new(self) -> np.ndarray:
+        return self.rows[:, 1]
+
+    @functools.cached_property
+    def y_old(self) -> np.ndarray:
+        return self.rows[:, 2:2 + self.n]
+
+    @functools.cached_property
+    def F(self) -> np.ndarray:
+        return self.rows[:, 2 + self.n:].reshape(-1, 7, self.n)
+
+    @functools.cached_property
+    def ts(self) -> np.ndarray:
+        return np.concatenate([[self.t0], self.t_new[:-1], [self.t1]])
 
     def __call__(self, t):
         t = np.asarray(t, float)
@@ -225,7 +244,8 @@ class Stepper:
         self.n = 2 * N + self.packed.nz
         self.width = record_width(N, self.packed.nz, m)
         self.par = self.packed.par.copy()
-        self._buf = np.zeros((BUF_ROWS, 2 + 8 * self.n))
+        # (rows are read only after the kernel wrote them: no need to zero 300 kB per run)
+        self._buf = np.empty((BUF_ROWS, 2 + 8 * self.n))
         self._calls = np.zeros((256, K.N_CALL))
         # the kernel's one-run arguments, reused from step to step
         p = self.packed
@@ -262,7 +282,7 @@ class Stepper:
                                self._buf, self._calls)
             if int(outs[0, K.O_STATUS]) != K.FAIL_BUFFER or self._buf.shape[0] >= 1 << 18:
                 break
-            self._buf = np.zeros((4 * self._buf.shape[0], self._buf.shape[1]))
+            self._buf = np.empty((4 * self._buf.shape[0], self._buf.shape[1]))
             self._calls = np.zeros((4 * self._calls.shape[0], K.N_CALL))
         status, ncalls = int(outs[0, K.O_STATUS]), int(info[0, 0])
         pieces = []
@@ -316,28 +336,28 @@ def failure_text(out: np.ndarray, cfg: SimConfig, t_max: float) -> tuple[str, st
 
 def step_record(rec: np.ndarray, N: int, nz: int, m: int):
     """A :class:`~thrustwalk_cli.simulation.full_order.StepRecord` from a kernel record."""
+    r = rec.tolist()  # Python floats, converted at once
     o = K.N_REC0
-    q, dq = rec[o:o + N], rec[o + N:o + 2 * N]
-    z0 = rec[o + 2 * N:o + 2 * N + nz]
-    F = rec[o + 2 * N + 2 * nz:o + 2 * N + 2 * nz + m]
-    fr = rec[K.R_MAXFR]
-    sm, sp, s0 = rec[K.R_SIGM], rec[K.R_SIGP], rec[K.R_SIG0]
-    Fx, Fy = float(rec[K.R_FX]), float(rec[K.R_FY])
+    q, dq = r[o:o + N], r[o + N:o + 2 * N]
+    z0 = r[o + 2 * N:o + 2 * N + nz]
+    F = r[o + 2 * N + 2 * nz:o + 2 * N + 2 * nz + m]
+    fr = r[K.R_MAXFR]
+    sm, sp, s0 = r[K.R_SIGM], r[K.R_SIGP], r[K.R_SIG0]
+    Fx, Fy = r[K.R_FX], r[K.R_FY]
     return StepRecord(
-        step=int(rec[K.R_STEP]), t_start=float(rec[K.R_T0]), t_impact=float(rec[K.R_T1]),
-        step_time=float(rec[K.R_T1] - rec[K.R_T0]), alpha_start=float(rec[K.R_ALPHA0]),
-        z_start=tuple(map(float, z0)), alpha_minus=float(rec[K.R_ALPHAM]),
-        s_minus=float(rec[K.R_SM]), sigma_start=float(s0), zeta_start=0.5 * float(s0) ** 2,
-        sigma_minus=float(sm), zeta_minus=0.5 * float(sm) ** 2, sigma_plus=float(sp),
-        zeta_plus=0.5 * float(sp) ** 2, impulse=(Fx, Fy), impulse_friction_ratio=abs(Fx) / Fy,
-        trailing_foot_lift_velocity=float(rec[K.R_LIFT]),
-        thrust_at_impact=tuple(map(float, F)), min_vertical_force=float(rec[K.R_MINFV]),
-        max_friction_ratio=None if np.isnan(fr) else float(fr),
-        max_abs_output=float(rec[K.R_MAXY]), max_abs_output_rate=float(rec[K.R_MAXDY]),
-        max_abs_torque=float(rec[K.R_MAXU]), torque_saturated=bool(rec[K.R_SAT]),
-        energy_minus=float(rec[K.R_EM]), energy_plus=float(rec[K.R_EP]),
-        q_minus=tuple(map(float, q)), dq_minus=tuple(map(float, dq)),
-        nfev=int(rec[K.R_NFEV]))
+        step=int(r[K.R_STEP]), t_start=r[K.R_T0], t_impact=r[K.R_T1],
+        step_time=float(rec[K.R_T1] - rec[K.R_T0]), alpha_start=r[K.R_ALPHA0],
+        z_start=tuple(z0), alpha_minus=r[K.R_ALPHAM],
+        s_minus=r[K.R_SM], sigma_start=s0, zeta_start=0.5 * s0 ** 2,
+        sigma_minus=sm, zeta_minus=0.5 * sm ** 2, sigma_plus=sp,
+        zeta_plus=0.5 * sp ** 2, impulse=(Fx, Fy), impulse_friction_ratio=abs(Fx) / Fy,
+        trailing_foot_lift_velocity=r[K.R_LIFT],
+        thrust_at_impact=tuple(F), min_vertical_force=r[K.R_MINFV],
+        max_friction_ratio=None if fr != fr else fr,
+        max_abs_output=r[K.R_MAXY], max_abs_output_rate=r[K.R_MAXDY],
+        max_abs_torque=r[K.R_MAXU], torque_saturated=bool(r[K.R_SAT]),
+        energy_minus=r[K.R_EM], energy_plus=r[K.R_EP],
+        q_minus=tuple(q), dq_minus=tuple(dq), nfev=int(r[K.R_NFEV]))
 
 
 def run_steps(cl: ClosedLoop, x0: np.ndarray, t_max: float, steps: int,

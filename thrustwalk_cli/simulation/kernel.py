@@ -29,6 +29,17 @@ closed_loop.ClosedLoop`:
 Arrays are flat and row-major (parameters in `par`, scratch in `w`, offsets in `ip`: few
 arguments per call keep both the compile time and the call overhead low); units SI. Status
 codes and record layouts are the constants below, read by :mod:`.compiled`.
+
+Speed (issue 13's target of 40 times the SciPy path per step; measured, none of it changes a
+value: the same operations in the same order): every function that allocates nothing is
+compiled without numba's reference counting (:data:`NRT_FREE`, see
+:mod:`thrustwalk_cli.model.jit`: an array argument or a view would otherwise cost two atomic
+updates); the vertical ground force at an integrator node, the event ``force``, comes with
+the right-hand side of the step's last stage (:func:`rhs_node`: the force program is a
+superset of the acceleration program) instead of a second evaluation; the controller's
+loops and the dense output index with unsigned offsets (numba then skips its negative-index
+correction), and the gait's rows are evaluated two at a time; the Runge-Kutta stage sums run
+column by column.
 """
 
 import math
@@ -75,7 +86,7 @@ I_NCONST, I_C0, I_NREG = 64, 65, 66
 N_IP = 67
 # what evaluate() computes (bit flags) and where its scalar results go (w[W_OUT + ...])
 E_ACCEL, E_U, E_FORCE, E_HEIGHT, E_FOOTVEL, E_ROOT, E_PRE = 1, 2, 4, 8, 16, 32, 64
-V_FH, V_FV, V_HEIGHT, V_FOOTVEL, V_ROOT, V_SAT = 0, 1, 2, 3, 4, 5
+V_FH, V_FV, V_HEIGHT, V_FOOTVEL, V_ROOT, V_SAT, V_FNODE = 0, 1, 2, 3, 4, 5, 6
 # thrust kinds
 K_CONSTANT, K_FIRST, K_SECOND, K_PIECEWISE = 0, 1, 2, 3
 # events
@@ -212,7 +223,6 @@ def evaluate(x, seg, fs, ip, par, w, what):
     end [m]. Returns False if the decoupling matrix (or D, when torques saturate) is
     singular."""
     N, m, kind = ip[I_N], ip[I_M], ip[I_KIND]
-    nb = N - 1
     vo = ip[W_OUT]
     if what & E_HEIGHT:
         tape_run(ip, ip[T_HEIGHT], x, w, ip[W_P2])
@@ -226,113 +236,152 @@ def evaluate(x, seg, fs, ip, par, w, what):
     if not what & (E_ACCEL | E_U | E_FORCE):
         return True
     # offsets into w, not views of it: a view costs two atomic reference-count updates
-    # (measured: this function 25 % faster)
-    oD, oh, oBF, orhs, oF = ip[W_D], ip[W_H], ip[W_BF], ip[W_RHS], ip[W_F]
-    oH, oby, oddq, ou, oA = ip[W_GH], ip[W_BY], ip[W_DDQ], ip[W_U], ip[W_A]
-    c0 = ip[P_C]
-    for k in range(m):
+    # (measured: this function 25 % faster); unsigned, so that numba skips its
+    # negative-index correction (measured: another 20-25 %)
+    u = np.uint64
+    uN, um = u(N), u(m)
+    unb = uN - u(1)
+    oD, oh, oBF, orhs, oF = u(ip[W_D]), u(ip[W_H]), u(ip[W_BF]), u(ip[W_RHS]), u(ip[W_F])
+    oH, oby, oddq, ou = u(ip[W_GH]), u(ip[W_BY]), u(ip[W_DDQ]), u(ip[W_U])
+    c0 = u(ip[P_C])
+    for k in range(um):
         if kind == K_PIECEWISE:
-            w[oF + k] = par[ip[P_SEGF] + seg * m + k]
+            w[oF + k] = par[u(ip[P_SEGF] + seg * m) + k]
         elif kind == K_CONSTANT:
-            w[oF + k] = par[ip[P_TGT] + k]
+            w[oF + k] = par[u(ip[P_TGT]) + k]
         else:
-            w[oF + k] = x[2 * N + k]
+            w[oF + k] = x[u(2 * N) + k]
     # D, h, B_F (and with E_FORCE the ground-force rows) from the model's tape (already in
     # place with E_PRE)
     if not what & E_PRE:
-        tape_run(ip, ip[T_FORCE] if what & E_FORCE else ip[T_ACCEL], x, w, oD)
-    for i in range(N):
+        tape_run(ip, ip[T_FORCE] if what & E_FORCE else ip[T_ACCEL], x, w, ip[W_D])
+    for i in range(uN):
         w[orhs + i] = -w[oh + i]
     if m > 0:
-        for i in range(N):
+        for i in range(uN):
             acc = 0.0
-            for k in range(m):
-                acc += w[oBF + i * m + k] * w[oF + k]
+            for k in range(um):
+                acc += w[oBF + i * um + k] * w[oF + k]
             w[orhs + i] += acc
     if kind == K_PIECEWISE:
-        w[orhs + N - 1] += par[ip[P_SEGT] + seg]
+        w[orhs + unb] += par[ip[P_SEGT] + seg]
     alpha = 0.0
     adot = 0.0
-    for i in range(N):
+    for i in range(uN):
         alpha += par[c0 + i] * x[i]
-        adot += par[c0 + i] * x[N + i]
+        adot += par[c0 + i] * x[uN + i]
     # gait values [h_d; h_d'; h_d''] from power-basis rows (ScalarGait)
     s = (alpha - fs[F_AI]) / fs[F_SPAN]
-    ncol = ip[I_NCOL]
-    r0 = ip[P_ROWS]
-    for i in range(3 * nb):
-        acc = 0.0
+    ucol = u(ip[I_NCOL])
+    r0 = u(ip[P_ROWS])
+    nrow = u(3) * unb
+    one = u(1)
+    ri = u(0)
+    while ri < nrow:  # two rows at a time: two independent chains of additions
+        ri2 = ri + one if ri + one < nrow else ri
+        o1 = r0 + ri * ucol
+        o2 = r0 + ri2 * ucol
+        a0 = 0.0
+        a1 = 0.0
         pw = 1.0
-        for k in range(ncol):
-            acc += par[r0 + i * ncol + k] * pw
+        for k in range(ucol):
+            a0 += par[o1 + k] * pw
+            a1 += par[o2 + k] * pw
             pw *= s
-        w[oH + i] = acc
+        w[oH + ri] = a0
+        w[oH + ri2] = a1
+        ri += u(2)
     kp, kd = fs[F_KP], fs[F_KD]
     ad2 = adot * adot
-    for i in range(nb):
-        w[oby + i] = (-kp * (x[i] - w[oH + i]) - kd * (x[N + i] - w[oH + nb + i] * adot)
-                      + w[oH + 2 * nb + i] * ad2)
+    oH1, oH2 = oH + unb, oH + u(2) * unb
+    for i in range(unb):
+        w[oby + i] = (-kp * (x[i] - w[oH + i]) - kd * (x[uN + i] - w[oH1 + i] * adot)
+                      + w[oH2 + i] * ad2)
     # the 2 x 2 system in (alpha'', q_N'') of ClosedLoop._accel
     a11 = 1.0
     a21 = 0.0
     r1 = 0.0
-    r2 = w[orhs + N - 1]
-    for i in range(nb):
-        a11 -= par[c0 + i] * w[oH + nb + i]
-        a21 += w[oD + (N - 1) * N + i] * w[oH + nb + i]
+    r2 = w[orhs + unb]
+    oDN = oD + unb * uN  # the last row of D
+    for i in range(unb):
+        a11 -= par[c0 + i] * w[oH1 + i]
+        a21 += w[oDN + i] * w[oH1 + i]
         r1 += par[c0 + i] * w[oby + i]
-        r2 -= w[oD + (N - 1) * N + i] * w[oby + i]
-    DNN = w[oD + (N - 1) * N + nb]
-    cN = par[c0 + nb]
+        r2 -= w[oDN + i] * w[oby + i]
+    DNN = w[oDN + unb]
+    cN = par[c0 + unb]
     det = a11 * DNN + cN * a21
     if det == 0.0:
         return False
     a = (r1 * DNN + cN * r2) / det
-    for i in range(nb):
-        w[oddq + i] = w[oby + i] + w[oH + nb + i] * a
-    w[oddq + N - 1] = (a11 * r2 - a21 * r1) / det
+    for i in range(unb):
+        w[oddq + i] = w[oby + i] + w[oH1 + i] * a
+    w[oddq + unb] = (a11 * r2 - a21 * r1) / det
     lim = fs[F_TLIM]
     w[vo + V_SAT] = 0.0
     if what & E_U or lim < np.inf:
         big = 0.0
-        for i in range(nb):
+        for i in range(unb):
             acc = 0.0
-            for j in range(N):
-                acc += w[oD + i * N + j] * w[oddq + j]
+            oDi = oD + i * uN
+            for j in range(uN):
+                acc += w[oDi + j] * w[oddq + j]
             w[ou + i] = acc - w[orhs + i]
             if abs(w[ou + i]) > big:
                 big = abs(w[ou + i])
         if lim < np.inf and big > lim:
             w[vo + V_SAT] = 1.0
-            for i in range(nb):
+            for i in range(unb):
                 w[ou + i] = min(max(w[ou + i], -lim), lim)
-            for i in range(N):
-                for j in range(N):
-                    w[oA + i * (N + 1) + j] = w[oD + i * N + j]
-                w[oA + i * (N + 1) + N] = w[orhs + i] + (w[ou + i] if i < nb else 0.0)
-            if not gauss(w[oA:], N, 1):
+            oA = u(ip[W_A])
+            uN1 = uN + u(1)
+            for i in range(uN):
+                for j in range(uN):
+                    w[oA + i * uN1 + j] = w[oD + i * uN + j]
+                w[oA + i * uN1 + uN] = w[orhs + i] + (w[ou + i] if i < unb else 0.0)
+            if not gauss(w[ip[W_A]:], N, 1):
                 return False
-            for i in range(N):
-                w[oddq + i] = w[oA + i * (N + 1) + N]
+            for i in range(uN):
+                w[oddq + i] = w[oA + i * uN1 + uN]
     if what & E_FORCE:
         # rows N, N+1 of D_u (first N columns), of h_u(q, [q'; 0; 0]) and of B_Fu
-        ogr = ip[W_GR]
-        for r in range(2):
+        ogr = u(ip[W_GR])
+        ohg, obg = ogr + u(2) * uN, ogr + u(2) * uN + u(2)
+        for r in range(u(2)):
             acc = 0.0
-            for j in range(N):
-                acc += w[ogr + r * N + j] * w[oddq + j]
-            acc += w[ogr + 2 * N + r]
-            for k in range(m):
-                acc -= w[ogr + 2 * N + 2 + r * m + k] * w[oF + k]
-            w[vo + V_FH + r] = acc
+            ogn = ogr + r * uN
+            for j in range(uN):
+                acc += w[ogn + j] * w[oddq + j]
+            acc += w[ohg + r]
+            for k in range(um):
+                acc -= w[obg + r * um + k] * w[oF + k]
+            w[u(vo + V_FH) + r] = acc
     return True
 
 
 def rhs_eval(t, x, seg, fs, ip, par, w, dx):
     """``x' = [q'; q''; z']`` (SPEC 7) into ``dx``; False if the controller is singular."""
-    N, m, kind = ip[I_N], ip[I_M], ip[I_KIND]
     if not evaluate(x, seg, fs, ip, par, w, E_ACCEL):
         return False
+    state_rate(x, fs, ip, par, w, dx)
+    return True
+
+
+def rhs_node(t, x, seg, fs, ip, par, w, dx):
+    """:func:`rhs_eval` at a state that may become an integrator node (the last stage of a
+    step, the start of an integration): the force program in place of the acceleration
+    program (a superset, the same ``q''``) also gives the vertical ground force, kept in
+    ``w[W_OUT + V_FNODE]`` for the event ``force`` at that node."""
+    if not evaluate(x, seg, fs, ip, par, w, E_FORCE):
+        return False
+    state_rate(x, fs, ip, par, w, dx)
+    w[ip[W_OUT] + V_FNODE] = w[ip[W_OUT] + V_FV]
+    return True
+
+
+def state_rate(x, fs, ip, par, w, dx):
+    """``dx = [q'; q''; z']`` with ``q''`` in ``w[W_DDQ]`` (just computed)."""
+    N, m, kind = ip[I_N], ip[I_M], ip[I_KIND]
     d0 = ip[W_DDQ]
     for i in range(N):
         dx[i] = x[N + i]
@@ -347,7 +396,6 @@ def rhs_eval(t, x, seg, fs, ip, par, w, dx):
         for k in range(m):
             dx[2 * N + k] = x[2 * N + m + k]
             dx[2 * N + m + k] = w2 * (par[t0 + k] - x[2 * N + k]) - d * x[2 * N + m + k]
-    return True
 
 
 def vertical_force(x, seg, fs, ip, par, w):
@@ -465,26 +513,37 @@ def initial_step(t0, t_bound, seg, fs, ip, par, w, n):
 
 def rk_step(t, h, seg, fs, ip, par, w, n):
     """One DOP853 step from ``y = w[W_Y]``, ``f = w[W_FF]``: stages into ``w[W_K]`` (13 rows
-    of n), the 8th-order solution into ``w[W_YN]``, ``K[12] = f(t + h, y_new)``. Returns the
-    error norm (SciPy's DOP853 estimate), or -1 if the controller is singular."""
+    of n), the 8th-order solution into ``w[W_YN]``, ``K[12] = f(t + h, y_new)`` (by
+    :func:`rhs_node`: with the vertical ground force at ``y_new``). Returns the error norm
+    (SciPy's DOP853 estimate), or -1 if the controller is singular."""
     y, f, K, ytmp, y_new = w[ip[W_Y]:], w[ip[W_FF]:], w[ip[W_K]:], w[ip[W_YT]:], w[ip[W_YN]:]
     scale = w[ip[W_SC]:]
     for i in range(n):
         K[i] = f[i]
     for s in range(1, 12):
+        # sum_j K_j a_sj column by column: each component adds the same terms in the same
+        # order as a row-by-row sum, in loops the compiler vectorises
+        a = DOP_A[s, 0]
         for i in range(n):
-            acc = 0.0
-            for j in range(s):
-                acc += K[j * n + i] * DOP_A[s, j]
-            ytmp[i] = y[i] + acc * h
+            ytmp[i] = K[i] * a
+        for j in range(1, s):
+            a = DOP_A[s, j]
+            for i in range(n):
+                ytmp[i] += K[j * n + i] * a
+        for i in range(n):
+            ytmp[i] = y[i] + ytmp[i] * h
         if not rhs_eval(t + DOP_C[s] * h, ytmp, seg, fs, ip, par, w, K[s * n:(s + 1) * n]):
             return -1.0
+    b = DOP_B[0]
     for i in range(n):
-        acc = 0.0
-        for j in range(12):
-            acc += K[j * n + i] * DOP_B[j]
-        y_new[i] = y[i] + h * acc
-    if not rhs_eval(t + h, y_new, seg, fs, ip, par, w, K[12 * n:13 * n]):
+        y_new[i] = K[i] * b
+    for j in range(1, 12):
+        b = DOP_B[j]
+        for i in range(n):
+            y_new[i] += K[j * n + i] * b
+    for i in range(n):
+        y_new[i] = y[i] + h * y_new[i]
+    if not rhs_node(t + h, y_new, seg, fs, ip, par, w, K[12 * n:13 * n]):
         return -1.0
     rtol, atol = fs[F_RTOL], fs[F_ATOL]
     e5 = 0.0
@@ -510,11 +569,15 @@ def dense_coefficients(t_old, h, seg, fs, ip, par, w, n, Fout):
     from ``y_old = w[W_Y]``, ``y = w[W_YN]``, ``f_old = w[W_FF]``, ``f = K[12]``."""
     y_old, y, f_old, K, ytmp = w[ip[W_Y]:], w[ip[W_YN]:], w[ip[W_FF]:], w[ip[W_K]:], w[ip[W_YT]:]
     for s in range(13, 16):
+        a = DOP_AX[s - 13, 0]  # column by column, as in rk_step
         for i in range(n):
-            acc = 0.0
-            for j in range(s):
-                acc += K[j * n + i] * DOP_AX[s - 13, j]
-            ytmp[i] = y_old[i] + acc * h
+            ytmp[i] = K[i] * a
+        for j in range(1, s):
+            a = DOP_AX[s - 13, j]
+            for i in range(n):
+                ytmp[i] += K[j * n + i] * a
+        for i in range(n):
+            ytmp[i] = y_old[i] + ytmp[i] * h
         if not rhs_eval(t_old + DOP_CX[s - 13] * h, ytmp, seg, fs, ip, par, w,
                         K[s * n:(s + 1) * n]):
             return False
@@ -523,27 +586,39 @@ def dense_coefficients(t_old, h, seg, fs, ip, par, w, n, Fout):
         Fout[i] = dy
         Fout[n + i] = h * f_old[i] - dy
         Fout[2 * n + i] = 2 * dy - h * (K[12 * n + i] + f_old[i])
-        for r in range(4):
-            acc = 0.0
-            for j in range(16):
-                acc += DOP_D[r, j] * K[j * n + i]
-            Fout[(3 + r) * n + i] = h * acc
+    for r in range(4):
+        o = (3 + r) * n
+        d = DOP_D[r, 0]
+        for i in range(n):
+            Fout[o + i] = d * K[i]
+        for j in range(1, 16):
+            d = DOP_D[r, j]
+            for i in range(n):
+                Fout[o + i] += d * K[j * n + i]
+        for i in range(n):
+            Fout[o + i] = h * Fout[o + i]
     return True
 
 
 def dense_at(buf, k, t, n, out):
-    """Evaluate stored step ``k`` of ``buf`` at time ``t`` (SciPy's Dop853DenseOutput)."""
-    t_old = buf[k, 0]
-    x = (t - t_old) / (buf[k, 1] - t_old)
-    for i in range(n):
+    """Evaluate stored step ``k`` of ``buf`` at time ``t`` (SciPy's Dop853DenseOutput).
+    Unsigned offsets into the row (numba then skips its negative-index correction)."""
+    row = buf[k]
+    t_old = row[0]
+    x = (t - t_old) / (row[1] - t_old)
+    x1 = 1.0 - x
+    un = np.uint64(n)
+    for i in range(un):
         acc = 0.0
+        o = np.uint64(2) + np.uint64(7) * un + i  # coefficient 6, then 5, ..., 0
         for r in range(7):
-            acc += buf[k, 2 + n + (6 - r) * n + i]
+            acc += row[o]
             if r % 2 == 0:
                 acc *= x
             else:
-                acc *= 1.0 - x
-        out[i] = acc + buf[k, 2 + i]
+                acc *= x1
+            o -= un
+        out[i] = acc + row[np.uint64(2) + i]
 
 
 def solution_at(buf, first, last, t, n, out):
@@ -620,15 +695,19 @@ def integrate(t0, x0, t_bound, seg, ev, nev, fs, ip, par, w, buf, nbuf, a_next, 
     for i in range(n):
         y[i] = x0[i]
     nfev = 1
-    if not rhs_eval(t0, y, seg, fs, ip, par, w, f):
+    if not rhs_node(t0, y, seg, fs, ip, par, w, f):
         return ST_SINGULAR, t0, EV_NONE, 0, nbuf, nfev
+    vnode = ip[W_OUT] + V_FNODE
     h_abs, ok = initial_step(t0, t_bound, seg, fs, ip, par, w, n)
     nfev += 1
     if not ok:
         return ST_SINGULAR, t0, EV_NONE, 0, nbuf, nfev
     direction = 1.0 if t_bound >= t0 else -1.0
-    for e in range(nev):
-        g[e] = event_value(ev[0, e], y, seg, fs, ip, par, w, a_next, a_push)
+    for e in range(nev):  # (the force at a node is known from its right-hand side)
+        if ev[0, e] == EV_FORCE:
+            g[e] = w[vnode]
+        else:
+            g[e] = event_value(ev[0, e], y, seg, fs, ip, par, w, a_next, a_push)
     n_lows = 0
     t = t0
     while True:
@@ -690,7 +769,10 @@ def integrate(t0, x0, t_bound, seg, ev, nev, fs, ip, par, w, buf, nbuf, a_next, 
         first_term = -1
         t_term = 0.0
         for e in range(nev):
-            g_new[e] = event_value(ev[0, e], y, seg, fs, ip, par, w, a_next, a_push)
+            if ev[0, e] == EV_FORCE:
+                g_new[e] = w[vnode]
+            else:
+                g_new[e] = event_value(ev[0, e], y, seg, fs, ip, par, w, a_next, a_push)
         for e in range(nev):
             up = g[e] <= 0 and g_new[e] >= 0
             down = g[e] >= 0 and g_new[e] <= 0
@@ -882,6 +964,15 @@ def apply_push(x, push, ip, w):
     return True
 
 
+def push_or_fail(x, push, ip, w, out, k, t, s):
+    """Apply the push of this step (:func:`apply_push`); if D is singular, record the failure
+    (``controller`` at ``t``, ``s``) in ``out``. Returns whether the push was applied."""
+    if apply_push(x, push, ip, w):
+        return True
+    fail(out, FAIL_CONTROLLER, k, t, s, 0.0, EV_PUSH)
+    return False
+
+
 def fail(out, code, k, t, s, value, event):
     out[O_STATUS] = code
     out[O_STEP] = k
@@ -924,8 +1015,8 @@ def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
     push_pending = push[0] == k
     a_push = ai + push[1] * span
     if push_pending and d * a_push <= d * alpha_of(x, ip, par):
-        if not apply_push(x, push, ip, w):
-            return fail(out, FAIL_CONTROLLER, k, t0, s0, 0.0, EV_PUSH), 0, 0
+        if not push_or_fail(x, push, ip, w, out, k, t0, s0):
+            return FAIL_CONTROLLER, 0, 0
         push_pending = False
         pushed = 1.0
     fv0 = vertical_force(x, seg, fs, ip, par, w)
@@ -965,7 +1056,7 @@ def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
             tm = lows[j]
             if tm > t1:
                 continue
-            solution_at(buf, first, nbuf, tm, n, xs[:n])
+            solution_at(buf, first, nbuf, tm, n, xs)
             if swing_height(xs, fs, ip, par, w) >= limit:
                 continue
             if not armed:
@@ -977,7 +1068,7 @@ def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
             for gi in range(65):
                 tt = t + gi * ((tm - t) / 64.0) if gi < 64 else tm
                 grid[gi] = tt
-                solution_at(buf, first, nbuf, tt, n, xs[:n])
+                solution_at(buf, first, nbuf, tt, n, xs)
                 hh = swing_height(xs, fs, ip, par, w)
                 if gi > 0 and hprev > 0 and hh <= 0 and found < 0:
                     found = gi - 1
@@ -986,9 +1077,9 @@ def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
                 dip, t_dip = EV_SCUFF, t
                 break
             ga, gb = grid[found], grid[found + 1]
-            solution_at(buf, first, nbuf, ga, n, xs[:n])
+            solution_at(buf, first, nbuf, ga, n, xs)
             fa = swing_height(xs, fs, ip, par, w)
-            solution_at(buf, first, nbuf, gb, n, xs[:n])
+            solution_at(buf, first, nbuf, gb, n, xs)
             fb = swing_height(xs, fs, ip, par, w)
             dip = EV_GUARD
             t_dip = brent(-1, ga, gb, fa, fb, buf, first, nbuf, seg, fs, ip, par, w, n,
@@ -997,7 +1088,7 @@ def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
         if dip != EV_NONE:
             name = dip
             t1 = t_dip
-            solution_at(buf, first, nbuf, t1, n, xe[:n])
+            solution_at(buf, first, nbuf, t1, n, xe)
         elif status == ST_SMALL:
             if t1 > t:
                 ncalls = add_call(calls, ncalls, seg, first, nbuf, t, t1)
@@ -1026,9 +1117,8 @@ def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
                 # not for an apex
                 rising = foot_velocity(x, fs, ip, par, w) >= 0.0
             else:
-                if not apply_push(x, push, ip, w):
-                    return (fail(out, FAIL_CONTROLLER, k, t, push[1], 0.0, EV_PUSH), ncalls,
-                            nbuf)
+                if not push_or_fail(x, push, ip, w, out, k, t, push[1]):
+                    return FAIL_CONTROLLER, ncalls, nbuf
                 push_pending = False
                 pushed = 1.0
                 # ``rising`` is kept, as at a breakpoint: a zero push changes nothing
@@ -1040,9 +1130,8 @@ def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
                 seg += 1
                 rising = foot_velocity(x, fs, ip, par, w) >= 0.0
             if push_pending and a_here >= d * a_push:
-                if not apply_push(x, push, ip, w):
-                    return (fail(out, FAIL_CONTROLLER, k, t, push[1], 0.0, EV_PUSH), ncalls,
-                            nbuf)
+                if not push_or_fail(x, push, ip, w, out, k, t, push[1]):
+                    return FAIL_CONTROLLER, ncalls, nbuf
                 push_pending = False
                 pushed = 1.0
             continue
@@ -1089,10 +1178,12 @@ def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
     tape_batch(ip, ip[T_FORCE], fs[N_FS:N_FS + ip[I_NCONST]], ip[I_C0], ip[I_NREG], SX, SO,
                32)
     D = w[ip[W_D]:]
-    for i in range(cnt):
+    for i in range(cnt):  # (row copies rather than views: a view costs reference counting)
         for j in range(nout):
             D[j] = SO[i, j]
-        details_at(SX[i], SS[i], fs, ip, par, w, E_PRE)
+        for j in range(n):
+            xs[j] = SX[i, j]
+        details_at(xs, SS[i], fs, ip, par, w, E_PRE)
     sig_m, e_m = sigma_energy(x[:N], x[N:2 * N], ip, w)
     sig_p, e_p = sigma_energy(x_next[:N], x_next[N:2 * N], ip, w)
     sig_0, e_0 = sigma_energy(x0[:N], x0[N:2 * N], ip, w)
@@ -1204,7 +1295,9 @@ SIGNATURES = {
     "alpha_of": f"({_A}, {_IA}, {_A})",
     "alpha_rate": f"({_A}, {_IA}, {_A})",
     "evaluate": f"({_A}, {_I}, {_CTX}, {_I})",
+    "state_rate": f"({_A}, {_CTX}, {_A})",
     "rhs_eval": f"({_F}, {_A}, {_I}, {_CTX}, {_A})",
+    "rhs_node": f"({_F}, {_A}, {_I}, {_CTX}, {_A})",
     "vertical_force": f"({_A}, {_I}, {_CTX})",
     "swing_height": f"({_A}, {_CTX})",
     "foot_velocity": f"({_A}, {_CTX})",
@@ -1224,8 +1317,14 @@ SIGNATURES = {
     "impact": f"({_A}, {_A}, {_IA}, {_A}, {_A}, {_A}, {_A})",
     "apply_push": f"({_A}, {_A}, {_IA}, {_A})",
     "fail": f"({_A}, {_I}, {_I}, {_F}, {_F}, {_F}, {_I})",
+    "push_or_fail": f"({_A}, {_A}, {_IA}, {_A}, {_A}, {_I}, {_F}, {_F})",
     "add_call": f"({_A2}, {_I}, {_I}, {_I}, {_I}, {_F}, {_F})",
     "sim_step": f"({_I}, {_F}, {_A}, {_A}, {_CTX}, {_A2}, {_A2}, {_A}, {_A}, {_A})",
     "run": f"({_A2}, {_A}, {_IA}, {_I}, {_A}, {_IA}, {_A2}, {_A2}, {_A2}, {_A3}, {_A2}, "
            f"{_IA}, {_A2}, {_IA2}, {_I}, {_I}, {_A2}, {_A2})",
 }
+# compiled without reference counting (model/jit.py): everything but the two functions that
+# allocate arrays (``run``: the work array; ``sim_step``: a step's statistics), and the
+# interpreter's allocation-free functions; the work array and every buffer belong to ``run``
+# and its caller
+NRT_FREE = frozenset(SIGNATURES) - {"run", "sim_step"} | {"tape_run", "tape_chunks"}
