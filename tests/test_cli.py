@@ -70,6 +70,24 @@ def test_unknown_command_suggests_the_known_one():
         "(see 'python -m thrustwalk_cli --help')"]
 
 
+@pytest.mark.parametrize("preset", [None, "3"])
+def test_command_line_runs_blas_single_threaded_unless_told(preset, monkeypatch):
+    from thrustwalk_cli import cli as cli_module
+
+    for var in cli_module.BLAS_THREADS:
+        if preset is None:
+            monkeypatch.delenv(var, raising=False)
+        else:
+            monkeypatch.setenv(var, preset)
+    monkeypatch.setattr(sys, "argv", ["thrustwalk", "--version"])
+    with pytest.raises(SystemExit):
+        cli_module.main()
+    import os
+
+    for var in cli_module.BLAS_THREADS:
+        assert os.environ[var] == (preset or "1")
+
+
 def test_python_dash_m_entry_point():
     out = subprocess.run([sys.executable, "-m", "thrustwalk_cli", "--version"],
                          capture_output=True, text=True, check=True)

@@ -141,6 +141,15 @@ def invoked_app(args: list[str]) -> typer.Typer:
     return one
 
 
+# BLAS runs single-threaded under the command line unless the environment says otherwise:
+# thrustwalk's matrices are small (a robot's N x N) and its parallelism is worker processes
+# and compiled threads, while an OpenBLAS thread pool costs about 0.07 s of CPU at numpy's
+# import and its threads spin beside the workers.
+BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
 def main() -> None:
     os.environ.setdefault("MPLBACKEND", "Agg")  # figures only go to files: no screen needed
+    for var in BLAS_THREADS:  # before numpy is imported (the command modules import typer)
+        os.environ.setdefault(var, "1")
     invoked_app(sys.argv[1:])()
