@@ -43,7 +43,7 @@ from scipy.optimize import linprog
 from ..contact.evaluate import step_grid
 from ..contact.terms import impact_data, stance_terms
 from ..controller.planner import Planner
-from ..hzd.extrema import polish_max, polish_min
+from ..hzd.extrema import polish_min
 from ..hzd.zero_dynamics import Schedule, ZeroDynamics, limit_cycles
 from ..optimize.qp import normalise_rows
 
@@ -150,10 +150,17 @@ def bounds(rows: Rows, alpha: np.ndarray, idx: np.ndarray
     """The lower and upper bounds on ``x`` over the step (module docstring) from the affine
     conditions ``rows`` on the grid ``alpha`` (knot interval ``idx`` of each point), each
     extremum polished between its neighbouring grid points; and the conditions that fail for
-    every ``x`` (``c = 0`` with ``g < 0``)."""
+    every ``x`` (``c = 0`` with ``g < 0``).
+
+    Every (condition, side) is one entry of a single batched polish: the lower bound of a row
+    is the maximum of ``-g/c`` where ``c > 0``, the upper bound the minimum where ``c < 0``;
+    both are minima of ``-sign * (-g/c)``, found together by :func:`polish_min` (one
+    evaluation of ``rows`` per golden-section step for all of them)."""
     grid = rows(alpha, idx)
     lower, upper = Bound(None, "none"), Bound(None, "none")
     never: list[str] = []
+    problems: list[tuple[str, int, float]] = []
+    values = []
     for fam, pairs in grid.items():
         for r, (g, c) in enumerate(pairs):
             scale = np.max(np.abs(c)) if c.size else 1.0
@@ -164,31 +171,35 @@ def bounds(rows: Rows, alpha: np.ndarray, idx: np.ndarray
                 vals = _ratio(g, c, sign)
                 if not np.any(np.isfinite(vals)):
                     continue
-
-                if sign > 0:
-                    a_star, v = polish_max(_at(rows, alpha, idx, fam, r, sign), alpha,
-                                           vals[None], idx)
-                    v = float(v[0])
-                    if lower.value is None or v > lower.value:
-                        lower = Bound(v, fam, float(a_star[0]))
-                else:
-                    a_star, v = polish_min(_at(rows, alpha, idx, fam, r, sign), alpha,
-                                           vals[None], idx)
-                    v = float(v[0])
-                    if upper.value is None or v < upper.value:
-                        upper = Bound(v, fam, float(a_star[0]))
+                problems.append((fam, r, sign))
+                values.append(-sign * vals)
+    if not problems:
+        return lower, upper, never
+    a_star, m = polish_min(_at(rows, alpha, idx, problems), alpha, np.array(values), idx)
+    for (fam, _, sign), a, v in zip(problems, a_star, m):
+        v = float(-sign * v)
+        if sign > 0:
+            if lower.value is None or v > lower.value:
+                lower = Bound(v, fam, float(a))
+        elif upper.value is None or v < upper.value:
+            upper = Bound(v, fam, float(a))
     return lower, upper, never
 
 
-def _at(rows: Rows, alpha: np.ndarray, idx: np.ndarray, fam: str, r: int, sign: float):
-    """The bound ``-g/c`` of one row as a function of alpha (one abscissa per batch entry),
-    with the knot interval of the grid point nearest to it (the polishing brackets never
-    cross a knot)."""
+def _at(rows: Rows, alpha: np.ndarray, idx: np.ndarray,
+        problems: list[tuple[str, int, float]]):
+    """The objective of each batch entry as a function of alpha (one abscissa per entry):
+    ``-sign * (-g/c)`` of the entry's row (family, index, sign), with the knot interval of
+    the grid point nearest to the abscissa (the polishing brackets never cross a knot)."""
     def f(a: np.ndarray) -> np.ndarray:
         a = np.atleast_1d(np.asarray(a, float))
         j = idx[np.argmin(np.abs(alpha[None, :] - a[:, None]), axis=1)]
-        g, c = rows(a, j)[fam][r]
-        return _ratio(g, c, sign)
+        at = rows(a, j)
+        out = np.empty(a.shape)
+        for e, (fam, r, sign) in enumerate(problems):
+            g, c = at[fam][r]
+            out[e] = -sign * _ratio(g[e:e + 1], c[e:e + 1], sign)[0]
+        return out
     return f
 
 
