@@ -572,6 +572,9 @@ class _Counting:
     def close(self):
         self.inner.close()
 
+    def describe(self):
+        return self.inner.describe()
+
 
 def test_chunk_size_rule():
     """ceil(points / (8 workers)), clipped to [1, most]."""
@@ -654,3 +657,26 @@ def test_a_chunk_lost_with_its_worker_runs_again_point_by_point(tmp_path):
     assert (tmp_path / "crashed").exists() and ex.restarts >= 1
     assert counts.resubmitted >= 4  # at least the crashed chunk's 4 points
     assert sorted(seen) == sorted(ref) and got == ref
+
+
+@pytest.mark.slow
+def test_push_trial_sweep_file_runs_in_chunks_with_the_same_records():
+    """``thrustwalk sweep`` of push trials shares engine tasks (trial_chunk) and gives every
+    point the record it gets with one point per task."""
+    from thrustwalk_cli.studies.sweep import load_sweep, run_sweep
+    from thrustwalk_cli.sweep.executors import InProcess
+
+    sweep = load_sweep(Path(__file__).resolve().parents[1] / "sweeps"
+                       / "push_trials_thrust.yaml")
+    one = _Counting(InProcess())
+    ref = run_sweep(sweep, executor=one, chunk=1)
+    auto = _Counting(InProcess())
+    got = run_sweep(sweep, executor=auto)
+    n = len(sweep.tasks)
+    assert one.submitted == n and auto.submitted < n / 4  # ceil(64 / 8) = 8 trials a task
+
+    def strip(rec):
+        return {k: v for k, v in rec.items() if k != "seconds"}
+
+    assert [strip(r) for r in got.records] == [strip(r) for r in ref.records]
+    assert {r["fields"]["outcome"] for r in got.records} >= {"recovered", "lifted"}

@@ -418,12 +418,16 @@ ATLAS_LABELS = {"effort": "effort", "delta_zero_sq": "delta_zero^2",
 def run_sweep(sweep: Sweep, *, workers: int | None = None, scheduler: str | None = None,
               executor=None, finished: Mapping[str, dict] | None = None,
               on_point: Callable[[dict], None] | None = None,
-              library: Path | None = None) -> SweepResult:
+              library: Path | None = None, chunk: int | None = None) -> SweepResult:
     """Run every point of ``sweep`` without a record in ``finished`` (key -> record, e.g. the
     points a stopped run already wrote) on ``executor`` (default: :func:`sweep_executor` of
     ``workers`` / ``scheduler``); ``on_point(record)`` as each point finishes. ``library``:
     the folder a design-gait sweep's gait files will be written to (their ``robot:``
-    reference is relative to it). Returns the result over all points."""
+    reference is relative to it). ``chunk``: push trials per engine task (default
+    :func:`~.robustness.trial_chunk` of the trials to run, the workers and the most steps of
+    a trial; 1: one per task); other studies run one point per task (their points cost tens
+    of milliseconds or more). The records do not depend on it. Returns the result over all
+    points."""
     from .design_gait import robot_reference
 
     done = {k: v for k, v in (finished or {}).items()
@@ -437,8 +441,15 @@ def run_sweep(sweep: Sweep, *, workers: int | None = None, scheduler: str | None
     own = executor is None and todo > 0
     if own:
         executor = sweep_executor(sweep, workers, scheduler, todo)
+    if chunk is None:
+        from .robustness import trial_chunk
+
+        trials = [t for t in tasks if t.study == "push-trial" and t.key not in done]
+        steps = max((int(t.parameters.get("steps", 1)) for t in trials), default=1)
+        chunk = trial_chunk(len(trials), getattr(executor, "workers", 1), steps)
     try:
-        counts = run_tasks(tasks, run_point, executor, done, on_point or (lambda r: None)) \
+        counts = run_tasks(tasks, run_point, executor, done, on_point or (lambda r: None),
+                           chunk={"push-trial": int(chunk)}) \
             if todo else RunCounts(skipped=len(tasks))
     finally:
         if own:
