@@ -46,18 +46,17 @@ from ..resilience.maps import mean_of, outcome_counts, spread, summary_impulse, 
 from ..resilience.strategy import KINDS, Realized, Strategy, labels_unique, schedule_of_file
 from ..resilience.trials import OUTCOMES
 from ..sweep.points import draw
-from ..sweep.runner import RunCounts, chunk_size, run_tasks
+from ..sweep.runner import RunCounts, run_tasks
 from ..sweep.tasks import PointTask, identity, task_key
 from ..walker import Walker
 from .records import SCHEMA_VERSION, Table, col, gait_record, robot_record, units
-from .sweep_studies import STUDIES, _realized, run_point
+from .sweep_studies import STUDIES, _realized, run_point, trial_chunk
 
 UNITS = units("impulse", "zeta", "speed", "force", "friction_ratio", "sigma_N", "output_rate",
               "output_y", "step_time", "delta_zero_sq", "alpha", phase="1", duration="s")
 MAX_TRIALS = 100_000
 RENAMED = {"transverse": "basin_joint", "schedule": "strategy"}  # study -> this study
 MAX_SAMPLES = 100_000
-STEPS_PER_CHUNK = 320  # trial_chunk: simulated steps per task at most (32 ten-step trials)
 
 
 # ------------------------------------------------------------------------------ strategies
@@ -672,15 +671,6 @@ def _fraction(outcomes: Sequence[str | None], good: tuple[str, ...]) -> float | 
 
 
 # ------------------------------------------------------------------------------ running
-def trial_chunk(todo: int, workers: int, steps: int) -> int:
-    """Trials per engine task for ``todo`` trials of ``steps`` steps on ``workers`` workers:
-    :func:`~thrustwalk_cli.sweep.runner.chunk_size`, i.e. ``ceil(todo / (8 workers))`` (at
-    least 8 tasks per worker when there are that many trials: balance and progress), at most
-    ``STEPS_PER_CHUNK // steps`` trials (320 simulated steps: 32 trials of 10 steps, tens of
-    milliseconds of work against the engine's 1-2 ms per task) and at least 1."""
-    return chunk_size(todo, workers, most=max(1, STEPS_PER_CHUNK // max(1, int(steps))))
-
-
 def run_robustness(plan: RobustnessPlan, *, workers: int | None = None,
                    scheduler: str | None = None, executor=None,
                    finished: Mapping[str, dict] | None = None,

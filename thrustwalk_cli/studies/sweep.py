@@ -31,7 +31,14 @@ from ..sweep.runner import RunCounts, run_tasks
 from ..sweep.tasks import PointTask, identity, task_key
 from ..walker import assemble_walker, default_gait
 from .records import SCHEMA_VERSION, Table, col
-from .sweep_studies import STUDIES, SweepStudy, point_model, point_walker, run_point
+from .sweep_studies import (
+    STUDIES,
+    SweepStudy,
+    point_model,
+    point_walker,
+    run_point,
+    trial_chunk,
+)
 
 
 @dataclass(frozen=True)
@@ -424,7 +431,7 @@ def run_sweep(sweep: Sweep, *, workers: int | None = None, scheduler: str | None
     ``workers`` / ``scheduler``); ``on_point(record)`` as each point finishes. ``library``:
     the folder a design-gait sweep's gait files will be written to (their ``robot:``
     reference is relative to it). ``chunk``: push trials per engine task (default
-    :func:`~.robustness.trial_chunk` of the trials to run, the workers and the most steps of
+    :func:`~.sweep_studies.trial_chunk` of the trials to run, the workers and the most steps of
     a trial; 1: one per task); other studies run one point per task (their points cost tens
     of milliseconds or more). The records do not depend on it. Returns the result over all
     points."""
@@ -442,8 +449,6 @@ def run_sweep(sweep: Sweep, *, workers: int | None = None, scheduler: str | None
     if own:
         executor = sweep_executor(sweep, workers, scheduler, todo)
     if chunk is None:
-        from .robustness import trial_chunk
-
         trials = [t for t in tasks if t.study == "push-trial" and t.key not in done]
         steps = max((int(t.parameters.get("steps", 1)) for t in trials), default=1)
         chunk = trial_chunk(len(trials), getattr(executor, "workers", 1), steps)

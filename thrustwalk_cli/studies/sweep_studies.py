@@ -32,6 +32,7 @@ from ..files.output import jsonable
 from ..files.robot_file import load_robot_text
 from ..model.compiled import CompiledModel
 from ..model.compiler import load_model
+from ..sweep.runner import chunk_size
 from ..sweep.tasks import PointTask, canonical
 from ..walker import Walker, assemble_walker
 from .records import UNITS
@@ -555,6 +556,18 @@ STUDIES: dict[str, SweepStudy] = {
     "design-gait": SweepStudy("design-gait", _DG_FIELDS, _design_point, uses_gait=False,
                               check=_check_design, continuation=True),
 }
+
+
+STEPS_PER_CHUNK = 320  # trial_chunk: simulated steps per task at most (32 ten-step trials)
+
+
+def trial_chunk(todo: int, workers: int, steps: int) -> int:
+    """Trials per engine task for ``todo`` trials of ``steps`` steps on ``workers`` workers:
+    :func:`~thrustwalk_cli.sweep.runner.chunk_size`, i.e. ``ceil(todo / (8 workers))`` (at
+    least 8 tasks per worker when there are that many trials: balance and progress), at most
+    ``STEPS_PER_CHUNK // steps`` trials (320 simulated steps: 32 trials of 10 steps, tens of
+    milliseconds of work against the engine's 1-2 ms per task) and at least 1."""
+    return chunk_size(todo, workers, most=max(1, STEPS_PER_CHUNK // max(1, int(steps))))
 
 
 # ------------------------------------------------------------------------- worker side
