@@ -96,3 +96,29 @@ def cli_subprocess(_cache_dir):
                               capture_output=True, text=True, timeout=timeout, env=full,
                               cwd=cwd)
     return run
+
+
+class CountingExecutor:
+    """A sweep executor that counts the engine tasks submitted to the one it wraps."""
+
+    def __init__(self, inner):
+        self.inner, self.submitted, self.workers = inner, 0, inner.workers
+
+    def submit(self, fn, task):
+        self.submitted += 1
+        return self.inner.submit(fn, task)
+
+    def wait(self, handles):
+        return self.inner.wait(handles)
+
+    def close(self):
+        self.inner.close()
+
+    def describe(self):
+        return self.inner.describe()
+
+
+@pytest.fixture
+def counting():
+    """``counting(executor)``: the executor wrapped so that it counts submitted tasks."""
+    return CountingExecutor

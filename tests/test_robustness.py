@@ -376,28 +376,6 @@ def _outputs(res, folder: Path) -> tuple[str, dict[str, bytes]]:
     return json.dumps(output.jsonable(doc), sort_keys=True), csv
 
 
-class _Counting:
-    """An in-process executor that counts the engine tasks submitted."""
-
-    def __init__(self):
-        from thrustwalk_cli.sweep.executors import InProcess
-
-        self.inner, self.submitted, self.workers = InProcess(), 0, 1
-
-    def submit(self, fn, task):
-        self.submitted += 1
-        return self.inner.submit(fn, task)
-
-    def wait(self, handles):
-        return self.inner.wait(handles)
-
-    def close(self):
-        self.inner.close()
-
-    def describe(self):
-        return self.inner.describe()
-
-
 @pytest.fixture(scope="module")
 def mixed_plan(walker3, tmp_path_factory):
     """Push trials, basin trials and samples of three strategies (63 trials, 6 samples)."""
@@ -414,7 +392,7 @@ def one_per_task(mixed_plan):
     return run_robustness(mixed_plan, workers=1, chunk=1)
 
 
-def test_trials_in_chunks_equal_one_trial_per_task(mixed_plan, one_per_task, tmp_path):
+def test_trials_in_chunks_equal_one_trial_per_task(mixed_plan, one_per_task, tmp_path, counting):
     """The trials run in chunks (the automatic size in this process and on 2 local workers,
     and 5 per task: chunks that straddle phases and strategies) give every trial the record
     of the run with one trial per task, and bit-for-bit the same robustness.json and CSV
@@ -422,7 +400,9 @@ def test_trials_in_chunks_equal_one_trial_per_task(mixed_plan, one_per_task, tmp
     plan = mixed_plan
     n_trials = sum(kd != "sample" for kd in plan.kinds)
     ref = _outputs(one_per_task, tmp_path / "ref")
-    ex = _Counting()
+    from thrustwalk_cli.sweep.executors import InProcess
+
+    ex = counting(InProcess())
     runs = {"auto-1": run_robustness(plan, executor=ex), "auto-2":
             run_robustness(plan, workers=2), "5-1": run_robustness(plan, workers=1, chunk=5)}
     # 63 trials on 1 worker: ceil(63 / 8) = 8 per task -> 8 tasks; 6 samples one each

@@ -556,26 +556,6 @@ def _toy_point(task) -> dict:
             "fields": {"y": x * x}, "document": {"x": x}, "next_start": None, "seconds": 0.0}
 
 
-class _Counting:
-    """An executor that counts the tasks submitted to the one it wraps."""
-
-    def __init__(self, inner):
-        self.inner, self.submitted, self.workers = inner, 0, inner.workers
-
-    def submit(self, fn, task):
-        self.submitted += 1
-        return self.inner.submit(fn, task)
-
-    def wait(self, handles):
-        return self.inner.wait(handles)
-
-    def close(self):
-        self.inner.close()
-
-    def describe(self):
-        return self.inner.describe()
-
-
 def test_chunk_size_rule():
     """ceil(points / (8 workers)), clipped to [1, most]."""
     from thrustwalk_cli.sweep.runner import chunk_size
@@ -586,7 +566,7 @@ def test_chunk_size_rule():
 
 
 @pytest.mark.parametrize("local", [False, True])
-def test_points_in_chunks_get_the_records_of_one_point_per_task(local):
+def test_points_in_chunks_get_the_records_of_one_point_per_task(local, counting):
     """13 points, one raising: in chunks of 4 (in this process, or on 2 local worker
     processes) every point is handed over once with the record it gets as a task of its own;
     the raising point's record is failed with its reason, its chunk's other points are ok."""
@@ -595,14 +575,14 @@ def test_points_in_chunks_get_the_records_of_one_point_per_task(local):
 
     tasks = _toy_tasks(13)
     single: dict[str, dict] = {}
-    ex = _Counting(InProcess())
+    ex = counting(InProcess())
     run_tasks(tasks, _toy_point, ex, single, lambda r: None)
     assert ex.submitted == 13
     assert single["toy-key-003"]["status"] == "failed"
     assert single["toy-key-003"]["reason"] == ("the task could not run (ValueError: point 3 "
                                                "cannot be computed)")
     for chunk in (4, {"toy": 4}):
-        ex = _Counting(LocalProcesses(2) if local else InProcess())
+        ex = counting(LocalProcesses(2) if local else InProcess())
         seen: list[dict] = []
         got: dict[str, dict] = {}
         try:
@@ -613,7 +593,7 @@ def test_points_in_chunks_get_the_records_of_one_point_per_task(local):
         assert sorted(r["key"] for r in seen) == [t.key for t in tasks]
         assert got == single and counts.ok == 12 and counts.failed == 1
     # a study not named in the mapping runs one point per task
-    ex = _Counting(InProcess())
+    ex = counting(InProcess())
     run_tasks(tasks, _toy_point, ex, {}, lambda r: None, chunk={"other": 4})
     assert ex.submitted == 13
 
@@ -660,7 +640,7 @@ def test_a_chunk_lost_with_its_worker_runs_again_point_by_point(tmp_path):
 
 
 @pytest.mark.slow
-def test_push_trial_sweep_file_runs_in_chunks_with_the_same_records():
+def test_push_trial_sweep_file_runs_in_chunks_with_the_same_records(counting):
     """``thrustwalk sweep`` of push trials shares engine tasks (trial_chunk) and gives every
     point the record it gets with one point per task."""
     from thrustwalk_cli.studies.sweep import load_sweep, run_sweep
@@ -668,9 +648,9 @@ def test_push_trial_sweep_file_runs_in_chunks_with_the_same_records():
 
     sweep = load_sweep(Path(__file__).resolve().parents[1] / "sweeps"
                        / "push_trials_thrust.yaml")
-    one = _Counting(InProcess())
+    one = counting(InProcess())
     ref = run_sweep(sweep, executor=one, chunk=1)
-    auto = _Counting(InProcess())
+    auto = counting(InProcess())
     got = run_sweep(sweep, executor=auto)
     n = len(sweep.tasks)
     assert one.submitted == n and auto.submitted < n / 4  # ceil(64 / 8) = 8 trials a task
