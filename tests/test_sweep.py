@@ -75,7 +75,7 @@ BAD = [
     ("  thrust: {start: 0, stop: -20, step: -10}", "  thrust: {values: [0, -2000]}",
      "-2000 N is outside the limits"),
     ("grid:\n", "settings: {thruster: hip_z}\ngrid:\n", "settings.thruster"),
-    ("grid:\n", "settings: {mu: 0.5}\ngrid:\n", "unknown key 'mu'"),
+    ("grid:\n", "settings: {steps: 5}\ngrid:\n", "unknown key 'steps'"),
     ("  robot.MT: {values: [8, 12], unit: kg}", "  robot.MT: {values: [8, 12], unit: kg}\n"
      "  thrust: [1, 2]", "duplicate key 'thrust'"),
     ("  robot.MT: {values: [8, 12], unit: kg}", "  robot.MT: {values: [8, 12], start: 1}",

@@ -131,6 +131,58 @@ def test_scuffing_is_part_of_every_verdict(tmp_path, cli):
     assert "**Infeasible:** the swing foot goes" in md and "not part of the verdict" not in md
 
 
+WALKER5 = REPO / "tests" / "data" / "walker5.yaml"
+WALKER5_WALK = REPO / "tests" / "data" / "walker5_walk.yaml"
+
+
+def test_walkable_means_contact_feasible_on_a_users_robot(tmp_path, cli, monkeypatch):
+    """Issue 24 item 2: on a user's 5-link knee walker, limit-cycle called every thrust from 0
+    to -12 N walkable while feasibility said infeasible from -2 N (friction ratio 0.83) and
+    lifted from -6 N. Now the two commands give the same verdict case by case, and the
+    limit-cycle numbers are the feasibility command's."""
+    monkeypatch.chdir(tmp_path)
+    args = [WALKER5, WALKER5_WALK, "--thrust", "0:-12:-2"]
+    assert cli("limit-cycle", *args, "--out", "lc", "-q").exit_code == 0
+    assert cli("feasibility", *args, "--out", "fe", "-q").exit_code == 0
+    lc = json.loads((tmp_path / "lc" / "limit_cycles.json").read_text())
+    fe = json.loads((tmp_path / "fe" / "feasibility.json").read_text())
+    assert lc["contact"]["mu"] == fe["mu"] == 0.7
+    for c, f in zip(lc["cycles"], fe["cases"], strict=True):
+        assert c["thrust"] == f["thrust"]
+        assert c["exists"] and c["stable"], c["thrust"]  # the orbit is fine everywhere
+        assert c["walkable"] == f["feasible"], c["thrust"]
+        assert c["contact"]["feasible"] == f["feasible"]
+        for key in ("min_vertical_force", "max_friction_ratio"):
+            assert c["contact"][key] == f[key], (c["thrust"], key)
+        if not c["walkable"]:
+            assert c["verdict"].startswith("not walkable: stable orbit, contact infeasible")
+    walkable = [c["thrust"] for c in lc["cycles"] if c["walkable"]]
+    assert walkable == [0.0], walkable  # slips from -2 N, lifts from -6 N
+    by = {c["thrust"]: c for c in lc["cycles"]}
+    assert by[-2.0]["contact"]["max_friction_ratio"] > 0.7
+    assert by[-6.0]["contact"]["min_vertical_force"] < 0 and not lc["success"]
+    res = cli("limit-cycle", *args, "--out", "lc2")
+    assert "-6 to -12 N (4 cases): not walkable" in " ".join(res.stdout.split())
+    assert "thrustwalk feasibility" in res.stdout
+    # a friction coefficient that makes -2 N feasible: the verdicts move together
+    res = cli("limit-cycle", *args, "--mu", "1.2", "--out", "lc3", "-q")
+    lc3 = json.loads((tmp_path / "lc3" / "limit_cycles.json").read_text())
+    assert [c["walkable"] for c in lc3["cycles"][:2]] == [True, True]
+
+
+def test_walkable_in_a_limit_cycle_sweep_is_the_feasibility_verdict(tmp_path, cli):
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text(f"name: s\nstudy: limit-cycle\nrobot: {WALKER5}\ngait: {WALKER5_WALK}\n"
+                     "grid:\n  thrust: {values: [0, -2, -6]}\n"
+                     "collect: [walkable, contact_feasible, max_friction_ratio]\n")
+    res = cli("sweep", sweep, "--out", tmp_path / "out", "-q", "--workers", "1")
+    assert res.exit_code == 0, res.output
+    import csv
+
+    rows = list(csv.DictReader((tmp_path / "out" / "results.csv").open()))
+    assert [r["walkable"] for r in rows] == ["true", "false", "false"], rows
+
+
 def test_simulate_never_plain_ok_when_the_cone_is_left(tmp_path, cli):
     res = cli("simulate", "--steps", "2", "--thrust", "0", "--thrust-model", "constant",
               "--mu", "0.3", "--samples", "10", "--out", tmp_path, "-q")

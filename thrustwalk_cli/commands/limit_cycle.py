@@ -22,6 +22,8 @@ from .options import (
     GaitArg,
     JsonOpt,
     MaxOutputOpt,
+    MinVerticalForceOpt,
+    MuOpt,
     OutOpt,
     QuietOpt,
     RobotArg,
@@ -36,7 +38,10 @@ For every thrust value: Poincare fixed point zeta* [kg^2 m^4/s^2], stability (de
 step time [s], step length [m], speed [m/s], sigma_N^+/- [kg m^2/s], alpha'^+/- [rad/s], the
 exact minimum and maximum of |alpha'| and the swing foot's touchdown velocity [m/s] (near 0: a
 grazing touchdown), with a verdict: walkable only when the orbit exists and is stable, the
-gait is hybrid-invariant and the swing foot stays above the ground. Thrust is in newtons; with
+gait is hybrid-invariant, the swing foot stays above the ground and the ground contact holds
+on the orbit (the feasibility command's checks at --mu and --min-vertical-force: F_1^v >=
+the minimum, |F_1^h| <= mu F_1^v along the step, the impact impulse in the cone, the
+trailing foot lifting off; `thrustwalk feasibility` shows the forces). Thrust is in newtons; with
 the bundled robots negative thrust pushes forward (the paper's convention). Without --thrust,
 a gait with a thrust: section is analysed with its own schedule; for a robot without
 thrusters the only thrust is 0 (the default).
@@ -52,14 +57,16 @@ EPILOG = ("Example: thrustwalk limit-cycle three_link three_link_walk --thrust 0
 def run_limit_cycle(robot: str | None, gait: str | None, thrust: list[float] | None,
                     thruster: str | None, out: Path, quiet: bool, *, json: str | None = None,
                     formats: set[str] | None = None, titles: bool = False,
-                    max_output: float = 100.0) -> dict:
+                    max_output: float = 100.0, mu: float | None = None,
+                    min_vertical_force: float = 0.0) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files.output import provenance
     from ..studies.limit_cycle import limit_cycle
 
     check_out(out, json=json)
     walker = load_walker(robot, gait)
-    result = limit_cycle(walker, thrust, thruster, max_output=max_output * 1e6)
+    result = limit_cycle(walker, thrust, thruster, max_output=max_output * 1e6, mu=mu,
+                         min_vertical_force=min_vertical_force)
     if result.source == "gait" and not quiet:
         warn(["no --thrust given: the gait's own thrust: schedule is analysed"])
     doc = write_result(result, out, provenance(walker.robot, walker.gait), json=json,
@@ -73,20 +80,54 @@ def run_limit_cycle(robot: str | None, gait: str | None, thrust: list[float] | N
 
 
 def _table(doc: dict) -> None:
+    import re
+
     from ..studies.records import fmt
 
     zd = doc["zero_dynamics"]
     rows = [["gait" if c["thrust"] is None else fmt(c["thrust"]), fmt(c["zeta_star"]),
              fmt(c["step_time"]), fmt(c["speed"]), fmt(c["min_abs_alpha_dot"]),
-             fmt(c["touchdown_velocity"]), c["verdict"].split(":")[0]] for c in doc["cycles"]]
+             fmt(c["touchdown_velocity"]), _word(c, doc)] for c in doc["cycles"]]
     show_table(f"limit cycles: {doc['robot']['name']} / {doc['gait']['name']} "
                f"(delta_zero^2 = {zd['delta_zero_sq']:.4f})",
                [("thrust\n[N]", True), ("zeta*\n[kg^2 m^4/s^2]", True), ("T\n[s]", True),
                 ("speed\n[m/s]", True), ("min|α'|\n[rad/s]", True),
                 ("touchdown\n[m/s]", True), ("verdict", False)], rows)
     con = console()
-    for verdict in dict.fromkeys(c["verdict"] for c in doc["cycles"] if not c["walkable"]):
-        con.print(verdict, markup=False)
+    groups: dict[str, list[dict]] = {}
+    for c in doc["cycles"]:
+        if not c["walkable"]:  # one line per kind of verdict, its numbers aside
+            groups.setdefault(re.sub(r"-?\d[\d.]*(e[-+]?\d+)?", "#", c["verdict"]), []).append(c)
+    for cases in groups.values():
+        first = cases[0]
+        if first["thrust"] is None or len(doc["cycles"]) == 1:
+            con.print(first["verdict"], markup=False)
+            continue
+        span = (f"{fmt(first['thrust'])} N" if len(cases) == 1 else
+                f"{fmt(first['thrust'])} to {fmt(cases[-1]['thrust'])} N ({len(cases)} cases)")
+        con.print(f"{span}: {first['verdict']}"
+                  + (f" (at {fmt(first['thrust'])} N)" if len(cases) > 1 else ""), markup=False)
+    ct = doc["contact"]
+    if any(c["exists"] and c["stable"] and not c["contact"]["feasible"]
+           for cases in groups.values() for c in cases):
+        con.print(f"contact checked on each orbit at mu = {ct['mu']:g}, F^v >= "
+                  f"{ct['min_vertical_force']:g} N; `thrustwalk feasibility` with the same "
+                  "options shows the ground forces", markup=False)
+
+
+def _word(c: dict, doc: dict) -> str:
+    """The verdict of one case in a word for the table (the lines below it give the reason)."""
+    if c["walkable"]:
+        return "walkable"
+    if not c["exists"]:
+        return "no orbit"
+    if not c["stable"]:
+        return "unstable"
+    if doc["swing_foot"].get("scuffs"):
+        return "scuffs"
+    why = c["contact"]["reason"]
+    return ("lifts" if "vertical ground force" in why else "slips" if "friction ratio" in why
+            else "impact" if "impact" in why or "lift" in why else "infeasible")
 
 
 def register(app: typer.Typer) -> None:
@@ -102,10 +143,13 @@ def register(app: typer.Typer) -> None:
         formats: FormatsOpt = "csv,png,pdf",
         titles: TitlesOpt = False,
         max_output: MaxOutputOpt = 100.0,
+        mu: MuOpt = None,
+        min_vertical_force: MinVerticalForceOpt = 0.0,
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
             values = None if thrust is None else parse_values(thrust, "--thrust", "N")
             run_limit_cycle(robot, gait, values, thruster, out, quiet, json=json,
                             formats=parse_formats(formats), titles=titles,
-                            max_output=max_output)
+                            max_output=max_output, mu=mu,
+                            min_vertical_force=min_vertical_force)

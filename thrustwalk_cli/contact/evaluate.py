@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..hzd.extrema import golden_min, neighbours
+from ..hzd.extrema import golden_min_smooth, neighbours
 from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, ZetaAt, limit_cycles
 from ..model.compiled import CompiledModel
 from .terms import (
@@ -65,6 +65,15 @@ def friction_ratio(F1: np.ndarray) -> np.ndarray:
         return np.where(F1[..., 1] > 0, np.abs(F1[..., 0]) / F1[..., 1], np.inf)
 
 
+def _unique_terms(provider: Provider, X: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``provider`` at the abscissae ``X`` (k, n), evaluated once per distinct row (cases of a
+    sweep share their brackets), as arrays of leading shape (k, n)."""
+    rows, inverse = np.unique(X, axis=0, return_inverse=True)
+    terms = provider(rows.ravel())
+    n = X.shape[1]
+    return tuple(t.reshape((rows.shape[0], n) + t.shape[1:])[inverse.ravel()] for t in terms)
+
+
 @dataclass(frozen=True)
 class StanceExtremes:
     """Worst points of the stance conditions for a batch of cases (SI units)."""
@@ -87,27 +96,25 @@ def _extremes(provider: Provider, zd: ZeroDynamics, sched: Schedule, zeta_plus: 
     if not polish:
         return StanceExtremes(*out)
 
-    def bracket(j):
-        return neighbours(alpha, j, idx)
-
     zeta_at = ZetaAt(zd, sched)
 
-    def f1_at(a, interval):
-        z = zeta_at(zeta_plus, a)
-        F = sched.force[rows, interval, :]
-        T = sched.generalized[rows, interval]
-        return _force(provider(a), z, F, T)
-
-    # minimise F^v; maximise |F^h|/F^v (= minimise its negative) where it is finite
+    # minimise F^v; maximise |F^h|/F^v (= minimise its negative) where it is finite; the
+    # search runs on a local interpolant of F_1 (golden_min_smooth), the value at its result
+    # is the exact one
     for slot, j, col, sign in ((0, jv, 1, 1.0), (2, jr, None, -1.0)):
-        lo, hi = bracket(j)
+        lo, hi = neighbours(alpha, j, idx)
+        F, T = sched.force[rows, idx[j], :], sched.generalized[rows, idx[j]]
 
-        def obj(a, interval=idx[j], col=col, sign=sign):
-            F1a = f1_at(a, interval)
+        def sample(X, F=F, T=T):
+            return _force(_unique_terms(provider, X), zeta_at(zeta_plus, X), F[:, None, :],
+                          T[:, None])
+
+        def obj(F1a, col=col, sign=sign):
             val = F1a[:, col] if col is not None else friction_ratio(F1a)
             return np.where(np.isfinite(val), sign * val, 1e300)
 
-        xa, fa = golden_min(obj, lo, hi)
+        xa = golden_min_smooth(sample, obj, lo, hi)
+        fa = obj(_force(provider(xa), zeta_at(zeta_plus, xa), F, T))
         better = np.isfinite(out[slot]) & (fa < sign * out[slot])
         out[slot] = np.where(better, sign * fa, out[slot])
         out[slot + 1] = np.where(better, xa, out[slot + 1])
@@ -131,15 +138,22 @@ def _max_abs_torque(model: CompiledModel, zd: ZeroDynamics, sched: Schedule,
     j = np.argmax(A, axis=1)
     F, T = rep.force[e, idx[j], :], rep.generalized[e, idx[j]]
 
-    def neg_abs_u(a):
+    def terms(a):
         t = stance_terms(model, zd.maps, a)
-        u = (np.einsum("eim,em->ei", t.U2, F) + t.U1 * zeta_at(zp, a)[:, None] + t.U0
-             + t.UT * T[:, None])
-        return -np.abs(u[e, joint])
+        return t.U0, t.U1, t.U2, t.UT
+
+    def torque(U0, U1, U2, UT, zeta, F, T):
+        return (np.einsum("...im,...m->...i", U2, F) + U1 * zeta[..., None] + U0
+                + UT * T[..., None])
+
+    def sample(X):  # u_joint(e) at X (E, n): (E, n)
+        u = torque(*_unique_terms(terms, X), zeta_at(zp, X), F[:, None, :], T[:, None])
+        return u[e, :, joint]
 
     lo, hi = neighbours(alpha, j, idx)
-    _, fa = golden_min(neg_abs_u, lo, hi)
-    return np.maximum(A[e, j], -fa).reshape(k, nb)
+    xa = golden_min_smooth(sample, lambda u: -np.abs(u), lo, hi)
+    exact = torque(*terms(xa), zeta_at(zp, xa), F, T)[e, joint]
+    return np.maximum(A[e, j], np.abs(exact)).reshape(k, nb)
 
 
 @dataclass(frozen=True)
@@ -178,7 +192,7 @@ class ContactReport:
     eps: float
     impact: ImpactData
     swing: dict
-    fits: Fits
+    fits: Fits | None  # None when evaluated without the polynomial fits
     cases: list[CaseResult]
     knots: np.ndarray
 
@@ -186,33 +200,41 @@ class ContactReport:
 def evaluate(model: CompiledModel, zd: ZeroDynamics, sched: Schedule, *, mu: float,
              eps: float = 0.0, fits: Fits | None = None, labels: list[str] | None = None,
              thrust: list | None = None, points: int = 401, polish: bool = True,
-             profiles: bool = True) -> ContactReport:
-    """Contact feasibility of every schedule in ``sched`` on its own periodic orbit (SPEC 5)."""
-    if fits is None:
+             profiles: bool = True, cycles: list[LimitCycle] | None = None,
+             swing: dict | None = None, polynomial: bool = True, torque: bool = True
+             ) -> ContactReport:
+    """Contact feasibility of every schedule in ``sched`` on its own periodic orbit (SPEC 5).
+
+    ``cycles``/``swing``: the schedules' limit cycles and the swing-foot clearance when the
+    caller has them already. ``polynomial=False`` skips the polynomial fits L_k (``poly`` is
+    then None) and ``torque=False`` the polished joint-torque maxima (``max_abs_torque`` None):
+    the verdict is the same, it only needs the exact terms."""
+    if fits is None and polynomial:
         fits = fit_terms(model, zd)
     k = sched.size
     labels = labels or [f"case {i}" for i in range(k)]
     thrust = thrust if thrust is not None else [None] * k
-    cycles = limit_cycles(zd, sched)
+    cycles = limit_cycles(zd, sched) if cycles is None else cycles
     imp = impact_data(model, zd)
-    swing = swing_clearance(model, zd)
+    swing = swing_clearance(model, zd) if swing is None else swing
     alpha, idx = step_grid(sched.knots, points)
     exact = stance_terms(model, zd.maps, alpha)
     ex_terms = (exact.L0, exact.L1, exact.L2, exact.LT)
-    po_terms = fits.force_terms(alpha)
     zstar = np.array([c.zeta_star if c.exists else 0.0 for c in cycles])
     zplus = zd.delta_zero_sq * zstar
     zeta = zplus[:, None] + zd.V_Z(alpha, sched)  # (k, g)
     F = sched.force[:, idx, :]  # (k, g, m)
     T = sched.generalized[:, idx]
     F1 = _force(ex_terms, zeta, F, T)
-    F1p = _force(po_terms, zeta, F, T)
     U = (np.einsum("gim,kgm->kgi", exact.U2, F) + exact.U1 * zeta[..., None] + exact.U0
          + exact.UT * T[..., None])
     ext = _extremes(_exact_provider(model, zd), zd, sched, zplus, alpha, idx, F1, polish)
-    ext_p = _extremes(fits.force_terms, zd, sched, zplus, alpha, idx, F1p, polish)
-    umax = _max_abs_torque(model, zd, sched, zplus, alpha, idx, U, polish)
-    fit_err = np.abs(F1p - F1).max(axis=(1, 2))
+    ext_p = fit_err = None
+    if polynomial:
+        F1p = _force(fits.force_terms(alpha), zeta, F, T)
+        ext_p = _extremes(fits.force_terms, zd, sched, zplus, alpha, idx, F1p, polish)
+        fit_err = np.abs(F1p - F1).max(axis=(1, 2))
+    umax = _max_abs_torque(model, zd, sched, zplus, alpha, idx, U, polish) if torque else None
     imp_ok = imp.admissible(mu)
     cases = []
     for i, lc in enumerate(cycles):
@@ -236,9 +258,6 @@ def evaluate(model: CompiledModel, zd: ZeroDynamics, sched: Schedule, *, mu: flo
             why.append(scuff_reason(swing))
         sig = abs(lc.sigma_minus)
         ratio = float(ext.max_ratio[i]) if np.isfinite(ext.max_ratio[i]) else None
-        pv = bool(ext_p.min_vertical[i] >= eps and np.isfinite(ext_p.max_ratio[i])
-                  and ext_p.max_ratio[i] <= mu and imp_ok and not swing["scuffs"])
-        pr = float(ext_p.max_ratio[i]) if np.isfinite(ext_p.max_ratio[i]) else None
         feasible = bool(v_ok and r_ok and imp_ok and not swing["scuffs"])
         margins = {
             "vertical_force": float(ext.min_vertical[i] - eps),
@@ -262,14 +281,23 @@ def evaluate(model: CompiledModel, zd: ZeroDynamics, sched: Schedule, *, mu: flo
             impact_impulse=(imp.impulse_per_sigma * sig).tolist(),
             impact_friction_ratio=imp.friction_ratio,
             liftoff_velocity=float(imp.liftoff_per_sigma * sig),
-            max_abs_torque=umax[i].tolist(),
-            poly={"feasible": pv, "agrees": pv == feasible,
-                  "min_vertical_force": float(ext_p.min_vertical[i]),
-                  "alpha_at_min_vertical_force": float(ext_p.alpha_min_vertical[i]),
-                  "max_friction_ratio": pr,
-                  "max_force_error": float(fit_err[i])},
+            max_abs_torque=None if umax is None else umax[i].tolist(),
+            poly=None if ext_p is None else _poly_record(ext_p, i, eps, mu, imp_ok and not
+                                                         swing["scuffs"], feasible, fit_err[i]),
             margins=margins, profile=prof))
     return ContactReport(mu, eps, imp, swing, fits, cases, sched.knots)
+
+
+def _poly_record(ext_p: StanceExtremes, i: int, eps: float, mu: float, rest_ok: bool,
+                 feasible: bool, fit_err: float) -> dict:
+    """The verdict of case ``i`` with the polynomial fits L_k in place of the exact terms."""
+    ratio = ext_p.max_ratio[i]
+    pv = bool(ext_p.min_vertical[i] >= eps and np.isfinite(ratio) and ratio <= mu and rest_ok)
+    return {"feasible": pv, "agrees": pv == feasible,
+            "min_vertical_force": float(ext_p.min_vertical[i]),
+            "alpha_at_min_vertical_force": float(ext_p.alpha_min_vertical[i]),
+            "max_friction_ratio": float(ratio) if np.isfinite(ratio) else None,
+            "max_force_error": float(fit_err)}
 
 
 def check_contact_options(mu: float, eps: float) -> None:

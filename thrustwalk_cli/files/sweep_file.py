@@ -91,6 +91,9 @@ STUDY_PARAMETERS: dict[str, Kind] = {
         field("thrust", null_or(number("N")), "constant thrust (default: the gait's thrust: "
               "schedule when it has one, else 0)", default=None),
         _SCHEDULE,
+        _MU,
+        field("min_vertical_force", number("N", ge=0), "least vertical ground force F^v of "
+              "the contact check (walkable needs it)", default=0.0),
     ),
     "feasibility": mapping(
         _THRUSTER,

@@ -4,9 +4,12 @@ gait's own thrust schedule (SPEC 3, 4).
 For every case: the Poincare fixed point ``zeta* = V_Z(alpha_f) / (1 - delta_zero^2)``
 [kg^2 m^4/s^2], stability (``delta_zero^2``), the step time [s], step length [m], speed [m/s],
 ``sigma_N^+/-`` [kg m^2/s], ``alpha'^+/-`` [rad/s], the exact minimum and maximum of
-``|alpha'|``, the swing foot's touchdown velocity [m/s], and a verdict: ``walkable`` only when
-the orbit exists, is stable, the gait is hybrid-invariant and the swing foot stays above the
-ground. The sweep is vectorised: 1,000 values cost a few orbits.
+``|alpha'|``, the swing foot's touchdown velocity [m/s], the contact verdict on the orbit (SPEC
+5: the exact stance force in the friction cone with ``F^v >= eps``, an admissible impact, the
+trailing foot lifting off; the same code as the ``feasibility`` command) and a verdict:
+``walkable`` only when the orbit exists, is stable, the gait is hybrid-invariant, the swing
+foot stays above the ground and every contact condition holds. The sweep is vectorised:
+1,000 values cost a few orbits.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..contact.evaluate import CaseResult, check_contact_options, evaluate
 from ..contact.terms import scuff_reason
 from ..errors import InputError
 from ..hzd.schedule import check_limits, schedule_from_gait
@@ -43,8 +47,20 @@ ROW_BYTES = 120  # about the size of one CSV row, for the output-size estimate
 MAX_OUTPUT = 100e6  # [bytes] default limit of the CSV table
 
 
+def contact_record(c: CaseResult) -> dict:
+    """The contact verdict of one case on its orbit (SPEC 5; the ``feasibility`` command's
+    numbers for the same case)."""
+    return {"feasible": c.feasible, "reason": c.reason,
+            "min_vertical_force": c.min_vertical_force,
+            "alpha_at_min_vertical_force": c.alpha_at_min_vertical_force,
+            "max_friction_ratio": c.max_friction_ratio,
+            "alpha_at_max_friction_ratio": c.alpha_at_max_friction_ratio,
+            "impact_friction_ratio": c.impact_friction_ratio,
+            "liftoff_velocity": c.liftoff_velocity}
+
+
 def cycle_record(lc: LimitCycle, thrust: float | None, zd: ZeroDynamics, verdict: str,
-                 walkable: bool) -> dict:
+                 walkable: bool, contact: CaseResult) -> dict:
     """One JSON entry per case (keys fixed by the limit-cycle issue; SI units)."""
     return {
         "thrust": thrust,
@@ -55,6 +71,7 @@ def cycle_record(lc: LimitCycle, thrust: float | None, zd: ZeroDynamics, verdict
         "walkable": walkable,
         "verdict": verdict,
         "reason": lc.reason,
+        "contact": contact_record(contact),
         "step_time": lc.step_time,
         "step_time_error_estimate": lc.step_time_error,
         "step_length": lc.step_length,
@@ -81,10 +98,12 @@ class LimitCycleResult:
     gait's own schedule (``source == "gait"``) (SPEC 3, 4).
 
     ``cycles[i]`` belongs to ``thrust[i]`` [N] (None for a piecewise gait schedule); each says
-    whether its orbit ``exists``, is ``stable``, and why not (``reason``). ``walkable[i]``
-    adds the gait's validity (hybrid invariance) and the swing foot's clearance; ``verdict``
-    says it in words. ``success``: every case is walkable. ``thruster`` is None for a robot
-    without thrusters (then every value is 0) and for a gait schedule on several thrusters.
+    whether its orbit ``exists``, is ``stable``, and why not (``reason``). ``contact[i]``: the
+    contact verdict on that orbit (SPEC 5) at friction coefficient ``mu`` and least vertical
+    force ``eps`` [N]. ``walkable[i]`` adds the gait's validity (hybrid invariance), the swing
+    foot's clearance and the contact verdict; ``verdict`` says it in words. ``success``: every
+    case is walkable. ``thruster`` is None for a robot without thrusters (then every value is
+    0) and for a gait schedule on several thrusters.
     """
 
     walker: Walker = field(repr=False)
@@ -93,6 +112,9 @@ class LimitCycleResult:
     cycles: tuple[LimitCycle, ...]
     source: str = "values"
     schedule: Schedule | None = field(default=None, repr=False)
+    contact: tuple[CaseResult, ...] = field(default=(), repr=False)
+    mu: float = 0.7
+    eps: float = 0.0
 
     name = "limit_cycles"
 
@@ -100,7 +122,7 @@ class LimitCycleResult:
     def thruster_name(self) -> str | None:
         return None if self.thruster is None else self.walker.robot.thruster_names[self.thruster]
 
-    def _verdict(self, lc: LimitCycle) -> tuple[str, bool]:
+    def _verdict(self, lc: LimitCycle, contact: CaseResult) -> tuple[str, bool]:
         if not lc.exists:
             return (lc.reason if lc.reason.startswith("no periodic orbit")
                     else f"no periodic orbit: {lc.reason}"), False
@@ -109,15 +131,19 @@ class LimitCycleResult:
         sw = self.walker.swing
         if sw["scuffs"]:
             return f"not walkable: {scuff_reason(sw)}", False
-        return "walkable: stable periodic orbit", True
+        if not contact.feasible:
+            why = contact.reason.removeprefix("infeasible: ")
+            return f"not walkable: stable orbit, contact infeasible: {why}", False
+        return (f"walkable: stable periodic orbit, contact-feasible (mu = {self.mu:g}, F^v >= "
+                f"{self.eps:g} N)"), True
 
     @property
     def walkable(self) -> tuple[bool, ...]:
-        return tuple(self._verdict(c)[1] for c in self.cycles)
+        return tuple(self._verdict(c, f)[1] for c, f in zip(self.cycles, self.contact))
 
     @property
     def verdicts(self) -> tuple[str, ...]:
-        return tuple(self._verdict(c)[0] for c in self.cycles)
+        return tuple(self._verdict(c, f)[0] for c, f in zip(self.cycles, self.contact))
 
     @property
     def _label(self) -> str:
@@ -156,6 +182,11 @@ class LimitCycleResult:
             "reason": self.reason,
             "warnings": list(self.walker.warnings) + self.warnings(),
             "swing_foot": sw,
+            "contact": {"mu": self.mu, "min_vertical_force": self.eps,
+                        "checks": "on each orbit (SPEC 5, as the feasibility command): "
+                                  "F^v >= min_vertical_force and |F^h| <= mu F^v along the "
+                                  "step (worst points polished), impact impulse in the cone, "
+                                  "trailing foot lifting off"},
             "zero_dynamics": {
                 "delta_zero": zd.delta_zero, "delta_zero_sq": d2,
                 "quadrature_nodes": zd.nodes, "integral_error_estimate": zd.integral_error,
@@ -175,8 +206,9 @@ class LimitCycleResult:
                 "force": {n: self.schedule.force[0, :, t].tolist()
                           for t, n in enumerate(self.walker.robot.thruster_names)},
                 "generalized": self.schedule.generalized[0].tolist()}),
-            "cycles": [cycle_record(lc, v, zd, verdict, ok) for lc, v, verdict, ok in
-                       zip(self.cycles, self.thrust, self.verdicts, self.walkable)],
+            "cycles": [cycle_record(lc, v, zd, verdict, ok, f) for lc, v, verdict, ok, f in
+                       zip(self.cycles, self.thrust, self.verdicts, self.walkable,
+                           self.contact)],
         }
 
     def warnings(self) -> list[str]:
@@ -247,15 +279,21 @@ class LimitCycleResult:
 
 
 def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
-                thruster: str | None = None, max_output: float = MAX_OUTPUT
+                thruster: str | None = None, max_output: float = MAX_OUTPUT, *,
+                mu: float | None = None, min_vertical_force: float = 0.0
                 ) -> LimitCycleResult:
     """Limit cycles for constant thrust values ``thrust`` [N] on ``thruster`` (default: the
-    first) (SPEC 3, 4), in one vectorised evaluation. Without ``thrust``: the gait's own
-    ``thrust:`` schedule when it has one, else the paper's sweep 0 to -50 N.
+    first) (SPEC 3, 4), in one vectorised evaluation, each with its contact verdict (SPEC 5)
+    at friction coefficient ``mu`` [1] (default: the gait's) and least vertical ground force
+    ``min_vertical_force`` [N]. Without ``thrust``: the gait's own ``thrust:`` schedule when it
+    has one, else the paper's sweep 0 to -50 N.
 
     ``max_output`` [bytes]: a sweep whose CSV table would be larger is refused before any work.
     """
     zd = walker.zd
+    mu = walker.gait.mu if mu is None else float(mu)
+    eps = float(min_vertical_force)
+    check_contact_options(mu, eps)
     gait_thrust = walker.gait.thrust
     if thrust is None and gait_thrust is not None:
         if thruster is not None:
@@ -265,7 +303,8 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
         check_limits(zd, sched, walker.where)
         j, value = _constant_part(walker, sched)
         cycles = limit_cycles(zd, sched)
-        return LimitCycleResult(walker, (value,), j, tuple(cycles), "gait", sched)
+        return LimitCycleResult(walker, (value,), j, tuple(cycles), "gait", sched,
+                                _contact(walker, sched, cycles, mu, eps), mu, eps)
     default = DEFAULT_THRUST if walker.robot.thrusters else (0.0,)
     values = tuple(float(v) for v in (default if thrust is None else thrust))
     if not values:
@@ -281,7 +320,17 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
     sched = Schedule.constant(zd, constant_thrust(zd, values, j))
     check_limits(zd, sched, "thrust", ())
     cycles = limit_cycles(zd, sched)
-    return LimitCycleResult(walker, values, j, tuple(cycles), "values", sched)
+    return LimitCycleResult(walker, values, j, tuple(cycles), "values", sched,
+                            _contact(walker, sched, cycles, mu, eps), mu, eps)
+
+
+def _contact(walker: Walker, sched: Schedule, cycles: list[LimitCycle], mu: float,
+             eps: float) -> tuple[CaseResult, ...]:
+    """The contact verdict of every case on its orbit (SPEC 5): the exact terms only (no
+    polynomial fits, no torque maxima), the same verdict as the ``feasibility`` command."""
+    rep = evaluate(walker.model, walker.zd, sched, mu=mu, eps=eps, cycles=cycles,
+                   swing=walker.swing, polynomial=False, torque=False, profiles=False)
+    return tuple(rep.cases)
 
 
 def _constant_part(walker: Walker, sched: Schedule) -> tuple[int | None, float | None]:

@@ -145,8 +145,13 @@ def _check_thrust(base, p: Mapping) -> list[tuple[str, str]]:
 
 # ---------------------------------------------------------------------------- the studies
 _LC_FIELDS = {
-    "walkable": ("1", "stable periodic orbit, hybrid-invariant gait, swing foot above ground"),
+    "walkable": ("1", "stable periodic orbit, hybrid-invariant gait, swing foot above ground, "
+                 "contact-feasible on the orbit (the feasibility study's checks)"),
     "exists": ("1", "a periodic orbit exists"), "stable": ("1", "the orbit is stable"),
+    "contact_feasible": ("1", "F^v >= min_vertical_force, friction cone, admissible impact on "
+                         "the orbit"),
+    "min_vertical_force": (UNITS["force"], "least vertical ground force F_1^v on the orbit"),
+    "max_friction_ratio": (UNITS["friction_ratio"], "largest |F_1^h|/F_1^v on the orbit"),
     "delta_zero_sq": (UNITS["delta_zero_sq"], "Poincare eigenvalue delta_zero^2"),
     "zeta_star": (UNITS["zeta"], "fixed point zeta* = V_Z(alpha_f)/(1 - delta_zero^2)"),
     "step_time": (UNITS["step_time"], "step time"),
@@ -167,9 +172,17 @@ def _limit_cycle_point(walker: Walker, p: dict, start: dict | None) -> PointResu
     from .limit_cycle import limit_cycle
 
     w, thrust = _thrust_case(walker, p)
-    res = limit_cycle(w, thrust, p.get("thruster"))
+    res = limit_cycle(w, thrust, p.get("thruster"), mu=p.get("mu"),
+                      min_vertical_force=p.get("min_vertical_force", 0.0))
     doc = res.document()
-    return PointResult(doc, _pick(_first(doc, "cycles"), _LC_FIELDS))
+    case = _first(doc, "cycles")
+    fields = _pick(case, [k for k in _LC_FIELDS if k not in ("contact_feasible",
+                                                             "min_vertical_force",
+                                                             "max_friction_ratio")])
+    ct = case["contact"]
+    fields.update(contact_feasible=ct["feasible"], min_vertical_force=ct["min_vertical_force"],
+                  max_friction_ratio=ct["max_friction_ratio"])
+    return PointResult(doc, fields)
 
 
 _FE_FIELDS = {
