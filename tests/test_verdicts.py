@@ -401,3 +401,127 @@ def test_shape_is_not_a_success_when_a_shaped_schedule_has_no_orbit(tmp_path, cl
     assert (tmp_path / "shape.csv").exists()
     ok = cli("shape", "--k", "0,10", "--out", tmp_path / "ok", "-q")
     assert json.loads((tmp_path / "ok" / "shape.json").read_text())["success"] is True, ok.output
+
+
+def test_bundled_gait_headers_record_commands_that_run_today():
+    """Issue 24 item 10: the header of gaits/rabbit_walk.yaml recorded a removed option. Every
+    option on a bundled gait's `command:` line is an option of today's design-gait, and the
+    positional argument is the robot the gait names."""
+    import shlex
+
+    from typer.main import get_command
+
+    from thrustwalk_cli.cli import app
+
+    cmd = get_command(app).commands["design-gait"]
+    options = {o for p in cmd.params for o in getattr(p, "opts", [])}
+    for path in sorted((REPO / "gaits").glob("*.yaml")):
+        line = next(ln for ln in path.read_text().splitlines() if ln.startswith("# command:"))
+        words = shlex.split(line.removeprefix("# command:"))
+        assert words[:2] == ["thrustwalk", "design-gait"], path.name
+        flags = [w for w in words if w.startswith("-")]
+        assert flags and set(flags) <= options, (path.name, set(flags) - options)
+        robot = next(ln for ln in path.read_text().splitlines() if ln.startswith("robot:"))
+        assert words[2] == robot.split(":", 1)[1].strip(), path.name
+
+
+def test_repr_of_a_walker_and_results_is_one_short_line(walker3):
+    import thrustwalk_cli as tw
+
+    objects = [walker3, walker3.zd, tw.limit_cycle(walker3, thrust=[0, -10]),
+               tw.feasibility(walker3, thrust=[0])]
+    for obj in objects:
+        text = repr(obj)
+        assert "\n" not in text and len(text) < 400, (type(obj).__name__, len(text))
+    assert repr(walker3).startswith("Walker(robot='three_link', gait='three_link_walk'")
+    lc = objects[2]
+    assert repr(lc) == f"LimitCycleResult(success=True, reason={lc.reason!r})"
+
+
+def test_result_tables_convert_to_pandas_in_one_call(walker3):
+    import pandas
+
+    import thrustwalk_cli as tw
+
+    table = tw.limit_cycle(walker3, thrust=[0, -10]).tables()["limit_cycles"]
+    frame = table.to_pandas()
+    assert list(frame.columns) == table.header and len(frame) == len(table.rows)
+    assert frame.equals(pandas.DataFrame(table.to_dict()))
+    assert frame["zeta_kg2m4_s2"].dtype == float
+
+
+@pytest.mark.parametrize("args, line", [
+    (["limit-cycle", "{gait}", "--out", "{out}"], "this is a gait file, not a robot file"),
+    (["limit-cycle", "three_link", "{robot}", "--out", "{out}"],
+     "this is a robot file, not a gait file"),
+    (["sweep", "{gait}", "--out", "{out}"], "this is a gait file, not a sweep file"),
+])
+def test_a_file_of_another_kind_is_named_as_such(tmp_path, cli, args, line):
+    fill = {"gait": str(WALKER5_WALK), "robot": str(WALKER5), "out": str(tmp_path / "o")}
+    res = cli(*[a.format(**fill) for a in args])
+    assert res.exit_code == 2
+    assert res.stderr.count("\n") == 1 and line in res.stderr, res.stderr
+    assert "unknown key" not in res.stderr and not (tmp_path / "o").exists()
+
+
+def test_a_range_without_its_step_is_refused(tmp_path, cli):
+    res = cli("limit-cycle", "--thrust", "0:-50", "--out", tmp_path / "o")
+    assert res.exit_code == 2 and not (tmp_path / "o").exists()
+    assert "option --thrust: a range needs its step, start:stop:step" in res.stderr
+
+
+def test_formats_none_says_what_was_written(tmp_path, cli):
+    res = cli("limit-cycle", "--thrust", "0", "--formats", "none", "--out", tmp_path / "o")
+    assert res.exit_code == 0
+    assert [p.name for p in (tmp_path / "o").glob("[!.]*")] == ["limit_cycles.json"]
+    said = " ".join(res.stdout.split())
+    assert f"wrote {tmp_path / 'o'}: limit_cycles.json (no figures)" in said
+    assert "CSV" not in said
+
+
+def test_a_sweep_collecting_status_has_one_column_per_name(tmp_path, cli):
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text("name: s\nstudy: simulate\nrobot: three_link\ngait: three_link_walk\n"
+                     "settings: {steps: 1}\ngrid:\n  thrust: {values: [0, -10]}\n"
+                     "collect: [status, steps_completed]\n")
+    res = cli("sweep", sweep, "--out", tmp_path / "out", "-q", "--workers", "1")
+    assert res.exit_code == 0, res.output
+    header = (tmp_path / "out" / "results.csv").read_text().splitlines()
+    header = next(h for h in header if not h.startswith("#")).split(",")
+    assert len(header) == len(set(header)), header
+    assert "status" in header and "simulate_status" in header
+
+
+def test_a_first_simulation_says_it_compiles_the_kernel(tmp_path, cli, monkeypatch):
+    """Issue 24 item 7: the first simulate on a machine was silent for 1.5-2 minutes (the
+    one-time kernel compile). A command that needs the kernel says so before it starts and
+    shows the time passing; with the kernel cached it says nothing."""
+    import thrustwalk_cli.simulation.compiled as compiled
+    import thrustwalk_cli.studies.compile as study
+
+    state = {"cached": False, "compiled": 0}
+    real = study.compile_kernel
+
+    def fake_compile(*, rebuild=False):  # the real kernel, as if compiled now
+        state["compiled"] += 1
+        rec = real()
+        state["cached"] = True
+        return {**rec, "cache_hit": False, "seconds": 31.5}
+
+    monkeypatch.setattr(compiled, "kernel_status",
+                        lambda: {"cached": state["cached"], "compile_seconds": None,
+                                 "entry": ""})
+    monkeypatch.setattr(study, "compile_kernel", fake_compile)
+    args = ["simulate", "--steps", "1", "--thrust", "0", "--thrust-model", "constant",
+            "--formats", "none"]
+    res = cli(*args, "--out", tmp_path / "a")
+    assert res.exit_code == 0, res.output
+    first = res.stderr.splitlines()[0]
+    assert first.startswith("compiling the simulation kernel once for this machine (~30 s")
+    assert "compiled the simulation kernel in 31.5 s" in res.stderr
+    assert state["compiled"] == 1
+    res = cli(*args, "--out", tmp_path / "b")  # now cached: not a word
+    assert res.exit_code == 0 and "kernel" not in res.stderr and state["compiled"] == 1
+    state["cached"] = False
+    res = cli(*args, "--out", tmp_path / "c", "-q")  # quiet: compiled, silently
+    assert res.exit_code == 0 and res.stderr == "" and state["compiled"] == 2

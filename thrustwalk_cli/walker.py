@@ -50,6 +50,12 @@ class Walker:
     zd: ZeroDynamics
     where: Where
 
+    def __repr__(self) -> str:
+        return (f"Walker(robot={self.robot.name!r}, gait={self.gait.name!r}, "
+                f"coordinates={self.robot.coordinate_names!r}, "
+                f"thrusters={self.robot.thruster_names!r}, "
+                f"delta_zero_sq={self.zd.delta_zero_sq:.6g}, valid={self.zd.valid})")
+
     @property
     def name(self) -> str:
         """``robot / gait``, for titles and tables."""

@@ -173,8 +173,8 @@ def parse_values(text: str, option: str, unit: str = "") -> list[float]:
     try:
         if ":" in text:
             parts = [float(p) for p in text.split(":")]
-            if len(parts) == 2:
-                parts.append(1.0 if parts[1] >= parts[0] else -1.0)
+            if len(parts) == 2:  # a silent step of 1 would be a guess
+                raise bad("a range needs its step, start:stop:step")
             if len(parts) != 3:
                 raise bad("a range has the form start:stop:step")
             start, stop, step = parts
@@ -332,6 +332,50 @@ def progress(description: str, total: int, quiet: bool) -> Iterator:
         yield advance
 
 
+KERNEL_SECONDS = 30.0  # [s] the one-time numba compile on an idle 2-core machine (bench)
+
+
+def ensure_kernel(quiet: bool) -> dict | None:
+    """Before a command that simulates: compile the numba simulation kernel now if this
+    machine has not (once per machine, for every robot), saying so on standard error with an
+    elapsed-time bar against the expected time (silent with ``--quiet``), so that the first
+    run is not a minute of silence. Returns :func:`compile_kernel`'s record when it compiled,
+    None when the kernel was cached."""
+    from ..simulation.compiled import kernel_status
+    from ..studies.compile import compile_kernel
+
+    if kernel_status()["cached"]:
+        return None
+    if quiet:
+        return compile_kernel()
+    import threading
+
+    sys.stderr.write(f"compiling the simulation kernel once for this machine (~"
+                     f"{KERNEL_SECONDS:.0f} s; every later run loads it)\n")
+    done = threading.Event()
+    steps = 100
+    with progress("compiling the simulation kernel", steps, False) as advance:
+        def tick() -> None:  # the bar follows the clock against the expected time
+            shown, t0 = 0, time.monotonic()
+            while not done.wait(0.5):
+                due = min(steps - 1, int(steps * (time.monotonic() - t0) / KERNEL_SECONDS))
+                if due > shown:
+                    advance(due - shown)
+                    shown = due
+            advance(steps - shown)
+        ticker = threading.Thread(target=tick, daemon=True)
+        ticker.start()
+        try:
+            rec = compile_kernel()
+        finally:
+            done.set()
+            ticker.join()
+    secs = rec["seconds"]
+    sys.stderr.write("compiled the simulation kernel" + (f" in {secs:.1f} s" if secs else "")
+                     + (f" ({rec['note']})" if rec["note"] else "") + "\n")
+    return rec
+
+
 def write_result(result, out: Path, provenance: dict, *, json: str | None = None,
                  formats: set[str] | None = None, titles: bool = False,
                  extra: dict[str, bytes] | None = None) -> dict:
@@ -377,6 +421,30 @@ def write_result(result, out: Path, provenance: dict, *, json: str | None = None
     elif json:
         output.write_json(Path(json), doc)
     return doc
+
+
+FIGURE_KINDS = ("png", "pdf", "svg")
+
+
+def wrote_line(out: Path, head: str = "") -> str:
+    """``wrote DIR: a.json, a.csv, trials/; figures x, y (png, pdf)``: what the result folder
+    ``out`` holds now (written by :func:`write_result`), so that the line never names a file
+    that ``--formats`` left out."""
+    files = sorted(p for p in Path(out).iterdir() if not p.name.startswith("."))
+    figs: dict[str, list[str]] = {}
+    plain = []
+    for p in files:
+        if p.is_file() and p.suffix[1:] in FIGURE_KINDS:
+            figs.setdefault(p.stem, []).append(p.suffix[1:])
+        else:
+            plain.append(p.name + ("/" if p.is_dir() else ""))
+    text = f"{head}wrote {out}: " + ", ".join(plain)
+    if figs:
+        kinds = sorted({k for v in figs.values() for k in v}, key=FIGURE_KINDS.index)
+        text += f"; figures {', '.join(figs)} ({', '.join(kinds)})"
+    else:
+        text += " (no figures)"
+    return text
 
 
 def save_figures(figures: dict, out: Path, kinds=("png", "pdf")) -> None:

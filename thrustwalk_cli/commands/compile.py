@@ -23,13 +23,17 @@ Prints links, coordinates, total mass [kg], thrusters, times [s] and the cache e
 EPILOG = "Example: thrustwalk compile rabbit --rebuild"
 
 
-def run_compile(robot: str, rebuild: bool = False, kernel: bool = True) -> dict:
+def run_compile(robot: str, rebuild: bool = False, kernel: bool = True,
+                quiet: bool = True) -> dict:
     from ..studies.compile import compile_kernel
-    from .common import load_model
+    from .common import ensure_kernel, load_model
 
     model = load_model(robot, rebuild)
     out = model.summary()
-    out["kernel"] = compile_kernel() if kernel else None
+    if kernel:
+        out["kernel"] = ensure_kernel(quiet) or compile_kernel()
+    else:
+        out["kernel"] = None
     return out
 
 
@@ -49,7 +53,7 @@ def register(app: typer.Typer) -> None:
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
-            s = run_compile(robot, rebuild, kernel)
+            s = run_compile(robot, rebuild, kernel, quiet)
             if quiet:
                 return
             from rich.table import Table

@@ -17,6 +17,7 @@ from .common import (
     show_table,
     warn,
     write_result,
+    wrote_line,
 )
 from .options import (
     FormatsOpt,
@@ -74,8 +75,7 @@ def run_feasibility(robot: str | None, gait: str | None, *, thrust: list[float] 
                        json=json, formats=formats, titles=titles)
     if not quiet and json != "-":
         _table(doc)
-        console().print(f"verdict: {doc['verdict']}; wrote {out}/feasibility.json, .md and "
-                        "figures", markup=False)
+        console().print(wrote_line(out, f"verdict: {doc['verdict']}; "), markup=False)
     warn([w for w in doc["warnings"] if w not in walker.warnings])  # the gait's: printed
     return doc
 

@@ -16,6 +16,7 @@ from .common import (
     show_table,
     warn,
     write_result,
+    wrote_line,
 )
 from .options import (
     FormatsOpt,
@@ -73,8 +74,7 @@ def run_limit_cycle(robot: str | None, gait: str | None, thrust: list[float] | N
                        formats=formats, titles=titles)
     if not quiet and json != "-":
         _table(doc)
-        console().print(f"wrote {out}/limit_cycles.json and its CSV and figures",
-                        markup=False)
+        console().print(wrote_line(out), markup=False)
     warn([w for w in doc["warnings"] if w not in walker.warnings])  # the gait's: printed
     return doc
 

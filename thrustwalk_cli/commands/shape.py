@@ -20,6 +20,7 @@ from .common import (
     show_table,
     warn,
     write_result,
+    wrote_line,
 )
 from .options import (
     FormatsOpt,
@@ -214,4 +215,4 @@ def register(app: typer.Typer) -> None:
                 sys.stderr.write(f"error: {doc['reason']} (details in {out}/shape.json)\n")
                 raise typer.Exit(1)
             if not quiet and json != "-":
-                console().print(f"wrote {out}/shape.json and its CSV and figures", markup=False)
+                console().print(wrote_line(out), markup=False)

@@ -12,6 +12,7 @@ from .common import (
     check_out,
     cli_errors,
     console,
+    ensure_kernel,
     load_walker,
     parse_formats,
     parse_values,
@@ -19,6 +20,7 @@ from .common import (
     show_table,
     warn,
     write_result,
+    wrote_line,
 )
 from .options import (
     FormatsOpt,
@@ -89,6 +91,8 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
               "schedule (piecewise), started on its orbit"])
     n_runs = (1 if gait_schedule or thrust_model == "piecewise" else
               len(default_f_ss(walker)) if values is None else max(1, len(values)))
+    if method == "compiled" and not reduced:
+        ensure_kernel(quiet)
     with progress("simulating steps", n_runs * steps, quiet) as advance:
         result = simulate(
             walker, steps=steps, thrust_model=thrust_model, thrust=values, wn=wn, xi=xi,
@@ -113,8 +117,7 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
                  [w for w in r["warnings"] if w not in r["deviations"]])
     if not quiet and json != "-":
         _table(doc)
-        console().print(f"wrote {out}/simulation.json, steps.csv, {doc['trajectory_file']} "
-                        "and figures" + (", walker.gif" if animate else ""), markup=False)
+        console().print(wrote_line(out), markup=False)
     return doc
 
 

@@ -13,6 +13,7 @@ from .common import (
     check_out,
     cli_errors,
     console,
+    ensure_kernel,
     parse_formats,
     progress,
     save_figures,
@@ -67,6 +68,9 @@ def run_sweep_command(file: Path, out: Path | None, *, workers: int | None = Non
         finished = folder.finished(t.key for t in sweep.tasks)
         warn(folder.notes)
         todo = len(sweep.tasks) - len(finished)
+        if todo and sweep.study.prepare is not None and \
+                spec.settings.get("method") != "scipy":
+            ensure_kernel(quiet)  # the study simulates: compile once here, with a word
         executor = sweep_executor(sweep, workers, scheduler, todo) if todo else None
         counts = {"ok": 0, "failed": 0}
 

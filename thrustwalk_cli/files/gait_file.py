@@ -23,6 +23,7 @@ from .schema import (
     check,
     choice,
     dict_of,
+    expect_kind,
     field,
     list_of,
     mapping,
@@ -115,6 +116,7 @@ def parse_gait(doc, path: Path, parameters: Mapping[str, float] | None = None
     """Validate a parsed gait document (with ``parameters`` replaced, see :func:`load_gait`)
     against ``GAIT_SCHEMA`` (every problem at once)."""
     doc = override_parameters(doc, parameters)
+    expect_kind(doc, "gait")
     res = check(doc, GAIT_SCHEMA)
     res.raise_if_problems()
     d = res.data

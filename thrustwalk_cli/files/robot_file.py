@@ -25,6 +25,7 @@ from .bundled import resolve
 from .schema import (
     check,
     choice,
+    expect_kind,
     field,
     list_of,
     mapping,
@@ -181,6 +182,7 @@ def parse_robot(doc: Document, path: Path, parameters: Mapping[str, float] | Non
     """Validate a parsed robot document (with ``parameters`` replaced, see :func:`load_robot`)
     against ``ROBOT_SCHEMA`` and build the :class:`Robot` (every problem at once)."""
     doc = override_parameters(doc, parameters)
+    expect_kind(doc, "robot")
     res = check(doc, ROBOT_SCHEMA)
     res.raise_if_problems()
     d = res.data

@@ -498,6 +498,37 @@ def validate(
     return ValidationResult(doc, data, ctx.problems, params)
 
 
+# keys only one kind of thrustwalk file has at its top level (how a file given in the wrong
+# place is recognised: by its keys, never by quoting its content)
+KIND_KEYS = {
+    "robot": ("links", "coordinates", "feet", "relabel", "thrusters", "gravity"),
+    "gait": ("bezier", "alpha", "controller"),
+    "sweep": ("study", "collect", "grid", "zip", "random"),
+}
+KIND_USE = {
+    "robot": "the ROBOT argument (a robot file or bundled robot name)",
+    "gait": "the GAIT argument (a gait file or bundled gait name)",
+    "sweep": "thrustwalk sweep FILE",
+}
+
+
+def expect_kind(doc: Document, kind: str) -> None:
+    """Refuse a thrustwalk file of another kind given as a ``kind`` file (a gait file passed
+    as the robot, say) with one line naming both kinds and where the file belongs, instead
+    of a list of unknown keys: the file has at least two top-level keys of another kind and
+    none of its own."""
+    data = doc.data
+    if not isinstance(data, dict):
+        return
+    keys = set(data)
+    if keys & set(KIND_KEYS.get(kind, ())):
+        return
+    for other, marks in KIND_KEYS.items():
+        if other != kind and len(keys & set(marks)) >= 2:
+            raise InputError(Problem(doc.file, None, "", f"this is a {other} file, not a "
+                                     f"{kind} file: give it as {KIND_USE[other]}"))
+
+
 def check(
     doc: Document, schema: Kind, parameters_path: KeyPath | None = ("parameters",)
 ) -> ValidationResult:

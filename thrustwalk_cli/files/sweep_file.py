@@ -29,6 +29,7 @@ from .schema import (
     check,
     choice,
     dict_of,
+    expect_kind,
     field,
     integer,
     list_of,
@@ -359,6 +360,7 @@ def load_sweep_file(ref: str | Path) -> tuple[SweepSpec, SweepSource]:
     table = STUDY_PARAMETERS.get(study) if isinstance(study, str) else None
     if table is None and isinstance(data, dict):  # settings are checked once the study is
         doc = replace(doc, data={k: v for k, v in data.items() if k != "settings"})  # known
+    expect_kind(doc, "sweep")
     res = check(doc, sweep_schema(table), parameters_path=None)
     res.raise_if_problems()
     d = res.data

@@ -134,6 +134,11 @@ class ZeroDynamics:
     kappa1_reason: str
     E: ChebSeries | None = None  # e_N^T D Phi = 1/kappa_1 interpolated on the nodes [kg m^2]
 
+    def __repr__(self) -> str:
+        return (f"ZeroDynamics(gait={self.gait.name!r}, alpha_i={self.alpha_i:.6g}, "
+                f"alpha_f={self.alpha_f:.6g}, delta_zero_sq={self.delta_zero_sq:.6g}, "
+                f"nodes={self.nodes}, valid={self.valid})")
+
     @property
     def invariant(self) -> bool:
         """The impact maps Z into Z (SPEC 2): both residuals within ``INVARIANCE_TOL``."""

@@ -23,7 +23,7 @@ from ..files.gait_file import load_gait
 from ..hzd.schedule import check_limits, schedule_from_gait
 from ..hzd.zero_dynamics import Schedule, grazing_warning
 from ..walker import Walker
-from .records import SCHEMA_VERSION, fmt, units
+from .records import SCHEMA_VERSION, fmt, result_repr, units
 
 UNITS = units("force", "impulse", "torque", "alpha", "thrust", "zeta", "velocity", "height",
               "Lambda_0", "Lambda_1", "Lambda_2", "Lambda_T", "friction_ratio",
@@ -98,6 +98,8 @@ class FeasibilityResult:
     (with ``schedule_source``, the file it came from). ``success``: every case is feasible;
     ``verdict``: ``feasible``, ``infeasible`` or ``mixed``.
     """
+
+    __repr__ = result_repr
 
     walker: Walker = field(repr=False)
     mu: float

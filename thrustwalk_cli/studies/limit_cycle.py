@@ -37,6 +37,7 @@ from .records import (
     col,
     constant_thrust,
     gait_record,
+    result_repr,
     robot_record,
     units,
 )
@@ -105,6 +106,8 @@ class LimitCycleResult:
     case is walkable. ``thruster`` is None for a robot without thrusters (then every value is
     0) and for a gait schedule on several thrusters.
     """
+
+    __repr__ = result_repr
 
     walker: Walker = field(repr=False)
     thrust: tuple[float | None, ...]

@@ -16,7 +16,7 @@ from ..hzd.zero_dynamics import LimitCycle, Schedule, limit_cycles
 from ..model.compiled import CompiledModel
 from ..optimize.schedule import OptimalSchedule, describe, optimize
 from ..walker import Walker
-from .records import SCHEMA_VERSION, units
+from .records import SCHEMA_VERSION, result_repr, units
 
 
 def result_record(res: OptimalSchedule, model: CompiledModel) -> dict:
@@ -147,6 +147,8 @@ class OptimizeResult:
     continuous re-check); ``nominal``: the zero-thrust limit cycle (for the figure).
     ``success``: a feasible optimum was found; ``reason`` says what happened.
     """
+
+    __repr__ = result_repr
 
     walker: Walker = field(repr=False)
     schedule: OptimalSchedule

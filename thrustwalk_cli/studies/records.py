@@ -51,13 +51,38 @@ def col(name: str, unit: str = "") -> str:
     return f"{name}_{part(num)}" + (f"_{part(den)}" if den else "")
 
 
+def result_repr(result) -> str:
+    """One line for a study result (its ``success`` and ``reason``): a result holds arrays,
+    orbits and the walker, which a notebook should not print by the hundred lines."""
+    reason = str(getattr(result, "reason", ""))
+    if len(reason) > 120:
+        reason = reason[:117] + "..."
+    return f"{type(result).__name__}(success={result.success!r}, reason={reason!r})"
+
+
 @dataclass(frozen=True)
 class Table:
-    """A CSV table: a header row, data rows and ``#`` comment lines (units, meaning)."""
+    """A CSV table: a header row, data rows and ``#`` comment lines (units, meaning).
+
+    ``table.to_pandas()`` is a pandas DataFrame with the CSV's column names (pandas must be
+    installed); ``pandas.DataFrame(table.to_dict())`` the same."""
 
     header: list[str]
     rows: list[list[Any]]
     comments: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, list]:
+        """The columns by name, in order."""
+        return {name: [row[i] for row in self.rows] for i, name in enumerate(self.header)}
+
+    def to_pandas(self):
+        """The table as a ``pandas.DataFrame`` (columns named as in the CSV file)."""
+        try:
+            import pandas
+        except ImportError as exc:
+            raise ImportError("to_pandas() needs pandas (pip install pandas); "
+                              "to_dict() gives the columns without it") from exc
+        return pandas.DataFrame(self.to_dict(), columns=self.header)
 
 
 def fmt(v: Any, spec: str = ".4g") -> str:

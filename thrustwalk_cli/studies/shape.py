@@ -41,7 +41,7 @@ from ..hzd.shaping import (
 )
 from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
 from ..walker import Walker
-from .records import SCHEMA_VERSION, Table, col, gait_record, robot_record, units
+from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 
 # ---------------------------------------------------------------------------- pattern
@@ -106,6 +106,8 @@ class ShapeStudy:
     (no shape-only knots, target out of reach) the shaped fields are empty; ``reason`` says
     which.
     """
+
+    __repr__ = result_repr
 
     walker: Walker = field(repr=False)
     success: bool

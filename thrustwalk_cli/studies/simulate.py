@@ -23,7 +23,7 @@ from ..simulation.closed_loop import MAX_TOTAL_STEPS, METHODS, SimConfig, predic
 from ..simulation.full_order import Start
 from ..simulation.scenario import Outcome, Scenario, deviations, make_scenario, run_scenario
 from ..walker import Walker
-from .records import SCHEMA_VERSION, Table, col, gait_record, robot_record, units
+from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 UNITS = units("time", "thrust", "generalized_thrust", "alpha", "alpha_dot", "sigma_N", "zeta",
               "impulse", "force", "torque", "output_y", "output_rate", "energy", "wn", "tau",
@@ -386,6 +386,8 @@ class SimulationResult:
     without a periodic orbit to start on is a failed run (``no-orbit``); the others still run.
     ``tool_failure``: a run ended by an integrator or controller failure (not physics).
     """
+
+    __repr__ = result_repr
 
     walker: Walker = field(repr=False)
     scenario: Scenario

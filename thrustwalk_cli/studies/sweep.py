@@ -30,7 +30,7 @@ from ..sweep.points import expand, grid_coordinates, neighbours
 from ..sweep.runner import RunCounts, run_tasks
 from ..sweep.tasks import PointTask, identity, task_key
 from ..walker import assemble_walker, default_gait
-from .records import SCHEMA_VERSION, Table, col
+from .records import SCHEMA_VERSION, Table, col, result_repr
 from .sweep_studies import (
     STUDIES,
     SweepStudy,
@@ -212,6 +212,8 @@ class SweepResult:
     """Every point of a sweep with its record (``None`` for a point without one: the run was
     stopped), what this run did (``counts``), and where it ran (``executor``)."""
 
+    __repr__ = result_repr
+
     sweep: Sweep
     records: tuple[dict | None, ...] = field(repr=False)
     counts: RunCounts
@@ -289,8 +291,13 @@ class SweepResult:
         spec = self.sweep.spec
         units = self.sweep.units()
         axes = self._axis_columns()
+        fixed = {"point", "key", "status", "reason"} | {c for _, c in axes}
+        study = spec.study.replace("-", "_")
+        # a collected field named like a column of the point (the study's own `status` beside
+        # the point's) is prefixed with the study's name: one column per name
         header = ["point", "key", "status"] + [c for _, c in axes] + \
-            [col(f, units[f]) for f in spec.collect] + ["reason"]
+            [col(f"{study}_{f}" if f in fixed else f, units[f]) for f in spec.collect] + \
+            ["reason"]
         rows = []
         for t, r in zip(self.sweep.tasks, self.records):
             if r is None:
