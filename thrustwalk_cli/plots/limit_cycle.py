@@ -11,6 +11,11 @@ import numpy as np
 
 from .style import COLUMN, corner_note, is_multiple, missing_note, style
 
+ORBIT_LW = 0.6  # [pt] coloured orbits
+BLACK_LW = 0.9  # [pt] black orbits (round values of the sweep)
+# the impact jumps: thinner and lighter than any orbit, behind them (and in the legend alike)
+JUMP = {"color": "0.7", "ls": (0, (3.0, 2.0)), "lw": 0.4, "zorder": 1}
+
 
 def phase_portrait(
     values: Sequence[float],
@@ -25,9 +30,12 @@ def phase_portrait(
 ):
     """Orbits in the (alpha, alpha') or (alpha, sigma_N) plane, coloured by a swept value.
 
-    ``orbits[i]``: dict with arrays ``alpha`` and ``y`` (None when no orbit exists).
-    ``jumps[i]``: (alpha_f, y^-, alpha_i, y^+), drawn dashed (the impact).
-    Values that are multiples of ``black_every`` are drawn in black (the paper's style).
+    ``orbits[i]``: dict with arrays ``alpha`` [rad] and ``y`` (None when no orbit exists).
+    ``jumps[i]``: (alpha_f, y^-, alpha_i, y^+), the impact (SPEC 3: ``sigma_N^+ =
+    delta_zero sigma_N^-``), drawn as one thin light-grey dashed segment per orbit behind the
+    orbits (``JUMP``), so a fine sweep's jumps never outweigh its orbits; the legend entry is
+    drawn with the same style. Values that are multiples of ``black_every`` are drawn in black
+    (the paper's style), the others in the colour bar's colour.
     """
     ylabel = {"alpha_dot": r"$\dot\alpha$ [rad/s]",
               "sigma": r"$\sigma_N$ [kg m$^2$/s]"}[y]
@@ -38,29 +46,37 @@ def phase_portrait(
         norm = matplotlib.colors.Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1)
         cmap = matplotlib.colormaps["viridis"]
         missing = []
+        any_black = any_jump = False
         for v, orb, jump in zip(vals, orbits, jumps):
             if orb is None:
                 missing.append(v)
                 continue
             black = black_every is not None and is_multiple(v, black_every)
+            any_black |= black
             color = "k" if black else cmap(norm(v))
-            ax.plot(orb["alpha"], orb[y], color=color, lw=0.9 if black else 0.6,
+            ax.plot(orb["alpha"], orb[y], color=color, lw=BLACK_LW if black else ORBIT_LW,
                     zorder=3 if black else 2)
             if jump is not None:
-                ax.plot([jump[0], jump[2]], [jump[1], jump[3]], color=color, ls="--",
-                        lw=0.5, zorder=1)
+                ax.plot([jump[0], jump[2]], [jump[1], jump[3]], **JUMP)
+                any_jump = True
         sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
         cb = fig.colorbar(sm, ax=ax, pad=0.02)
         cb.set_label(value_label)
         ax.set_xlabel(r"$\alpha$ [rad]")
         ax.set_ylabel(ylabel)
-        handles = [matplotlib.lines.Line2D([], [], color="k" if black_every else cmap(0.5),
-                                           lw=0.9),
-                   matplotlib.lines.Line2D([], [], color="gray", ls="--", lw=0.5)]
         unit = (value_label.rsplit("[", 1)[1][:-1] if value_label.endswith("]") else "")
-        labels = [f"every {black_every:g} {unit}".rstrip() if black_every else "orbit",
-                  "impact"]
-        ax.legend(handles, labels, loc="best")
+        # legend entries only for what is drawn, each in the style it is drawn with
+        if any_black:
+            handles = [matplotlib.lines.Line2D([], [], color="k", lw=BLACK_LW)]
+            labels = [f"every {black_every:g} {unit}".rstrip()]
+        else:
+            handles = [matplotlib.lines.Line2D([], [], color=cmap(0.5), lw=ORBIT_LW)]
+            labels = ["orbit"]
+        if any_jump:
+            handles.append(matplotlib.lines.Line2D([], [], **JUMP))
+            labels.append("impact jump")
+        if len(vals) > len(missing):
+            ax.legend(handles, labels, loc="best")
         if title:
             ax.set_title(title)
         text = note

@@ -431,12 +431,13 @@ def markdown(doc: dict) -> str:
         "",
         "## Figures",
         "",
-        "Ground reaction force, friction ratio, joint torques and swing-foot height along the "
-        "step:",
+        "Ground reaction force, friction ratio, joint torques (for several cases the worst "
+        "|u| over the cases, one curve per joint) and swing-foot height along the step:",
         "",
         "![ground reaction force](grf.png)",
         "",
-        f"Feasible region over {doc['region']['x']} and {doc['region']['y']}; "
+        f"Feasible region over {doc['region']['x']} and {doc['region']['y']} (every "
+        "infeasible region hatched by its condition); "
         + (f"the periodic orbit is feasible for {doc['region']['x']} in "
            f"[{doc['region']['fixed_point_feasible_range'][0]:.4g}, "
            f"{doc['region']['fixed_point_feasible_range'][1]:.4g}] (grid resolution)."

@@ -1,0 +1,261 @@
+"""Figures a reviewer would send back (issue 11), checked on the matplotlib artists (no image
+comparison): the limit cycles' impact jumps are light and drawn like their legend entry; the
+stance-phase torque panel has one curve per joint whatever the number of thrust cases; every
+infeasible region of the feasible-region figure is hatched and every legend entry is drawn
+exactly as in the plot. The reference values (connected components of the infeasible mask,
+the torque envelope) are computed here, independently of the plotting code."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.collections import Collection
+from matplotlib.colors import to_rgba
+from matplotlib.contour import ContourSet
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+from scipy import ndimage
+
+import thrustwalk_cli as tw
+from thrustwalk_cli.contact.region import Region
+from thrustwalk_cli.plots.feasibility import region_figure
+
+DATA = Path(__file__).parent / "data"
+W5_THRUST = [0.0, -5.0, -10.0, -15.0, -20.0, -25.0, -30.0, -35.0, -40.0]  # 9 cases
+
+
+@pytest.fixture(scope="module")
+def walker5(_cache_dir):
+    """The user test robot with the gait designed for -40..0 N of its torso thruster."""
+    return tw.load_walker(str(DATA / "walker5.yaml"), str(DATA / "walker5_thrust.yaml"))
+
+
+@pytest.fixture(scope="module")
+def feas5(walker5):
+    return tw.feasibility(walker5, W5_THRUST)
+
+
+# ------------------------------------------------------------------------------ helpers
+def _line_style(line: Line2D) -> tuple:
+    """What a reader sees of a line: colour, dash pattern, width, marker, path effects."""
+    pe = tuple((type(p).__name__, getattr(p, "_gc", {}).get("linewidth"),
+                str(getattr(p, "_gc", {}).get("foreground")))
+               for p in line.get_path_effects())
+    dashes = line._unscaled_dash_pattern  # (offset, on-off sequence or None)
+    return (tuple(np.round(to_rgba(line.get_color()), 6)), str(dashes),
+            round(float(line.get_linewidth()), 6), str(line.get_marker()),
+            round(float(line.get_markersize()), 6) if line.get_marker() not in ("None", "")
+            else None,
+            tuple(np.round(to_rgba(line.get_markeredgecolor()), 6))
+            if line.get_marker() not in ("None", "") else None,
+            pe)
+
+
+def _legend(ax) -> dict[str, object]:
+    leg = ax.get_legend()
+    assert leg is not None
+    return {t.get_text(): h for t, h in zip(leg.get_texts(), leg.legend_handles)}
+
+
+def _hatched_paths(ax) -> list:
+    """(path in data coordinates, (face, hatch, hatch colour) or None) of every hatched
+    artist: patches, collections and filled contour sets (one hatch per level)."""
+    out = []
+    for art in list(ax.patches) + list(ax.collections):
+        if isinstance(art, ContourSet):
+            hatches = list(art.hatches or [None])
+            if art.filled and any(hatches):
+                out += [(path, None) for k, path in enumerate(art.get_paths())
+                        if hatches[k % len(hatches)]]
+        elif isinstance(art, Patch) and art.get_hatch():
+            key = (tuple(np.round(art.get_facecolor(), 6)), art.get_hatch(),
+                   tuple(np.round(art.get_edgecolor(), 6)))
+            out.append((art.get_patch_transform().transform_path(art.get_path()), key))
+        elif isinstance(art, Collection) and art.get_hatch():
+            out += [(path, None) for path in art.get_paths()]
+    return out
+
+
+def _covered(ax, points: np.ndarray) -> np.ndarray:
+    """Which data points lie under a hatched artist."""
+    inside = np.zeros(len(points), bool)
+    for path, _ in _hatched_paths(ax):
+        inside |= path.contains_points(points)
+    return inside
+
+
+def _cell_points(region, cells: np.ndarray) -> np.ndarray:
+    """Grid points (scale, zeta) of the cells, nudged a hair towards the grid centre so the
+    points on the grid's border are not on a polygon's edge."""
+    s, z = np.asarray(region.scale, float), np.asarray(region.zeta, float)
+    p = np.column_stack([s[cells[:, 0]], z[cells[:, 1]]])
+    centre = np.array([(s[0] + s[-1]) / 2, (z[0] + z[-1]) / 2])
+    return p + 1e-7 * (centre - p)
+
+
+def _assert_every_infeasible_region_hatched(fig, region) -> int:
+    ax = fig.axes[0]
+    infeasible = ~np.asarray(region.feasible, bool)
+    labels, n = ndimage.label(infeasible)  # 4-connected components, computed here
+    for k in range(1, n + 1):
+        cells = np.argwhere(labels == k)
+        inside = _covered(ax, _cell_points(region, cells))
+        assert inside.all(), (f"infeasible region {k} of {n} ({len(cells)} cells): "
+                              f"{(~inside).sum()} cells not hatched")
+    ok = np.argwhere(~infeasible)
+    if len(ok):
+        assert not _covered(ax, _cell_points(region, ok)).any(), "a feasible cell is hatched"
+    return n
+
+
+def _synthetic_region(impact_ok: bool = True, eps: float = 20.0, mu: float = 0.7) -> Region:
+    """Three disjoint infeasible regions by three conditions: the walker stops (below), the
+    contact is lost or the cone is left (above), a friction island in the middle."""
+    scale = np.linspace(-50.0, 10.0, 61)
+    zeta = np.linspace(50.0, 4000.0, 80)
+    S, Z = np.meshgrid(scale, zeta, indexing="ij")
+    min_zeta = Z - 413.7 - 4.0 * S  # no grid point exactly on a boundary
+    minv = 3007.3 - Z + 10.0 * S
+    bump = 0.8 * np.exp(-((S + 20.0) / 6.0) ** 2 - ((Z - 1500.0) / 250.0) ** 2)
+    ratio = np.where(minv > 0, 0.3 + 61.3 / np.maximum(minv, 1e-9) + bump, np.inf)
+    completes = min_zeta > 0
+    feasible = completes & (minv >= eps) & (ratio <= mu) & impact_ok
+    fp = 900.0 - 40.0 * scale
+    near = np.abs(zeta[None, :] - fp[:, None]).argmin(axis=1)
+    fp_ok = feasible[np.arange(scale.size), near]
+    return Region(scale, zeta, minv, ratio, completes, feasible, fp, np.ones(scale.size, bool),
+                  fp_ok, impact_ok, min_zeta)
+
+
+# ------------------------------------------------------------------------ limit cycles
+def test_impact_jumps_are_light_behind_the_orbits_and_drawn_like_their_legend(walker3):
+    """A 2 N sweep (26 orbits): the jumps are one light, thin style, behind every orbit, and
+    the legend's impact entry is that style (on main: one colour per jump, legend grey)."""
+    values = list(np.arange(0.0, -51.0, -2.0))
+    res = tw.limit_cycle(walker3, values)
+    fig = res.figures()["limit_cycles"]
+    ax = fig.axes[0]
+    zd = walker3.zd
+    exist = [c for c in res.cycles if c.exists]
+    assert len(exist) == 26
+    jumps = [ln for ln in ax.lines if len(ln.get_xdata()) == 2
+             and np.allclose(ln.get_xdata(), [zd.alpha_f, zd.alpha_i])]
+    orbits = [ln for ln in ax.lines if len(ln.get_xdata()) > 2]
+    assert len(jumps) == len(exist) and len(orbits) == len(exist)
+    # every jump joins its orbit's pre- and post-impact states
+    ends = sorted(tuple(np.round(ln.get_ydata(), 9)) for ln in jumps)
+    want = sorted((round(c.alpha_dot_minus, 9), round(c.alpha_dot_plus, 9)) for c in exist)
+    assert ends == want
+    styles = {_line_style(ln) for ln in jumps}
+    assert len(styles) == 1, f"{len(styles)} different jump styles"
+    jump = jumps[0]
+    assert jump.get_linewidth() < min(ln.get_linewidth() for ln in orbits)
+    assert jump.get_zorder() < min(ln.get_zorder() for ln in orbits)
+    r, g, b, _ = to_rgba(jump.get_color())
+    assert 0.2126 * r + 0.7152 * g + 0.0722 * b >= 0.5, "jumps must be light"
+    legend = _legend(ax)
+    key = [k for k in legend if "impact" in k]
+    assert len(key) == 1
+    assert _line_style(legend[key[0]]) == _line_style(jump)
+    # the orbits' entry is drawn like the black orbits
+    black = [ln for ln in orbits if to_rgba(ln.get_color()) == to_rgba("k")]
+    assert black and any(_line_style(h) == _line_style(black[0]) for h in legend.values())
+
+
+# ------------------------------------------------------------------------------- grf
+def _torque_axis(fig):
+    axes = [a for a in fig.axes if "torque" in a.get_ylabel()]
+    assert len(axes) == 1
+    return axes[0]
+
+
+def test_torque_panel_one_curve_per_joint_whatever_the_cases(walker5, feas5):
+    """9 thrust cases x 4 joints on walker5: at most one curve per joint (on main 36), each the
+    worst |u| over every case, computed here from the profiles; its peak agrees with the
+    polished per-case maxima of the JSON."""
+    joints = [c.name for c in walker5.robot.coordinates if c.actuated]
+    assert len(joints) == 4 and len(feas5.cases) == 9
+    fig = feas5.figures()["grf"]
+    ax = _torque_axis(fig)
+    curves = [ln for ln in ax.lines if len(ln.get_xdata()) > 1]
+    assert len(curves) == len(joints)
+    profiles = [c.profile for c in feas5.cases if c.profile is not None]
+    assert len(profiles) == 9
+    a0 = profiles[0]["alpha"]
+    assert all(np.allclose(p["alpha"], a0) for p in profiles)
+    env = np.max(np.abs(np.stack([p["torque"] for p in profiles])), axis=0)  # (g, joints)
+    polished = np.max([c.max_abs_torque for c in feas5.cases], axis=0)
+    for j, name in enumerate(joints):
+        match = [ln for ln in curves if np.allclose(ln.get_ydata(), env[:, j], rtol=1e-12,
+                                                    atol=1e-9)]
+        assert len(match) == 1, name
+        assert np.allclose(match[0].get_xdata(), a0)
+        peak = env[:, j].max()
+        assert peak <= polished[j] * (1 + 1e-9) and peak >= 0.99 * polished[j]
+    legend = _legend(ax)
+    assert len(legend) == len(joints)
+    assert {_line_style(h) for h in legend.values()} == {_line_style(ln) for ln in curves}
+    for name in joints:
+        assert any(k.startswith(name) for k in legend)
+    # fewer cases, same number of curves
+    few = tw.feasibility(walker5, [0.0, -20.0, -40.0]).figures()["grf"]
+    assert len([ln for ln in _torque_axis(few).lines if len(ln.get_xdata()) > 1]) == 4
+
+
+# ---------------------------------------------------------------------- feasible region
+def test_every_infeasible_region_of_walker5_is_hatched(feas5):
+    """walker5 over -48..8 N: stops below, contact lost / cone left above; every infeasible
+    cell lies under a hatch (on main the walker-stops region and the cone band are not)."""
+    fig = feas5.figures()["feasible_region"]
+    n = _assert_every_infeasible_region_hatched(fig, feas5.region)
+    assert n >= 2
+
+
+@pytest.mark.parametrize("impact_ok", [True, False])
+def test_every_infeasible_region_is_hatched_whatever_the_condition(impact_ok):
+    """Three disjoint infeasible regions by three conditions (stops, contact/cone, a friction
+    island), and a region where the impact is inadmissible everywhere (all infeasible)."""
+    region = _synthetic_region(impact_ok)
+    labels, n = ndimage.label(~region.feasible)
+    assert n == (3 if impact_ok else 1)
+    fig = region_figure(region, scale_label="thrust [N]", mu=0.7, eps=20.0,
+                        cases=[(-20.0, 1700.0)])
+    assert _assert_every_infeasible_region_hatched(fig, region) == n
+
+
+@pytest.mark.parametrize("which", ["walker5", "synthetic"])
+def test_region_legend_entries_are_drawn_exactly_as_plotted(which, feas5):
+    """Every drawn line and marker (including the fixed-point curve's white outline and its
+    infeasible part) has a legend entry of the same colour, dashes, width, marker and path
+    effects, and every legend entry is drawn; every hatch has an entry with its face, hatch
+    and hatch colour (on main: the fixed points' outline and dotted part have none)."""
+    if which == "walker5":
+        fig = feas5.figures()["feasible_region"]
+        region = feas5.region
+    else:
+        region = _synthetic_region()
+        fig = region_figure(region, scale_label="thrust [N]", mu=0.7, eps=20.0,
+                            cases=[(-20.0, 1700.0)])
+    ax = fig.axes[0]
+    legend = _legend(ax)
+    drawn = [ln for ln in ax.lines if np.isfinite(np.asarray(ln.get_ydata(), float)).any()]
+    assert not (region.fixed_point_feasible.all())  # both parts of the curve are drawn
+    entry_styles = {_line_style(h) for h in legend.values() if isinstance(h, Line2D)}
+    for ln in drawn:
+        assert _line_style(ln) in entry_styles, f"no legend entry drawn like {ln}"
+    contours = [c for c in ax.collections if isinstance(c, ContourSet) and not c.filled]
+    contour_styles = {(tuple(np.round(c.get_edgecolor()[0], 6)),
+                       round(float(c.get_linewidth()[0]), 6)) for c in contours}
+    for h in legend.values():
+        if isinstance(h, Line2D):
+            st = _line_style(h)
+            assert st in {_line_style(ln) for ln in drawn} or (
+                (st[0], st[2]) in contour_styles and st[3] == "None"), f"legend entry {h}"
+    hatches = {key for _, key in _hatched_paths(ax)}
+    assert None not in hatches  # every hatch is a patch with its own style
+    entries = {(tuple(np.round(h.get_facecolor(), 6)), h.get_hatch(),
+                tuple(np.round(h.get_edgecolor(), 6)))
+               for h in legend.values() if isinstance(h, Patch)}
+    assert hatches == entries
