@@ -17,6 +17,7 @@ from thrustwalk_cli.contact.evaluate import evaluate
 from thrustwalk_cli.design.problem import FAMILIES, Problem, cell_minima, default_alpha
 from thrustwalk_cli.design.solver import solve_design
 from thrustwalk_cli.design.spec import DesignSpec
+from thrustwalk_cli.errors import ComputationError
 from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
 from thrustwalk_cli.simulation.closed_loop import SimConfig, ThrustModel
 from thrustwalk_cli.simulation.full_order import Start, simulate
@@ -388,3 +389,265 @@ def test_blocking_messages_state_the_violated_inequality():
     stuck = StartResult(0, np.zeros(1), "Iteration limit reached", 1.0, 1.0, 40, 1, 0.1)
     hint = suggestion("orbit", prob, [stuck])
     assert "`thrust_design`" in hint and "`max_iter` = 150" in hint, hint
+
+
+# ------------------------------------------- a finished search is never lost (item 1)
+def test_gait_robot_path_is_relative_to_the_gait_files_folder(tmp_path, monkeypatch):
+    """A gait's relative ``robot:`` names a file beside the gait file's folder, also while that
+    folder does not exist yet (the reload check of a gait about to be written): never the
+    working folder's file of that name."""
+    import shutil
+
+    from thrustwalk_cli.files.gait_file import load_gait_text, same_robot_file
+    from thrustwalk_cli.files.robot_file import load_robot
+
+    shutil.copy(DATA / "walker5.yaml", tmp_path / "walker5.yaml")
+    monkeypatch.chdir(tmp_path)
+    robot = load_robot("walker5.yaml")
+    text = (DATA / "walker5_walk.yaml").read_text()
+    up = text.replace("robot: walker5.yaml", "robot: ../walker5.yaml")
+    for file in ("gaits/walker5_walk.yaml", "new/deeper/../walker5_walk.yaml"):
+        g = load_gait_text(up, file)[0]
+        assert same_robot_file(robot, g.robot), (file, g.robot)
+        assert not (tmp_path / Path(file).parent).exists()
+    # beside the gait, not in the working folder: gaits/walker5.yaml does not exist
+    g = load_gait_text(text, "gaits/walker5_walk.yaml")[0]
+    assert not same_robot_file(robot, g.robot), g.robot
+    assert Path(g.robot) == Path("gaits/walker5.yaml")
+    assert same_robot_file(robot, load_gait_text(text, "walker5_walk.yaml")[0].robot)
+    (tmp_path / "gaits").mkdir()  # an existing folder: the operating system resolves '..'
+    assert same_robot_file(robot, load_gait_text(up, "gaits/walker5_walk.yaml")[0].robot)
+
+
+@pytest.mark.slow
+def test_robot_file_here_out_in_a_new_subfolder(tmp_path, monkeypatch, cli):
+    """The user's run: ``cd mybot && design-gait walker5.yaml ... --out gaits --name X`` (the
+    robot file in the working folder, ``--out`` a folder still to be made). The gait is written
+    and names the robot as ``../ROBOT.yaml``, which loads the robot file from anywhere; the
+    stick figure lies beside it (``--formats png``: no PDF)."""
+    import shutil
+
+    shutil.copy(REPO / "robots" / "three_link.yaml", tmp_path / "tl.yaml")
+    monkeypatch.chdir(tmp_path)
+    res = cli("design-gait", "tl.yaml", "--target-speed", str(SPEED), "--clearance", "0",
+              "--starts", "1", "--out", "gaits", "--name", "tl_walk", "--formats", "png", "-q")
+    assert res.exit_code == 0, res.output
+    gait = tmp_path / "gaits" / "tl_walk.yaml"
+    assert "robot: ../tl.yaml\n" in gait.read_text()
+    report = json.loads((tmp_path / "gaits" / "tl_walk.report.json").read_text())
+    assert report["status"] == "feasible" and report["reload_check"]["relative_error"] < 1e-9
+    assert (tmp_path / "gaits" / "tl_walk.stick.png").stat().st_size > 1000
+    assert not (tmp_path / "gaits" / "tl_walk.stick.pdf").exists()
+    assert not list((tmp_path / "gaits").glob("*.failed*"))
+    w = load_walker(None, "gaits/tl_walk.yaml")
+    assert Path(w.robot.source_file).resolve() == (tmp_path / "tl.yaml").resolve()
+    monkeypatch.chdir(tmp_path / "gaits")
+    assert load_walker(None, "tl_walk.yaml").robot.name == "three_link"
+
+
+@pytest.fixture(scope="module")
+def result3(three_link):
+    """One short 3-link design through the Python API (1 start) whose chosen start is made to
+    end as SLSQP's 'Positive directional derivative for linesearch' (exit code 8), as the
+    user's walker5 design did: a feasible design, optimum not certified."""
+    from thrustwalk_cli.design import solver
+    from thrustwalk_cli.studies.design_gait import design_gait
+
+    real = solver.solve_start
+
+    def linesearch(prob, x0, index=0):
+        return replace(real(prob, x0, index), code=8,
+                       status="Positive directional derivative for linesearch")
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(solver, "solve_start", linesearch)
+        res = design_gait(three_link, DesignSpec(speed=SPEED, clearance=0.0, starts=1,
+                                                 name="walk3f"))
+    assert res.success, res.reason
+    return res
+
+
+@pytest.mark.slow  # the result3 fixture runs one design (~5-10 s)
+@pytest.mark.parametrize("failure", ["reload", "bug", "unwritable"])
+def test_failure_after_the_search_keeps_the_design(tmp_path, monkeypatch, cli, result3,
+                                                   failure):
+    """Whatever fails after the search (the reload check, a bug in it, the output folder
+    refusing the files), the design is written as NAME.failed.yaml (its first line says it is
+    not verified and why; it loads and holds the designed coefficients) and
+    NAME.failed.report.json (status failed), exit 1 with one line naming the failure and the
+    files; nothing is written under the verified gait's name."""
+    import tempfile
+
+    from thrustwalk_cli.files import output
+    from thrustwalk_cli.studies import design_gait as study
+
+    monkeypatch.setattr(study, "design_gait", lambda *a, **k: result3)
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "gaits"
+    spare = tmp_path / "spare"
+    spare.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(spare))
+    if failure == "reload":
+        def boom(*a, **k):
+            raise ComputationError("forced reload failure")
+        monkeypatch.setattr(study, "reload_check", boom)
+        needle = "the reload check failed: forced reload failure"
+    elif failure == "bug":
+        def boom(*a, **k):
+            raise KeyError("zeta_star")
+        monkeypatch.setattr(study, "reload_check", boom)
+        needle = "the reload check failed: internal error KeyError"
+    else:
+        real = output.write_bytes_atomic
+
+        def refuse(path, data):
+            if Path(path).resolve().parent == out:
+                raise OSError(28, "No space left on device", str(path))
+            return real(path, data)
+        monkeypatch.setattr(output, "write_bytes_atomic", refuse)
+        needle = "writing the gait file failed: "
+    res = cli("design-gait", "three_link", "--target-speed", str(SPEED), "--clearance", "0",
+              "--starts", "1", "--out", "gaits", "--name", "walk3f", "-q")
+    assert res.exit_code == 1, res.output
+    errors = [ln for ln in res.output.splitlines() if ln.startswith("error:")]
+    assert len(errors) == 1 and needle in errors[0], res.output
+    assert "Traceback" not in res.output
+    folder = out if failure != "unwritable" else next(spare.glob("thrustwalk-walk3f-*"))
+    gait, report = folder / "walk3f.failed.yaml", folder / "walk3f.failed.report.json"
+    assert str(gait.relative_to(tmp_path)) in errors[0] or str(gait) in errors[0]
+    assert str(report.name) in errors[0]
+    assert not (out / "walk3f.yaml").exists() and not (out / "walk3f.report.json").exists()
+    first = gait.read_text().splitlines()[0]
+    assert first.startswith("# NOT A VERIFIED GAIT: design-gait failed after the search (")
+    assert needle in first
+    doc = json.loads(report.read_text())
+    assert doc["status"] == "failed" and doc["feasible"] is False
+    assert doc["recheck_feasible"] is True and needle in doc["error"]
+    assert doc["gait_file"] is None
+    assert Path(doc["failed_gait_file"]).resolve() == gait.resolve()
+    w = load_walker(None, str(gait))
+    assert np.allclose(w.gait.coefficients, result3.design.gait.A, rtol=0, atol=1e-15)
+    assert w.robot.name == "three_link"
+
+
+# ---------------------------------------- optimality, unbounded joints, stick figure (item 9)
+@pytest.mark.slow  # the result3 fixture runs one design (~5-10 s)
+def test_uncertified_optimum_is_said_everywhere(tmp_path, monkeypatch, cli, result3):
+    """The chosen start ended with SLSQP exit code 8: the design is feasible (exit 0) but the
+    report, the console and the gait header say the optimum is not certified, name the start
+    and SLSQP's message, and suggest --starts and --max-iter. The 3-link robot file gives no
+    torque limits and no joint ranges: said too, naming the keys to add."""
+    from thrustwalk_cli.design.solver import StartResult, optimality
+    from thrustwalk_cli.studies import design_gait as study
+
+    monkeypatch.setattr(study, "design_gait", lambda *a, **k: result3)
+    monkeypatch.chdir(tmp_path)
+    res = cli("design-gait", "three_link", "--target-speed", str(SPEED), "--clearance", "0",
+              "--starts", "1", "--out", "gaits", "--name", "walk3f", "--formats", "none")
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "gaits" / "walk3f.report.json").read_text())
+    opt = doc["optimality"]
+    assert opt["certified"] is False and opt["slsqp_code"] == 8 and opt["start"] == 0
+    assert doc["feasible"] and doc["starts"][0]["slsqp_code"] == 8
+    msg = "Positive directional derivative for linesearch"
+    warned = [ln for ln in res.output.splitlines() if ln.startswith("warning:")]
+    cert = [ln for ln in warned if "optimum not certified" in ln]
+    assert len(cert) == 1 and "start 0" in cert[0] and msg in cert[0], res.output
+    assert "--starts" in cert[0] and "--max-iter" in cert[0] and "`" not in cert[0]
+    assert any("no torque limits" in ln and "torque_limit" in ln for ln in warned), warned
+    assert any("no joint ranges bound q1, q2" in ln and "range" in ln for ln in warned)
+    header = [ln for ln in (tmp_path / "gaits" / "walk3f.yaml").read_text().splitlines()
+              if ln.startswith("#")]
+    assert any(ln.startswith("# WARNING: optimum not certified") and msg in ln
+               and "--max-iter" in ln for ln in header), header
+    assert any(ln.startswith("# WARNING: no torque limits") for ln in header)
+    assert any("optimum not certified" in w for w in doc["warnings"])
+    assert not list((tmp_path / "gaits").glob("*.png"))  # --formats none
+    # a converged start (SLSQP exit code 0) is certified, with no note
+    ok = StartResult(2, np.zeros(1), "Optimization terminated successfully", 1.0, 0.0, 30, 99,
+                     1.0, 0)
+    assert optimality(ok, result3.design.spec) == {
+        "certified": True, "start": 2, "slsqp_code": 0,
+        "slsqp_message": "Optimization terminated successfully", "note": None}
+    stuck = optimality(replace(ok, code=9, status="Iteration limit reached"),
+                       result3.design.spec)
+    assert not stuck["certified"] and "`max_iter`" in stuck["note"]
+
+
+def test_unbounded_joints_named_with_the_keys_to_add():
+    """walker5 gives ranges for its knees only and no torque limits: both are named (the
+    hips q_sh, q_wh unbounded; every torque); with every key added there is no warning."""
+    from thrustwalk_cli.design.spec import unbounded_warnings
+    from thrustwalk_cli.files.robot_file import load_robot, load_robot_text
+
+    w = unbounded_warnings(load_robot(str(DATA / "walker5.yaml")))
+    assert len(w) == 2, w
+    assert "no torque limits" in w[0] and "q_sk, q_sh, q_wh, q_wk" in w[0]
+    assert "torque_limit" in w[0] and "coordinates.actuated" in w[0]
+    assert w[1].startswith("no joint ranges bound q_sh, q_wh:") and "range: [min, max]" in w[1]
+    text = (DATA / "walker5.yaml").read_text()
+    for nm in ("q_sh", "q_wh"):
+        text = text.replace(f"{{name: {nm}, joint:", f"{{name: {nm}, range: [-2, 2], joint:")
+    text = text.replace("joint: swing_thigh}", "joint: swing_thigh, torque_limit: 80}")
+    w = unbounded_warnings(load_robot_text(text, str(DATA / "walker5.yaml")))
+    assert len(w) == 1 and "for q_sk, q_sh, q_wk (" in w[0], w
+    for nm in ("q_sk", "q_sh", "q_wk"):
+        text = text.replace(f"{{name: {nm},", f"{{name: {nm}, torque_limit: 80,")
+    assert unbounded_warnings(load_robot_text(text, str(DATA / "walker5.yaml"))) == []
+
+
+def test_stick_frames_follow_the_independent_kinematics():
+    """walker5's gait drawn over one step: every drawn link (origin, end) is where the
+    independent NumPy kinematics puts it; link lengths are the robot file's and constant; the
+    stance foot is at the origin; at s = 1 the configuration is q^- = H^-1 [a_M; alpha_f]
+    (from the gait file's numbers) and the drawn swing foot is p_2(q^-) on the ground, at
+    s = 0 it is p_2(R q^- + b); the swing-foot path runs between them above the ground."""
+    from independent import origins
+
+    from thrustwalk_cli.studies.design_gait import stick_frames
+
+    w = load_walker(str(DATA / "walker5.yaml"), str(DATA / "walker5_walk.yaml"))
+    robot, model = w.robot, w.model
+    fr = stick_frames(model, w.gait, instants=9)
+    links, q = fr["links"], fr["q"]
+    assert links.shape == (9, len(robot.links), 2, 2) and fr["s"][[0, -1]].tolist() == [0, 1]
+    n = model.n
+    H = np.vstack([np.hstack([np.eye(n - 1), np.zeros((n - 1, 1))]), [w.gait.c]])
+    q_minus = np.linalg.solve(H, np.append(np.asarray(w.gait.coefficients)[:, -1],
+                                           w.gait.alpha_f))
+    assert q[-1] == pytest.approx(q_minus, abs=1e-12)
+    for k in range(9):
+        org = origins(robot, q[k])
+        for j, lk in enumerate(robot.links):
+            assert links[k, j, 0] == pytest.approx(org[lk.name], abs=1e-12)
+            assert links[k, j, 1] == pytest.approx(point(robot, q[k], lk.name, lk.end),
+                                                    abs=1e-12)
+    lengths = np.linalg.norm(links[:, :, 1] - links[:, :, 0], axis=-1)
+    assert lengths == pytest.approx(np.tile([np.hypot(*lk.end) for lk in robot.links], (9, 1)),
+                                    abs=1e-12)
+    root = [lk.name for lk in robot.links].index(robot.root.name)
+    assert links[:, root, 0] == pytest.approx(np.zeros((9, 2)), abs=1e-12)  # stance foot
+    foot_end = swing_foot(robot, q_minus)
+    assert fr["swing_foot"][-1] == pytest.approx(foot_end, abs=1e-12)
+    assert abs(foot_end[1]) < 1e-9 and foot_end[0] > 0.1
+    assert links[-1, -1, 1] == pytest.approx(foot_end, abs=1e-12)  # swing shin's end
+    q_plus = model.R @ q_minus + model.b
+    assert fr["swing_foot"][0] == pytest.approx(swing_foot(robot, q_plus), abs=1e-12)
+    path = fr["swing_path"]
+    assert path[0] == pytest.approx(fr["swing_foot"][0]) and path[-1] == pytest.approx(foot_end)
+    assert path[1:-1, 1].min() > 0
+
+
+@pytest.mark.slow  # the result3 fixture runs one design (~5-10 s)
+def test_design_figures_are_the_stick_figure(result3):
+    """DesignGaitResult.figures(): one figure, NAME.stick, axes in metres at equal scale with
+    the ground line; none for an infeasible design."""
+    figs = result3.figures()
+    assert list(figs) == ["walk3f.stick"]
+    ax = figs["walk3f.stick"].axes[0]
+    assert ax.get_xlabel() == "x [m]" and ax.get_ylabel() == "y [m]"
+    assert ax.get_aspect() == 1.0
+    assert any(list(ln.get_xdata()) == [0, 1] and list(ln.get_ydata()) == [0, 0]
+               for ln in ax.get_lines())  # the ground line (axhline)
+    bad = replace(result3, design=replace(result3.design, feasible=False))
+    assert bad.figures() == {}

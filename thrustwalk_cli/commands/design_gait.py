@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from ..errors import ComputationError, InputError
-from .common import cli_errors, console, progress, render_mentions
+from .common import cli_errors, console, parse_formats, progress, render_mentions
 from .options import JsonOpt, QuietOpt, RobotArg
 
 HELP = """Design a stable, hybrid-invariant Bezier gait by constrained optimisation.
@@ -24,12 +25,16 @@ periodic orbit with delta_zero^2 <= --max-delta-sq; target speed [m/s] and/or st
 trailing foot lifting off; swing foot moving down at touchdown at >= --min-touchdown-velocity
 [m/s] (no grazing touchdown); joint ranges [rad] and torque limits [N m] from the robot file.
 
-Writes DIR/NAME.yaml (the gait; a header records how it was made) and DIR/NAME.report.json
-(objective, every constraint margin, fixed point, provenance). The written file is loaded back
-and its fixed point compared with the design before it is kept. Exit codes: 0 a feasible gait
-was written; 3 no feasible gait was found (only the report is written; it names the
-constraint family that blocks, the violated inequality with its numbers, and the option that
-usually helps); 2 bad input; 1 computation failure.
+Writes DIR/NAME.yaml (the gait; a header records how it was made, with a WARNING line when
+SLSQP did not certify the optimum or the robot file gives no torque limits or joint ranges),
+DIR/NAME.report.json (objective, every constraint margin, fixed point, warnings, provenance)
+and DIR/NAME.stick.png/.pdf (the gait as a stick figure over one step). The written file is
+loaded back and its fixed point compared with the design before it is kept. Exit codes: 0 a
+feasible gait was written; 3 no feasible gait was found (only the report is written; it names
+the constraint family that blocks, the violated inequality with its numbers, and the option
+that usually helps); 2 bad input; 1 computation failure. A failure after the search never
+loses it: the design is written as DIR/NAME.failed.yaml and DIR/NAME.failed.report.json
+(marked failed; a temporary folder if DIR cannot take them) and the error line says where.
 """
 
 EPILOG = ("Example: thrustwalk design-gait rabbit --target-speed 0.53 --starts 8 "
@@ -79,13 +84,23 @@ def run_design_gait(robot: str, out: Path, *, speed: float | None, step_length: 
                     min_vertical_force: float | None, alpha: str | None,
                     max_iter: int, name: str | None, compare: str | None,
                     quiet: bool, json: str | None = None,
-                    min_touchdown_velocity: float = 0.05) -> dict:
+                    min_touchdown_velocity: float = 0.05,
+                    formats: set[str] | None = None,
+                    render: Callable[[str], str] = str) -> dict:
     """Plain function behind the command; returns the report it wrote (``feasible`` says
-    whether the gait file was written)."""
+    whether the gait file was written). ``formats``: figure kinds (png, pdf; default both);
+    ``render``: writes the parameters that warnings in the gait header mention (in
+    backquotes) as flags.
+
+    Once the search is over, its result is never lost: if anything after it fails (building
+    the report, the reload check, writing, a bug), the gait is written as
+    ``DIR/NAME.failed.yaml`` (its header opens with ``NOT A VERIFIED GAIT`` and why) and the
+    report as ``DIR/NAME.failed.report.json`` (``status: failed``, ``feasible: false``,
+    ``error``), or, when ``DIR`` cannot take them, in a new temporary folder; then
+    :class:`ComputationError` says what failed and where the files are."""
     from ..design.spec import DesignSpec
-    from ..files import output
-    from ..studies.design_gait import design_gait, reload_check, robot_reference
-    from .common import check_out, load_model, load_walker
+    from ..studies.design_gait import design_gait
+    from .common import check_out, load_model, load_walker, warn
 
     check_out(out, whole=False, json=json)
     if out.suffix in (".yaml", ".yml"):
@@ -96,7 +111,6 @@ def run_design_gait(robot: str, out: Path, *, speed: float | None, step_length: 
     gait_name = name or f"{rob.name}_designed"
     if not gait_name.replace("_", "").replace("-", "").isalnum():
         raise InputError(f"option --name: letters, digits, _ and - only (got {gait_name!r})")
-    gait_path = out / f"{gait_name}.yaml"
     spec = DesignSpec(speed=speed, step_length=step_length, mu=mu, order=order,
                       clearance=clearance, max_delta_sq=max_delta_sq,
                       min_vertical_force=min_vertical_force,
@@ -110,36 +124,197 @@ def run_design_gait(robot: str, out: Path, *, speed: float | None, step_length: 
     with progress(f"design-gait {rob.name}: {starts} start(s)", starts, quiet) as advance:
         result = design_gait(model, spec, compare=cmp,
                              progress=lambda done, total, msg: advance(1))
+    # the search is over: from here on, whatever fails, what it found is written
+    step = ["building the report"]
+    try:
+        doc, files = _keep(result, model, robot, out, gait_name, formats, step, render)
+    except Exception as exc:  # noqa: BLE001 - any failure, a bug included: keep the design
+        why = f"{step[0]} failed: {_error_text(exc)}"
+        saved, doc = _save_failed(result, robot, out, gait_name, why, step[0], render)
+        try:
+            _write_json_option(doc, json)
+        except Exception:  # noqa: BLE001 - the message below matters more
+            pass
+        where = (f"the design found by the search is kept, marked as failed, in "
+                 f"{' and '.join(str(p) for p in saved)}" if saved else
+                 "the design could not be written anywhere (the solver log above is all "
+                 "that is left)")
+        raise ComputationError(f"{why}; {where}") from exc
+    _write_json_option(doc, json)
+    if result.warnings or doc.get("figure_error"):
+        warn([*result.warnings, *([doc["figure_error"]] if doc.get("figure_error") else [])])
+    if not quiet and json != "-":
+        _summary(doc, out / f"{gait_name}.yaml", out / f"{gait_name}.report.json", files)
+    return doc
+
+
+def _error_text(exc: BaseException) -> str:
+    """One line for an exception (a bug names its type)."""
+    if isinstance(exc, ComputationError):
+        text = str(exc)
+    elif isinstance(exc, InputError):
+        text = "; ".join(str(p) for p in exc.problems)
+    elif isinstance(exc, OSError):
+        text = f"{exc.filename + ': ' if exc.filename else ''}{exc.strerror or exc}"
+    else:
+        text = f"internal error {type(exc).__name__}: {exc}"
+    return " ".join(text.split())
+
+
+def _keep(result, model, robot: str, out: Path, gait_name: str, formats: set[str] | None,
+          step: list[str], render: Callable[[str], str]) -> tuple[dict, list[Path]]:
+    """Build the report, the gait text (reload-checked) and the stick figure in memory, then
+    write them (gait and figures only for a feasible design). ``step[0]`` names the step under
+    way (for the message if one fails). Returns the report and the files written."""
+    from ..files import output
+    from ..studies.design_gait import reload_check, robot_reference
+
+    gait_path = out / f"{gait_name}.yaml"
     report_path = out / f"{gait_name}.report.json"
+    rob = model.robot
     prov = output.provenance(rob)
     body = result.document()
     doc = {"provenance": prov, "robot": body.pop("robot"),
            "gait_file": str(gait_path) if result.success else None, **body}
-    text = None
+    text, figures = None, {}
     if result.success:
-        text = result.gait_text(prov, robot_reference(rob, robot, gait_path), report_path.name)
+        step[0] = "writing the gait text"
+        text = result.gait_text(prov, robot_reference(rob, robot, gait_path), report_path.name,
+                                render)
+        step[0] = "the reload check"
         back = reload_check(model, text, str(gait_path), result.design)
         if not back["relative_error"] <= 1e-8:
             raise ComputationError(
                 f"the written gait does not reproduce the designed fixed point "
                 f"(zeta* {back['zeta_star']} vs {back['reference']})")
         doc["reload_check"] = back
-        out.mkdir(parents=True, exist_ok=True)
-        output.write_text_atomic(gait_path, text)
+        kinds = [k for k in ("png", "pdf") if formats is None or k in formats]
+        if kinds:
+            figures, err = _draw(result, kinds)
+            if err:
+                doc["figure_error"] = err
+        doc["figures"] = [str(out / f) for f in figures]
+    files = []
+    step[0] = "writing the gait file"
     out.mkdir(parents=True, exist_ok=True)
-    output.write_json(report_path, doc)
+    if text is not None:
+        files.append(output.write_text_atomic(gait_path, text))
+    step[0] = "writing the stick figure"
+    for fname, data in figures.items():
+        files.append(output.write_bytes_atomic(out / fname, data))
+    step[0] = "writing the report"
+    files.append(output.write_json(report_path, doc))
+    return doc, files
+
+
+def _draw(result, kinds: list[str]) -> tuple[dict[str, bytes], str | None]:
+    """The stick figure as bytes per file name; a figure that cannot be drawn does not cost the
+    verified gait: its error comes back instead (a warning)."""
+    from .._version import __version__
+    from ..plots.style import close, render
+
+    try:
+        out = {}
+        for stem, fig in result.figures().items():
+            for kind in kinds:
+                out[f"{stem}.{kind}"] = render(fig, kind, f"thrustwalk {__version__}")
+            close(fig)
+        return out, None
+    except Exception as exc:  # noqa: BLE001 - a drawing bug is reported, the gait is kept
+        return {}, f"the stick figure could not be drawn ({_error_text(exc)}); gait and " \
+                   "report are written"
+
+
+def _save_failed(result, robot: str, out: Path, gait_name: str, why: str, step: str,
+                 render: Callable[[str], str]) -> tuple[list[Path], dict]:
+    """Write the design after a failure: ``NAME.failed.yaml`` (a feasible design's gait, its
+    header opening with why it is not verified) and ``NAME.failed.report.json`` (``status:
+    failed``), in ``out`` or, when that fails, in a new temporary folder. Returns the files
+    written (none if nothing could be) and the report."""
+    import tempfile
+
+    from ..files import output
+
+    doc = _failed_doc(result, why, step)
+    for attempt in range(2):
+        try:
+            folder = out if attempt == 0 else Path(
+                tempfile.mkdtemp(prefix=f"thrustwalk-{gait_name}-"))
+            gpath = folder / f"{gait_name}.failed.yaml"
+            rpath = folder / f"{gait_name}.failed.report.json"
+            text = _failed_text(result, robot, gpath, rpath.name, why, render)
+            folder.mkdir(parents=True, exist_ok=True)
+            files = []
+            if text is not None:
+                files.append(output.write_text_atomic(gpath, text))
+            doc["failed_gait_file"] = str(gpath) if text is not None else None
+            files.append(output.write_json(rpath, doc))
+            return files, doc
+        except Exception:  # noqa: BLE001 - try the next folder
+            continue
+    return [], doc
+
+
+def _failed_doc(result, why: str, step: str) -> dict:
+    """The report of a design whose keeping failed: the full report when it can be built,
+    else the essentials (coefficients, alpha, thrust, re-check), marked failed."""
+    from ..files import output
+
+    try:
+        prov = output.provenance(result.robot)
+    except Exception:  # noqa: BLE001
+        prov = {"tool": "thrustwalk"}
+    try:
+        body = result.document()
+    except Exception:  # noqa: BLE001 - a bug in the report: keep what the design holds
+        d = result.design
+        body = {"robot": {"name": result.robot.name, "file": result.robot.source_file},
+                "reason": d.reason, "alpha_c": list(d.c), "alpha_f": d.gait.alpha_f,
+                "coefficients": [list(r) for r in d.gait.A], "thrust": list(d.thrust),
+                "objective": {"name": d.spec.objective, "value": d.objective},
+                "fixed_point": d.check.get("orbit"), "margins": d.check.get("margins"),
+                "warnings": list(d.warnings)}
+    recheck = result.success
+    return {"provenance": prov, "robot": body.pop("robot", None), **body,
+            "status": "failed", "feasible": False, "recheck_feasible": recheck,
+            "error": why, "failed_step": step, "gait_file": None,
+            "reason": f"design-gait failed after the search ({why}); the independent re-check "
+                      f"of the design found it {'feasible' if recheck else 'infeasible'}"}
+
+
+def _failed_text(result, robot: str, path: Path, report_name: str, why: str,
+                 render: Callable[[str], str]) -> str | None:
+    """The gait text of a feasible design kept after a failure (None for an infeasible one)."""
+    from ..files import output
+    from ..studies.design_gait import failed_line, gait_yaml, robot_reference
+
+    if not result.success:
+        return None
+    rob = result.robot
+    try:
+        ref = robot_reference(rob, robot, path)
+    except Exception:  # noqa: BLE001
+        ref = str(Path(rob.source_file).resolve()) if rob.source_file else rob.name
+    try:
+        return result.gait_text(output.provenance(rob), ref, report_name, render, failure=why)
+    except Exception:  # noqa: BLE001 - the bare gait with the failure line
+        return gait_yaml(result.design, result.model, ref,
+                         [failed_line(why), f"Report: {report_name}."])
+
+
+def _write_json_option(doc: dict, json: str | None) -> None:
+    """The report to standard output (``-``) or to the ``--json`` file."""
+    from ..files import output
+
     if json == "-":
         import json as _json
 
         sys.stdout.write(_json.dumps(output.jsonable(doc), indent=2) + "\n")
     elif json:
         output.write_json(Path(json), doc)
-    if not quiet and json != "-":
-        _summary(doc, gait_path, report_path)
-    return doc
 
 
-def _summary(doc: dict, out: Path, report: Path) -> None:
+def _summary(doc: dict, out: Path, report: Path, files: list[Path]) -> None:
     from rich.markup import escape
     from rich.table import Table
 
@@ -165,8 +340,12 @@ def _summary(doc: dict, out: Path, report: Path) -> None:
         c = doc["compare"]
         console().print(f"compare {c['gait']}: objective {c.get('objective')}, "
                         f"feasible {c['feasible']} (failed: {', '.join(c['failed']) or 'none'})")
+    opt = doc.get("optimality") or {}
+    if doc["feasible"] and opt and not opt.get("certified"):
+        console().print(f"optimum NOT certified (start {opt.get('start')}: SLSQP "
+                        f"{opt.get('slsqp_message')!r}); see the warning above", markup=False)
     if doc["feasible"]:
-        console().print(f"wrote {out} and {report}", markup=False)
+        console().print(f"wrote {', '.join(str(f) for f in files)}", markup=False)
     else:
         console().print(f"wrote {report} (no gait file)", markup=False)
 
@@ -223,6 +402,9 @@ def register(app: typer.Typer) -> None:
             "--compare", help="Also evaluate this existing gait with the same objective and "
                               "constraints (written to the report).")] = None,
         json: JsonOpt = None,
+        formats: Annotated[str, typer.Option(
+            "--formats", help="Figure kinds written beside the gait (NAME.stick.png/.pdf): "
+                              "png, pdf or none.")] = "png,pdf",
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
@@ -233,7 +415,9 @@ def register(app: typer.Typer) -> None:
                 thrust_range=thrust_range,
                 min_vertical_force=min_vertical_force, alpha=alpha_c, max_iter=max_iter,
                 name=name, compare=compare, quiet=quiet, json=json,
-                min_touchdown_velocity=min_touchdown_velocity)
+                min_touchdown_velocity=min_touchdown_velocity,
+                formats=parse_formats(formats, ("png", "pdf")),
+                render=lambda text: render_mentions(text, ctx))
             if not doc["feasible"]:
                 sys.stderr.write(f"infeasible: {render_mentions(doc['reason'], ctx)}\n")
                 raise typer.Exit(INFEASIBLE_EXIT)

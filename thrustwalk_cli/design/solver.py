@@ -25,7 +25,14 @@ from scipy.optimize import minimize
 from ..description.gait import Gait
 from ..model.compiled import CompiledModel
 from .problem import FAMILIES, Evaluation, Problem
-from .spec import ELASTIC, FEAS_TOL, STABILITY_MARGIN, VELOCITY_MARGIN, DesignSpec
+from .spec import (
+    ELASTIC,
+    FEAS_TOL,
+    STABILITY_MARGIN,
+    VELOCITY_MARGIN,
+    DesignSpec,
+    unbounded_warnings,
+)
 from .verify import show, verify
 
 
@@ -71,8 +78,10 @@ class _Cache:
 
 @dataclass(frozen=True)
 class StartResult:
-    """One solver run: its start index, SciPy status, objective [SI], worst normalised
-    violation, iterations, evaluations and wall time [s]."""
+    """One solver run: its start index, SciPy's message (``status``), objective [SI], worst
+    normalised violation, iterations, evaluations, wall time [s] and SciPy SLSQP's exit
+    ``code`` (0: converged to a KKT point within ``ftol``; 8: positive directional derivative
+    in the line search; 9: iteration limit; ...; None: the start could not be evaluated)."""
 
     index: int
     x: np.ndarray = field(repr=False)
@@ -82,6 +91,7 @@ class StartResult:
     iterations: int
     evaluations: int
     seconds: float
+    code: int | None = None
 
 
 def _selection(blocks: dict[str, np.ndarray], slack: dict[str, int]) -> np.ndarray:
@@ -143,7 +153,8 @@ def solve_start(prob: Problem, x0: np.ndarray, index: int = 0) -> StartResult:
     x = res.x[:n]
     ev = prob.evaluate(x)
     return StartResult(index, x, str(res.message), ev.objective, ev.max_violation,
-                       int(res.nit), prob.evaluations - e0, time.perf_counter() - t0)
+                       int(res.nit), prob.evaluations - e0, time.perf_counter() - t0,
+                       int(res.status))
 
 
 # ---------------------------------------------------------------------------- result
@@ -155,6 +166,9 @@ class DesignResult:
     why not otherwise, and ``blocking`` names the constraint family with the largest
     normalised violation at the best point. objective: value on the re-checked periodic orbit
     (``effort`` [N^2 m s] or ``peak`` [N m]). check: the re-check record (every margin).
+    optimality: whether SLSQP certified the chosen start's point as a local optimum
+    (:func:`optimality`). warnings: what the design does not guarantee (an uncertified
+    optimum, joints without torque limits or ranges: :func:`~.spec.unbounded_warnings`).
     """
 
     feasible: bool
@@ -172,6 +186,8 @@ class DesignResult:
     seconds: float
     c: tuple[float, ...]
     eps: float
+    optimality: dict = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
 
 
 def solve_design(model: CompiledModel, spec: DesignSpec,
@@ -243,11 +259,44 @@ def solve_design(model: CompiledModel, spec: DesignSpec,
     else:
         reason = "feasible: every constraint re-checked on the periodic orbit"
     F = prob.unpack(x)[2]
+    opt = optimality(chosen, spec)
+    notes = list(unbounded_warnings(model.robot))
+    if feasible and not opt["certified"]:
+        notes.insert(0, opt["note"])
     return DesignResult(feasible, reason, blocking, spec, prob.gait(x),
                         tuple(map(float, F)) if prob.m or spec.thrust is not None else (),
                         check.get("objective"),
                         chosen.objective, viol, check, tuple(runs), prob.evaluations,
-                        time.perf_counter() - t0, tuple(prob.c.tolist()), prob.eps)
+                        time.perf_counter() - t0, tuple(prob.c.tolist()), prob.eps,
+                        opt, tuple(notes))
+
+
+CONVERGED = 0  # SciPy SLSQP's exit code for a point meeting its KKT test within ftol
+ITERATION_LIMIT_CODE = 9  # SciPy SLSQP's exit code when max_iter is reached
+
+
+def optimality(chosen: StartResult, spec: DesignSpec) -> dict:
+    """Whether SLSQP certified the chosen start's point as a (local) optimum: SciPy exit code
+    0 only. Any other ending (8: positive directional derivative for the line search, 9:
+    iteration limit, ...) may still leave a feasible point (the re-check decides), but its
+    objective is not shown to be minimal: ``note`` says so, names the start and SLSQP's
+    message, and what to try (parameters in backquotes, rendered as flags by the command
+    line)."""
+    certified = chosen.code == CONVERGED
+    note = None
+    if not certified:
+        code = "no exit code" if chosen.code is None else f"exit code {chosen.code}"
+        if chosen.code == ITERATION_LIMIT_CODE:
+            hint = (f"a larger `max_iter` (it stopped at {spec.max_iter} iterations) or more "
+                    "`starts`")
+        else:
+            hint = f"more `starts` (now {spec.starts}) or a larger `max_iter` (now {spec.max_iter})"
+        note = (f"optimum not certified: the chosen start {chosen.index} ended with SLSQP "
+                f"{code} ({chosen.status!r}), not a converged optimum; the gait meets every "
+                f"constraint of the independent re-check, but a lower objective may exist: "
+                f"try {hint}")
+    return {"certified": certified, "start": chosen.index, "slsqp_code": chosen.code,
+            "slsqp_message": chosen.status, "note": note}
 
 
 @dataclass(frozen=True)

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..description.robot import Robot
 from ..errors import InputError, param_problem
 from ..model.compiled import CompiledModel
 
@@ -137,3 +138,33 @@ class DesignSpec:
                                f"on {model.robot.coordinate_names[-1]}")
         if p:
             raise InputError(p)
+
+
+def unbounded_warnings(robot: Robot) -> list[str]:
+    """What the robot file leaves unbounded in a design: actuated coordinates without a
+    ``torque_limit`` [N m] (their torques are bounded by nothing but the objective: a fast
+    target may give a deep crouch that needs large torques and is still "feasible") and
+    without a ``range`` [rad] (any joint angle is accepted, a folded or hyperextended joint
+    included). One line each, naming the coordinates and the robot-file keys that bound them
+    (``coordinates.actuated[].torque_limit`` and ``.range``); empty when every actuated
+    coordinate has both."""
+    act = [c for c in robot.coordinates if c.actuated]
+    out = []
+    no_torque = [c.name for c in act if not np.isfinite(c.torque_limit)]
+    no_range = [c.name for c in act if not (np.isfinite(c.range[0]) and np.isfinite(c.range[1]))]
+    if no_torque:
+        which = "any actuated coordinate" if len(no_torque) == len(act) else ", ".join(no_torque)
+        out.append(f"no torque limits bound the design: robot {robot.name} gives no "
+                   f"torque_limit for {which} ({', '.join(no_torque)}), so their torques are "
+                   "bounded only by the objective (a fast target may give a deep crouch that "
+                   "is still called feasible); add torque_limit: [N m] to those entries of "
+                   "coordinates.actuated in the robot file")
+    if no_range:
+        half = [c.name for c in act if c.name in no_range
+                and (np.isfinite(c.range[0]) or np.isfinite(c.range[1]))]
+        out.append(f"no joint ranges bound {', '.join(no_range)}: robot {robot.name} gives "
+                   "no range for " + ("them" if not half else "them (or only one end)")
+                   + ", so any angle of those joints is accepted (a folded or hyperextended "
+                   "joint included); add range: [min, max] [rad] to those entries of "
+                   "coordinates.actuated in the robot file")
+    return out

@@ -8,6 +8,7 @@ coordinates against the robot, a thrust schedule against the zero dynamics) poin
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
@@ -111,6 +112,24 @@ def load_gait_text(text: str, file: str, parameters: Mapping[str, float] | None 
     return parse_gait(load_yaml_text(text, file), Path(file), parameters)
 
 
+def anchor_robot_ref(ref: str, gait_file: Path) -> str:
+    """A gait file's ``robot:`` reference as seen from the working folder: a relative path is
+    relative to the gait file's folder, always (never to the working folder); when that folder
+    does not exist yet (a gait about to be written) the path is normalised lexically
+    (``gaits/../walker5.yaml`` -> ``walker5.yaml``), otherwise the operating system resolves
+    ``..`` (symbolic links included). A bundled robot name (no ``/``, no ``.yaml`` ending) stays
+    a name unless a file of that name lies beside the gait file. Absolute paths are kept."""
+    rp = Path(ref)
+    if rp.is_absolute():
+        return ref
+    folder = Path(gait_file).parent
+    if "/" not in ref and not ref.endswith((".yaml", ".yml")) and not (folder / rp).is_file():
+        return ref
+    if folder.is_dir():
+        return str(folder / rp)
+    return os.path.normpath(folder / rp)
+
+
 def parse_gait(doc, path: Path, parameters: Mapping[str, float] | None = None
                ) -> tuple[Gait, GaitSource]:
     """Validate a parsed gait document (with ``parameters`` replaced, see :func:`load_gait`)
@@ -120,10 +139,7 @@ def parse_gait(doc, path: Path, parameters: Mapping[str, float] | None = None
     res = check(doc, GAIT_SCHEMA)
     res.raise_if_problems()
     d = res.data
-    robot_ref = d["robot"]
-    rp = Path(robot_ref)
-    if not rp.is_absolute() and (path.parent / rp).is_file():
-        robot_ref = str(path.parent / rp)
+    robot_ref = anchor_robot_ref(d["robot"], path)
     sched = None
     if d["thrust"] is not None:
         t = d["thrust"]
@@ -154,7 +170,9 @@ def gait_file_where(ref: str) -> Where:
 
 
 def same_robot_file(robot: Robot, ref: str) -> bool:
-    """Whether the reference ``ref`` names the file ``robot`` was read from (no parsing)."""
+    """Whether the reference ``ref`` names the file ``robot`` was read from (no parsing).
+    ``ref`` is a gait's ``robot`` as loaded (:func:`anchor_robot_ref`: a relative path is
+    already relative to the working folder, having been anchored at the gait file's folder)."""
     try:
         return resolve(ref, "robots").resolve() == Path(robot.source_file).resolve()
     except (InputError, OSError):

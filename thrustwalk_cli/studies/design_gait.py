@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..description.gait import Gait
 from ..description.robot import Robot
 from ..design.solver import DesignResult, WarmStart, solve_design
 from ..design.spec import DesignSpec
@@ -30,7 +31,10 @@ def report_record(res: DesignResult) -> dict:
     s = res.spec
     r = res.check
     return {
-        "feasible": res.feasible, "reason": res.reason, "blocking_constraint": res.blocking,
+        "feasible": res.feasible, "status": "feasible" if res.feasible else "infeasible",
+        "reason": res.reason, "blocking_constraint": res.blocking,
+        "warnings": list(res.warnings),
+        "optimality": dict(res.optimality),
         "objective": {"name": s.objective, "value": res.objective,
                       "solver_value": res.solver_objective,
                       "unit": "N^2 m s" if s.objective == "effort" else "N m",
@@ -63,7 +67,8 @@ def report_record(res: DesignResult) -> dict:
         "solver_violations": res.violations,
         "alpha_c": list(res.c),
         "coefficients": [list(row) for row in res.gait.A],
-        "starts": [{"index": t.index, "status": t.status, "objective": _num(t.objective),
+        "starts": [{"index": t.index, "status": t.status, "slsqp_code": t.code,
+                    "objective": _num(t.objective),
                     "max_violation": _num(t.max_violation), "iterations": t.iterations,
                     "evaluations": t.evaluations, "seconds": t.seconds} for t in res.starts],
         "evaluations": res.evaluations, "seconds": res.seconds,
@@ -106,8 +111,12 @@ def gait_yaml(res: DesignResult, model: CompiledModel, robot_ref: str,
     return "\n".join(lines) + "\n"
 
 
-def yaml_header(res: DesignResult, provenance: dict, report_name: str) -> list[str]:
-    """Comment lines recording how the gait was made (command, date, objective, margins)."""
+def yaml_header(res: DesignResult, provenance: dict, report_name: str,
+                render: Callable[[str], str] = str) -> list[str]:
+    """Comment lines recording how the gait was made (command, date, objective, margins), with
+    a ``WARNING:`` line per warning of the design (an uncertified optimum, unbounded joints);
+    ``render`` writes the parameters a warning mentions (in backquotes) as the caller
+    names them."""
     s, chk = res.spec, res.check
     o, m = chk.get("orbit", {}), chk.get("margins", {})
     con, sw = chk.get("contact", {}), chk.get("swing", {})
@@ -116,6 +125,7 @@ def yaml_header(res: DesignResult, provenance: dict, report_name: str) -> list[s
     out = [
         f"Gait designed by thrustwalk design-gait (thrustwalk {provenance.get('version')}), "
         f"{provenance.get('created_utc')}.",
+        *(f"WARNING: {render(w)}." for w in res.warnings),
         f"command: {provenance.get('command')}",
         f"Objective ({s.objective}): "
         + ("(1/L) int_0^T |u|^2 dt" if s.objective == "effort" else "max |u_i|")
@@ -220,11 +230,79 @@ class DesignGaitResult:
             doc["compare"] = self.compare
         return doc
 
-    def gait_text(self, provenance: dict, robot_ref: str, report_name: str) -> str:
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """What the design does not guarantee (an optimum SLSQP did not certify, joints the
+        robot file leaves without torque limits or ranges); parameters in backquotes."""
+        return self.design.warnings
+
+    def gait_text(self, provenance: dict, robot_ref: str, report_name: str,
+                  render: Callable[[str], str] = str, failure: str | None = None) -> str:
         """The designed gait as a YAML file (``invariance: auto``), with a header recording the
-        command, the objective and every margin (only for a feasible design)."""
-        return gait_yaml(self.design, self.model, robot_ref,
-                         yaml_header(self.design, provenance, report_name))
+        command, the objective, every margin and the warnings (``render``: how parameters in
+        backquotes are written). ``failure``: the gait could not be verified and kept (the
+        reload check or writing failed); the header then opens with a line saying so."""
+        head = [] if failure is None else [failed_line(failure)]
+        try:
+            head += yaml_header(self.design, provenance, report_name, render)
+        except Exception:  # noqa: BLE001 - a failed gait is still written, with less header
+            if failure is None:
+                raise
+            head.append(f"Every margin and the fixed point: {report_name}.")
+        return gait_yaml(self.design, self.model, robot_ref, head)
+
+    def stick_frames(self, instants: int = 10, path_points: int = 201) -> dict:
+        """:func:`stick_frames` of the designed gait."""
+        return stick_frames(self.model, self.design.gait, instants, path_points)
+
+    def figures(self, titles: bool = False) -> dict:
+        """``NAME.stick``: the designed gait as a stick figure over one step (only for a
+        feasible design; :func:`thrustwalk_cli.plots.design_gait.stick_figure`)."""
+        if not self.success:
+            return {}
+        from ..plots.design_gait import stick_figure
+
+        g = self.design.gait
+        return {f"{g.name}.stick": stick_figure(
+            self.stick_frames(), title=f"{self.robot.name}: {g.name}" if titles else "")}
+
+
+FAILED_MARK = "NOT A VERIFIED GAIT"
+
+
+def failed_line(why: str) -> str:
+    """The first header line of a gait kept after a failure (see :meth:`gait_text`)."""
+    return (f"{FAILED_MARK}: design-gait failed after the search ({why}); this is the design "
+            "it found, kept so that the run is not lost. Re-check it (thrustwalk limit-cycle / "
+            "feasibility) before using it.")
+
+
+def stick_frames(model: CompiledModel, gait: Gait, instants: int = 10,
+                 path_points: int = 201) -> dict:
+    """The gait as a stick figure over one step, in metres with the stance foot at the origin
+    (SPEC 1, 2): at ``instants`` phases ``s = k/(instants - 1)`` the configuration
+    ``q = q_Z(alpha)``, ``alpha = alpha_i + s (alpha_f - alpha_i)``, on the zero-dynamics
+    surface (the orbit passes every ``alpha`` of the step once) and per link its frame origin
+    and end point ``links[k, j] = [[x0, y0], [x1, y1]]``; the swing foot ``swing_foot[k]`` =
+    ``p_2(q)`` at each instant and its path ``swing_path`` over ``path_points`` phases;
+    ``roles[j]``: ``stance`` / ``swing`` / ``body``. Plain arrays, for
+    :func:`thrustwalk_cli.plots.design_gait.stick_figure`."""
+    from ..design.problem import legs
+    from ..hzd.constraints import gait_maps
+
+    if instants < 2 or path_points < 2:
+        raise InputError.param("instants", "need at least 2 instants and 2 path points")
+    maps = gait_maps(model, gait)
+    s = np.linspace(0.0, 1.0, instants)
+    q = maps.q_Z(maps.alpha_i + s * maps.span)
+    sp = np.linspace(0.0, 1.0, path_points)
+    path = model.p_swing(maps.q_Z(maps.alpha_i + sp * maps.span))
+    lg = legs(model)
+    roles = ["stance" if j in lg.stance else "swing" if j in lg.swing else "body"
+             for j in range(len(model.robot.links))]
+    return {"s": s, "q": q, "links": model.link_points(q).reshape(instants, -1, 2, 2),
+            "swing_foot": model.p_swing(q), "swing_path": path, "roles": roles,
+            "link_names": list(model.robot.link_names)}
 
 
 def design_gait(robot: CompiledModel, spec: DesignSpec, *, compare: Walker | None = None,
