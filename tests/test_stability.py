@@ -213,6 +213,184 @@ def test_gait_with_delta_zero_sq_above_one_is_never_called_stable():
     assert "vertical ground force" in f.reason
 
 
+# ------------------------------------------------------------------ agreement on the multipliers
+# The user's 5-link knee walker (tests/data/walker5.yaml) and its gait designed by design-gait
+# to be feasible over -40..0 N of torso thrust: at 0 N the two Jacobians' entries differed by
+# 2.1e-6 (against a fixed 1e-6) while the multipliers agreed to 2.2e-7 and the spectral radius
+# was 0.73: called undetermined on main.
+
+
+@pytest.fixture(scope="module")
+def walker5_run(tmp_path_factory, _cache_dir):
+    """``thrustwalk stability walker5.yaml walker5_thrust.yaml --thrust 0`` run in-process from
+    another folder with relative paths; returns (click result, stability.json, the
+    StabilityResult the command computed, kept for independent checks)."""
+    import os
+
+    from typer.testing import CliRunner
+
+    import thrustwalk_cli.studies.stability as study
+    from thrustwalk_cli.cli import app
+
+    work = tmp_path_factory.mktemp("walker5_stability")
+    rel = Path(os.path.relpath(DATA, work))
+    kept = []
+    real = study.stability
+
+    def keep(*args, **kwargs):
+        kept.append(real(*args, **kwargs))
+        return kept[-1]
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.chdir(work)
+        mp.setattr(study, "stability", keep)
+        res = CliRunner().invoke(app, ["stability", str(rel / "walker5.yaml"),
+                                       str(rel / "walker5_thrust.yaml"), "--thrust", "0",
+                                       "--formats", "csv", "--out", "out"],
+                                 catch_exceptions=False)
+    text = (work / "out" / "stability.json").read_text()
+    assert "NaN" not in text and "Infinity" not in text
+    return res, json.loads(text), kept[0]
+
+
+def test_walker5_designed_gait_is_stable_judged_on_the_multipliers(walker5_run):
+    res, doc, result = walker5_run
+    assert res.exit_code == 0, res.output
+    f = result.cases[0].floquet
+    assert f.fixed_point.converged
+    assert f.verdict == "stable", f.reason
+    # independent estimates of the spectral radius: numpy's eigenvalues of the
+    # finite-difference Jacobian, and SPEC 13's identity that one multiplier is delta_zero^2
+    # (from the angular momentum across the impact map, not from the zero-dynamics code)
+    rho_fd = float(np.max(np.abs(np.linalg.eigvals(f.J_fd))))
+    d2 = delta_sq_from_momentum(result.walker)
+    assert abs(f.spectral_radius - rho_fd) <= f.radius_error, (f.spectral_radius, rho_fd)
+    assert abs(f.zero_dynamics_multiplier - d2) < 1e-6
+    assert f.spectral_radius == pytest.approx(d2, abs=1e-6)  # the zero dynamics dominates
+    assert f.spectral_radius < 1 - 100 * f.radius_error
+    # the verdict: stable, on multipliers within their scaled tolerances
+    assert f.verdict == "stable" and "verdict: stable: every case is stable" in res.stdout
+    assert doc["verdict"] == "stable" and doc["success"], doc["reason"]
+    ag = doc["cases"][0]["jacobian"]["agreement"]
+    assert ag["judged_on"] == "multipliers" and ag["agree"]
+    assert ag["tolerance_source"] == "scaled" and ag["agreement_tol"] is None
+    assert ag["tolerance"] >= 1e-6 and "1e-6" in ag["tolerance_rule"]
+    assert ag["jacobian"] > 0 and ag["radius_error"] == pytest.approx(f.radius_error)
+    for m in doc["cases"][0]["multipliers"]:
+        lam_fd = complex(m["finite_difference"]["re"], m["finite_difference"]["im"])
+        assert abs(complex(m["re"], m["im"]) - lam_fd) == pytest.approx(m["difference"])
+        assert m["difference"] <= m["tolerance"] and m["agrees"]
+        assert m["tolerance"] == pytest.approx(max(1e-6, 10 * m["fd_error_estimate"]))
+    assert doc["settings"]["agreement"]["judged_on"] == "multipliers"
+    assert doc["settings"]["agreement_tol"] is None
+
+
+def test_walker5_fd_error_estimate_carried_to_each_multiplier(walker5_run):
+    """e_j: the change of each finite-difference multiplier between the chosen step and the
+    neighbouring step, recomputed here from the two Jacobians with numpy."""
+    f = walker5_run[2].cases[0].floquet
+    fd = f.fd
+    assert fd.neighbour is not None and fd.neighbour_step != fd.step
+    assert np.max(np.abs(fd.J - fd.neighbour)) == pytest.approx(fd.error)
+    mu = np.linalg.eigvals(fd.J)
+    nb = np.linalg.eigvals(fd.neighbour)
+    checked = 0
+    for m in f.multipliers:
+        k = int(np.argmin(np.abs(mu - m.finite_difference)))
+        assert abs(mu[k] - m.finite_difference) < 1e-12
+        gap = np.sort(np.abs(mu - mu[k]))[1]  # to the next eigenvalue
+        if gap < 1e-3:
+            continue  # the critically damped thruster's double eigenvalue: no unique match
+        assert m.fd_error == pytest.approx(float(np.min(np.abs(nb - mu[k]))), rel=1e-9,
+                                           abs=1e-15)
+        checked += 1
+    assert checked >= 1  # the zero-dynamics multiplier (the outputs are within 1e-5 of 0)
+    zd = next(m for m in f.multipliers if m.kind == "zero dynamics")
+    assert zd.fd_error < 1e-7 and zd.tolerance == 1e-6  # well conditioned: the floor
+
+
+def _skew_variational(monkeypatch, factor: float) -> None:
+    """A constructed disagreement: the variational Jacobian scaled by ``factor``, so each of
+    its multipliers is the finite-difference one times ``factor``."""
+    from dataclasses import replace
+
+    import thrustwalk_cli.floquet.multipliers as fm
+
+    real = fm.variational_jacobian
+
+    def skewed(*args, **kwargs):
+        v = real(*args, **kwargs)
+        return replace(v, DP=v.DP * factor)
+
+    monkeypatch.setattr(fm, "variational_jacobian", skewed)
+
+
+def test_disagreement_beyond_the_tolerance_stays_undetermined_with_advice(cli, tmp_path,
+                                                                          monkeypatch):
+    """Multipliers 1e-4 apart (relative) against a tolerance of 1e-6: undetermined although
+    the radius (0.76) is far from 1, and the reason says what to try, with the command's
+    flags on the console and parameter names in the JSON; --agreement-tol 1e-3 accepts it."""
+    _skew_variational(monkeypatch, 1.0 + 1e-4)
+    monkeypatch.chdir(tmp_path)
+    base = ["stability", "three_link", "three_link_walk", "--thrust-model", "constant",
+            "--thrust", "-10", "--formats", "none"]
+    res = cli(*base, "--out", "a")
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "a" / "stability.json").read_text())
+    c = doc["cases"][0]
+    assert c["verdict"] == "undetermined" and doc["verdict"] == "undetermined"
+    assert not doc["success"] and not c["jacobian"]["agreement"]["agree"]
+    worst = c["jacobian"]["agreement"]["worst"]
+    assert worst["difference"] > worst["tolerance"] == pytest.approx(1e-6)
+    for text in (c["reason"], doc["reason"]):
+        assert "disagree" in text and "`rtol`/`atol`" in text and "`agreement_tol`" in text
+    warning = [ln for ln in res.stderr.splitlines() if "disagree" in ln]
+    assert len(warning) == 1 and "--rtol/--atol" in warning[0], res.stderr
+    assert "--agreement-tol" in warning[0] and "`" not in warning[0]
+    assert "--agreement-tol" in res.stdout.split("verdict: undetermined")[-1]
+    # a given tolerance above the disagreement: the radius is far from 1, so stable
+    res = cli(*base, "--agreement-tol", "1e-3", "--out", "b")
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "b" / "stability.json").read_text())
+    ag = doc["cases"][0]["jacobian"]["agreement"]
+    assert doc["verdict"] == "stable", doc["reason"]
+    assert ag["tolerance_source"] == "given" and ag["tolerance"] == 1e-3
+    assert doc["settings"]["agreement_tol"] == 1e-3
+    rho = doc["cases"][0]["spectral_radius"]
+    assert ag["radius_error"] >= ag["multipliers"] > 1e-5 and rho < 1 - ag["radius_error"]
+
+
+def test_radius_within_the_disagreement_of_one_stays_undetermined(monkeypatch, walker3):
+    """A verdict never better than the evidence: multipliers 25 % apart accepted by a loose
+    agreement_tol put the radius 0.95 within its error bar of 1."""
+    _skew_variational(monkeypatch, 1.25)
+    res = tw.stability(walker3, thrust_model="constant", thrust=-10.0, agreement_tol=0.5)
+    f = res.cases[0].floquet
+    assert f.agree and f.tolerance_source == "given"
+    lam_fd = max(abs(m.finite_difference) for m in f.multipliers)
+    assert f.spectral_radius == pytest.approx(1.25 * lam_fd, rel=1e-6)
+    assert abs(f.spectral_radius - 1) < f.multiplier_agreement <= f.radius_error
+    assert f.verdict == "undetermined" and res.verdict == "undetermined"
+    assert "error bar" in f.reason and "`rtol`/`atol`" in f.reason
+
+
+@pytest.mark.parametrize("bad", [0.0, -1e-6, float("nan"), float("inf"), "x"])
+def test_agreement_tol_is_validated_before_any_work(walker3, bad):
+    with pytest.raises(tw.InputError) as exc:
+        tw.stability(walker3, agreement_tol=bad)
+    assert exc.value.problems[0].params == ("agreement_tol",)
+
+
+def test_newton_failure_says_what_to_try():
+    """The walking gait (designed for no thrust) at -10 N: the foot lifts off on the first
+    full-order step, so there is no fixed point; the reason names settings to change."""
+    walker = tw.load_walker(str(DATA / "walker5.yaml"), str(DATA / "walker5_walk.yaml"))
+    res = tw.stability(walker, thrust_model="second-order", wn=2.0, xi=0.7, thrust=-10.0)
+    f = res.cases[0].floquet
+    assert f.verdict == "undetermined" and "Newton" in f.reason
+    assert "try another setting" in f.reason and "`kp`" in f.reason
+
+
 BAD = [
     (["--vary", "foo=1:2:log3"], "option --vary: unknown parameter 'foo'"),
     (["--vary", "wn=0:1:log5"], "option --vary: a log range needs start and stop > 0"),
@@ -229,6 +407,11 @@ BAD = [
     (["--thruster", "nope"], "option --thruster: unknown thruster 'nope'"),
     (["--wn", "0"], "option --wn: must be > 0"),
     (["--rtol", "nan"], "option --rtol: nan is not a usable number"),
+    (["--agreement-tol", "0"], "option --agreement-tol: must be a finite number > 0"),
+    (["--agreement-tol", "-1e-6"], "option --agreement-tol: must be a finite number > 0"),
+    (["--agreement-tol", "nan"], "option --agreement-tol: nan is not a usable number"),
+    (["--agreement-tol", "inf"], "option --agreement-tol: inf is not a usable number"),
+    (["--agreement-tol", "tight"], "option --agreement-tol: 'tight' is not a valid float"),
 ]
 
 

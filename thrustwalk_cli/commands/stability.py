@@ -19,6 +19,7 @@ from .common import (
     parse_formats,
     parse_values,
     progress,
+    render_mentions,
     show_table,
     warn,
     write_result,
@@ -42,12 +43,15 @@ simulation. Its fixed point is found by Newton's method from the zero-dynamics p
 residual is reported). Its Jacobian on the guard's tangent space (dimension 2N - 1 + n_z; the
 trivial multiplier normal to the guard is dropped) is computed two ways, by central
 differences (the step chosen from a sweep, its convergence reported) and by the variational
-equations along the orbit with the saltation matrix at the guard, and the two must agree. The
-multipliers [1] are sorted by modulus with their eigenvectors' dominant components; the one of
-the zero dynamics is identified and compared with delta_zero^2; the spectral radius gives the
-verdict: stable, unstable, or undetermined (Newton did not converge, the methods disagree, or
-a marginal radius), never better than the evidence; "no orbit" when the zero dynamics has no
-periodic orbit to start from.
+equations along the orbit with the saltation matrix at the guard, and their multipliers must
+agree: each within max(1e-6, 10 x the finite-difference error estimate carried to that
+multiplier), or within --agreement-tol when given (the Jacobians' entry difference is
+reported, not judged). The multipliers [1] are sorted by modulus with their eigenvectors'
+dominant components; the one of the zero dynamics is identified and compared with
+delta_zero^2; the spectral radius gives the verdict: stable, unstable, or undetermined (Newton
+did not converge, the multipliers disagree, or the radius is within its error bar of 1, the
+reason saying what to try), never better than the evidence; "no orbit" when the zero dynamics
+has no periodic orbit to start from.
 
 --vary NAME=VALUES sweeps one parameter, one analysis per value: kp [1/s^2], kd [1/s] (the output
 gains y'' = -kp y - kd y'), wn [rad/s], xi [1] (second-order thruster), tau [s] (first-order
@@ -112,12 +116,16 @@ def run_stability(robot: str | None, gait: str | None, *, thrust_model: str | No
                   thrust: str | None, thruster: str | None, wn: float, xi: float, tau: float,
                   kp: float | None, kd: float | None, vary: str | None, rtol: float,
                   atol: float, out: Path, quiet: bool, json: str | None = None,
-                  formats: set[str] | None = None, titles: bool = False) -> dict:
+                  formats: set[str] | None = None, titles: bool = False,
+                  agreement_tol: float | None = None, ctx: typer.Context | None = None
+                  ) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files import output
+    from ..floquet.multipliers import check_agreement_tol
     from ..studies.stability import stability
 
     F = _one_thrust(thrust)
+    check_agreement_tol(agreement_tol)
     sweep = parse_vary(vary) if vary is not None else None
     check_out(out)
     walker = load_walker(robot, gait)
@@ -125,14 +133,15 @@ def run_stability(robot: str | None, gait: str | None, *, thrust_model: str | No
     with progress("analysing settings", n, quiet) as advance:
         result = stability(walker, thrust_model=thrust_model, thrust=F, thruster=thruster,
                            wn=wn, xi=xi, tau=tau, kp=kp, kd=kd, vary=sweep, rtol=rtol,
-                           atol=atol, progress=advance)
+                           atol=atol, agreement_tol=agreement_tol, progress=advance)
     doc = write_result(result, out, output.provenance(walker.robot, walker.gait), json=json,
                        formats=formats, titles=titles)
     warn([w for w in doc["warnings"] if w not in walker.warnings])
     if not quiet and json != "-":
         _table(doc)
         figs = "multipliers" + (", spectral_radius" if sweep else "")
-        console().print(f"verdict: {doc['verdict']}: {doc['reason']}", markup=False)
+        console().print(f"verdict: {doc['verdict']}: {render_mentions(doc['reason'], ctx)}",
+                        markup=False)
         console().print(f"wrote {out}/stability.json, multipliers.csv and figures ({figs})",
                         markup=False)
     return doc
@@ -153,13 +162,13 @@ def _table(doc: dict) -> None:
             fmt(None if not zdm else zdm["multiplier"]["re"], ".6g"),
             fmt(zdm.get("difference"), ".1e"),
             fmt(((fp.get("newton") or {}).get("residual")), ".1e"),
-            fmt(ag.get("jacobian"), ".1e"),
+            fmt(ag.get("multipliers"), ".1e"),
             ", ".join(f"{m['modulus']:.3g} ({m['kind']})" for m in lead) or "—",
             c["verdict"]])
     cols = ([(f"{vary['parameter']}\n[{vary['unit']}]", True)] if vary else []) + [
         ("spectral\nradius [1]", True), ("ZD multiplier\n[1]", True),
         ("|λ_Z - δ²|\n[1]", True), ("Newton\nresidual [1]", True),
-        ("FD vs var.\n[1]", True), ("largest |λ| [1]", False), ("verdict", False)]
+        ("FD vs var.\nλ [1]", True), ("largest |λ| [1]", False), ("verdict", False)]
     s = doc["settings"]
     show_table(f"stability: {doc['robot']['name']} / {doc['gait']['name']} "
                f"({s['thrust_model']}, delta_zero^2 = "
@@ -200,6 +209,12 @@ def register(app: typer.Typer) -> None:
                            "need about 1e-12).")] = 1e-12,
         atol: Annotated[float, typer.Option(
             "--atol", help="Absolute tolerance [rad, rad/s, N].")] = 1e-12,
+        agreement_tol: Annotated[float | None, typer.Option(
+            "--agreement-tol",
+            help="Largest accepted difference [1] between the multipliers of the finite "
+                 "differences and the variational equations (default: max(1e-6, 10 x the "
+                 "finite-difference error estimate of each multiplier)); the spectral radius "
+                 "must still clear 1 by more than the disagreement.")] = None,
         out: OutOpt = Path("out/stability"),
         json: JsonOpt = None,
         formats: FormatsOpt = "csv,png,pdf",
@@ -210,4 +225,5 @@ def register(app: typer.Typer) -> None:
             run_stability(robot, gait, thrust_model=thrust_model, thrust=thrust,
                           thruster=thruster, wn=wn, xi=xi, tau=tau, kp=kp, kd=kd, vary=vary,
                           rtol=rtol, atol=atol, out=out, quiet=quiet, json=json,
-                          formats=parse_formats(formats), titles=titles)
+                          formats=parse_formats(formats), titles=titles,
+                          agreement_tol=agreement_tol, ctx=ctx)

@@ -9,11 +9,33 @@ the thruster states, the multiplier of the zero dynamics identified and compared
 ``delta_zero^2`` (SPEC 3), the spectral radius and a verdict that is never better than the
 evidence:
 
-* ``stable`` / ``unstable``: spectral radius below / above 1 by more than ``margin``, the
-  Newton residual within its tolerance and the two Jacobians agreeing;
-* ``undetermined``: Newton did not converge, a Jacobian failed, the methods disagree, or the
-  spectral radius is within ``margin`` of 1;
+* ``stable`` / ``unstable``: spectral radius below / above 1 by more than its error bar, the
+  Newton residual within its tolerance and the two methods' multipliers agreeing;
+* ``undetermined``: Newton did not converge, a Jacobian failed, the multipliers disagree, or
+  the spectral radius is within its error bar of 1; the reason says what to try;
 * ``no orbit``: the zero dynamics predicts no periodic orbit to start from.
+
+Agreement is judged on the multipliers, the quantity the verdict is about (the largest entry
+difference of the two Jacobians is reported beside it, not judged). Multiplier ``j`` of the
+variational Jacobian, ``lambda_j``, is matched with the nearest eigenvalue ``mu_j`` of the
+finite-difference Jacobian; their difference ``d_j = |lambda_j - mu_j|`` must be at most
+
+    tol_j = max(AGREEMENT_FLOOR, SAFETY * e_j),    AGREEMENT_FLOOR = 1e-6, SAFETY = 10,
+
+with ``e_j`` the finite-difference Jacobian's own error estimate carried to that multiplier:
+``e_j = |mu_j - mu'_j|``, ``mu'_j`` the matching eigenvalue of the finite-difference Jacobian
+at the neighbouring step that gave the entry-wise estimate (:class:`FDJacobian`). This is the
+step-to-step test of the entries applied to the eigenvalues, so an ill-conditioned or
+defective multiplier (a critically damped thruster's double eigenvalue, whose perturbation
+grows like the square root of the entries') gets a wider band and a well-conditioned one a
+tight band, with no first-order condition number to fail. Without an estimate (too few
+successful steps) ``tol_j = AGREEMENT_FLOOR``; a given ``agreement_tol`` replaces every
+``tol_j``. The spectral radius ``rho`` (of the variational Jacobian) is then known to within
+
+    u = max(margin, max_j (d_j + SAFETY * e_j))
+
+(the distance to the finite-difference multiplier plus that one's error), and is called
+undetermined when ``|rho - 1| <= u``.
 
 Checks of SPEC 13: ``Z`` is invariant under the closed loop (exact input-output linearisation)
 and the gait is hybrid-invariant, so ``Z`` intersected with the guard is an invariant curve
@@ -31,6 +53,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import InputError
 from ..hzd.zero_dynamics import ZeroDynamics
 from .poincare import (
     FDJacobian,
@@ -46,8 +69,15 @@ from .poincare import (
 )
 from .variational import VariationalJacobian, variational_jacobian
 
-AGREEMENT_TOL = 1e-6  # max |J_fd - J_var| / max(1, max |J|) for "the methods agree"
-MARGIN = 1e-6  # a spectral radius within this of 1 is undetermined
+AGREEMENT_FLOOR = 1e-6  # [1] least tolerance on |lambda_var - lambda_fd| (module docstring)
+SAFETY = 10.0  # [1] factor on the finite-difference error estimate of a multiplier
+MARGIN = 1e-6  # [1] a spectral radius within max(this, its error bar) of 1 is undetermined
+AGREEMENT_RULE = ("per multiplier j: |lambda_var - lambda_fd| <= tol_j = max(1e-6, 10 e_j), "
+                  "e_j = |lambda_fd(h) - lambda_fd(h')| the change of the finite-difference "
+                  "multiplier between the chosen step h and the neighbouring step h' that gave "
+                  "the Jacobian's error estimate (tol_j = 1e-6 without an estimate; a given "
+                  "agreement_tol replaces every tol_j); spectral radius undetermined within "
+                  "max(1e-6, max_j (d_j + 10 e_j)) of 1")
 
 
 @dataclass(frozen=True)
@@ -57,7 +87,9 @@ class Multiplier:
     of its unit eigenvector in ``x = (q, q', z)`` as (name, modulus), ``thruster_share``: its
     participation factor in the thruster states (0..1), ``alignment``: |cos| of the angle
     between its eigenvector and the zero-dynamics direction ``(0, Phi(alpha_f), 0)``;
-    ``finite_difference``: the matching multiplier of the finite-difference Jacobian."""
+    ``finite_difference``: the matching multiplier of the finite-difference Jacobian;
+    ``fd_error``: that one's error estimate ``e_j`` (None without one) and ``tolerance``:
+    ``tol_j``, the largest accepted ``difference`` (module docstring)."""
 
     value: complex
     kind: str
@@ -65,17 +97,32 @@ class Multiplier:
     thruster_share: float
     alignment: float
     finite_difference: complex
+    fd_error: float | None = None
+    tolerance: float = AGREEMENT_FLOOR
 
     @property
     def modulus(self) -> float:
         return abs(self.value)
 
+    @property
+    def difference(self) -> float:
+        """``|lambda_var - lambda_fd|`` [1]."""
+        return abs(self.value - self.finite_difference)
+
+    @property
+    def agrees(self) -> bool:
+        return self.difference <= self.tolerance
+
 
 @dataclass(frozen=True)
 class Floquet:
     """The analysis of one setting (module docstring). ``exists`` false: no predicted orbit
-    (``reason``). ``agreement``: ``max |J_fd - J_var| / max(1, max |J|)``;
-    ``multiplier_agreement``: the largest difference between matched multipliers."""
+    (``reason``). ``agreement``: ``max |J_fd - J_var| / max(1, max |J|)`` (reported, not
+    judged); ``multiplier_agreement``: the largest difference between matched multipliers;
+    ``agree``: every multiplier within its tolerance; ``tolerance_source``: ``scaled`` (from
+    the finite-difference error estimate), ``floor`` (no estimate) or ``given``
+    (``agreement_tol``); ``agreement_tol``: the given tolerance or None; ``radius_error``: the
+    error bar ``u`` of the spectral radius (module docstring)."""
 
     setting: Setting
     exists: bool
@@ -95,6 +142,9 @@ class Floquet:
     agreement: float | None = None
     multiplier_agreement: float | None = None
     agree: bool = False
+    tolerance_source: str | None = None
+    agreement_tol: float | None = None
+    radius_error: float | None = None
     spectral_radius: float | None = None
     zero_dynamics_multiplier: complex | None = None
     output_reference: float | None = None
@@ -118,9 +168,13 @@ def _match(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def multipliers(zd: ZeroDynamics, J: np.ndarray, J_fd: np.ndarray, B: np.ndarray,
-                names: list[str], nz: int, top: int = 3) -> tuple[list[Multiplier], int]:
-    """Multipliers of ``J`` sorted by modulus (largest first), classified; returns them and
-    the index of the zero-dynamics one (-1 if none is a walker mode)."""
+                names: list[str], nz: int, top: int = 3, J_nb: np.ndarray | None = None,
+                agreement_tol: float | None = None) -> tuple[list[Multiplier], int]:
+    """Multipliers of ``J`` sorted by modulus (largest first), classified, each with its
+    finite-difference match, that one's error estimate from ``J_nb`` (the finite-difference
+    Jacobian at the neighbouring step; None: no estimate) and its tolerance (module
+    docstring); returns them and the index of the zero-dynamics one (-1 if none is a walker
+    mode)."""
     lam, V = np.linalg.eig(J)
     order = np.argsort(-np.abs(lam), kind="stable")
     lam, V = lam[order], V[:, order]
@@ -142,15 +196,20 @@ def multipliers(zd: ZeroDynamics, J: np.ndarray, J_fd: np.ndarray, B: np.ndarray
     walker = [j for j in range(k) if share[j] < 0.5]
     zd_index = max(walker, key=lambda j: align[j]) if walker else -1
     fdv = _match(lam, np.linalg.eigvals(J_fd))
+    err = (np.abs(fdv - _match(fdv, np.linalg.eigvals(J_nb))) if J_nb is not None
+           else np.full(k, np.nan))
     out = []
     for j in range(k):
         comp = np.abs(full[:, j])
         idx = np.argsort(-comp, kind="stable")[:top]
         kind = ("zero dynamics" if j == zd_index else "thruster" if share[j] >= 0.5
                 else "outputs")
+        e = float(err[j]) if np.isfinite(err[j]) else None
+        tol = (float(agreement_tol) if agreement_tol is not None
+               else AGREEMENT_FLOOR if e is None else max(AGREEMENT_FLOOR, SAFETY * e))
         out.append(Multiplier(complex(lam[j]), kind,
                               tuple((names[i], float(comp[i])) for i in idx),
-                              float(share[j]), float(align[j]), complex(fdv[j])))
+                              float(share[j]), float(align[j]), complex(fdv[j]), e, tol))
     return out, zd_index
 
 
@@ -161,19 +220,54 @@ def output_reference(kp: float, kd: float, T: float) -> float:
     return float(np.exp(np.max(roots.real) * T))
 
 
+def check_agreement_tol(agreement_tol: float | None) -> None:
+    """``agreement_tol`` [1]: None (the scaled rule) or a finite number > 0."""
+    if agreement_tol is None:
+        return
+    try:
+        v = float(agreement_tol)
+    except (TypeError, ValueError):
+        raise InputError.param("agreement_tol", f"must be a number > 0 (got "
+                                                f"{agreement_tol!r})") from None
+    if not (np.isfinite(v) and v > 0):
+        raise InputError.param("agreement_tol", f"must be a finite number > 0 (got {v:g})")
+
+
+def _accuracy(setting: Setting) -> str:
+    return (f"tighter `rtol`/`atol` (now {setting.rtol:g}/{setting.atol:g}: the compiled "
+            f"simulation behind Newton's method and the finite differences)")
+
+
+def _newton_advice(fp: FixedPoint, setting: Setting) -> str:
+    """What to try when Newton's method did not give a fixed point."""
+    if fp.reason.startswith("no convergence"):
+        return (f"try {_accuracy(setting)}, whose noise floors the residual; or other gains "
+                f"`kp`/`kd`")
+    if "singular" in fp.reason:
+        return "try other gains `kp`/`kd` or another thrust setting (a multiplier is at 1)"
+    return ("the closed loop cannot complete the step from there: try another setting "
+            "(`thrust`, the thruster's dynamics, gains `kp`/`kd`)")
+
+
 def analyse(zd: ZeroDynamics, setting: Setting, *, newton_tol: float = 1e-9,
-            agreement_tol: float = AGREEMENT_TOL, margin: float = MARGIN) -> Floquet:
+            agreement_tol: float | None = None, margin: float = MARGIN) -> Floquet:
     """Fixed point, Jacobians, multipliers and verdict of one setting (SPEC 13; module
-    docstring). Raises :class:`InputError` for bad gains or tolerances; a failed step, a
-    Newton that does not converge or methods that disagree come back in the verdict."""
+    docstring). ``agreement_tol`` [1]: the largest accepted difference between matched
+    multipliers of the two methods (default None: ``max(1e-6, 10 e_j)`` per multiplier, from
+    the finite-difference error estimate); ``margin`` [1]: the least error bar of the spectral
+    radius. Raises :class:`InputError` for bad gains, tolerances or ``agreement_tol``; a
+    failed step, a Newton that does not converge or methods that disagree come back in the
+    verdict, whose reason then says what to try."""
     check_setting(zd, setting)
+    check_agreement_tol(agreement_tol)
     names = state_names(zd, setting.thrust)
     nz = setting.thrust.n_states
     d2 = zd.delta_zero_sq
     x0, lc = predicted_state(zd, setting.thrust)
     base = dict(setting=setting, names=tuple(names), delta_zero_sq=d2,
                 predicted_zeta_star=lc.zeta_star if lc.exists else None,
-                predicted_step_time=lc.step_time if lc.exists else None)
+                predicted_step_time=lc.step_time if lc.exists else None,
+                agreement_tol=None if agreement_tol is None else float(agreement_tol))
     if x0 is None:
         return Floquet(exists=False, verdict="no orbit", reason=f"no predicted orbit to start "
                        f"from: {lc.reason}", **base)
@@ -182,7 +276,8 @@ def analyse(zd: ZeroDynamics, setting: Setting, *, newton_tol: float = 1e-9,
     if not fp.converged:
         return Floquet(exists=True, verdict="undetermined",
                        reason=f"no full-order fixed point: Newton's method from the "
-                              f"zero-dynamics prediction failed: {fp.reason}",
+                              f"zero-dynamics prediction failed: {fp.reason}; "
+                              f"{_newton_advice(fp, setting)}",
                        fixed_point=fp, simulations=P.calls, **base)
     B = section_basis(zd, fp.x, nz)
     fd = fd_jacobian(P, fp.x, B)
@@ -193,42 +288,69 @@ def analyse(zd: ZeroDynamics, setting: Setting, *, newton_tol: float = 1e-9,
     if not var.ok:
         problems.append(f"variational equations failed: {var.reason}")
     if problems:
-        return Floquet(exists=True, verdict="undetermined", reason="; ".join(problems),
+        return Floquet(exists=True, verdict="undetermined",
+                       reason="; ".join(problems) + f"; try {_accuracy(setting)}, or another "
+                       f"setting (`thrust`, gains `kp`/`kd`) if the orbit is at the edge of "
+                       f"what the closed loop can walk",
                        fixed_point=fp, fd=fd, variational=var, basis=B,
                        simulations=P.calls, **base)
     J = B.T @ var.DP @ B
     scale = max(1.0, float(np.max(np.abs(J))))
     agreement = float(np.max(np.abs(J - fd.J))) / scale
-    mults, zi = multipliers(zd, J, fd.J, B, names, nz)
-    mult_agree = max(abs(m.value - m.finite_difference) for m in mults)
-    agree = agreement <= agreement_tol and mult_agree <= agreement_tol
+    mults, zi = multipliers(zd, J, fd.J, B, names, nz, J_nb=fd.neighbour,
+                            agreement_tol=agreement_tol)
+    source = ("given" if agreement_tol is not None
+              else "scaled" if fd.neighbour is not None else "floor")
+    mult_agree = max(m.difference for m in mults)
+    agree = all(m.agrees for m in mults)
     rho = max(m.modulus for m in mults)
+    u = max([margin] + [m.difference + SAFETY * (m.fd_error or 0.0) for m in mults])
     zdm = mults[zi].value if zi >= 0 else None
     T = var.T
     ref = output_reference(setting.kp, setting.kd, T)
+    worst = max(mults, key=lambda m: m.difference / m.tolerance)
+    tol_text = (f"tolerance {worst.tolerance:.2g}, " + (
+        "given" if source == "given" else
+        f"max(1e-6, 10 x its finite-difference error estimate {worst.fd_error:.2g})"
+        if source == "scaled" else "1e-6: no finite-difference error estimate"))
     if not agree:
         verdict = "undetermined"
-        reason = (f"the Jacobians disagree: finite differences vs variational equations "
-                  f"differ by {agreement:.3g} (relative), multipliers by {mult_agree:.3g} "
-                  f"(tolerance {agreement_tol:g}); spectral radius {rho:.6g}")
-    elif abs(rho - 1.0) <= margin:
+        dist = abs(rho - 1.0)
+        wider = (f"or, if a disagreement of {mult_agree:.2g} is acceptable for a radius "
+                 f"{dist:.2g} from 1, an `agreement_tol` of at least {mult_agree:.2g}"
+                 if dist > mult_agree else
+                 "a larger `agreement_tol` cannot help: the radius is within the "
+                 "disagreement of 1")
+        reason = (f"the two methods disagree: the {worst.kind} multiplier is "
+                  f"{_c(worst.value, 10)} by the variational equations and "
+                  f"{_c(worst.finite_difference, 10)} by finite "
+                  f"differences, {worst.difference:.2g} apart ({tol_text}); Jacobian entries "
+                  f"differ by {agreement:.2g} (relative); spectral radius {rho:.6g}: try "
+                  f"{_accuracy(setting)}; {wider}")
+    elif abs(rho - 1.0) <= u:
         verdict = "undetermined"
-        reason = f"spectral radius {rho:.9g} is within {margin:g} of 1 (marginal)"
+        reason = (f"spectral radius {rho:.9g} is within its error bar {u:.2g} of 1 (marginal; "
+                  f"the error bar is max({margin:g}, multiplier disagreement + 10 x "
+                  f"finite-difference error)): try {_accuracy(setting)} to shrink the error "
+                  f"bar; if the radius stays at 1 the orbit is at a bifurcation, which other "
+                  f"gains `kp`/`kd` or another thrust setting move")
     elif rho < 1.0:
         verdict = "stable"
-        reason = (f"spectral radius {rho:.6g} < 1: the full-order orbit is exponentially "
-                  f"stable")
+        reason = (f"spectral radius {rho:.6g} < 1 (clear of 1 by {1 - rho:.3g}, error bar "
+                  f"{u:.2g}): the full-order orbit is exponentially stable")
     else:
         verdict = "unstable"
-        worst = mults[0]
-        reason = (f"spectral radius {rho:.6g} > 1 (the {worst.kind} multiplier "
-                  f"{_c(worst.value)})")
+        top = mults[0]
+        reason = (f"spectral radius {rho:.6g} > 1 (the {top.kind} multiplier "
+                  f"{_c(top.value)}; error bar {u:.2g})")
     return Floquet(exists=True, verdict=verdict, reason=reason, fixed_point=fp, fd=fd,
                    variational=var, J=J, J_fd=fd.J, basis=B, multipliers=tuple(mults),
                    agreement=agreement, multiplier_agreement=mult_agree, agree=agree,
+                   tolerance_source=source, radius_error=u,
                    spectral_radius=rho, zero_dynamics_multiplier=zdm, output_reference=ref,
                    simulations=P.calls, **base)
 
 
-def _c(z: complex) -> str:
-    return f"{z.real:.6g}" if z.imag == 0 else f"{z.real:.6g}{z.imag:+.6g}i"
+def _c(z: complex, digits: int = 6) -> str:
+    return (f"{z.real:.{digits}g}" if z.imag == 0
+            else f"{z.real:.{digits}g}{z.imag:+.{digits}g}i")

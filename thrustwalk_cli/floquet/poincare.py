@@ -155,7 +155,10 @@ class FDJacobian:
     ``J`` (n-1, n-1); ``step``: the chosen step [section units: rad, rad/s, N, N/s];
     ``steps``: every step tried with ``change``, the largest entry change to the next smaller
     step (None where a run failed); ``error``: the estimate of the chosen Jacobian's error (the
-    smaller change to its neighbours); ``ok``: false when every step failed."""
+    smaller change to its neighbours, max over the entries); ``neighbour``: the Jacobian at
+    the neighbouring step that gave ``error`` (``neighbour_step``), kept so that the estimate
+    can be carried to derived quantities (the multipliers, SPEC 13), None without an
+    estimate; ``ok``: false when every step failed."""
 
     J: np.ndarray
     step: float
@@ -163,6 +166,8 @@ class FDJacobian:
     error: float
     ok: bool
     reason: str
+    neighbour: np.ndarray | None = None
+    neighbour_step: float | None = None
 
 
 def central_jacobian(P: PoincareMap, x: np.ndarray, B: np.ndarray, h: float
@@ -210,8 +215,10 @@ def fd_jacobian(P: PoincareMap, x: np.ndarray, B: np.ndarray,
         best = good[len(good) // 2]
         return FDJacobian(Js[best], float(steps[best]), table, float("inf"), True,
                           "too few successful steps to estimate the error")
-    err = min(change[best - 1], change[best])
-    return FDJacobian(Js[best], float(steps[best]), table, float(err), True, "")
+    nb = best - 1 if change[best - 1] <= change[best] else best + 1
+    err = change[min(nb, best)]
+    return FDJacobian(Js[best], float(steps[best]), table, float(err), True, "",
+                      neighbour=Js[nb], neighbour_step=float(steps[nb]))
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..floquet.multipliers import AGREEMENT_TOL, MARGIN, Floquet, analyse
+from ..floquet.multipliers import (
+    AGREEMENT_FLOOR,
+    AGREEMENT_RULE,
+    MARGIN,
+    SAFETY,
+    Floquet,
+    analyse,
+    check_agreement_tol,
+)
 from ..floquet.poincare import Setting
 from ..hzd.schedule import check_limits, schedule_from_gait
 from ..simulation.closed_loop import SimConfig, ThrustModel
@@ -103,21 +111,16 @@ def case_entry(i: int, case: Case) -> dict:
                 "method": "Phi' = f_x Phi along the orbit (DOP853), DP = (I - f g_x/(g_x f)) "
                           "Phi_T DDelta; f_x exact along q' and z (f polynomial of degree "
                           "<= 2 there), fourth-order Richardson differences along q"},
-            "agreement": None if f.agreement is None else {
-                "jacobian": f.agreement, "multipliers": f.multiplier_agreement,
-                "tolerance": AGREEMENT_TOL, "agree": f.agree,
-                "statement": (f"finite differences and variational equations "
-                              f"{'agree' if f.agree else 'DISAGREE'}: Jacobians within "
-                              f"{f.agreement:.2g} (relative to max(1, max |J|)), multipliers "
-                              f"within {f.multiplier_agreement:.2g}; tolerance "
-                              f"{AGREEMENT_TOL:g}")},
+            "agreement": None if f.agreement is None else agreement_entry(f),
         }
     if f.multipliers:
         entry["multipliers"] = [{
             "re": m.value.real, "im": m.value.imag, "modulus": m.modulus, "kind": m.kind,
             "dominant": [{"component": n, "weight": w} for n, w in m.dominant],
             "thruster_share": m.thruster_share, "zero_dynamics_alignment": m.alignment,
-            "finite_difference": _c(m.finite_difference)} for m in f.multipliers]
+            "finite_difference": _c(m.finite_difference), "difference": m.difference,
+            "fd_error_estimate": m.fd_error, "tolerance": m.tolerance, "agrees": m.agrees}
+            for m in f.multipliers]
         entry["spectral_radius"] = f.spectral_radius
         zdm = f.zero_dynamics_multiplier
         entry["zero_dynamics"] = None if zdm is None else {
@@ -127,6 +130,48 @@ def case_entry(i: int, case: Case) -> dict:
             "value": f.output_reference,
             "formula": "exp(max Re(lambda) T*), lambda the roots of s^2 + kd s + kp"}
     return entry
+
+
+TOLERANCE_SOURCE = {
+    "scaled": "max(1e-6, 10 e_j) per multiplier, e_j the finite-difference error estimate "
+              "carried to multiplier j (its change between the chosen step and the "
+              "neighbouring step)",
+    "floor": "1e-6 for every multiplier: the finite differences gave no error estimate (too "
+             "few successful steps)",
+    "given": "agreement_tol, given, for every multiplier",
+}
+
+
+def agreement_entry(f: Floquet) -> dict:
+    """``jacobian.agreement`` of one case: the verdict's test (multipliers against their
+    tolerances, the rule and where the tolerance came from) and the entry-wise Jacobian
+    difference, reported beside it."""
+    worst = max(f.multipliers, key=lambda m: m.difference / m.tolerance)
+    j = f.multipliers.index(worst)
+    fd_err = _finite(f.fd.error) if f.fd is not None else None
+    entries = (f"Jacobian entries differ by {f.agreement:.2g} (relative to max(1, max |J|)"
+               + (f"; the finite-difference entries' error estimate is {fd_err:.2g}"
+                  if fd_err is not None else "") + "; reported, not judged)")
+    return {
+        "judged_on": "multipliers",
+        "multipliers": f.multiplier_agreement,
+        "tolerance": worst.tolerance,
+        "tolerance_source": f.tolerance_source,
+        "tolerance_rule": TOLERANCE_SOURCE[f.tolerance_source],
+        "agreement_tol": f.agreement_tol,
+        "worst": {"index": j, "kind": worst.kind, "difference": worst.difference,
+                  "tolerance": worst.tolerance, "fd_error_estimate": worst.fd_error},
+        "agree": f.agree,
+        "jacobian": f.agreement,
+        "jacobian_fd_error_estimate": fd_err,
+        "radius_error": f.radius_error,
+        "statement": (f"finite differences and variational equations "
+                      f"{'agree' if f.agree else 'DISAGREE'} on the multipliers: largest "
+                      f"difference {f.multiplier_agreement:.2g}; closest to its tolerance: "
+                      f"multiplier {j} ({worst.kind}), {worst.difference:.2g} apart against "
+                      f"{worst.tolerance:.2g} ({f.tolerance_source}); {entries}; spectral "
+                      f"radius error bar {f.radius_error:.2g}"),
+    }
 
 
 def _finite(v: float) -> float | None:
@@ -219,7 +264,11 @@ class StabilityResult:
                                     "B xi, B = diag(B_q, I, I) orthonormal with g_q B_q = 0; "
                                     "n - 1 = 2N - 1 + n_z multipliers (the trivial one, 0 for "
                                     "the Poincare map, normal to the guard, is dropped)",
-                         "agreement_tolerance": AGREEMENT_TOL, "marginal_band": MARGIN,
+                         "agreement": {
+                             "judged_on": "multipliers", "rule": AGREEMENT_RULE,
+                             "floor": AGREEMENT_FLOOR, "safety_factor": SAFETY,
+                             "agreement_tol": self.settings.get("agreement_tol")},
+                         "marginal_band": MARGIN,
                          "reported_multipliers": "eigenvalues of the variational Jacobian; "
                                                  "finite_difference: the matching eigenvalue "
                                                  "of the finite-difference Jacobian"},
@@ -317,8 +366,8 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
               thruster: str | None = None, wn: float = 2.0, xi: float = 1.0, tau: float = 0.5,
               kp: float | None = None, kd: float | None = None,
               vary: tuple[str, Sequence[float]] | None = None, rtol: float = 1e-12,
-              atol: float = 1e-12, progress: Callable[[int], None] | None = None
-              ) -> StabilityResult:
+              atol: float = 1e-12, agreement_tol: float | None = None,
+              progress: Callable[[int], None] | None = None) -> StabilityResult:
     """Floquet multipliers of the full-order closed loop (SPEC 13) at steady thrust ``thrust``
     [N] (default 0) on ``thruster`` (default: the first), thrust model ``thrust_model``
     (``constant``, ``first-order`` with ``tau`` [s], ``second-order`` with ``wn`` [rad/s] and
@@ -327,7 +376,12 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
     ``kp`` [1/s^2], ``kd`` [1/s] (default: the gait's). ``vary``: ``(name, values)`` sweeps one
     of ``kp``, ``kd``, ``wn``, ``xi``, ``tau``, ``thrust`` (one case per value). ``rtol``,
     ``atol``: tolerances of the compiled simulation (the finite differences need about 1e-12).
-    ``progress(1)`` after each case. Bad parameters raise :class:`InputError` naming them."""
+    ``agreement_tol`` [1]: the largest accepted difference between the multipliers of the two
+    methods (finite, > 0; default None: ``max(1e-6, 10 e_j)`` per multiplier, ``e_j`` the
+    finite-difference error estimate carried to it; see
+    :mod:`thrustwalk_cli.floquet.multipliers`). ``progress(1)`` after each case. Bad
+    parameters raise :class:`InputError` naming them."""
+    check_agreement_tol(agreement_tol)
     zd = walker.zd
     robot = walker.robot
     if thrust_model is None:
@@ -372,8 +426,8 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
     cases = []
     for value, over in todo:
         s, F = setting(**over)
-        cases.append(Case(value, analyse(zd, s), F if thrust_model != "piecewise" else 0.0,
-                          driven))
+        cases.append(Case(value, analyse(zd, s, agreement_tol=agreement_tol),
+                          F if thrust_model != "piecewise" else 0.0, driven))
         if progress is not None:
             progress(1)
     settings = {"thrust_model": thrust_model, "thruster": driven,
@@ -381,5 +435,6 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
                 "wn": wn if thrust_model == "second-order" else None,
                 "xi": xi if thrust_model == "second-order" else None,
                 "tau": tau if thrust_model == "first-order" else None,
-                "rtol": rtol, "atol": atol}
+                "rtol": rtol, "atol": atol,
+                "agreement_tol": None if agreement_tol is None else float(agreement_tol)}
     return StabilityResult(walker, tuple(cases), thrust_model, vary_t, settings)
