@@ -452,3 +452,24 @@ def test_command_writes_the_result_folder(cli, tmp_path):
         assert abs(c["zero_dynamics"]["difference"]) < 1e-6
     assert "verdict: stable" in res.stdout
     assert (tmp_path / "multipliers.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_documented_slow_output_example_holds(walker3):
+    """docs/commands.md: with slow outputs (--kp 9 --kd 1) at -20 N of the slow thruster an
+    output multiplier reaches 9.16 and the orbit is unstable although delta_zero^2 < 1 (the
+    docs said 6.5, issue 24 item 10)."""
+    import re
+    from dataclasses import replace
+
+    from thrustwalk_cli.studies.stability import stability
+    from thrustwalk_cli.walker import walker_from
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "commands.md").read_text()
+    claimed = float(re.search(r"\(`--kp 9 --kd 1`\) an\s+output multiplier reaches ([\d.]+)",
+                              text).group(1))
+    w = walker_from(walker3.model, replace(walker3.gait, kp=9.0, kd=1.0))
+    res = stability(w, thrust_model="second-order", wn=2.0, xi=0.7, thrust=-20.0)
+    f = res.cases[0].floquet
+    outputs = [abs(m.value) for m in f.multipliers if m.kind == "outputs"]
+    assert f.verdict == "unstable" and walker3.zd.delta_zero_sq < 1
+    assert max(outputs) == pytest.approx(claimed, abs=0.005)
