@@ -15,6 +15,7 @@ from .common import (
     check_out,
     cli_errors,
     console,
+    ensure_kernel,
     load_walker,
     parse_formats,
     parse_values,
@@ -23,6 +24,7 @@ from .common import (
     show_table,
     warn,
     write_result,
+    wrote_line,
 )
 from .options import (
     FormatsOpt,
@@ -130,6 +132,7 @@ def run_stability(robot: str | None, gait: str | None, *, thrust_model: str | No
     check_out(out)
     walker = load_walker(robot, gait)
     n = 1 if sweep is None else len(sweep[1])
+    ensure_kernel(quiet)
     with progress("analysing settings", n, quiet) as advance:
         result = stability(walker, thrust_model=thrust_model, thrust=F, thruster=thruster,
                            wn=wn, xi=xi, tau=tau, kp=kp, kd=kd, vary=sweep, rtol=rtol,
@@ -139,11 +142,9 @@ def run_stability(robot: str | None, gait: str | None, *, thrust_model: str | No
     warn([w for w in doc["warnings"] if w not in walker.warnings])
     if not quiet and json != "-":
         _table(doc)
-        figs = "multipliers" + (", spectral_radius" if sweep else "")
         console().print(f"verdict: {doc['verdict']}: {render_mentions(doc['reason'], ctx)}",
                         markup=False)
-        console().print(f"wrote {out}/stability.json, multipliers.csv and figures ({figs})",
-                        markup=False)
+        console().print(wrote_line(out), markup=False)
     return doc
 
 

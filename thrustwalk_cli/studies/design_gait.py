@@ -22,7 +22,7 @@ from ..hzd.constraints import apply_invariance
 from ..hzd.zero_dynamics import Schedule, limit_cycles, zero_dynamics
 from ..model.compiled import CompiledModel
 from ..walker import Walker
-from .records import SCHEMA_VERSION, units
+from .records import SCHEMA_VERSION, result_repr, units
 
 
 # ------------------------------------------------------------------------------ records
@@ -207,6 +207,8 @@ class DesignGaitResult:
     model: CompiledModel = field(repr=False)
     design: DesignResult
     compare: dict | None = None
+
+    __repr__ = result_repr
 
     @property
     def robot(self) -> Robot:

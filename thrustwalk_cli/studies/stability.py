@@ -32,7 +32,7 @@ from ..simulation.closed_loop import SimConfig, ThrustModel
 from ..simulation.full_order import Start
 from ..simulation.scenario import make_scenario
 from ..walker import Walker
-from .records import SCHEMA_VERSION, Table, col, gait_record, robot_record, units
+from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 UNITS = units("thrust", "time", "q", "q_dot", "wn", "tau", "multiplier", "kp", "kd", "xi",
               "delta_zero_sq", "zeta")
@@ -197,6 +197,8 @@ class StabilityResult:
     ``success``: every case has a determined verdict (fixed point converged, Jacobians
     agreeing); ``verdict``: see :func:`overall_verdict`; ``reason`` names the cases that are
     not stable and why."""
+
+    __repr__ = result_repr
 
     walker: Walker = field(repr=False)
     cases: tuple[Case, ...]
