@@ -271,6 +271,7 @@ def test_a_push_after_an_earlier_scuff_is_never_judged(walker3, realized, dippin
     assert res.phase == pytest.approx(s_dip, abs=1e-6), res.reason
     assert f"s = {res.phase:.4g}" in res.reason and f"t = {res.time:.6g} s" in res.reason
     assert not res.pushed and res.push["applied"] is False and res.push["reaction"] is None
+    assert res.fields()["push_vertical_impulse"] is None and res.fields()["outcome"] == "scuffed"
     bundled = _runner(walker3, realized["none"], 3)
     ok = bundled.run(Trial(-4.0, 0.5))
     assert ok.outcome == "lifted" and ok.pushed and ok.push["applied"], ok.reason

@@ -114,8 +114,8 @@ class TrialResult:
                 "speed": self.speed, "max_friction_ratio": self.max_friction_ratio,
                 "min_vertical_force": self.min_vertical_force,
                 "push_friction_ratio": None if self.push is None else self.push["ratio"],
-                "push_vertical_impulse": None if self.push is None else
-                self.push["reaction"][1]}
+                "push_vertical_impulse": None if self.push is None
+                or self.push["reaction"] is None else self.push["reaction"][1]}
 
     def document(self) -> dict:
         return {"outcome": self.outcome, "step": self.step, "time": self.time,
