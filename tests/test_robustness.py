@@ -10,32 +10,63 @@ alpha found by SciPy's bounded Brent search; the push's ground reaction against 
 linear momentum (``J_com``) and its rate jump against the angular momentum about the stance
 foot; the controlled basin's ends against the QP's own feasibility; the Monte-Carlo draws
 against numpy's generator called directly; survivable pushes against grids worked out by
-hand.
+hand; the first event of a trial against the swing foot's height on the orbit (its zero by
+Brent) and against the SciPy reference simulation's stance force (its cone exit by Brent).
+Also on the user's 5-link knee walker (tests/data/walker5*.yaml).
 """
 
 from __future__ import annotations
 
 import json
+import os
+import re
 import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.integrate import quad
-from scipy.optimize import minimize_scalar
+from scipy.optimize import brentq, minimize_scalar
 
 from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
 from thrustwalk_cli.resilience.basin import reduced_basin
-from thrustwalk_cli.resilience.maps import summary_impulse, survivable
+from thrustwalk_cli.resilience.maps import single_outcome, summary_impulse, survivable
 from thrustwalk_cli.resilience.push import push_point, rate_jump, stance_impulse
 from thrustwalk_cli.resilience.strategy import Strategy, realize
 from thrustwalk_cli.resilience.trials import Trial, TrialRunner
 from thrustwalk_cli.resilience.uncertainty import controlled_sample, fixed_sample
 from thrustwalk_cli.simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel
+from thrustwalk_cli.simulation.full_order import Start, initial_state, simulate
 from thrustwalk_cli.studies.robustness import plan_robustness, robustness, run_robustness
 
 MU = 0.7
 STRATEGIES = (Strategy("none"), Strategy("constant", thrust=-20.0), Strategy("control"))
+REPO = Path(__file__).resolve().parents[1]
+DATA = Path(__file__).resolve().parent / "data"
+# column 2 of q2 raised: on the orbit the swing leg passes under the hip early and its foot
+# dips below the ground at s ~ 0.36, well before mid-step
+DIP = ("0.11874783356434716, 0.2445021030062819", "0.28, 0.2445021030062819")
+
+
+@pytest.fixture(scope="module")
+def walker5(_cache_dir):
+    """The user's 5-link knee walker and its 0.6 m/s gait (tests/data)."""
+    from thrustwalk_cli.walker import load_walker
+
+    return load_walker(str(DATA / "walker5.yaml"), str(DATA / "walker5_walk.yaml"))
+
+
+@pytest.fixture(scope="module")
+def dipping(walker3, tmp_path_factory):
+    """The bundled 3-link gait edited (as test_verdicts builds SCUFFING) so that its swing
+    foot dips below the ground at s ~ 0.36."""
+    from thrustwalk_cli.walker import load_walker
+
+    text = (REPO / "gaits" / "three_link_walk.yaml").read_text()
+    assert DIP[0] in text
+    path = tmp_path_factory.mktemp("dip") / "dipping.yaml"
+    path.write_text(text.replace(*DIP).replace("name: three_link_walk", "name: dipping"))
+    return load_walker("three_link", str(path))
 
 
 @pytest.fixture(scope="module")
@@ -213,6 +244,73 @@ def test_push_outcomes_and_the_controllers_advantage(walker3, realized):
         walker3.zd.delta_zero_sq ** 6, rel=1e-4)
 
 
+def test_a_push_after_an_earlier_scuff_is_never_judged(walker3, realized, dipping):
+    """Issue 6: on a gait whose swing foot dips below the ground at s ~ 0.36, a push at
+    s = 0.5 whose impulsive reaction would lift the stance foot never happens: the trial
+    scuffs first (it was reported lifted). The scuff's phase is where the orbit's swing foot
+    (q on Z) first goes scuff_tol below the ground, by Brent; the same push on the bundled
+    gait, which lives to feel it, is lifted at the push, judged on the simulated state (its
+    reaction equals the orbit's prediction)."""
+    zd, model = dipping.zd, dipping.model
+    tol = SimConfig().scuff_tol
+
+    def height(s):
+        q = zd.maps.q_Z(np.array(zd.alpha_i + s * (zd.alpha_f - zd.alpha_i)))
+        return float(model.p_swing(q)[1]) + tol
+
+    grid = np.linspace(0.05, 0.5, 91)
+    i = int(np.argmax([height(s) < 0 for s in grid]))
+    s_dip = brentq(height, grid[i - 1], grid[i], xtol=1e-14)
+    assert 0.3 < s_dip < 0.45
+    run = TrialRunner(zd, realize(zd, Strategy("none"), mu=MU), push_point(model), steps=3,
+                      mu=MU)
+    pred, out, _ = run.push_check(Trial(-4.0, 0.5))
+    assert out == "lifted" and pred["reaction"][1] <= 0 and not pred["applied"]
+    res = run.run(Trial(-4.0, 0.5))
+    assert res.outcome == "scuffed" and res.step == 1, res.reason
+    assert res.phase == pytest.approx(s_dip, abs=1e-6), res.reason
+    assert f"s = {res.phase:.4g}" in res.reason and f"t = {res.time:.6g} s" in res.reason
+    assert not res.pushed and res.push["applied"] is False and res.push["reaction"] is None
+    assert res.fields()["push_vertical_impulse"] is None and res.fields()["outcome"] == "scuffed"
+    bundled = _runner(walker3, realized["none"], 3)
+    ok = bundled.run(Trial(-4.0, 0.5))
+    assert ok.outcome == "lifted" and ok.pushed and ok.push["applied"], ok.reason
+    assert ok.phase == pytest.approx(0.5, abs=1e-9) and "the push lifts" in ok.reason
+    orbit, _, _ = bundled.push_check(Trial(-4.0, 0.5))
+    np.testing.assert_allclose(ok.push["reaction"], orbit["reaction"], rtol=1e-6)
+
+
+def test_a_trial_that_leaves_the_cone_and_then_lifts_is_reported_at_the_exit(walker5):
+    """Issue 6: the user's knee walker under constant -20 N, started with sigma_N^+ 50 %
+    high: its stance force leaves the friction cone and later its vertical force becomes
+    negative (the run stops there: that later event was the outcome, lifted). Now slipped,
+    at the cone exit, which the SciPy reference run from the same start locates too: the
+    first |F^h| = mu F^v on its dense stance force, by Brent, before its own stop."""
+    zd, model = walker5.zd, walker5.model
+    real = realize(zd, Strategy("constant", thrust=-20.0), mu=MU)
+    res = TrialRunner(zd, real, push_point(model), steps=3, mu=MU).run(Trial(sigma=0.5))
+    assert res.outcome == "slipped" and res.step == 1, res.reason
+    N = model.n
+    x0 = initial_state(zd, real.thrust, Start(zeta_minus=real.zeta_ref * 1.5 ** 2))
+    ref = simulate(zd, real.thrust, SimConfig(steps=1, method="scipy"),
+                   Start(q=x0[:N], dq=x0[N:2 * N]))
+    assert ref.failure == "fall" and "vertical ground force becomes negative" in ref.reason
+    t_stop = float(re.search(r"at t = ([-+.e\d]+) s", ref.reason).group(1))
+
+    def margin(t):
+        F = ref.sample(1, np.atleast_1d(t))["F1"]
+        return MU * F[:, 1] - np.abs(F[:, 0])
+
+    grid = np.linspace(0.0, t_stop, 801)
+    m = margin(grid)
+    i = int(np.argmax(m < 0))
+    assert i > 0 and grid[i] < t_stop
+    t_exit = brentq(lambda t: float(margin(t)[0]), grid[i - 1], grid[i], xtol=1e-13)
+    assert res.time == pytest.approx(t_exit, abs=1e-7), res.reason
+    assert res.time < t_stop - 1e-3
+    assert f"t = {res.time:.6g} s" in res.reason
+
+
 def test_basin_slice_agrees_with_the_reduced_basin_along_sigma(walker3, realized):
     """Started on Z (zero output rate) with sigma_N^+ scaled by 1 + e, the full-order walker
     converges exactly where the reduced walker's basin says (zeta^- = (1 + e)^2 zeta*), except
@@ -295,7 +393,65 @@ def test_survivable_push_from_a_grid():
     assert summary_impulse([2.0, 4.0], [4.0, None]) == pytest.approx((3.0 + 4.0) / 2)
 
 
+def test_single_outcome_of_a_direction():
+    imp = [-4.0, -2.0, 0.0, 2.0, 4.0] * 2  # two phases
+    row = ["lifted", "slipped", "recovered", "lifted", "lifted"] * 2
+    assert single_outcome(imp, row, 1.0) == ("lifted", 4)
+    assert single_outcome(imp, row, -1.0) == (None, 4)
+    assert single_outcome(imp, row[:4] + [None] + row[5:], 1.0) == ("lifted", 3)
+    # one size says nothing about the others
+    assert single_outcome([0.0, 2.0, 0.0, 2.0], ["recovered", "lifted"] * 2, 1.0) == (None, 2)
+
+
 # ---------------------------------------------------------------- the study and command
+def test_a_map_where_every_forward_push_lifts_says_so(cli, walker5, tmp_path, monkeypatch):
+    """Issue 8: on the user's knee walker every forward push at the hip (the default push)
+    lifts the stance foot, whatever its size and the strategy (its impulsive reaction's
+    vertical part, linear in the impulse, is negative at every phase: checked here from the
+    reaction of a unit push); the command, run from another folder, says so in the warnings
+    (console and robustness.json, naming the outcome and the push duration's option) and in
+    the summary."""
+    model, zd = walker5.model, walker5.zd
+    phases = [0.2, 0.5, 0.8]
+    for s in phases:
+        q = zd.maps.q_Z(np.array(zd.alpha_i + s * (zd.alpha_f - zd.alpha_i)))
+        assert stance_impulse(model, q, push_point(model), np.array([1.0, 0.0]))[1] < 0
+    monkeypatch.chdir(tmp_path)
+    gait = os.path.relpath(DATA / "walker5_walk.yaml", tmp_path)
+    res = cli("robustness", DATA / "walker5.yaml", gait, "--push-impulse", "-2,0,2,4,6",
+              "--push-phase", "0.2,0.5,0.8", "--strategy", "none,control", "--steps", "2",
+              "--basin-grid", "0", "--workers", "1", "--formats", "csv", "--out", "rob")
+    assert res.exit_code == 0, res.output
+    assert ("warning: every forward push (3 sizes x 3 phases) of every strategy is `lifted`"
+            in res.stderr), res.stderr
+    assert "--push-duration" in res.stderr and "--push-link" in res.stderr
+    doc = json.loads((tmp_path / "rob" / "robustness.json").read_text())
+    for s in doc["strategies"]:
+        assert s["push"]["single_outcome"] == {"forward": "lifted", "backward": None}
+        assert s["push"]["mean_forward"] == 0.0
+    notes = [w for w in doc["warnings"] if "every forward push" in w]
+    assert len(notes) == 1 and "`lifted`" in notes[0] and "`push_duration`" in notes[0]
+    assert "every forward push of every strategy is lifted" in doc["reason"]
+    assert "`push_duration`" in doc["reason"]
+
+
+def test_no_single_outcome_warning_on_the_readme_map_or_with_a_push_duration(walker3,
+                                                                            walker5):
+    """The bundled 3-link map (README options, a small grid) mixes outcomes in each direction:
+    no warning. On the knee walker a push spread over 0.05 s is checked with the stance
+    force over that time, so the forward map is no longer one outcome."""
+    kw = dict(push_impulse=[-6.0, -4.0, -2.0, 0.0, 2.0, 4.0, 6.0], push_phase=[0.2, 0.5, 0.8],
+              strategy=["none", "control"], steps=3, basin_grid=0, workers=1)
+    res = robustness(walker3, **kw)
+    assert not any("every forward" in w or "every backward" in w for w in res.warnings())
+    assert "every " not in res.reason.split("survivable")[1]
+    for k in range(2):
+        assert res.strategy_summary(k)["push"]["single_outcome"] == {"forward": None,
+                                                                    "backward": None}
+    res = robustness(walker5, push_impulse=[2.0, 4.0, 6.0], push_phase=[0.2, 0.5, 0.8],
+                     strategy=["none"], steps=2, basin_grid=0, workers=1, push_duration=0.05)
+    assert res.strategy_summary(0)["push"]["single_outcome"]["forward"] is None
+    assert not any("every forward" in w for w in res.warnings())
 @pytest.mark.slow
 def test_command_writes_every_output_and_resumes(tmp_path, cli, walker3):
     out = tmp_path / "rob"

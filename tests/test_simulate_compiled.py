@@ -156,6 +156,34 @@ def test_torque_saturation_matches_the_reference(walker3, limit, perturb):
     _compare(ref, got)
 
 
+def test_first_cone_exits_are_timed_alike_and_where_the_force_crosses(walker3):
+    """A step's first F_1^v <= cone_eps and first |F_1^h| > cone_mu F_1^v (a cone narrower
+    than the gait's, so both happen late in each step): both methods give the same time and
+    phase, and there the reference's dense stance force is on the boundary (F^v = eps,
+    |F^h| = mu F^v), inside it 1e-6 s before."""
+    zd = walker3.zd
+    th = ThrustModel("constant", np.zeros(walker3.model.n_thrusters))
+    cfg = SimConfig(steps=2, cone_mu=0.25, cone_eps=280.0)
+    ref = simulate(zd, th, replace(cfg, method="scipy"), Start(perturb=0.1))
+    got = simulate(zd, th, cfg, Start(perturb=0.1))
+    assert ref.success and got.success
+    for a, b in zip(ref.steps, got.steps):
+        for name in ("low_force_at", "cone_exit_at"):
+            ta, sa = getattr(a, name)
+            tb, sb = getattr(b, name)
+            assert tb == pytest.approx(ta, abs=1e-9) and sb == pytest.approx(sa, abs=1e-9)
+            assert a.t_start < ta < a.t_impact
+            F = ref.sample(a.step, np.array([ta - 1e-6, ta]))["F1"]
+            if name == "low_force_at":
+                assert F[1, 1] == pytest.approx(280.0, abs=1e-6) and F[0, 1] > 280.0
+            else:
+                assert abs(F[1, 0]) == pytest.approx(0.25 * F[1, 1], rel=1e-9)
+                assert abs(F[0, 0]) < 0.25 * F[0, 1]
+    # no cone given: nothing timed on a feasible orbit
+    plain = simulate(zd, th, SimConfig(steps=1), Start(perturb=0.1))
+    assert plain.steps[0].cone_exit_at is None and plain.steps[0].low_force_at is None
+
+
 def test_unknown_method_and_integrator_are_parameter_errors():
     from thrustwalk_cli.errors import InputError
 

@@ -43,7 +43,9 @@ the hip (--push-link, --push-at) at phase s of the first step (--push-phase, 0..
 the strategy's orbit; the closed loop walks --steps steps in all. Outcome: recovered (the last
 zeta^- within --recovery-tol of the orbit, outputs settled), unsettled (walking, not yet back),
 fell, slipped (friction cone), lifted (vertical force <= 0; also the push's impulsive ground
-reaction), scuffed, stopped (alpha reverses), or error (could not be computed). Strategies
+reaction), scuffed, stopped (alpha reverses), or error (could not be computed): the first of
+them in time. A direction in which one outcome covers every push (e.g. every forward push
+lifts the stance foot of a knee walker) is a warning: try --push-duration. Strategies
 (--strategy, comma list): none, constant:F [N] (constant: the gait's thrust: section), control
 (the step-to-step controller of thrustwalk control, regulating to the zero-thrust orbit),
 schedule:FILE (the thrust: section of a gait file).
@@ -239,8 +241,9 @@ def register(app: typer.Typer) -> None:
             "--push-at", help="Point of the link: (1 - at) joint + at end [1].")] = 1.0,
         push_duration: Annotated[float, typer.Option(
             "--push-duration", help="Duration [s] for the stance foot's check of the push: "
-                                    "0 = impulsive; > 0 adds the orbit's stance "
-                                    "force over it.")] = 0.0,
+                                    "0 = impulsive (lifts or slips whatever its size); "
+                                    "> 0 adds the stance force at the push over it "
+                                    "(the simulated push stays impulsive).")] = 0.0,
         recovery_tol: Annotated[float, typer.Option(
             "--recovery-tol", help="Recovered: the last zeta^- within this fraction of the "
                                    "orbit's [1].")] = 0.05,

@@ -68,3 +68,16 @@ def spread(values: Sequence[float]) -> dict | None:
     return {"count": int(v.size), "mean": float(v.mean()),
             "std": float(v.std(ddof=1)) if v.size > 1 else 0.0, "min": float(v.min()),
             "max": float(v.max()), "p05": float(p5), "median": float(p50), "p95": float(p95)}
+
+
+def single_outcome(impulses: Sequence[float], outcomes: Sequence[str | None], sign: float
+                   ) -> tuple[str | None, int]:
+    """The outcome that covers every recorded push of sign ``sign`` (all phases), when the
+    grid has at least two sizes of that sign (else one size would say nothing about the
+    others); ``(None, trials)`` when the outcomes differ, or there are too few.
+    ``outcomes`` pairs with ``impulses`` [N s] (None: not run, left out)."""
+    done = [(abs(p), o) for p, o in zip(impulses, outcomes) if p * sign > 0 and o is not None]
+    if len({m for m, _ in done}) < 2:
+        return None, len(done)
+    kinds = {o for _, o in done}
+    return (kinds.pop() if len(kinds) == 1 else None), len(done)

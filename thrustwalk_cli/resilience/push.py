@@ -17,8 +17,9 @@ model ``q_u = [q; x_1; y_1]`` with the stance-foot constraint ``E_1 q_u' = 0``,
 linear in ``P`` and independent of the rates (section 5's impact impulse, with the push in
 place of the swing foot's constraint). Conditions: ``F^v > 0`` (else the push lifts the stance
 foot) and ``|F^h| <= mu F^v`` (else it slips). A push that lasts ``duration`` [s] instead of an
-instant is checked, to first order, with the stance force of the orbit over that time added:
-``F + duration F_1`` (``duration`` 0: the impulsive condition of SPEC 12 exactly).
+instant is checked, to first order, with the stance force at the push over that time added:
+``F + duration F_1`` (``duration`` 0: the impulsive condition of SPEC 12 exactly); the
+simulation still applies the push as an impulse.
 """
 
 from __future__ import annotations
@@ -114,7 +115,7 @@ class PushCheck:
 def check_push(F: np.ndarray, mu: float, stance_force: np.ndarray | None = None,
                duration: float = 0.0) -> PushCheck:
     """The SPEC 12 condition on the stance foot's reaction ``F`` [N s] to a push (module
-    docstring); ``stance_force`` [N] the orbit's ground force at the push, counted over
+    docstring); ``stance_force`` [N] the ground force at the push (before it), counted over
     ``duration`` [s]."""
     G = np.asarray(F, float) + (duration * np.asarray(stance_force, float)
                                 if duration > 0 and stance_force is not None else 0.0)

@@ -14,13 +14,15 @@ then the compiled closed loop (:class:`~thrustwalk_cli.simulation.compiled.Stepp
 ``steps`` steps in all (the pushed step is step 1), with the strategy's thrust (``control``:
 the SPEC 11 QP at every impact, on the measured zeta^-).
 
-Outcome, the first that applies, with the step and the reason:
+Outcome: the first event in time (each step is simulated; ties go in the order push, stance
+force, failure, impact), with the step, the time and the phase s of the step in the reason:
 
 * ``lifted`` / ``slipped``: the push's impulsive ground reaction leaves ``F^v > 0`` / the
-  friction cone (SPEC 12, checked on the orbit state at the push: :func:`.push.check_push`);
-  a step whose stance force drops to ``F^v <= eps`` (or negative: the run stops) / whose
-  ``|F^h|/F^v`` exceeds ``mu`` anywhere, or whose impact impulse does; an impact whose
-  vertical impulse is not positive is ``lifted``;
+  friction cone (SPEC 12, :func:`.push.check_push` on the simulated state at the push, so a
+  push the walker never lives to feel is not judged); the stance force first drops to
+  ``F^v <= eps`` (or negative: the run stops) / first has ``|F^h|/F^v > mu`` (the time is
+  located on the dense output, ``simulation.compiled.first_times``), or the impact impulse
+  leaves the cone; an impact whose vertical impulse is not positive is ``lifted``;
 * ``stopped``: alpha reverses (the walker stops and falls back);
 * ``fell``: the stance leg passes the horizontal, or the swing foot misses the ground;
 * ``scuffed``: the swing foot strikes the ground before the guard (an early strike), or the
@@ -45,9 +47,10 @@ from ..contact.terms import stance_terms
 from ..controller.loop import segment_intervals
 from ..controller.step_model import interval_of
 from ..hzd.zero_dynamics import ZeroDynamics
+from ..simulation import kernel as K
 from ..simulation.batch import FIELDS, push_row
 from ..simulation.closed_loop import ClosedLoop, SimConfig
-from ..simulation.compiled import Stepper, failure_text, step_record
+from ..simulation.compiled import Stepper, failure_text, first_times, push_state, step_record
 from ..simulation.full_order import Start, initial_state
 from ..simulation.records import EVENT_REASONS
 from .push import PushPoint, check_push, stance_impulse
@@ -76,7 +79,8 @@ class TrialResult:
     """What a trial did (module docstring for the outcomes). ``step``: the step of the
     outcome (None for recovered/unsettled); per completed step ``zeta_minus`` [kg^2 m^4/s^2];
     ``relative_error`` of the last one against ``zeta_ref`` [1]; ``push``: the push's ground
-    reaction check; ``qp``: the controller's statuses by count (control)."""
+    reaction check; ``qp``: the controller's statuses by count (control); ``time`` [s] and
+    ``phase`` (s of its step) [1] of the event that decided a failed outcome."""
 
     outcome: str
     step: int | None
@@ -93,6 +97,8 @@ class TrialResult:
     push: dict | None
     pushed: bool
     qp: dict = field(default_factory=dict)
+    time: float | None = None
+    phase: float | None = None
 
     @property
     def recovered(self) -> bool:
@@ -108,11 +114,12 @@ class TrialResult:
                 "speed": self.speed, "max_friction_ratio": self.max_friction_ratio,
                 "min_vertical_force": self.min_vertical_force,
                 "push_friction_ratio": None if self.push is None else self.push["ratio"],
-                "push_vertical_impulse": None if self.push is None else
-                self.push["reaction"][1]}
+                "push_vertical_impulse": None if self.push is None
+                or self.push["reaction"] is None else self.push["reaction"][1]}
 
     def document(self) -> dict:
-        return {"outcome": self.outcome, "step": self.step, "reason": self.reason,
+        return {"outcome": self.outcome, "step": self.step, "time": self.time,
+                "phase": self.phase, "reason": self.reason,
                 "steps_completed": self.steps_completed, "zeta_ref": self.zeta_ref,
                 "zeta_minus": list(self.zeta_minus), "relative_error": self.relative_error,
                 "converging": self.converging, "speed": self.speed,
@@ -146,7 +153,8 @@ class TrialRunner:
     and least vertical force every step is checked against; ``recovery_tol`` [1] and
     ``output_tol`` [rad]: the recovery test; ``transverse``: index of the actuated coordinate
     whose rate a basin trial perturbs; ``duration`` [s]: the push's duration for the stance
-    check (0: impulsive, SPEC 12)."""
+    check (0: impulsive, SPEC 12; > 0: the stance force just before the push over it is
+    added to the reaction)."""
 
     def __init__(self, zd: ZeroDynamics, realized: Realized, point: PushPoint, *,
                  steps: int = 10, mu: float = 0.7, eps: float = 0.0,
@@ -157,7 +165,8 @@ class TrialRunner:
         self.steps, self.mu, self.eps = int(steps), float(mu), float(eps)
         self.recovery_tol, self.output_tol = float(recovery_tol), float(output_tol)
         self.transverse, self.duration = int(transverse), float(duration)
-        self.config = SimConfig(steps=1, rtol=rtol, atol=atol)
+        self.config = SimConfig(steps=1, rtol=rtol, atol=atol, cone_mu=self.mu,
+                                cone_eps=self.eps)
         self.cl = ClosedLoop(zd, realized.thrust, self.config)
         ts = realized.cycle.step_time if realized.cycle.exists else None
         self.t_max = 10.0 * ts if ts else 10.0
@@ -183,25 +192,43 @@ class TrialRunner:
             x[N:2 * N] += np.linalg.solve(np.vstack([Jy, eD]), rhs)
         return x
 
-    def push_check(self, trial: Trial) -> tuple[dict | None, str, str]:
-        """The stance foot's impulsive reaction to the trial's push on the orbit state at its
-        phase (SPEC 12): ``(record, outcome, reason)``, outcome ``""`` when it stays pinned."""
+    def push_check(self, trial: Trial, at: tuple[float, np.ndarray] | None = None
+                   ) -> tuple[dict | None, str, str]:
+        """The stance foot's impulsive reaction to the trial's push (SPEC 12):
+        ``(record, outcome, reason)``, outcome ``""`` when it stays pinned. ``at``: the time
+        [s] and the simulated state ``[q; q'; z]`` just before the push (what
+        :meth:`run` judges; with a duration, the stance force there is counted over it);
+        None: the orbit's state at the push's phase (a prediction, before any simulation)."""
         if trial.impulse == 0.0:
             return None, "", ""
-        zd = self.zd
-        s = min(trial.phase, LAST_PHASE)
-        alpha = zd.alpha_i + s * (zd.alpha_f - zd.alpha_i)
-        q = zd.maps.q_Z(np.array(alpha))
+        zd, N = self.zd, self.model.n
         P = self.point.impulse(trial.impulse)
+        if at is None:
+            s = min(trial.phase, LAST_PHASE)
+            alpha = zd.alpha_i + s * (zd.alpha_f - zd.alpha_i)
+            q, t_push = zd.maps.q_Z(np.array(alpha)), None
+        else:
+            t_push, x = at
+            q = x[:N]
+            alpha = float(zd.maps.c @ q)
+            s = (alpha - zd.alpha_i) / (zd.alpha_f - zd.alpha_i)
         F = stance_impulse(self.model, q, self.point, P)
         stance = None
         if self.duration > 0:
-            stance = self._orbit_force(alpha)
+            stance = self._orbit_force(alpha) if at is None else self._state_force(at[1])
         chk = check_push(F, self.mu, stance, self.duration)
         rec = {"impulse": P.tolist(), "reaction": list(chk.impulse), "ratio": chk.ratio,
-               "phase_applied": s, "link": self.point.link, "at": self.point.at,
+               "phase": trial.phase, "phase_applied": s, "time": t_push,
+               "state": "orbit (predicted)" if at is None else "simulated",
+               "applied": at is not None, "link": self.point.link, "at": self.point.at,
                "duration": self.duration}
         return rec, chk.outcome, chk.reason
+
+    def _state_force(self, x: np.ndarray) -> np.ndarray:
+        """The stance force F_1 [N] of the closed loop at the state ``x`` (SPEC 5, 7)."""
+        cl, N = self.cl, self.model.n
+        s = (float(cl.c @ x[:N]) - cl.ai) / cl.span
+        return cl.details(np.asarray(x, float)[None], np.array([cl.segment_of(s)]))["F1"][0]
 
     def _orbit_force(self, alpha: float) -> np.ndarray:
         """The stance force F_1 [N] of the strategy's orbit at ``alpha`` (SPEC 5)."""
@@ -221,9 +248,7 @@ class TrialRunner:
         if r.zeta_ref is None:
             return self._result("error", None, f"no orbit to start on: {r.cycle.reason}", [],
                                 None, None, False)
-        push, outcome, reason = self.push_check(trial)
-        if outcome:
-            return self._result(outcome, 1, f"step 1: {reason}", [], push, None, False)
+        push = None
         N, m, nz = model.n, model.n_thrusters, r.thrust.n_states
         x = self.start_state(trial)
         row = None
@@ -245,19 +270,45 @@ class TrialRunner:
                 self.stepper.set_thrust(seg_force=seg_force)
                 u_prev = plan.u
             res = self.stepper.step(k, t, x, push=row if k == 1 else None)
+            # the events of this step, in time: (t, tie order, outcome, reason, phase)
+            events = []
+            if k == 1 and row is not None:
+                at = push_state(res.record, N, nz, m)
+                if at is not None:
+                    pushed = True
+                    push, out, why = self.push_check(trial, at)
+                    if out:
+                        s_p = push["phase_applied"]
+                        events.append((at[0], 0, out, f"{why} (the push at t = {at[0]:.6g} "
+                                                      f"s, s = {s_p:.4g})", s_p))
+                elif push is None:
+                    push = {**(self.push_check(trial)[0] or {}), "reaction": None,
+                            "ratio": None, "phase_applied": None, "applied": False,
+                            "state": "not applied (the step ended before the push)"}
+            events += self._cone_events(res.record, res.status == 0)
+            rec = None
             if res.status != 0:
                 kind, text = failure_text(res.outcome, self.config, self.t_max)
                 out = _failure_outcome(kind, text)
                 if out == "error":
                     text = f"the trial could not be computed ({kind}): {text}"
-                return self._result(out, k, f"step {k}: {text}", recs, push, None, pushed, qp)
-            rec = step_record(res.record, N, nz, m)
+                events.append((float(res.outcome[K.O_T]), 3, out, text,
+                               float(res.outcome[K.O_S])))
+            else:
+                rec = step_record(res.record, N, nz, m)
+                if rec.impulse_friction_ratio > self.mu:
+                    events.append((rec.t_impact, 4, "slipped", (
+                        f"the impact impulse leaves the friction cone (|F_2^h|/F_2^v = "
+                        f"{rec.impulse_friction_ratio:.4g} > mu = {self.mu:g}) at "
+                        f"t = {rec.t_impact:.6g} s, s = {rec.s_minus:.4g}"), rec.s_minus))
+            if events:
+                te, _, out, why, se = min(events, key=lambda e: (e[0], e[1]))
+                if rec is not None:
+                    recs.append(rec)
+                return self._result(out, k, f"step {k}: {why}", recs, push, None, pushed,
+                                    qp, (te, se))
             pushed = pushed or bool(res.record[FIELDS["pushed"]])
             recs.append(rec)
-            bad = self._cone(rec)
-            if bad:
-                return self._result(bad[0], k, f"step {k}: {bad[1]}", recs, push, None,
-                                    pushed, qp)
             x, t, x_true = res.x_next, rec.t_impact, rec.zeta_minus
         if row is not None and not pushed:  # pragma: no cover - the push event always fires
             return self._result("error", 1, "step 1: the push was not applied", recs, push,
@@ -281,22 +332,32 @@ class TrialRunner:
         return self._result("unsettled", None, f"not yet back after {self.steps} steps "
                             f"({what}){tail}", recs, push, converging, pushed, qp)
 
-    def _cone(self, rec) -> tuple[str, str] | None:
-        """A completed step that left the friction cone or ``F^v > eps``, or whose impact
-        impulse left the cone."""
-        if rec.max_friction_ratio is None or rec.min_vertical_force <= self.eps:
-            return "lifted", (f"the vertical ground force drops to {rec.min_vertical_force:.4g} "
-                              f"N (<= {self.eps:g} N): the stance foot would lift off")
-        if rec.max_friction_ratio > self.mu:
-            return "slipped", (f"the stance force leaves the friction cone (|F^h|/F^v = "
-                               f"{rec.max_friction_ratio:.4g} > mu = {self.mu:g})")
-        if rec.impulse_friction_ratio > self.mu:
-            return "slipped", (f"the impact impulse leaves the friction cone (|F_2^h|/F_2^v = "
-                               f"{rec.impulse_friction_ratio:.4g} > mu = {self.mu:g})")
-        return None
+    def _cone_events(self, raw: np.ndarray, completed: bool
+                     ) -> list[tuple[float, int, str, str]]:
+        """The first times in a step (completed or not: up to its failure) that the stance
+        force dropped to ``F^v <= eps`` (``lifted``) and left the friction cone
+        (``slipped``), from the kernel's record (with the step's extreme when it
+        completed)."""
+        first = first_times(raw)
+        out = []
+        if first["low_force"] is not None:
+            te, s = first["low_force"]
+            least = (f"; least {raw[K.R_MINFV]:.4g} N over the step" if completed else "")
+            out.append((te, 1, "lifted", f"the vertical ground force is <= {self.eps:g} N "
+                                         f"from t = {te:.6g} s, s = {s:.4g}: the stance foot "
+                                         f"would lift off{least}", s))
+        if first["cone_exit"] is not None:
+            te, s = first["cone_exit"]
+            fr = raw[K.R_MAXFR]
+            most = (f"; largest {fr:.4g} over the step" if completed and fr == fr else "")
+            out.append((te, 2, "slipped", f"the stance force leaves the friction cone "
+                                          f"(|F^h|/F^v > mu = {self.mu:g}) at t = {te:.6g} "
+                                          f"s, s = {s:.4g}{most}", s))
+        return out
 
     def _result(self, outcome: str, step: int | None, reason: str, recs: list, push,
-                converging: bool | None, pushed: bool, qp: dict | None = None) -> TrialResult:
+                converging: bool | None, pushed: bool, qp: dict | None = None,
+                when: tuple[float, float] | None = None) -> TrialResult:
         zref = self.r.zeta_ref
         zm = tuple(float(rc.zeta_minus) for rc in recs)
         err = abs(zm[-1] - zref) / zref if zm and zref else None
@@ -310,4 +371,5 @@ class TrialRunner:
             bool(outcome == "recovered" or (outcome == "unsettled" and converging)), speed,
             max(fr) if fr else None,
             min(rc.min_vertical_force for rc in recs) if recs else None,
-            float(recs[-1].max_abs_output) if recs else None, push, pushed, dict(qp or {}))
+            float(recs[-1].max_abs_output) if recs else None, push, pushed, dict(qp or {}),
+            None if when is None else float(when[0]), None if when is None else float(when[1]))

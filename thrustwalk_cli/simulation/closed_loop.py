@@ -167,6 +167,10 @@ class SimConfig:
     swing foot between two integrator steps counts as a missed strike [m].
     max_step_time: a step longer than this fails [s] (None: 10 x the predicted step time,
     or 10 s without a prediction).
+    cone_mu [1], cone_eps [N]: the contact cone (SPEC 5) whose first exit within a step its
+    record times (``StepRecord.low_force_at``: the first ``F_1^v <= cone_eps``;
+    ``cone_exit_at``: the first ``|F_1^h| > cone_mu F_1^v``, None: not timed). They time,
+    never stop, a run.
     """
 
     steps: int = 30
@@ -182,6 +186,8 @@ class SimConfig:
     max_s: float = 1.5
     ground_tol: float = 1e-10
     max_step_time: float | None = None
+    cone_mu: float | None = None
+    cone_eps: float = 0.0
 
     def validate(self) -> None:
         problems = []
@@ -210,6 +216,11 @@ class SimConfig:
                                                           "the guard is armed from s = "
                                                           f"{self.guard_s:g} (got "
                                                           f"{self.min_impact_s:g})"))
+        if self.cone_mu is not None and not self.cone_mu > 0:
+            problems.append(param_problem("mu", f"must be > 0 (got {self.cone_mu:g})"))
+        if not self.cone_eps >= 0:
+            problems.append(param_problem("min_vertical_force", f"must be >= 0 N (got "
+                                                                f"{self.cone_eps:g})"))
         if problems:
             raise InputError(problems)
 

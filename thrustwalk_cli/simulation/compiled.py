@@ -137,6 +137,8 @@ def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
     fs[K.F_SCUFF], fs[K.F_MINIMP], fs[K.F_MAXS] = cfg.scuff_tol, cfg.min_impact_s, cfg.max_s
     fs[K.F_GROUND], fs[K.F_TMAX] = cfg.ground_tol, t_max
     fs[K.F_WN], fs[K.F_XI], fs[K.F_TAU] = th.wn, th.xi, th.tau
+    fs[K.F_MU] = np.inf if cfg.cone_mu is None else cfg.cone_mu
+    fs[K.F_EPS] = cfg.cone_eps
     par = np.zeros(ip[K.P_SIZE])
     p = Packed(fs, ip, par, t_max, th.n_states)
     p.part(K.P_ROWS, rows.size)[:] = rows.ravel()
@@ -166,7 +168,31 @@ def with_thrust(p: Packed, target=None, seg_force=None, seg_T=None) -> np.ndarra
 
 
 def record_width(N: int, nz: int, m: int) -> int:
-    return K.N_REC0 + 2 * N + 2 * nz + m
+    """Columns of a kernel step record: ``kernel.N_REC0`` scalars, ``q^-``, ``q'^-``,
+    ``z_start``, ``z^-``, the thrust at impact and the state before the step's push."""
+    return K.N_REC0 + 2 * N + 2 * nz + m + 2 * N + nz
+
+
+def push_state(rec: np.ndarray, N: int, nz: int, m: int) -> tuple[float, np.ndarray] | None:
+    """``(t, x)`` of the push of a kernel step record: its time [s] and the state
+    ``[q; q'; z]`` just before it; None when the step had no push (or failed before it)."""
+    t = float(rec[K.R_TPUSH])
+    if t != t:
+        return None
+    o = K.N_REC0 + 2 * N + 2 * nz + m
+    return t, np.array(rec[o:o + 2 * N + nz], float)
+
+
+def first_times(rec: np.ndarray) -> dict[str, tuple[float, float] | None]:
+    """The first times the stance force of a kernel step record left the cone it was timed
+    against (``SimConfig.cone_mu``, ``cone_eps``): ``{"low_force": (t [s], s [1]) or None,
+    "cone_exit": ...}`` (written for a failed step too, up to its failure)."""
+    out = {}
+    for name, (it, js) in (("low_force", (K.R_TLOW, K.R_SLOW)),
+                           ("cone_exit", (K.R_TSLIP, K.R_SSLIP))):
+        t = float(rec[it])
+        out[name] = None if t != t else (t, float(rec[js]))
+    return out
 
 
 # ----------------------------------------------------------------------------- dense output
@@ -354,6 +380,8 @@ def step_record(rec: np.ndarray, N: int, nz: int, m: int):
         trailing_foot_lift_velocity=r[K.R_LIFT],
         thrust_at_impact=tuple(F), min_vertical_force=r[K.R_MINFV],
         max_friction_ratio=None if fr != fr else fr,
+        low_force_at=None if r[K.R_TLOW] != r[K.R_TLOW] else (r[K.R_TLOW], r[K.R_SLOW]),
+        cone_exit_at=None if r[K.R_TSLIP] != r[K.R_TSLIP] else (r[K.R_TSLIP], r[K.R_SSLIP]),
         max_abs_output=r[K.R_MAXY], max_abs_output_rate=r[K.R_MAXDY],
         max_abs_torque=r[K.R_MAXU], torque_saturated=bool(r[K.R_SAT]),
         energy_minus=r[K.R_EM], energy_plus=r[K.R_EP],

@@ -326,6 +326,7 @@ def _impact_and_record(cl: ClosedLoop, k, t0, t1, x0, x, seg, segs, nfev):
         ivs.append(np.full(tt.size, s.interval))
     d = cl.details(np.vstack(Xs), np.concatenate(ivs))
     F1 = d["F1"]
+    low, exit_ = _first_exits(cl, segs, ts, F1)
     pos = F1[:, 1] > 0
     ratio = np.abs(F1[pos, 0]) / F1[pos, 1]
     D_minus = np.array(model.D_s(list(q))).reshape(N, N)
@@ -354,8 +355,58 @@ def _impact_and_record(cl: ClosedLoop, k, t0, t1, x0, x, seg, segs, nfev):
         energy_minus=float(model.energy(q, dq)),
         energy_plus=float(model.energy(imp.q_plus, imp.dq_plus)),
         q_minus=tuple(map(float, q)), dq_minus=tuple(map(float, dq)), nfev=nfev,
+        low_force_at=low, cone_exit_at=exit_,
     )
     return rec, np.concatenate([imp.q_plus, imp.dq_plus, z])
+
+
+def _violated(F1: np.ndarray, which: int, mu: float, eps: float) -> np.ndarray:
+    """Where the stance force rows ``F1`` (k, 2) [N] violate one cone condition: 0:
+    ``F^v <= eps``; 1: ``|F^h| > mu F^v`` with ``F^v > 0``."""
+    fh, fv = F1[:, 0], F1[:, 1]
+    if which == 0:
+        return fv <= eps
+    return (fv > 0) & (np.abs(fh) > mu * fv)
+
+
+def _first_exits(cl: ClosedLoop, segs, ts, F1):
+    """``(t [s], s [1])`` of the first sample of a step (the statistics' states ``ts`` per
+    segment, their forces ``F1``) that violates ``F_1^v > cone_eps`` and of the first that
+    violates ``|F_1^h| <= cone_mu F_1^v``, each located by bisection on the dense solution
+    between it and the segment's sample before it (as the compiled kernel's
+    ``step_stats``); None where none does."""
+    cfg = cl.config
+    mu = np.inf if cfg.cone_mu is None else cfg.cone_mu
+    out = []
+    for which in (0, 1):
+        bad = _violated(F1, which, mu, cfg.cone_eps)
+        best = None
+        k = 0
+        for j, tt in enumerate(ts):
+            idx = np.nonzero(bad[k:k + tt.size])[0]
+            if idx.size and (best is None or tt[idx[0]] < best[0]):
+                best = (float(tt[idx[0]]), j, int(idx[0]))
+            k += tt.size
+        if best is None:
+            out.append(None)
+            continue
+        te, j, i = best
+        s, tt = segs[j], ts[j]
+        if i > 0:
+            a, b = float(tt[i - 1]), te
+            for _ in range(200):
+                if b - a <= 4 * np.finfo(float).eps * abs(b) + 1e-15:
+                    break
+                mid = 0.5 * (a + b)
+                f = cl.details(s.sol(mid)[None], np.array([s.interval]))["F1"]
+                if _violated(f, which, mu, cfg.cone_eps)[0]:
+                    b = mid
+                else:
+                    a = mid
+            te = b
+        x = s.sol(te)
+        out.append((te, (float(cl.c @ x[:cl.N]) - cl.ai) / cl.span))
+    return out[0], out[1]
 
 
 def _trajectory(cl: ClosedLoop, segments: list[Segment], per_step: int) -> dict:

@@ -72,7 +72,8 @@ DOP_CX = np.zeros(3)
 # float settings fs[...]
 F_AI, F_SPAN, F_DIR, F_KP, F_KD, F_RTOL, F_ATOL, F_TLIM = 0, 1, 2, 3, 4, 5, 6, 7
 F_SCUFF, F_MINIMP, F_MAXS, F_GROUND, F_TMAX, F_WN, F_XI, F_TAU = 8, 9, 10, 11, 12, 13, 14, 15
-N_FS = 16
+F_MU, F_EPS = 16, 17  # the cone a step's first exit is timed against (mu inf: no slip timing)
+N_FS = 18
 # integer settings ip[...]: sizes, then offsets into par (P_*) and into the work array (W_*)
 I_N, I_M, I_NZ, I_KIND, I_ROOT_END, I_GUARD_IDX, I_GRID, I_NLINKS, I_NCOL, I_NBRK = range(10)
 P_ROWS, P_C, P_BRK, P_SEGF, P_SEGT, P_TGT, P_R, P_B, P_SIZE = range(10, 19)
@@ -100,11 +101,15 @@ ST_BOUND, ST_EVENT, ST_SMALL, ST_SINGULAR, ST_FULL = 0, 1, -1, -2, -3
 OK, FAIL_START_FORCE, FAIL_START_BELOW, FAIL_INTEGRATOR, FAIL_CONTROLLER = 0, 1, 2, 3, 4
 FAIL_NO_IMPACT, FAIL_EVENT, FAIL_EARLY, FAIL_IMPACT_FY, FAIL_IMPACT_LIFT = 5, 6, 7, 8, 9
 FAIL_BUFFER = 10
-# step record rec[...] (then q^- (N), q'^- (N), z_start (nz), z^- (nz), F at impact (m))
+# step record rec[...] (then q^- (N), q'^- (N), z_start (nz), z^- (nz), F at impact (m), the
+# state just before the push (2 N + nz)). R_TLOW/R_SLOW: time [s] and phase of the first
+# F_1^v <= eps, R_TSLIP/R_SSLIP of the first |F_1^h| > mu F_1^v (F_1^v > 0), R_TPUSH the
+# push's time (NaN: none); these five are written for a failed step too (up to its failure)
 R_STEP, R_T0, R_T1, R_ALPHA0, R_ALPHAM, R_SM, R_SIG0, R_SIGM, R_SIGP = range(9)
 R_FX, R_FY, R_LIFT, R_MINFV, R_MAXFR, R_MAXY, R_MAXDY, R_MAXU, R_SAT = range(9, 18)
 R_EM, R_EP, R_NFEV, R_PUSHED = range(18, 22)
-N_REC0 = 22
+R_TLOW, R_SLOW, R_TSLIP, R_SSLIP, R_TPUSH = range(22, 27)
+N_REC0 = 27
 # outcome out[...]: status, step, t, s, value, event
 O_STATUS, O_STEP, O_T, O_S, O_VALUE, O_EVENT = range(6)
 N_OUT = 6
@@ -810,11 +815,12 @@ def integrate(t0, x0, t_bound, seg, ev, nev, fs, ip, par, w, buf, nbuf, a_next, 
 
 
 # ------------------------------------------------------------------ one walking step
-def stat_times(calls, ci, buf, ng, t0, t1, store, n, SX, k0):
+def stat_times(calls, ci, buf, ng, t0, t1, store, n, SX, ST, k0):
     """The states where a step's statistics are taken within integration call ``ci`` (as
     ``_impact_and_record``): its start, the integrator's nodes inside it, its end, and the
     points of the uniform ``ng``-point grid of the step ``[t0, t1]`` that fall in it. With
-    ``store`` they go into the rows ``k0, k0 + 1, ...`` of ``SX``; returns their number."""
+    ``store`` they go into the rows ``k0, k0 + 1, ...`` of ``SX`` (their times into ``ST``);
+    returns their number."""
     c0, c1 = int(calls[ci, 1]), int(calls[ci, 2])
     ta, tb = calls[ci, 3], calls[ci, 4]
     cnt = 0
@@ -834,6 +840,7 @@ def stat_times(calls, ci, buf, ng, t0, t1, store, n, SX, k0):
                 continue
         if store:
             solution_at(buf, c0, c1, tt, n, SX[k0 + cnt])
+            ST[k0 + cnt] = tt
         cnt += 1
     return cnt
 
@@ -842,12 +849,12 @@ def details_at(x, seg, fs, ip, par, w, flags):
     """Fold one state's statistics into ``w[W_ACC]`` = [min F_v, max |F_h|/F_v (over
     F_v > 0), all F_v > 0, max |y|, max |y'|, max |u|, any saturated] (as
     ``ClosedLoop.details``). ``flags``: ``E_PRE`` when the force program's outputs are in
-    place."""
+    place. Returns False (nothing folded) if the controller is singular there."""
     N = ip[I_N]
     nb = N - 1
     oacc, oH, ou = ip[W_ACC], ip[W_GH], ip[W_U]  # offsets into w (no views)
     if not evaluate(x, seg, fs, ip, par, w, E_U | E_FORCE | flags):
-        return
+        return False
     vo = ip[W_OUT]
     fh, fv = w[vo + V_FH], w[vo + V_FV]
     if fv < w[oacc + 0]:
@@ -870,6 +877,121 @@ def details_at(x, seg, fs, ip, par, w, flags):
             w[oacc + 5] = abs(w[ou + i])
     if w[vo + V_SAT] > 0:
         w[oacc + 6] = 1.0
+    return True
+
+
+def cone_violated(x, seg, fs, ip, par, w, which):
+    """Whether the stance force at ``x`` violates one condition of the cone the step is
+    timed against: ``which`` 0: ``F_1^v <= eps``; 1: ``|F_1^h| > mu F_1^v`` with
+    ``F_1^v > 0`` (False where the controller is singular)."""
+    if not evaluate(x, seg, fs, ip, par, w, E_FORCE):
+        return False
+    vo = ip[W_OUT]
+    fh, fv = w[vo + V_FH], w[vo + V_FV]
+    if which == 0:
+        return fv <= fs[F_EPS]
+    return fv > 0 and abs(fh) > fs[F_MU] * fv
+
+
+def first_violation(buf, calls, ci, ta, tb, fs, ip, par, w, which, n):
+    """The time [s] in ``(ta, tb]`` of integration call ``ci`` where cone condition
+    ``which`` (:func:`cone_violated`) starts to be violated, by bisection on the dense
+    output: it holds at ``ta`` and is violated at ``tb`` (returns the violated end)."""
+    c0, c1 = int(calls[ci, 1]), int(calls[ci, 2])
+    seg = int(calls[ci, 0])
+    xs = w[ip[W_XS]:]
+    a, b = ta, tb
+    for _ in range(200):
+        if b - a <= 4 * EPS * abs(b) + 1e-15:
+            break
+        mid = 0.5 * (a + b)
+        solution_at(buf, c0, c1, mid, n, xs)
+        if cone_violated(xs, seg, fs, ip, par, w, which):
+            b = mid
+        else:
+            a = mid
+    return b
+
+
+def step_stats(calls, ncalls, buf, t0, t1, fs, ip, par, w, rec):
+    """A step's statistics over its integration calls ``0..ncalls-1`` from ``t0`` to ``t1``
+    [s] (as ``_impact_and_record``: the states at the integrator's nodes, the calls' ends and a
+    uniform grid of the step): the extremes into ``w[W_ACC]`` (:func:`details_at`), and into
+    ``rec`` the time and phase of the first ``F_1^v <= eps`` and of the first
+    ``|F_1^h| > mu F_1^v`` (NaN: none), located by bisection on the dense output between the
+    last sample where the condition held and the first where it did not."""
+    N = ip[I_N]
+    n = 2 * N + ip[I_NZ]
+    xs = w[ip[W_XS]:]
+    acc = w[ip[W_ACC]:]
+    acc[0] = np.inf
+    for i in range(1, 7):
+        acc[i] = 0.0
+    acc[2] = 1.0
+    # the states first (nodes and ends of every integration call, the grid), then the
+    # model's force program on all of them at once (the batch interpreter), then each state
+    ng = ip[I_GRID]
+    cnt = 0
+    for ci in range(ncalls):
+        cnt += stat_times(calls, ci, buf, ng, t0, t1, False, n, buf, buf[0], 0)
+    SX = np.empty((cnt, n))
+    ST = np.empty(cnt)
+    SC = np.empty(cnt, np.int64)
+    cnt = 0
+    for ci in range(ncalls):
+        k0 = cnt
+        cnt += stat_times(calls, ci, buf, ng, t0, t1, True, n, SX, ST, cnt)
+        for i in range(k0, cnt):
+            SC[i] = ci
+    nout = ip[ip[T_FORCE] + 1]
+    SO = np.empty((cnt, nout))
+    tape_batch(ip, ip[T_FORCE], fs[N_FS:N_FS + ip[I_NCONST]], ip[I_C0], ip[I_NREG], SX, SO,
+               32)
+    D = w[ip[W_D]:]
+    vo = ip[W_OUT]
+    first = np.full(2, np.inf)
+    at = np.full(2, -1, np.int64)
+    for i in range(cnt):  # (row copies rather than views: a view costs reference counting)
+        for j in range(nout):
+            D[j] = SO[i, j]
+        for j in range(n):
+            xs[j] = SX[i, j]
+        if not details_at(xs, int(calls[SC[i], 0]), fs, ip, par, w, E_PRE):
+            continue
+        fh, fv = w[vo + V_FH], w[vo + V_FV]
+        if fv <= fs[F_EPS] and ST[i] < first[0]:
+            first[0] = ST[i]
+            at[0] = i
+        if fv > 0 and abs(fh) > fs[F_MU] * fv and ST[i] < first[1]:
+            first[1] = ST[i]
+            at[1] = i
+    ai, span = fs[F_AI], fs[F_SPAN]
+    for which in range(2):
+        i = at[which]
+        if i < 0:
+            rec[R_TLOW + 2 * which] = np.nan
+            rec[R_SLOW + 2 * which] = np.nan
+            continue
+        ci = SC[i]
+        prev = -np.inf
+        for j in range(cnt):  # the last sample of the same call before it (the condition held)
+            if SC[j] == ci and ST[j] < ST[i] and ST[j] > prev:
+                prev = ST[j]
+        te = ST[i]
+        if prev > -np.inf:
+            te = first_violation(buf, calls, ci, prev, ST[i], fs, ip, par, w, which, n)
+        solution_at(buf, int(calls[ci, 1]), int(calls[ci, 2]), te, n, xs)
+        rec[R_TLOW + 2 * which] = te
+        rec[R_SLOW + 2 * which] = (alpha_of(xs, ip, par) - ai) / span
+
+
+def note_push(x, t, ip, rec):
+    """The push's time [s] and the state just before it into ``rec``."""
+    N, nz, m = ip[I_N], ip[I_NZ], ip[I_M]
+    rec[R_TPUSH] = t
+    off = N_REC0 + 2 * N + 2 * nz + m
+    for i in range(2 * N + nz):
+        rec[off + i] = x[i]
 
 
 def sigma_energy(q, dq, ip, w):
@@ -997,7 +1119,22 @@ def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
     post-impact state ``x0`` at ``t0`` to the next impact; ``x_next`` gets the relabelled
     post-impact state, ``rec`` the step record, ``out`` the outcome. ``calls`` lists the
     integration calls (restarts), whose steps are rows of ``buf``. ``push``: a push of this
-    step when ``push[0] == k``. Returns (status, number of calls, rows of ``buf`` used)."""
+    step when ``push[0] == k``. Returns (status, number of calls, rows of ``buf`` used).
+
+    A step that fails after it started to integrate still gets, in ``rec``, the first times
+    its stance force left the cone up to the failure (:func:`step_stats`) and its push's
+    time and state: what came first is for the caller to tell."""
+    for i in range(R_TLOW, R_TPUSH + 1):
+        rec[i] = np.nan
+    st, ncalls, nbuf = step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec,
+                                 out)
+    if st != OK and st != FAIL_BUFFER and ncalls > 0:
+        step_stats(calls, ncalls, buf, t0, out[O_T], fs, ip, par, w, rec)
+    return st, ncalls, nbuf
+
+
+def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
+    """:func:`sim_step` but for the statistics of a failed step."""
     N, m, nz, nbk = ip[I_N], ip[I_M], ip[I_NZ], ip[I_NBRK]
     n = 2 * N + nz
     x, xs, yend, xe = w[ip[W_X]:], w[ip[W_XS]:], w[ip[W_YE]:], w[ip[W_XE]:]
@@ -1015,6 +1152,7 @@ def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
     push_pending = push[0] == k
     a_push = ai + push[1] * span
     if push_pending and d * a_push <= d * alpha_of(x, ip, par):
+        note_push(x, t0, ip, rec)
         if not push_or_fail(x, push, ip, w, out, k, t0, s0):
             return FAIL_CONTROLLER, 0, 0
         push_pending = False
@@ -1117,6 +1255,7 @@ def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
                 # not for an apex
                 rising = foot_velocity(x, fs, ip, par, w) >= 0.0
             else:
+                note_push(x, t, ip, rec)
                 if not push_or_fail(x, push, ip, w, out, k, t, push[1]):
                     return FAIL_CONTROLLER, ncalls, nbuf
                 push_pending = False
@@ -1130,6 +1269,7 @@ def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
                 seg += 1
                 rising = foot_velocity(x, fs, ip, par, w) >= 0.0
             if push_pending and a_here >= d * a_push:
+                note_push(x, t, ip, rec)
                 if not push_or_fail(x, push, ip, w, out, k, t, push[1]):
                     return FAIL_CONTROLLER, ncalls, nbuf
                 push_pending = False
@@ -1155,35 +1295,7 @@ def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
         x_next[2 * N + i] = x[2 * N + i]
     # -- statistics on the integrator's nodes and a uniform grid of the step
     acc = w[ip[W_ACC]:]
-    acc[0] = np.inf
-    for i in range(1, 7):
-        acc[i] = 0.0
-    acc[2] = 1.0
-    # the states first (nodes and ends of every integration call, the grid), then the
-    # model's force program on all of them at once (the batch interpreter), then each state
-    ng = ip[I_GRID]
-    cnt = 0
-    for ci in range(ncalls):
-        cnt += stat_times(calls, ci, buf, ng, t0, t, False, n, buf, 0)
-    SX = np.empty((cnt, n))
-    SS = np.empty(cnt, np.int64)
-    cnt = 0
-    for ci in range(ncalls):
-        k0 = cnt
-        cnt += stat_times(calls, ci, buf, ng, t0, t, True, n, SX, cnt)
-        for i in range(k0, cnt):
-            SS[i] = int(calls[ci, 0])
-    nout = ip[ip[T_FORCE] + 1]
-    SO = np.empty((cnt, nout))
-    tape_batch(ip, ip[T_FORCE], fs[N_FS:N_FS + ip[I_NCONST]], ip[I_C0], ip[I_NREG], SX, SO,
-               32)
-    D = w[ip[W_D]:]
-    for i in range(cnt):  # (row copies rather than views: a view costs reference counting)
-        for j in range(nout):
-            D[j] = SO[i, j]
-        for j in range(n):
-            xs[j] = SX[i, j]
-        details_at(xs, SS[i], fs, ip, par, w, E_PRE)
+    step_stats(calls, ncalls, buf, t0, t, fs, ip, par, w, rec)
     sig_m, e_m = sigma_energy(x[:N], x[N:2 * N], ip, w)
     sig_p, e_p = sigma_energy(x_next[:N], x_next[N:2 * N], ip, w)
     sig_0, e_0 = sigma_energy(x0[:N], x0[N:2 * N], ip, w)
@@ -1311,20 +1423,26 @@ SIGNATURES = {
     "brent": f"({_I}, {_F}, {_F}, {_F}, {_F}, {_A2}, {_I}, {_I}, {_I}, {_CTX}, {_I}, {_F}, "
              f"{_F}, {_F}, {_F})",
     "integrate": f"({_F}, {_A}, {_F}, {_I}, {_IA2}, {_I}, {_CTX}, {_A2}, {_I}, {_F}, {_F})",
-    "stat_times": f"({_A2}, {_I}, {_A2}, {_I}, {_F}, {_F}, {_B}, {_I}, {_A2}, {_I})",
+    "stat_times": f"({_A2}, {_I}, {_A2}, {_I}, {_F}, {_F}, {_B}, {_I}, {_A2}, {_A}, {_I})",
     "details_at": f"({_A}, {_I}, {_CTX}, {_I})",
+    "cone_violated": f"({_A}, {_I}, {_CTX}, {_I})",
+    "first_violation": f"({_A2}, {_A2}, {_I}, {_F}, {_F}, {_CTX}, {_I}, {_I})",
+    "step_stats": f"({_A2}, {_I}, {_A2}, {_F}, {_F}, {_CTX}, {_A})",
+    "note_push": f"({_A}, {_F}, {_IA}, {_A})",
     "sigma_energy": f"({_A}, {_A}, {_IA}, {_A})",
     "impact": f"({_A}, {_A}, {_IA}, {_A}, {_A}, {_A}, {_A})",
     "apply_push": f"({_A}, {_A}, {_IA}, {_A})",
     "fail": f"({_A}, {_I}, {_I}, {_F}, {_F}, {_F}, {_I})",
     "push_or_fail": f"({_A}, {_A}, {_IA}, {_A}, {_A}, {_I}, {_F}, {_F})",
     "add_call": f"({_A2}, {_I}, {_I}, {_I}, {_I}, {_F}, {_F})",
+    "step_core": f"({_I}, {_F}, {_A}, {_A}, {_CTX}, {_A2}, {_A2}, {_A}, {_A}, {_A})",
     "sim_step": f"({_I}, {_F}, {_A}, {_A}, {_CTX}, {_A2}, {_A2}, {_A}, {_A}, {_A})",
     "run": f"({_A2}, {_A}, {_IA}, {_I}, {_A}, {_IA}, {_A2}, {_A2}, {_A2}, {_A3}, {_A2}, "
            f"{_IA}, {_A2}, {_IA2}, {_I}, {_I}, {_A2}, {_A2})",
 }
-# compiled without reference counting (model/jit.py): everything but the two functions that
-# allocate arrays (``run``: the work array; ``sim_step``: a step's statistics), and the
-# interpreter's allocation-free functions; the work array and every buffer belong to ``run``
-# and its caller
-NRT_FREE = frozenset(SIGNATURES) - {"run", "sim_step"} | {"tape_run", "tape_chunks"}
+# compiled without reference counting (model/jit.py): everything but the functions that
+# allocate arrays (``run``: the work array; ``step_core``: the events; ``step_stats``: a
+# step's statistics) or call them (``sim_step``), and the interpreter's allocation-free
+# functions; the work array and every buffer belong to ``run`` and its caller
+NRT_FREE = frozenset(SIGNATURES) - {"run", "sim_step", "step_core", "step_stats"} | {
+    "tape_run", "tape_chunks"}

@@ -45,6 +45,10 @@ class StepRecord:
     q_minus: tuple[float, ...]
     dq_minus: tuple[float, ...]
     nfev: int
+    # (t [s], s [1]) of the first F_1^v <= SimConfig.cone_eps / the first
+    # |F_1^h| > cone_mu F_1^v (F_1^v > 0) in the step; None: none (or not timed)
+    low_force_at: tuple[float, float] | None = None
+    cone_exit_at: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,14 @@ from ..files.gait_file import load_gait
 from ..files.robot_file import load_robot_text
 from ..files.sweep_file import STUDY_PARAMETERS, read_source
 from ..files.uncertainty_file import load_uncertainty
-from ..resilience.maps import mean_of, outcome_counts, spread, summary_impulse, survivable
+from ..resilience.maps import (
+    mean_of,
+    outcome_counts,
+    single_outcome,
+    spread,
+    summary_impulse,
+    survivable,
+)
 from ..resilience.strategy import KINDS, Realized, Strategy, labels_unique, schedule_of_file
 from ..resilience.trials import OUTCOMES
 from ..sweep.points import draw
@@ -445,6 +452,8 @@ class RobustnessResult:
                          "backward_bound": bb})
         fwd, bwd = [r["forward"] for r in rows], [r["backward"] for r in rows]
         flat = [o for row in grid for o in row]
+        single = {name: single_outcome(list(p.impulses) * len(p.phases), flat, sign)[0]
+                  for name, sign in (("forward", 1.0), ("backward", -1.0))}
         lc = real.cycle
         out = {
             "label": s.label, "kind": s.kind, "parameters": s.parameters(),
@@ -458,7 +467,8 @@ class RobustnessResult:
             "push": {"outcome_counts": outcome_counts(flat, OUTCOMES),
                      "recovered_fraction": _fraction(flat, ("recovered",)),
                      "survivable": rows, "mean_forward": mean_of(fwd),
-                     "mean_backward": mean_of(bwd), "summary": summary_impulse(fwd, bwd)},
+                     "mean_backward": mean_of(bwd), "summary": summary_impulse(fwd, bwd),
+                     "single_outcome": single},
         }
         if p.sigmas:
             out["basin_slice"] = self._slice_summary(k)
@@ -524,10 +534,68 @@ class RobustnessResult:
         for k, s in enumerate(p.strategies):
             v = self.strategy_summary(k)["push"]["summary"]
             sums.append(f"{s.label} {v:.3g} N s" if v is not None else f"{s.label} -")
-        return text + "; survivable impulse (mean over phases): " + ", ".join(sums)
+        text += "; survivable impulse (mean over phases): " + ", ".join(sums)
+        for note in self._single_outcomes():
+            text += f"; {note['short']}"
+        return text
+
+    def _single_outcomes(self) -> list[dict]:
+        """Push directions in which one outcome covers every trial (of two or more sizes,
+        every phase) of one or more strategies: there the survivable push is 0 N s (or the
+        grid's edge, all recovered) at every phase whatever the strategy, so it does not
+        tell them apart. One note per (direction, outcome): the strategies, a short text
+        for the summary and the full one, with what to change, for the warnings."""
+        p = self.plan
+        notes = []
+        trials = {(kd, w[0], w[1], w[2]): r for kd, w, r in zip(p.kinds, p.where, self.records)}
+        for name, sign in (("forward", 1.0), ("backward", -1.0)):
+            by: dict[str, list[int]] = {}
+            for k in range(len(p.strategies)):
+                o = self.strategy_summary(k)["push"]["single_outcome"][name]
+                if o is not None and o != "error":
+                    by.setdefault(o, []).append(k)
+            for o, ks in by.items():
+                labels = [p.strategies[k].label for k in ks]
+                every = len(ks) == len(p.strategies)
+                sizes = sorted({abs(v) for v in p.impulses if v * sign > 0})
+                who = ("every strategy" if every and len(ks) > 1 else
+                       f"{'strategy' if len(ks) == 1 else 'strategies'} {', '.join(labels)}")
+                short = f"every {name} push of {who} is {o}"
+                if o == "recovered":
+                    value = f"the grid's largest ({sizes[-1]:g} N s)"
+                    fix = (f"larger impulses (`push_impulse` beyond {sizes[-1]:g} N s) find "
+                           f"where it ends")
+                else:
+                    value = "0 N s"
+                    by_push = all(
+                        self._outcome(r) != o or str((r.get("document") or {}).get("reason", "")
+                                                     ).startswith("step 1: the push ")
+                        for (kd, k, i, j), r in trials.items()
+                        if kd == "push" and k in ks and r is not None
+                        and p.impulses[j] * sign > 0)
+                    why = ("the push's impulsive ground reaction itself (linear in the "
+                           "impulse: whether it lifts or slips the stance foot depends on the "
+                           "phase, direction and point, not on the size)" if by_push else
+                           "the stance foot's reaction to it")
+                    fix = (f"decided by {why}; a push spread over time (`push_duration` T "
+                           f"> 0 s, e.g. 0.05: the stance force over T is added to the "
+                           f"reaction, SPEC 12, so small pushes pass and large ones do not) "
+                           f"or at another point or direction (`push_link`, `push_at`, "
+                           f"`push_direction`) makes the map depend on the size")
+                full = (f"every {name} push ({len(sizes)} sizes x {len(p.phases)} phases) of "
+                        f"{who} is `{o}`: the {name} survivable push is {value} at every "
+                        f"phase{' for all of them' if len(ks) > 1 else ''}, so it does not "
+                        f"tell the strategies apart; {fix}")
+                hint = ("; widen `push_impulse`" if o == "recovered" else
+                        "; try `push_duration` > 0 or another push point (warnings)")
+                notes.append({"direction": name, "outcome": o, "strategies": labels,
+                              "short": f"{short}: the {name} survivable push is {value} "
+                                       f"whatever the strategy{hint}", "warning": full})
+        return notes
 
     def warnings(self) -> list[str]:
         out = list(self.plan.warnings)
+        out += [n["warning"] for n in self._single_outcomes()]
         bad = [r for kd, r in self._trial_records() if self._outcome(r) == "error"]
         if bad:
             first = (bad[0]["document"] or {}).get("reason") or bad[0]["reason"]
