@@ -14,6 +14,7 @@ from .common import (
     check_out,
     cli_errors,
     console,
+    ensure_kernel,
     load_walker,
     parse_formats,
     parse_knots,
@@ -22,6 +23,7 @@ from .common import (
     save_figures,
     show_table,
     warn,
+    wrote_line,
 )
 from .options import (
     FormatsOpt,
@@ -139,6 +141,8 @@ def run_robustness_command(
         finished = folder.finished(t.key for t in plan.tasks)
         warn(folder.notes)
         todo = len(plan.tasks) - len(finished)
+        if todo:
+            ensure_kernel(quiet)
         executor = task_executor(plan.tasks, STUDIES["push-trial"], {}, workers, scheduler,
                                  todo) if todo else None
         tally = {"recovered": 0, "other": 0}
@@ -181,8 +185,7 @@ def run_robustness_command(
     warn(doc["warnings"])
     if not quiet and json != "-":
         _table(doc)
-        console().print(f"wrote {out}/robustness.json, trials.csv, trials/ and "
-                        f"{len(doc['figures'])} figure(s)", markup=False)
+        console().print(wrote_line(out), markup=False)
     return doc
 
 

@@ -56,7 +56,7 @@ from ..sweep.points import draw
 from ..sweep.runner import RunCounts, run_tasks
 from ..sweep.tasks import PointTask, identity, task_key
 from ..walker import Walker
-from .records import SCHEMA_VERSION, Table, col, gait_record, robot_record, units
+from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 from .sweep_studies import STUDIES, _realized, run_point, trial_chunk
 
 UNITS = units("impulse", "zeta", "speed", "force", "friction_ratio", "sigma_N", "output_rate",
@@ -378,6 +378,8 @@ class RobustnessResult:
     """Every trial and sample of a :class:`RobustnessPlan` with its record (None: not run),
     what this run did (``counts``) and where it ran (``executor``); renders
     ``robustness.json``, ``trials.csv`` (and ``uncertainty.csv``) and the figures."""
+
+    __repr__ = result_repr
 
     plan: RobustnessPlan
     records: tuple[dict | None, ...] = field(repr=False)
