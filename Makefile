@@ -6,7 +6,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench lint docs figures clean
+.PHONY: demo test bench lint docs figures golden clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,10 @@ lint: $(STAMP)
 
 docs: $(STAMP)
 	$(BIN)/python -m thrustwalk_cli.files.schema_docs docs/files.md
+
+# the golden documents of tests/test_golden.py, after a change meant to change results
+golden: $(STAMP)
+	MPLBACKEND=Agg $(BIN)/python tests/golden_cases.py --update
 
 # ---------------------------------------------------------------------------- figures
 # `make figures` (or `make -j2 figures`) runs thrustwalk commands into $(FIG); each result

@@ -68,12 +68,16 @@ VOLATILE = {"provenance", "seconds", "wall_time", "qp_time", "qp_time_median", "
             "load_seconds", "compile_seconds", "created_utc", "executor", "elapsed"}
 
 
-def normalise(doc, out: str):
+VOLATILE_IN = {("qp", "time")}  # (parent key, key): the QP's wall-clock solve time
+
+
+def normalise(doc, out: str, parent: str = ""):
     """The document without volatile parts; paths made machine-independent."""
     if isinstance(doc, dict):
-        return {k: normalise(v, out) for k, v in doc.items() if k not in VOLATILE}
+        return {k: normalise(v, out, k) for k, v in doc.items()
+                if k not in VOLATILE and (parent, k) not in VOLATILE_IN}
     if isinstance(doc, list):
-        return [normalise(v, out) for v in doc]
+        return [normalise(v, out, parent) for v in doc]
     if isinstance(doc, str):
         return doc.replace(out, "<out>").replace(str(REPO), "<repo>")
     return doc

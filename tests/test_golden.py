@@ -1,0 +1,28 @@
+"""Every command's JSON on the bundled robots and gaits equals its golden document
+(tests/golden/, made by `make golden`; see tests/golden_cases.py): a change meant to move no
+number moves none. Numbers agree to 1e-7 relative (plus 1e-9 absolute), so that another CPU's
+last digits pass; THRUSTWALK_GOLDEN_EXACT=1 demands every number bit for bit (a change of
+layout is checked so). Strings, booleans, keys and list lengths always agree exactly."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import pytest
+from golden_cases import CASES, GOLDEN, REPO, differences, run_case
+
+EXACT = os.environ.get("THRUSTWALK_GOLDEN_EXACT") == "1"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, args, doc", CASES, ids=[c[0] for c in CASES])
+def test_command_document_equals_its_golden_document(name, args, doc, cli, tmp_path,
+                                                     monkeypatch):
+    path = GOLDEN / f"{name}.json"
+    assert path.is_file(), f"no golden document {path.name}: run `make golden`"
+    monkeypatch.chdir(REPO)
+    got = run_case(args, doc, tmp_path / name, lambda argv: cli(*argv).exit_code)
+    want = json.loads(path.read_text())
+    diff = differences(got, want, rtol=0.0 if EXACT else 1e-7, atol=0.0 if EXACT else 1e-9)
+    assert not diff, f"{name}: {len(diff)} differences, first: " + "; ".join(diff[:10])
