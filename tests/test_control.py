@@ -202,6 +202,25 @@ def test_speed_reference_settles_at_the_speed(walker5, gait, v_ref):
     assert doc["summary"]["final_tracking_error"] == last["speed_error"]
 
 
+@pytest.mark.parametrize("fractions, mu", [((0.0, 1.0), 0.42), ((0.0, 0.5, 1.0), 0.7)])
+def test_speed_reference_of_the_nominal_speed_is_the_nominal_orbit(walker3, fractions, mu):
+    """Identity: the least-effort steady state that walks at the zero-thrust orbit's speed is
+    that orbit (zero thrust, zeta^- = zeta*_0). With one interval at mu = 0.42 the lowest
+    sample of the steady range has no steady state once the cutting planes are in, so the root
+    lies between the range's end and the first sample."""
+    from thrustwalk_cli.controller.planner import regulator
+    from thrustwalk_cli.studies.control import speed_references
+
+    zd = walker3.zd
+    lc0 = _nominal(zd)
+    kn = zd.alpha_i + np.array(fractions) * (zd.alpha_f - zd.alpha_i)
+    pl, _ = regulator(zd, kn, [0], mu=mu, continuous=True)
+    ref = speed_references(pl, zd, [lc0.speed], lc0.zeta_star)[float(lc0.speed)]
+    assert ref.reachable
+    assert ref.zeta_minus == pytest.approx(lc0.zeta_star, rel=1e-9)
+    assert np.abs(ref.thrust).max() < 1e-6
+
+
 def _exact_max_ratio(walker, knots, u, x, grid):
     """Largest |F^h|/F^v of the plan (thrust u on knots, zeta^- = x at the start) over the step:
     the exact stance terms (``grid``: per knot interval the points and their terms, each

@@ -57,7 +57,7 @@ from ..controller.planner import (
     regulator,
 )
 from ..controller.step_model import IdealThrust, ResponseThrust, Terms, ThrusterDynamics
-from ..errors import InputError
+from ..errors import ComputationError, InputError
 from ..hzd.zero_dynamics import Schedule, ZeroDynamics, limit_cycles
 from ..simulation.closed_loop import MAX_STEPS, SimConfig
 from ..walker import Walker, walker_from
@@ -148,9 +148,11 @@ def speed_references(planner: Planner, zd: ZeroDynamics, speeds: Sequence[float]
     ``planner`` (ideal thrust on the control knots) walks at that speed, so that the closed
     loop, which settles on that steady state (deadbeat in zeta^-), walks at the speed the user
     asked for. The steady states exist on an interval of ``x`` (:meth:`Planner.
-    steady_range`); the steady speed is sampled at ``SPEED_SCAN`` points over it, and a sign
-    change of ``v(x) - v_ref`` between neighbours is refined by Brent's method (the bracket
-    nearest ``x_nominal`` when there are several). Without one the speed is out of reach: the
+    steady_range`, on the grid rows; the cutting planes shrink it a little); the steady speed
+    is sampled at ``SPEED_SCAN`` points over it, and a sign change of ``v(x) - v_ref`` between
+    neighbours (or, without one, between an end of the steady states, located by bisection,
+    and its nearest sample) is refined by Brent's method (the bracket nearest ``x_nominal``
+    when there are several). Without one the speed is out of reach: the
     reference is the steady state whose speed is closest, at an end of the interval (located
     by bisection on the steady state's existence), ``EDGE_MARGIN`` of the half interval
     inside it."""
@@ -173,7 +175,7 @@ def speed_references(planner: Planner, zd: ZeroDynamics, speeds: Sequence[float]
         """The last steady state between a sample that has one and one that has not."""
         a, b = xs[inside], xs[outside]
         va = vs[inside]
-        for _ in range(40):
+        for _ in range(60):
             m = 0.5 * (a + b)
             vm = steady_speed(planner, zd, m)[0]
             if vm is None:
@@ -184,22 +186,43 @@ def speed_references(planner: Planner, zd: ZeroDynamics, speeds: Sequence[float]
                 break
         return float(a), float(va)
 
-    ends = []
-    for i, out_i in ((ok[0], ok[0] - 1), (ok[-1], ok[-1] + 1)):
-        ends.append(edge(i, out_i) if 0 <= out_i < len(xs) else (float(xs[i]), vs[i]))
+    points = [(float(xs[i]), vs[i]) for i in ok]
+    ends: list[tuple[float, float]] = []
+
+    def locate_ends() -> None:
+        """The ends of the steady states (bisection where an end sample has none), added to
+        the points: a speed between an end and the nearest sample is bracketed there."""
+        if ends:
+            return
+        for i, out_i in ((ok[0], ok[0] - 1), (ok[-1], ok[-1] + 1)):
+            ends.append(edge(i, out_i) if 0 <= out_i < len(xs) else (float(xs[i]), vs[i]))
+        points[:] = sorted(set(points) | set(ends))
+
+    def brackets(v: float) -> list[tuple[float, float]]:
+        return [(p[0], q[0]) for p, q in zip(points[:-1], points[1:])
+                if (p[1] - v) * (q[1] - v) <= 0]
+
     out = {}
     for v in sorted(set(map(float, speeds))):
-        brackets = [(xs[i], xs[i + 1]) for i, j in zip(ok[:-1], ok[1:]) if j == i + 1
-                    and (vs[i] - v) * (vs[j] - v) <= 0]
-        if brackets:
-            a, b = min(brackets, key=lambda br: abs(0.5 * (br[0] + br[1]) - x_nominal))
-            fa = steady_speed(planner, zd, a)[0] - v
-            fb = steady_speed(planner, zd, b)[0] - v
+        found = brackets(v)
+        if not found:
+            locate_ends()
+            found = brackets(v)
+        if found:
+            a, b = min(found, key=lambda br: abs(0.5 * (br[0] + br[1]) - x_nominal))
+
+            def miss(x: float, v: float = v) -> float:
+                vx = steady_speed(planner, zd, x)[0]
+                if vx is None:  # the steady states form an interval: only round-off gets here
+                    raise ComputationError(f"the controller's steady state at zeta^- = {x:.6g} "
+                                           f"kg^2 m^4/s^2 could not be computed")
+                return vx - v
+
+            fa, fb = miss(a), miss(b)
             if fa == 0 or fb == 0:
                 x = a if fa == 0 else b
             else:
-                x = brentq(lambda x, v=v: steady_speed(planner, zd, x)[0] - v, a, b,
-                           xtol=1e-13 * b, rtol=1e-12)
+                x = brentq(miss, a, b, xtol=1e-13 * b, rtol=1e-12)
             vx, u = steady_speed(planner, zd, x)
             out[v] = SpeedReference(v, float(x), float(vx), True, tuple(map(float, u)))
         else:
