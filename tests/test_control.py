@@ -5,23 +5,38 @@ recovery, slow thrusters, plant mismatch and the command's outputs and errors.
 Independent computations: the QP against SciPy's SLSQP; the closed-form thruster response
 against the matrix exponential; the step map against ``ZeroDynamics.V_Z`` / ``poincare`` (the
 limit-cycle code path, not the planner's rows); a saturated step against the extreme of the
-affine map over the thrust box; the plant's mass from the robot file's parameters.
+affine map over the thrust box; the plant's mass from the robot file's parameters; the speed
+from the simulated step (step length of the gait over the step's impact times); the friction
+ratio of a plan from the exact stance terms on 20,001 points per knot interval refined by
+SciPy's bounded scalar minimiser; realised extremes against 20,001 samples of the dense output.
 """
 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.linalg import expm
-from scipy.optimize import minimize
+from scipy.optimize import minimize, minimize_scalar
 
 from thrustwalk_cli.controller.planner import Planner, Settings
 from thrustwalk_cli.controller.step_model import IdealThrust, Terms, ThrusterDynamics
 from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
 from thrustwalk_cli.optimize.qp import ConvexQP
 from thrustwalk_cli.studies.control import control, reference_values
+
+DATA = Path(__file__).parent / "data"
+
+
+@pytest.fixture(scope="module")
+def walker5(_cache_dir):
+    """The user's 5-link walker with its two gaits (tests/data): {gait name: Walker}."""
+    from thrustwalk_cli.walker import load_walker
+
+    return {g: load_walker(str(DATA / "walker5.yaml"), str(DATA / f"{g}.yaml"))
+            for g in ("walker5_walk", "walker5_thrust")}
 
 
 def _nominal(zd):
@@ -161,6 +176,144 @@ def test_fitted_terms_tighten_the_margin_by_their_error(walker3):
 
 
 # ----------------------------------------------------------------------------- full order
+@pytest.mark.parametrize("gait, v_ref", [("walker5_walk", 0.8), ("walker5_thrust", 0.6)])
+def test_speed_reference_settles_at_the_speed(walker5, gait, v_ref):
+    """Issue item 3: a speed reference is tracked as a speed. On walker5_walk 0.8 m/s is
+    friction-limited (mu = 0.7), so the QP's schedule is not the unconstrained steady one:
+    main settled at 0.904 m/s (13 % high) while its tracking error read 1e-11. On
+    walker5_thrust main found no zeta^- for 0.6 m/s, the gait's own speed. Independent check:
+    the gait's step length over the simulated step time of the last steps."""
+    w = walker5[gait]
+    res = control(w, reference="speed", profile=[(0, v_ref)], steps=3, compare=False)
+    assert res.success, res.reason
+    length = float(w.model.p_swing(w.zd.maps.q_minus)[0])
+    for s in res.controlled.steps[1:]:  # step 1 starts from the nominal orbit's zeta^-
+        v = length / (s.t_impact - s.t_start)
+        assert abs(v - v_ref) <= 1e-6 * v_ref, (s.step, v)
+    if gait == "walker5_walk":
+        assert any("friction" in s.plan.active for s in res.controlled.steps[1:])
+    # the reported error is the speed's, and the zeta^- error stays available by name
+    doc = res.document()
+    last = doc["steps"][-1]
+    assert doc["summary"]["tracked"] == "speed"
+    assert last["tracking_error"] == last["speed_error"] < 1e-6
+    assert last["speed_error"] == pytest.approx(abs(last["speed"] - v_ref) / v_ref, abs=1e-15)
+    assert last["zeta_minus_error"] < 1e-8
+    assert doc["summary"]["final_tracking_error"] == last["speed_error"]
+
+
+@pytest.mark.parametrize("fractions, mu", [((0.0, 1.0), 0.42), ((0.0, 0.5, 1.0), 0.7)])
+def test_speed_reference_of_the_nominal_speed_is_the_nominal_orbit(walker3, fractions, mu):
+    """Identity: the least-effort steady state that walks at the zero-thrust orbit's speed is
+    that orbit (zero thrust, zeta^- = zeta*_0). With one interval at mu = 0.42 the lowest
+    sample of the steady range has no steady state once the cutting planes are in, so the root
+    lies between the range's end and the first sample."""
+    from thrustwalk_cli.controller.planner import regulator
+    from thrustwalk_cli.studies.control import speed_references
+
+    zd = walker3.zd
+    lc0 = _nominal(zd)
+    kn = zd.alpha_i + np.array(fractions) * (zd.alpha_f - zd.alpha_i)
+    pl, _ = regulator(zd, kn, [0], mu=mu, continuous=True)
+    ref = speed_references(pl, zd, [lc0.speed], lc0.zeta_star)[float(lc0.speed)]
+    assert ref.reachable
+    assert ref.zeta_minus == pytest.approx(lc0.zeta_star, rel=1e-9)
+    assert np.abs(ref.thrust).max() < 1e-6
+
+
+def _exact_max_ratio(walker, knots, u, x, grid):
+    """Largest |F^h|/F^v of the plan (thrust u on knots, zeta^- = x at the start) over the step:
+    the exact stance terms (``grid``: per knot interval the points and their terms, each
+    interval with its own thrust, ends included) with zeta from ZeroDynamics.V_Z, the best
+    point refined by SciPy's bounded scalar minimiser between its neighbours."""
+    from thrustwalk_cli.contact.terms import stance_terms
+
+    zd = walker.zd
+    force = np.zeros((1, len(knots) - 1, zd.model.n_thrusters))
+    force[0, :, 0] = u
+    sched = Schedule(knots, force, np.zeros((1, len(knots) - 1)))
+
+    def ratio(a, j, t=None):
+        a = np.atleast_1d(a)
+        t = stance_terms(walker.model, zd.maps, a) if t is None else t
+        zeta = zd.delta_zero_sq * x + zd.V_Z(a, sched)[0]
+        F1 = t.L0 + t.L1 * zeta[:, None] + t.L2[:, :, 0] * u[j]
+        return np.abs(F1[:, 0]) / F1[:, 1]
+
+    best = 0.0
+    for j, (a, terms) in enumerate(grid):
+        r = ratio(a, j, terms)
+        i = int(np.argmax(r))
+        lo, hi = a[max(i - 1, 0)], a[min(i + 1, a.size - 1)]
+        ref = minimize_scalar(lambda s, j=j: -ratio(s, j)[0], bounds=(min(lo, hi), max(lo, hi)),
+                              method="bounded", options={"xatol": 1e-13})
+        best = max(best, float(r[i]), float(-ref.fun))
+    return best
+
+
+def test_certificate_holds_between_grid_points(walker3):
+    """Issue item 5's friction-limited run (the speed reference is out of reach, the friction
+    rows active from step 5): every step is certified (main: round-off at an active row,
+    0.7000000000000003 > 0.7, uncertified steps 5, 6, 9, 10) and every certified plan's
+    friction ratio, computed exactly between the grid points, is within mu + 1e-9 (main:
+    0.7000103 between grid points)."""
+    mu = 0.7
+    res = control(walker3, reference="speed", profile=[(0, 0.8), (2, 3.2)], steps=12, mu=mu,
+                  compare=False)
+    steps = res.controlled.steps
+    assert res.success, res.reason
+    assert sum("friction" in s.plan.active for s in steps) >= 4
+    tol = 1e-9  # the stated tolerance (checked in control.json below)
+    from thrustwalk_cli.contact.terms import stance_terms
+
+    kn = res.planner.thrust.knots
+    grid = []
+    for j in range(len(kn) - 1):
+        a = np.linspace(kn[j], kn[j + 1], 20001)
+        grid.append((a, stance_terms(walker3.model, walker3.zd.maps, a)))
+    for s in steps:
+        assert s.certificate["certified"], (s.step, s.predicted)
+        worst = _exact_max_ratio(walker3, kn, s.plan.u, s.x_meas, grid)
+        assert worst <= mu + tol, (s.step, worst - mu)
+        # the reported value is the polished maximum, not a grid value
+        assert s.predicted["max_friction_ratio"] == pytest.approx(worst, abs=1e-10)
+        assert s.realised["in_cone"]
+    assert res.document()["settings"]["certificate"]["friction_ratio_tolerance"] == tol
+
+
+def test_realised_extremes_are_polished(walker3, monkeypatch):
+    """The realised extremes of a step are its dense output's, not a grid's: against 20,001
+    samples of the same dense output, never lower (for the ratio) by more than 1e-12, and at
+    least the kernel's own statistics."""
+    import thrustwalk_cli.controller.loop as loop
+
+    seen = []
+    original = loop.realised_extremes
+
+    def spy(cl, pieces, t0, t1, eps, mu):
+        out = original(cl, pieces, t0, t1, eps, mu)
+        seen.append((cl, pieces, out))
+        return out
+
+    monkeypatch.setattr(loop, "realised_extremes", spy)
+    res = control(walker3, reference="speed", profile=[(0, 2.4)], steps=2, mu=0.7,
+                  compare=False)
+    assert len(seen) == 2
+    for (cl, pieces, out), s in zip(seen, res.controlled.steps):
+        X, seg = [], []
+        for ta, tb, sg, sol in pieces:
+            t = np.linspace(ta, tb, 20001)
+            X.append(sol(t).T)
+            seg.append(np.full(t.size, sg))
+        F1 = cl.details(np.vstack(X), np.concatenate(seg))["F1"]
+        brute_r = float((np.abs(F1[:, 0]) / F1[:, 1]).max())
+        brute_v = float(F1[:, 1].min())
+        assert out["max_friction_ratio"] >= brute_r - 1e-12
+        assert out["min_vertical_force"] <= brute_v + 1e-9
+        assert out["max_friction_ratio"] <= brute_r + 1e-9  # a value of the function
+        assert s.realised["max_friction_ratio"] >= s.max_friction_ratio
+
+
 def test_full_order_tracking_three_link(walker3):
     zs = _nominal(walker3.zd).zeta_star
     res = control(walker3, reference="zeta", profile=[(0, 1.3 * zs), (4, 1.1 * zs)], steps=7,
@@ -296,6 +449,38 @@ def test_cli_control_writes_every_output(tmp_path, cli):
     assert len(ex["Gamma_j_alpha_f"]) == 2
     assert {"L0", "L1", "L2"} <= set(ex["polynomial_fits"])
     assert len(ex["qp"]["A"]) == len(ex["qp"]["b0"]) == len(ex["qp"]["family"])
+
+
+def test_cli_speed_control_of_the_user_robot_from_another_folder(tmp_path, monkeypatch, cli):
+    """The command on the user's walker5 (files in another folder, relative paths): the speed
+    is tracked as a speed, the JSON and CSV report the speed error under tracking_error and the
+    zeta^- error by name, and every step is certified on polished extremes."""
+    import shutil
+
+    import pandas as pd
+
+    robot = tmp_path / "robot"
+    robot.mkdir()
+    for f in ("walker5.yaml", "walker5_walk.yaml"):
+        shutil.copy(DATA / f, robot / f)
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    res = cli("control", "../robot/walker5.yaml", "../robot/walker5_walk.yaml", "--reference",
+              "speed", "--profile", "0:0.8", "--steps", "3", "--out", "out", "--formats", "csv",
+              "-q")
+    assert res.exit_code == 0, res.output
+    doc = json.loads((work / "out" / "control.json").read_text())
+    assert doc["status"] == "ok", doc["reason"]
+    assert doc["summary"]["tracked"] == "speed"
+    assert doc["summary"]["final_speed_error"] < 1e-6
+    assert doc["settings"]["speed_reference"]["values"][0]["reachable"] is True
+    assert all(e["certificate"]["certified"] and e["predicted"]["polished"]
+               for e in doc["steps"])
+    df = pd.read_csv(work / "out" / "control_steps.csv")
+    assert {"speed_error", "zeta_minus_error", "cut_rounds", "polish_time_s"} <= set(df.columns)
+    assert abs(df["speed_m_s"].iloc[-1] - 0.8) < 1e-6 * 0.8
+    assert (df["tracking_error"] == df["speed_error"]).all()
 
 
 @pytest.mark.parametrize("args, message", [

@@ -39,14 +39,17 @@ full-order simulation.
 At every impact the controller measures zeta^- [kg^2 m^4/s^2] and solves one small convex QP:
 the next step's thrust on the knots (force mode) so that the next zeta^- meets the
 reference, with least effort (and change from the previous step), subject to the friction cone
-|F_1^h| <= mu F_1^v and F_1^v >= the minimum vertical force [N] on an alpha grid (exact Lambda
-terms, or --terms fitted: the polynomials L_k with their error bound added to the margin),
-zeta(alpha) >= --zeta-min, the thrust limits of the robot file [N] and --rate-limit [N per
-step]. A reference beyond the limits is met as closely as the constraints allow and reported as
-saturated; a step whose constraints cannot hold is reported infeasible.
+|F_1^h| <= mu F_1^v and F_1^v >= the minimum vertical force [N] on an alpha grid and between its
+points (the plan's worst points polished, cutting planes added until they hold to 1e-9; exact
+Lambda terms, or --terms fitted: the polynomials L_k with their error bound added to the
+margin), zeta(alpha) >= --zeta-min, the thrust limits of the robot file [N] and --rate-limit [N
+per step]. A reference beyond the limits is met as closely as the constraints allow and
+reported as saturated; a step whose constraints cannot hold is reported infeasible.
 
 References: --reference speed [m/s] or zeta [kg^2 m^4/s^2] with --profile step:value,... (held,
-or --ramp), or nominal (the zero-thrust orbit). Disturbances: --push STEP:PHASE:PX[:PY] [N s] at
+or --ramp), or nominal (the zero-thrust orbit). A speed is tracked as a speed: its zeta^-
+reference is the controller's own steady state that walks at it, and the tracking error is the
+speed's. Disturbances: --push STEP:PHASE:PX[:PY] [N s] at
 the hip, --plant-scale NAME=FACTOR (robot parameters of the plant), --noise R (uniform relative
 error of the measured zeta^-, --seed). Slow thrusters (--thrust-model first-order/second-order):
 the controller uses the thruster's linear response; the same plant under a controller that

@@ -8,12 +8,20 @@ on the plant (:class:`thrustwalk_cli.simulation.compiled.Stepper`, ``set_thrust`
 steps). The plant may differ from the controller's model (its own robot parameters, the same
 virtual constraints) and may be pushed (impulse at a phase of a step, SPEC 12).
 
-Certificate (per step): the model's ground force ``F_1(alpha)`` for the chosen thrust, over the
+Certificate (per step). *Certified*: the plan's polished worst points (the planner's
+continuous conditions, :class:`~thrustwalk_cli.controller.planner.Planner`) are inside the
+cone to the planner's tolerance over the measurement band, the QP was feasible and the impact
+admissible. *Flagged*: the model's ground force ``F_1(alpha)`` for the chosen thrust, over the
 band of true ``x_k`` the measurement allows and widened by the fit error bound and a numerical
-tolerance, against the realised ``F_1`` of the full-order step sampled along it (at the
-realised alpha). A step whose realised force or ``x_{k+1}`` leaves that band is *flagged*: the
-prediction did not describe reality (a push, a plant that differs, a lagging thruster the
-controller ignored, outputs off the manifold). Units SI.
+tolerance (``REL_TOL``), against the realised ``F_1`` of the full-order step sampled along it
+(at the realised alpha); a step whose realised force or ``x_{k+1}`` leaves that band did not
+behave as predicted (a push, a plant that differs, a lagging thruster the controller ignored,
+outputs off the manifold). *Realised* extremes of the step: ``F_1`` on ``REALISED_SAMPLES``
+times of the step's dense output (every integration piece sampled end to end, so the jumps of
+the thrust at the knots are not bridged), each local extremum that could reach the limit
+polished by golden section between its neighbouring samples, and the simulation kernel's own
+statistics; ``in_cone`` holds them to the cone within ``CONE_TOL`` (the simulation's accuracy:
+an active friction row is realised at mu to about 1e-9). Units SI.
 """
 
 from __future__ import annotations
@@ -22,6 +30,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..contact.evaluate import friction_ratio
+from ..hzd.extrema import golden_min, grid_miss, neighbours, peaks
 from ..hzd.zero_dynamics import Schedule, ZeroDynamics
 from ..simulation.batch import push_row
 from ..simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel
@@ -32,6 +42,9 @@ from .step_model import ThrusterDynamics, interval_of
 
 SAMPLES = 81  # samples per step for the certificate and the figures
 REL_TOL = 1e-6  # numerical tolerance of the comparison, relative to the weight and to |F_1|
+REALISED_SAMPLES = 201  # samples per step of the realised extremes (then polished)
+REALISED_POLISH = 20  # golden-section steps of the realised extremes (bracket shrinks 7e-5)
+CONE_TOL = 1e-7  # realised cone: friction ratio [1], and F^v relative to the weight
 
 
 @dataclass(frozen=True)
@@ -163,7 +176,8 @@ def run_loop(plant: ZeroDynamics, planner: Planner | None, *, label: str, steps:
             max_friction_ratio=rec.max_friction_ratio,
             impact_friction_ratio=rec.impulse_friction_ratio, pushed=push is not None,
             thrust_at_impact=np.asarray(rec.thrust_at_impact, float))
-        _sample(log, res.pieces, plant, th, u, knots, driven, dynamics, cfg)
+        _sample(log, res.pieces, plant, th, u, knots, driven, dynamics, cfg,
+                None if plan is None else (eps, mu))
         if plan is not None:
             _certify(log, planner, plan, weight, mu, eps)
         logs.append(log)
@@ -177,8 +191,11 @@ def run_loop(plant: ZeroDynamics, planner: Planner | None, *, label: str, steps:
 
 
 def _sample(log: StepLog, pieces: list, plant: ZeroDynamics, th: ThrustModel, u: np.ndarray,
-            knots: np.ndarray, driven: list[int], dynamics, cfg: SimConfig) -> None:
-    """Realised time histories of the step at ``SAMPLES`` times: alpha, thrust, F_1."""
+            knots: np.ndarray, driven: list[int], dynamics, cfg: SimConfig,
+            extremes: tuple[float, float] | None = None) -> None:
+    """Realised time histories of the step at ``SAMPLES`` times: alpha, thrust, F_1; with
+    ``extremes = (eps, mu)`` also the polished realised extremes
+    (:func:`realised_extremes`)."""
     m = plant.model.n_thrusters
     if dynamics is None:  # the simulation's own schedule for this step
         md = len(driven)
@@ -203,6 +220,73 @@ def _sample(log: StepLog, pieces: list, plant: ZeroDynamics, th: ThrustModel, u:
             seg[sel] = sg
     d = cl.details(X, seg)
     log.samples = {"t": ts, "alpha": d["alpha"], "F": d["F"], "F1": d["F1"]}
+    if extremes is not None:
+        log.samples["extremes"] = realised_extremes(cl, pieces, log.t_start, log.t_impact,
+                                                    *extremes)
+
+
+def realised_extremes(cl: ClosedLoop, pieces: list, t0: float, t1: float, eps: float,
+                      mu: float) -> dict:
+    """The step's least ``F_1^v`` [N] and largest ``|F_1^h|/F_1^v`` [1] on its dense output:
+    ``REALISED_SAMPLES`` times, each integration piece sampled end to end (a piece holds one
+    thrust segment), every local extremum that the sampling could hide beyond the limit
+    polished by golden section between its neighbouring samples (:mod:`~thrustwalk_cli.hzd.
+    extrema`), with the times and alphas where they occur."""
+    span = max(t1 - t0, 1e-300)
+    t_all, piece, X = [], [], []
+    for p, (ta, tb, _, sol) in enumerate(pieces):
+        if not tb > ta:
+            continue
+        n = max(5, int(np.ceil(REALISED_SAMPLES * (tb - ta) / span)) + 1)
+        t = np.linspace(ta, tb, n)
+        t_all.append(t)
+        piece.append(np.full(n, p))
+        X.append(sol(t).T)
+    t_all, piece, X = np.concatenate(t_all), np.concatenate(piece), np.vstack(X)
+    segs = np.array([pieces[p][2] for p in range(len(pieces))], int)
+    d = cl.details(X, segs[piece])
+    F1 = d["F1"]
+    bad = {"v": -F1[:, 1], "r": friction_ratio(F1)}
+    limit = {"v": -eps, "r": mu}
+    ent_q, ent_j = [], []
+    for q, b in bad.items():
+        top = float(np.max(np.where(np.isfinite(b), b, -np.inf), initial=-np.inf))
+        j = peaks(b, piece, min(limit[q], top) - grid_miss(b, piece), 8)
+        ent_q += [q] * j.size
+        ent_j.append(j)
+    ent_j = np.concatenate(ent_j)
+    ent_q = np.array(ent_q)
+    ent_p = piece[ent_j]
+
+    def state(t: np.ndarray) -> np.ndarray:
+        out = np.empty((t.size, X.shape[1]))
+        for p in np.unique(ent_p):
+            sel = ent_p == p
+            out[sel] = pieces[p][3](t[sel]).T
+        return out
+
+    def objective(t: np.ndarray) -> np.ndarray:
+        F = cl.details(state(t), segs[ent_p])["F1"]
+        val = np.where(ent_q == "v", -F[:, 1], friction_ratio(F))
+        return np.where(np.isfinite(val), -val, 1e300)
+
+    lo, hi = neighbours(t_all, ent_j, piece)
+    t_pol, f_pol = golden_min(objective, lo, hi, REALISED_POLISH)
+    grid_bad = np.array([bad[q][j] for q, j in zip(ent_q, ent_j)])
+    better = -f_pol > grid_bad
+    worst = np.where(better, -f_pol, grid_bad)
+    t_worst = np.where(better, t_pol, t_all[ent_j])
+    out = {"samples": int(t_all.size)}
+    ks = [int(sel[np.argmax(worst[sel])]) for sel in (np.flatnonzero(ent_q == q)
+                                                       for q in ("v", "r"))]
+    X_w = np.vstack([pieces[ent_p[k]][3](np.array([t_worst[k]])).T for k in ks])
+    a_w = cl.details(X_w, segs[ent_p[ks]])["alpha"]
+    for k, a, (q, name) in zip(ks, a_w, (("v", "min_vertical_force"),
+                                         ("r", "max_friction_ratio"))):
+        out[name] = float(worst[k]) if q == "r" else -float(worst[k])
+        out[f"t_at_{name}"] = float(t_worst[k])
+        out[f"alpha_at_{name}"] = float(a)
+    return out
 
 
 def _certify(log: StepLog, planner: Planner, plan: Plan, weight: float, mu: float,
@@ -224,18 +308,25 @@ def _certify(log: StepLog, planner: Planner, plan: Plan, weight: float, mu: floa
     xtol = REL_TOL * max(abs(plan.x_next), 1.0)
     x_out = max(xlo - xtol - log.x_next, log.x_next - xhi - xtol, 0.0)
     log.samples["F1_predicted"] = Fm
-    grid = planner.grid_rows()
-    pred = predicted_margins(plan, grid, mu, planner.error_bound(grid, plan.x_band[1]))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(F1[:, 1] > 0, np.abs(F1[:, 0]) / F1[:, 1], np.inf)
-    real_v = min(float(F1[:, 1].min()), log.min_vertical_force)
-    real_r = max(float(ratio.max()), log.max_friction_ratio if log.max_friction_ratio
-                 is not None else np.inf)
+    if plan.margins is not None:
+        pred = dict(plan.margins)
+    else:
+        grid = planner.grid_rows()
+        pred = predicted_margins(plan, grid, mu, planner.error_bound(grid, plan.x_band[1]),
+                                 eps)
+    ext = log.samples["extremes"]
+    real_v = min(ext["min_vertical_force"], log.min_vertical_force)
+    kr = log.max_friction_ratio if log.max_friction_ratio is not None else np.inf
+    real_r = max(ext["max_friction_ratio"], kr)
+    cone_v = CONE_TOL * weight
     log.predicted = {**pred, "x_next": plan.x_next, "x_next_band": list(plan.x_next_band)}
     log.realised = {"min_vertical_force": real_v,
                     "max_friction_ratio": float(real_r) if np.isfinite(real_r) else None,
+                    "alpha_at_min_vertical_force": ext["alpha_at_min_vertical_force"],
+                    "alpha_at_max_friction_ratio": ext["alpha_at_max_friction_ratio"],
                     "x_next": log.x_next,
-                    "in_cone": bool(real_v >= eps and np.isfinite(real_r) and real_r <= mu
+                    "in_cone": bool(real_v >= eps - cone_v and np.isfinite(real_r)
+                                    and real_r <= mu + CONE_TOL
                                     and log.impact_friction_ratio <= mu)}
     certified = bool(pred["feasible"] and plan.status != "infeasible" and planner.impact_ok)
     log.certificate = {
@@ -244,4 +335,5 @@ def _certify(log: StepLog, planner: Planner, plan: Plan, weight: float, mu: floa
         "max_force_outside_bound": float(outside),
         "x_next_outside_bound": float(x_out),
         "force_tolerance": float(tol.max()),
+        "cutting_planes": [float(a) for a in plan.cut_alpha],
     }

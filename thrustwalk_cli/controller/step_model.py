@@ -62,20 +62,33 @@ class Rows:
     def thrust(self, u: np.ndarray) -> np.ndarray:
         return self.f0 + np.einsum("gtv,v->gt", self.S, u)
 
+    def concat(self, other: Rows) -> Rows:
+        """These rows followed by ``other``'s (e.g. the grid and the cutting planes)."""
+        return Rows(*(np.concatenate([getattr(self, f), getattr(other, f)])
+                      for f in ("alpha", "z0", "Zu", "P0", "Px", "Pu", "f0", "S", "E")))
+
+    def take(self, sel: np.ndarray) -> Rows:
+        """The rows at positions (or mask) ``sel``."""
+        return Rows(*(getattr(self, f)[sel]
+                      for f in ("alpha", "z0", "Zu", "P0", "Px", "Pu", "f0", "S", "E")))
+
 
 class Terms:
     """Lambda_0..2 at any alpha, exact (SPEC 5) or from the fitted polynomials L_k with their
     maximum fit errors (``fits``, the paper's online variant)."""
 
+    KEEP = 4  # arrays whose terms are kept (the QP grid, the polishing nodes)
+
     def __init__(self, model: CompiledModel, zd: ZeroDynamics, fits: Fits | None = None):
         self.model, self.zd, self.fits = model, zd, fits
-        self._last: tuple | None = None  # the QP grid's terms, asked for at every step
+        self._kept: list[tuple] = []  # (alpha, terms) of the arrays asked for at every step
 
     def __call__(self, alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        if self._last is not None and self._last[0] is alpha:
-            return self._last[1]
+        for a, out in self._kept:
+            if a is alpha:
+                return out
         out = self._terms(alpha)
-        self._last = (alpha, out)
+        self._kept = [(alpha, out)] + self._kept[:self.KEEP - 1]
         return out
 
     def _terms(self, alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -275,6 +288,86 @@ class ResponseThrust:
         for c, t_ in enumerate(self.driven):
             S[:, t_, c] = Psi
         return f0, S, self.I0(alpha), self.Iu(alpha)
+
+
+ROW_FIELDS = ("z0", "Zu", "P0", "Px", "Pu", "f0", "S")
+
+
+def series_nodes(knots: np.ndarray, nodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """``nodes`` Chebyshev-Lobatto points on each knot interval, ends included (an inner knot
+    appears once per side). Returns ``(alpha, interval index)``."""
+    kn = np.asarray(knots, float)
+    n_int = len(kn) - 1
+    return (np.concatenate([lobatto(kn[j], kn[j + 1], nodes) for j in range(n_int)]),
+            np.repeat(np.arange(n_int), nodes))
+
+
+class RowSeries:
+    """The affine model (:class:`Rows`) between grid points, for polishing the plan's worst
+    points (:mod:`.planner`): on each knot interval (where the rows are smooth: the thrust's
+    indicator is constant, the integrals and the Lambda terms analytic) a Chebyshev series
+    (:class:`~thrustwalk_cli.hzd.quadrature.ChebSeries`) through the exact rows ``at_nodes``
+    on the points of :func:`series_nodes`. Evaluating it costs a cosine table and a matrix
+    product (tens of microseconds for a batch), where the exact rows cost one evaluation of
+    every model function (milliseconds). Its error against the exact rows is measured on the
+    QP grid (:meth:`deviation`, points that are not nodes) and added to the polished margins
+    by the planner."""
+
+    def __init__(self, at_nodes: Rows, idx: np.ndarray, knots: np.ndarray):
+        self.knots = np.asarray(knots, float)
+        n_int = len(self.knots) - 1
+        g = at_nodes.alpha.size
+        self.shapes = {f: getattr(at_nodes, f).shape[1:] for f in ROW_FIELDS}
+        stacked = np.concatenate([getattr(at_nodes, f).reshape(g, -1) for f in ROW_FIELDS],
+                                 axis=1)
+        self.series = [ChebSeries.from_values(self.knots[j], self.knots[j + 1],
+                                              stacked[idx == j]) for j in range(n_int)]
+
+    def __call__(self, alpha: np.ndarray, idx: np.ndarray) -> Rows:
+        """The rows at ``alpha`` (g,) [rad], each on knot interval ``idx`` (g,)."""
+        return self.at(idx)(alpha)
+
+    def at(self, idx: np.ndarray, M: np.ndarray | None = None):
+        """An evaluator for a batch whose entries stay on knot intervals ``idx`` (g,):
+        ``alpha`` (g,) -> :class:`Rows`; with ``M`` (K, c), a matrix on the stacked fields
+        (:attr:`layout`), ``alpha`` -> the (g, c) array ``rows @ M`` (the series of the
+        product: a search's iterates then cost one small matrix product per interval)."""
+        idx = np.atleast_1d(np.asarray(idx, int))
+        coef = [s.coef if M is None else s.coef @ M for s in self.series]
+        groups = [(np.flatnonzero(idx == j), ChebSeries(s.a, s.b, coef[j]))
+                  for j, s in enumerate(self.series) if np.any(idx == j)]
+        width = coef[0].shape[1]
+
+        def evaluate(alpha: np.ndarray):
+            alpha = np.asarray(alpha, float)
+            out = np.empty((alpha.size, width))
+            for sel, ser in groups:
+                out[sel] = ser.at_few(alpha[sel])
+            if M is not None:
+                return out
+            g = alpha.size
+            return Rows(alpha, E=np.zeros(g),
+                        **{f: out[:, sl].reshape((g,) + sh) for f, (sl, sh) in
+                           self.layout.items()})
+        return evaluate
+
+    @property
+    def layout(self) -> dict[str, tuple[slice, tuple]]:
+        """Each field's columns in the stacked series and its trailing shape."""
+        out, c = {}, 0
+        for f in ROW_FIELDS:
+            k = int(np.prod(self.shapes[f], dtype=int))
+            out[f] = (slice(c, c + k), self.shapes[f])
+            c += k
+        return out
+
+    def deviation(self, exact: Rows, idx: np.ndarray) -> dict[str, np.ndarray]:
+        """Largest absolute difference of each field from the exact rows ``exact`` (on knot
+        intervals ``idx``), over those rows: ``{field: array of the field's trailing
+        shape}``."""
+        approx = self(exact.alpha, idx)
+        return {f: np.abs(getattr(approx, f) - getattr(exact, f)).max(axis=0, initial=0.0)
+                for f in ROW_FIELDS}
 
 
 def rows(zd: ZeroDynamics, terms: Terms, thrust, alpha: np.ndarray,

@@ -111,3 +111,43 @@ def polish_max(f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, values: np.
     """Maximum counterpart of :func:`polish_min`: (argmax, max), each (k,)."""
     xa, fa = polish_min(lambda a: -f(a), x, -np.atleast_2d(values), segment)
     return xa, -fa
+
+
+def peaks(values: np.ndarray, segment: np.ndarray | None = None, floor: float = -np.inf,
+          most: int = 16) -> np.ndarray:
+    """Indices of the local maxima of ``values`` (g,) sampled on a grid: the points not below
+    a neighbour of the same ``segment`` (a segment's end has one neighbour; ties count, so a
+    maximum between two equal samples is found from either), with value ``>= floor``; at most
+    ``most``, the largest first. The grid maximum is always among them (it is the global
+    maximum's best bracket when the peaks are unimodal between samples), so polishing every
+    returned index by :func:`golden_min` between its :func:`neighbours` finds every peak that
+    can exceed ``floor`` when ``floor`` is below the limit by more than the grid can miss."""
+    v = np.asarray(values, float)
+    n = v.size
+    if n == 0:
+        return np.zeros(0, int)
+    seg = np.zeros(n, int) if segment is None else np.asarray(segment)
+    w = np.where(np.isnan(v), -np.inf, v)
+    same_l = np.r_[False, seg[1:] == seg[:-1]]
+    same_r = np.r_[seg[:-1] == seg[1:], False]
+    ok_l = ~same_l | (w >= np.r_[-np.inf, w[:-1]])
+    ok_r = ~same_r | (w >= np.r_[w[1:], -np.inf])
+    cand = np.flatnonzero(ok_l & ok_r & (w >= floor) & (w > -np.inf))
+    top = int(np.argmax(w))
+    if top not in cand:
+        cand = np.r_[cand, top]
+    return cand[np.argsort(-w[cand], kind="stable")][:most]
+
+
+def grid_miss(values: np.ndarray, segment: np.ndarray | None = None) -> float:
+    """How far a smooth function sampled on a grid can exceed its samples between them: the
+    largest second difference within a segment (``h^2 |f''|``, eight times the parabola's
+    overshoot ``h^2 |f''| / 8``; non-finite samples ignored). A peak whose sample lies lower
+    than the limit by more than this cannot reach the limit between samples."""
+    v = np.asarray(values, float)
+    if v.size < 3:
+        return 0.0
+    seg = np.zeros(v.size, int) if segment is None else np.asarray(segment)
+    d2 = np.abs(v[2:] - 2.0 * v[1:-1] + v[:-2])
+    ok = (seg[2:] == seg[1:-1]) & (seg[1:-1] == seg[:-2]) & np.isfinite(d2)
+    return float(d2[ok].max(initial=0.0))

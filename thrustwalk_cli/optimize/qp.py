@@ -172,7 +172,10 @@ class ConvexQP:
     solve, then the most violated rows of all), and rows violated by its solution are added
     until none is; the solution of the working set then satisfies every row, so it is the
     optimum of the whole problem (the working set's feasible set contains the whole one).
-    An incompatible working set proves the whole problem infeasible.
+    An incompatible working set proves the whole problem infeasible; a working set whose
+    NNLS solution violates one of its own rows (round-off at an almost empty feasible set,
+    where NNLS no longer tells incompatible rows apart) is reported the same way: never a
+    point that violates a row.
     """
 
     def __init__(self, H: np.ndarray, A: np.ndarray, a_eq: np.ndarray | None = None):
@@ -228,6 +231,10 @@ class ConvexQP:
             bad = np.flatnonzero(viol > thr)
             if bad.size == 0:
                 break
+            bad = bad[~np.isin(bad, work)]
+            if bad.size == 0:  # the working set's solution violates its own rows
+                self.working = np.zeros(0, int)
+                return None, np.zeros(0, int)
             if bad.size > 8:
                 bad = bad[np.argpartition(-viol[bad], 8)[:8]]
             work = np.concatenate([work, bad])
@@ -235,6 +242,9 @@ class ConvexQP:
             if z is None:
                 self.working = np.zeros(0, int)
                 return None, np.zeros(0, int)
+        else:  # every row added and still violated: no optimum found
+            self.working = np.zeros(0, int)
+            return None, np.zeros(0, int)
         y = self.N @ z if yp is None else yp + self.N @ z
         x = self.LTinv @ (y - Lc)
         slack = mr - self.Mr @ z

@@ -4,12 +4,25 @@ from the model and measurement noise, beside the uncontrolled walker.
 
 References (``x_ref``: the zeta^- to reach at the end of each step) come from a profile over
 steps, ``[(step, value), ...]`` with steps increasing, held from each point to the next or
-ramped linearly between points: ``zeta`` values [kg^2 m^4/s^2] directly; ``speed`` values [m/s]
-through the steady state the controller itself would settle on (the minimum-effort schedule
-with ``x_{k+1} = x_k = x``, thrust limits and contact ignored so that a reference beyond them
-still has a value and is reported as saturated), whose average speed (step length over the
-zero-dynamics step time) is solved for x by Brent's method; ``nominal``: the zero-thrust fixed
-point zeta*_0 on every step (regulation to the nominal orbit).
+ramped linearly between points: ``zeta`` values [kg^2 m^4/s^2] directly; ``nominal``: the
+zero-thrust fixed point zeta*_0 on every step (regulation to the nominal orbit); ``speed``
+values [m/s] are tracked as speeds (:func:`speed_references`). A step's speed is the step
+length over its step time, and with shaped thrust the step time depends on the schedule, not
+on zeta^- alone: the same zeta^- walks at different speeds under different thrust. The
+controller's steady state at ``x_k = x_{k+1} = x`` is the QP's own least-effort thrust under
+the contact conditions (with their cutting planes), so its speed ``v(x)`` is exactly what the
+closed loop walks at once it has settled on ``x``; ``x_ref`` solves ``v(x_ref) = v_ref`` by a
+bracketed root find (Brent) over the interval of ``x`` that some thrust holds in steady state.
+This is exact at the fixed point and robust (a bracketed scalar root of a continuous function;
+a speed outside ``v`` of that interval is reported out of reach and held at the nearest end).
+The alternative, the step's speed inside the QP (the step time is convex in zeta(alpha), which
+is affine in ``(x_k, u)``, so a linearised SQP would do), would add a second equality to a
+problem of two or three variables and leave little room for the contact rows; it would also
+make the steady state depend on the linearisation. An earlier version used the unconstrained
+minimum-effort steady schedule for ``v(x)``: where contact shaped the QP's schedule, the walker
+settled at another speed (walker5, 0.8 m/s at mu = 0.7: 0.904 m/s) while the zeta^- error read
+1e-11. ``tracking_error`` is the error of the quantity asked for (speed for ``speed``, zeta^-
+otherwise); both errors are reported by name.
 
 Slow thrusters (``thrust_model`` first- or second-order): the controller uses the thruster's
 linear response (:class:`~thrustwalk_cli.control.step_model.ResponseThrust`); for comparison the
@@ -27,10 +40,24 @@ from scipy.optimize import brentq
 
 from ..contact.evaluate import check_contact_options
 from ..contact.terms import fit_terms, impact_data
-from ..controller.loop import Push, Run, run_loop
-from ..controller.planner import Planner, regulator
+from ..controller.loop import (
+    CONE_TOL,
+    REALISED_POLISH,
+    REALISED_SAMPLES,
+    REL_TOL,
+    Push,
+    Run,
+    run_loop,
+)
+from ..controller.planner import (
+    MAX_CUT_ROUNDS,
+    POLISH_ITERATIONS,
+    RATIO_TOL,
+    Planner,
+    regulator,
+)
 from ..controller.step_model import IdealThrust, ResponseThrust, Terms, ThrusterDynamics
-from ..errors import InputError
+from ..errors import ComputationError, InputError
 from ..hzd.zero_dynamics import Schedule, ZeroDynamics, limit_cycles
 from ..simulation.closed_loop import MAX_STEPS, SimConfig
 from ..walker import Walker, walker_from
@@ -80,46 +107,162 @@ def check_profile(profile, reference: str) -> None:
         raise InputError.param("profile", f"values must be > 0 {unit}")
 
 
-def steady_schedule(zd: ZeroDynamics, thrust: IdealThrust, weights: np.ndarray, x: float
-                    ) -> Schedule:
-    """The minimum-effort schedule holding ``x_{k+1} = x_k = x`` (no bounds, no contact):
-    ``u = W^-1 g ((1 - d2) x - V_0(alpha_f)) / (g^T W^-1 g)`` with ``g`` the columns of
-    ``Gamma_j(alpha_f)`` (SPEC 11)."""
-    g = thrust.parts(np.array([zd.alpha_f]))[3][0]
-    need = (1.0 - zd.delta_zero_sq) * x - float(zd.V0(np.array(zd.alpha_f)))
-    wi = 1.0 / weights
-    u = wi * g * need / float(g @ (wi * g))
-    md = len(thrust.driven)
-    force = np.zeros((1, thrust.n_int, zd.model.n_thrusters))
-    force[0][:, thrust.driven] = u.reshape(-1, md)
-    return Schedule(thrust.knots, force, np.zeros((1, thrust.n_int)))
+SPEED_SCAN = 9  # samples of the steady speed over the steady-feasible zeta^- range
+EDGE_MARGIN = 1e-4  # an out-of-reach speed's zeta^-: this far inside the range (of its half)
 
 
-def zeta_for_speed(zd: ZeroDynamics, thrust: IdealThrust, weights: np.ndarray, v: float,
-                   x0: float) -> float:
-    """zeta^- whose steady schedule (:func:`steady_schedule`) walks at ``v`` [m/s]."""
-    def speed(x: float) -> float | None:
-        lc = limit_cycles(zd, steady_schedule(zd, thrust, weights, x))[0]
-        return lc.speed if lc.exists else None
+@dataclass(frozen=True)
+class SpeedReference:
+    """The zeta^- reference of a speed reference (SPEC 11): ``zeta_minus`` [kg^2 m^4/s^2] is the
+    controller's own steady state walking at ``steady_speed`` [m/s] (``= speed`` to 1e-12 when
+    ``reachable``; otherwise the steady state closest to it, at an end of the range the
+    contact conditions and thrust limits allow), with its thrust ``thrust`` [N]."""
 
-    a = b = x0
-    sa = sb = speed(x0)
-    for _ in range(60):
-        if sb is not None and sb >= v:
-            break
-        a, sa, b = b, sb, b * 1.5
-        sb = speed(b)
-    for _ in range(60):
-        if sa is not None and sa <= v:
-            break
-        b, sb, a = a, sa, a / 1.5
-        sa = speed(a)
-    if sa is None or sb is None or not sa <= v <= sb:
-        raise InputError.param("profile", f"no walking orbit at {v:g} m/s for this gait "
-                                          "(the speed cannot be reached by any steady thrust)")
-    if sa == v:
-        return a
-    return float(brentq(lambda x: speed(x) - v, a, b, xtol=1e-12 * b, rtol=1e-12))
+    speed: float
+    zeta_minus: float
+    steady_speed: float
+    reachable: bool
+    thrust: tuple[float, ...]
+
+
+def steady_speed(planner: Planner, zd: ZeroDynamics, x: float
+                 ) -> tuple[float | None, np.ndarray | None]:
+    """Average speed [m/s] (step length over the zero-dynamics step time of the periodic orbit)
+    of the controller's steady state at zeta^- = ``x`` (:meth:`Planner.steady`: the thrust it
+    settles on, contact rows and cutting planes included), and that thrust; None when no
+    thrust holds ``x``."""
+    u, _ = planner.steady(x)
+    if u is None:
+        return None, None
+    th = planner.thrust
+    md = len(th.driven)
+    force = np.zeros((1, th.n_int, zd.model.n_thrusters))
+    force[0][:, th.driven] = np.asarray(u).reshape(-1, md)
+    lc = limit_cycles(zd, Schedule(th.knots, force, np.zeros((1, th.n_int))))[0]
+    return (float(lc.speed) if lc.exists else None), u
+
+
+def speed_references(planner: Planner, zd: ZeroDynamics, speeds: Sequence[float],
+                     x_nominal: float) -> dict[float, SpeedReference]:
+    """The zeta^- reference of each speed [m/s] (SPEC 11): the ``x`` whose steady state under
+    ``planner`` (ideal thrust on the control knots) walks at that speed, so that the closed
+    loop, which settles on that steady state (deadbeat in zeta^-), walks at the speed the user
+    asked for. The steady states exist on an interval of ``x`` (:meth:`Planner.
+    steady_range`, on the grid rows; the cutting planes shrink it a little); the steady speed
+    is sampled at ``SPEED_SCAN`` points over it, and a sign change of ``v(x) - v_ref`` between
+    neighbours (or, without one, between an end of the steady states, located by bisection,
+    and its nearest sample) is refined by Brent's method (the bracket nearest ``x_nominal``
+    when there are several). Without one the speed is out of reach: the
+    reference is the steady state whose speed is closest, at an end of the interval (located
+    by bisection on the steady state's existence), ``EDGE_MARGIN`` of the half interval
+    inside it."""
+    rng = planner.steady_range()
+    if rng is None:
+        raise InputError.param("profile", "no steady state holds any zeta^- within the contact "
+                                          "conditions and thrust limits: no speed can be "
+                                          "tracked")
+    lo, hi = rng
+    lo = max(lo, 1e-9 * hi)
+    pad = 1e-9 * (hi - lo)
+    xs = np.linspace(lo + pad, hi - pad, SPEED_SCAN)
+    vs = [steady_speed(planner, zd, float(x))[0] for x in xs]
+    ok = [i for i, v in enumerate(vs) if v is not None]
+    if not ok:
+        raise InputError.param("profile", "the controller has no steady state that walks "
+                                          "(contact conditions, thrust limits)")
+
+    def edge(inside: int, outside: int) -> tuple[float, float]:
+        """The last steady state between a sample that has one and one that has not."""
+        a, b = xs[inside], xs[outside]
+        va = vs[inside]
+        for _ in range(60):
+            m = 0.5 * (a + b)
+            vm = steady_speed(planner, zd, m)[0]
+            if vm is None:
+                b = m
+            else:
+                a, va = m, vm
+            if abs(b - a) <= 1e-10 * abs(a):
+                break
+        return float(a), float(va)
+
+    points = [(float(xs[i]), vs[i]) for i in ok]
+    ends: list[tuple[float, float]] = []
+
+    def locate_ends() -> None:
+        """The ends of the steady states (bisection where an end sample has none), added to
+        the points: a speed between an end and the nearest sample is bracketed there."""
+        if ends:
+            return
+        for i, out_i in ((ok[0], ok[0] - 1), (ok[-1], ok[-1] + 1)):
+            ends.append(edge(i, out_i) if 0 <= out_i < len(xs) else (float(xs[i]), vs[i]))
+        points[:] = sorted(set(points) | set(ends))
+
+    def brackets(v: float) -> list[tuple[float, float]]:
+        return [(p[0], q[0]) for p, q in zip(points[:-1], points[1:])
+                if (p[1] - v) * (q[1] - v) <= 0]
+
+    out = {}
+    for v in sorted(set(map(float, speeds))):
+        found = brackets(v)
+        if not found:
+            locate_ends()
+            found = brackets(v)
+        if found:
+            a, b = min(found, key=lambda br: abs(0.5 * (br[0] + br[1]) - x_nominal))
+
+            def miss(x: float, v: float = v) -> float:
+                vx = steady_speed(planner, zd, x)[0]
+                if vx is None:  # the steady states form an interval: only round-off gets here
+                    raise ComputationError(f"the controller's steady state at zeta^- = {x:.6g} "
+                                           f"kg^2 m^4/s^2 could not be computed")
+                return vx - v
+
+            fa, fb = miss(a), miss(b)
+            if fa == 0 or fb == 0:
+                x = a if fa == 0 else b
+            else:
+                x = brentq(miss, a, b, xtol=1e-13 * b, rtol=1e-12)
+            vx, u = steady_speed(planner, zd, x)
+            out[v] = SpeedReference(v, float(x), float(vx), True, tuple(map(float, u)))
+        else:
+            x_end, _ = min(ends, key=lambda e: abs(e[1] - v))
+            # inside the range by EDGE_MARGIN of it: at its very end the steady state is a
+            # single thrust, and the step that reaches it from just below would saturate
+            x = x_end + EDGE_MARGIN * (0.5 * (ends[0][0] + ends[1][0]) - x_end)
+            vx, u = steady_speed(planner, zd, x)
+            if vx is None:
+                x, vx = x_end, steady_speed(planner, zd, x_end)[0]
+                u = steady_speed(planner, zd, x)[1]
+            out[v] = SpeedReference(v, float(x), float(vx), False, tuple(map(float, u)))
+    return out
+
+
+def certificate_settings(planner: Planner) -> dict:
+    """What the per-step certificate checks and its tolerances (control.json settings)."""
+    return {
+        "predicted": "the plan's F_1(alpha) at both ends of the measurement band, its local "
+                     "extrema polished between the grid points by golden section on a "
+                     "Chebyshev series of the exact rows (its deviation on the grid, "
+                     "interpolation_error, added to the margins); the QP gets a cutting plane "
+                     "(the exact rows at that alpha) wherever a polished point violates a "
+                     "condition beyond its tolerance, until none does",
+        "certified": "polished min F^v >= eps - vertical_force_tolerance and polished max "
+                     "|F^h|/F^v <= mu + friction_ratio_tolerance over the measurement band, the "
+                     "QP feasible, the impact admissible",
+        "friction_ratio_tolerance": RATIO_TOL,
+        "vertical_force_tolerance": planner.tolerance["vertical_force"],
+        "zeta_tolerance": planner.tolerance["zeta"],
+        "polish_iterations": POLISH_ITERATIONS, "max_cut_rounds": MAX_CUT_ROUNDS,
+        "realised": f"F_1 on {REALISED_SAMPLES} samples of the step's dense output (every "
+                    f"integration piece end to end) and the simulation kernel's statistics, "
+                    f"the local extrema polished by golden section ({REALISED_POLISH} steps)",
+        "in_cone": f"realised min F^v >= eps - {CONE_TOL:g} x weight, max |F^h|/F^v <= mu + "
+                   f"{CONE_TOL:g} (the simulation's accuracy), impact ratio <= mu",
+        "flagged": f"the realised F_1 (81 samples) or zeta^- outside the prediction's band "
+                   f"over the measurement band, widened by {REL_TOL:g} x (weight + max "
+                   f"|F_1|) and the fit error bound",
+    }
 
 
 # ----------------------------------------------------------------------------- result
@@ -165,7 +308,15 @@ class ControlResult:
             "outside the prediction's error bound": self._steps_with(
                 lambda s: s.certificate["flagged"]),
             "uncertified": self._steps_with(lambda s: not s.certificate["certified"]),
+            "speed reference out of reach": self._steps_with(
+                lambda s: self.speed_refs is not None
+                and not self._speed_reachable(float(self.speed_refs[s.step - 1]))),
         } if mu is not None else {}
+
+    def _speed_reachable(self, v: float) -> bool:
+        sr = self.settings.get("speed_reference")
+        return sr is None or next((e["reachable"] for e in sr["values"] if e["speed"] == v),
+                                  True)
 
     @property
     def status(self) -> str:
@@ -187,21 +338,41 @@ class ControlResult:
         head = (f"completed {len(self.controlled.steps)} steps; " if self.success else "")
         return head + "; ".join(parts)
 
-    def tracking_errors(self) -> np.ndarray:
-        """``|x_{k+1} - x_ref,k| / x_ref,k`` per completed step [1]."""
+    def zeta_errors(self) -> np.ndarray:
+        """``|x_{k+1} - x_ref,k| / x_ref,k`` per completed step [1]: zeta^- at the impact that
+        ends step k against the zeta^- reference of that step."""
         return np.array([abs(s.x_next - s.x_ref) / s.x_ref for s in self.controlled.steps])
+
+    def speed_errors(self) -> np.ndarray | None:
+        """``|v_k - v_ref,k| / v_ref,k`` per completed step [1] (None without a speed
+        reference): the average speed of step k in the simulation (step length over step time)
+        against the speed reference of step k. The step in which the reference changes
+        starts from the previous reference's zeta^-, so its speed lies in between."""
+        if self.speed_refs is None:
+            return None
+        return np.array([abs(s.speed - v) / v for s, v in
+                         zip(self.controlled.steps, self.speed_refs)])
+
+    def tracking_errors(self) -> np.ndarray:
+        """Relative error per completed step [1] of the quantity the user asked to track:
+        :meth:`speed_errors` for a speed reference, :meth:`zeta_errors` otherwise."""
+        sp = self.speed_errors()
+        return sp if sp is not None else self.zeta_errors()
 
     # -- documents ---------------------------------------------------------------------
     def _step_entry(self, s, speed_ref) -> dict:
         names = self.walker.robot.thruster_names
         driven = self.settings["thrusters"]
         p = s.plan
+        zeta_err = abs(s.x_next - s.x_ref) / s.x_ref
+        speed_err = None if speed_ref is None else abs(s.speed - speed_ref) / speed_ref
         return {
             "step": s.step, "t_start": s.t_start, "t_impact": s.t_impact,
             "reference": {"zeta_minus": s.x_ref, "speed": speed_ref},
             "zeta_minus_start": s.x_true, "zeta_minus_measured": s.x_meas,
             "zeta_minus_end": s.x_next,
-            "tracking_error": abs(s.x_next - s.x_ref) / s.x_ref,
+            "tracking_error": speed_err if speed_err is not None else zeta_err,
+            "speed_error": speed_err, "zeta_minus_error": zeta_err,
             "step_time": s.step_time, "speed": s.speed,
             "thrust_commanded": _command(s.u, driven, self.settings["knot_fractions"],
                                          self.settings["thrust_model"]),
@@ -210,9 +381,12 @@ class ControlResult:
                                                                   s.thrust_at_impact)))},
             "qp": {"status": p.status, "active": p.active, "target_zeta_minus": p.x_target,
                    "time": p.qp_time, "iterations": p.iterations,
-                   "violation": p.violation},
+                   "violation": p.violation, "cut_rounds": p.cut_rounds,
+                   "cutting_planes_alpha": [float(a) for a in p.cut_alpha],
+                   "polish_time": p.polish_time},
             "pushed": s.pushed,
-            "predicted": {**s.predicted, "step_time": p.step_time},
+            "predicted": {**{k: _finite(v) if isinstance(v, float) else v
+                             for k, v in s.predicted.items()}, "step_time": p.step_time},
             "realised": {**s.realised, "impact_friction_ratio": s.impact_friction_ratio},
             "certificate": s.certificate,
         }
@@ -223,7 +397,9 @@ class ControlResult:
         steps = [self._step_entry(s, None if sp is None else float(sp[s.step - 1]))
                  for s in self.controlled.steps]
         err = self.tracking_errors()
+        zerr, serr = self.zeta_errors(), self.speed_errors()
         qp_times = [s.plan.qp_time for s in self.controlled.steps]
+        pol_times = [s.plan.polish_time for s in self.controlled.steps]
         out = {
             "schema_version": SCHEMA_VERSION,
             "units": UNITS,
@@ -243,11 +419,18 @@ class ControlResult:
                       "impact_reasons": self.planner.impact_reasons},
             "summary": {
                 "steps_completed": len(self.controlled.steps),
+                "tracked": self.settings["tracked"],
                 "final_tracking_error": float(err[-1]) if err.size else None,
                 "max_tracking_error_last_5": float(err[-5:].max()) if err.size else None,
+                "final_zeta_minus_error": float(zerr[-1]) if zerr.size else None,
+                "final_speed_error": (float(serr[-1]) if serr is not None and serr.size
+                                      else None),
                 "findings": self.findings(),
                 "qp_time_median": float(np.median(qp_times)) if qp_times else None,
                 "qp_time_max": float(np.max(qp_times)) if qp_times else None,
+                "polish_time_median": float(np.median(pol_times)) if pol_times else None,
+                "polish_time_max": float(np.max(pol_times)) if pol_times else None,
+                "cut_rounds_total": int(sum(s.plan.cut_rounds for s in self.controlled.steps)),
             },
             "uncontrolled": _run_summary(self.uncontrolled),
             "lag_ignored": _run_summary(self.naive, certificate=True),
@@ -259,9 +442,9 @@ class ControlResult:
         names = self.walker.robot.thruster_names
         header = ["step", col("t_start", "s"), col("reference_zeta", "kg^2 m^4/s^2"),
                   col("reference_speed", "m/s"), col("zeta_minus_measured", "kg^2 m^4/s^2"),
-                  col("zeta_minus_end", "kg^2 m^4/s^2"), "tracking_error",
-                  col("step_time", "s"), col("speed", "m/s"), "qp_status",
-                  col("qp_time", "s"), "pushed",
+                  col("zeta_minus_end", "kg^2 m^4/s^2"), "tracking_error", "speed_error",
+                  "zeta_minus_error", col("step_time", "s"), col("speed", "m/s"), "qp_status",
+                  col("qp_time", "s"), "cut_rounds", col("polish_time", "s"), "pushed",
                   col("predicted_min_vertical_force", "N"), "predicted_max_friction_ratio",
                   col("realised_min_vertical_force", "N"), "realised_max_friction_ratio",
                   "in_cone", "certified", "flagged",
@@ -273,8 +456,10 @@ class ControlResult:
         for e, s in zip(self.document()["steps"], self.controlled.steps):
             rows.append([e["step"], e["t_start"], e["reference"]["zeta_minus"],
                          e["reference"]["speed"], e["zeta_minus_measured"],
-                         e["zeta_minus_end"], e["tracking_error"], e["step_time"],
-                         e["speed"], e["qp"]["status"], e["qp"]["time"], e["pushed"],
+                         e["zeta_minus_end"], e["tracking_error"], e["speed_error"],
+                         e["zeta_minus_error"], e["step_time"], e["speed"], e["qp"]["status"],
+                         e["qp"]["time"], e["qp"]["cut_rounds"], e["qp"]["polish_time"],
+                         e["pushed"],
                          e["predicted"]["min_vertical_force"],
                          _finite(e["predicted"]["max_friction_ratio"]),
                          e["realised"]["min_vertical_force"],
@@ -286,6 +471,7 @@ class ControlResult:
         return {"control_steps": Table(header, rows, [
             "thrustwalk control: one row per controlled step (zeta^- measured at the impact "
             "that starts it, zeta_minus_end at the impact that ends it)",
+            "tracking_error: speed_error for a speed reference, zeta_minus_error otherwise",
             "command_i: the QP's thrust values, interval-major per driven thruster"])}
 
     def figure_data(self) -> dict:
@@ -531,13 +717,13 @@ def control(walker: Walker, *, reference: str = "speed",
         zd, kn, driven, mu=mu, eps=min_vertical_force, zeta_min=zeta_min,
         max_thrust=max_thrust, rate_limit=rate_limit, tracking_weight=tracking_weight,
         effort_weight=effort_weight, rate_weight=rate_weight, noise=noise, points=points,
-        terms=tm, thrust=None if dyn is None else ResponseThrust(zd, dyn, driven))
+        terms=tm, thrust=None if dyn is None else ResponseThrust(zd, dyn, driven),
+        continuous=True)
     settings_qp = planner.st
     lo, hi, zs0 = settings_qp.lo, settings_qp.hi, settings_qp.zeta_scale
     # references
-    ideal = IdealThrust(zd, kn, driven)
-    weights = np.diag(planner.W) if dyn is None else np.ones(len(driven))
     speed_refs = None
+    speed_plan: dict[float, SpeedReference] = {}
     if reference == "nominal":
         refs = np.full(steps, zs0)
     else:
@@ -546,10 +732,11 @@ def control(walker: Walker, *, reference: str = "speed",
             refs = vals
         else:
             speed_refs = vals
-            cache: dict[float, float] = {}
-            for v in np.unique(vals):
-                cache[float(v)] = zeta_for_speed(zd, ideal, weights, float(v), zs0)
-            refs = np.array([cache[float(v)] for v in vals])
+            steady = planner if dyn is None else Planner(zd, Terms(model, zd, fits),
+                                                         IdealThrust(zd, kn, driven),
+                                                         settings_qp)
+            speed_plan = speed_references(steady, zd, vals, zs0)
+            refs = np.array([speed_plan[float(v)].zeta_minus for v in vals])
     plant, plant_doc = _plant(walker, dict(plant_scale or {}))
     cfg = SimConfig(steps=1)
     t_max = 10.0 * float(lc0.step_time)
@@ -596,6 +783,17 @@ def control(walker: Walker, *, reference: str = "speed",
         "start_zeta_minus": common["x0"], "nominal_zeta_star": zs0,
         "nominal_speed": float(lc0.speed),
         "integrator": {"method": "compiled DOP853", "rtol": cfg.rtol, "atol": cfg.atol},
+        "tracked": "speed" if reference == "speed" else "zeta_minus",
+        "speed_reference": None if speed_refs is None else {
+            "method": "zeta^- reference = the zeta^- of the controller's own steady state "
+                      "(x_k = x_{k+1}, least effort under the contact conditions with their "
+                      "cutting planes, the thrust limits and zeta_min) whose average speed, "
+                      "step length over the zero-dynamics step time of that thrust, is the "
+                      "reference (Brent's method over the steady-feasible zeta^- range)",
+            "values": [{"speed": r.speed, "zeta_minus": r.zeta_minus,
+                        "steady_speed": r.steady_speed, "reachable": r.reachable,
+                        "steady_thrust": list(r.thrust)} for r in speed_plan.values()]},
+        "certificate": certificate_settings(planner),
     }
     return ControlResult(walker, settings, planner, refs, speed_refs, controlled, uncontrolled,
                          naive, plant_doc, tuple(warnings))
