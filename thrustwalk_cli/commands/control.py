@@ -13,6 +13,7 @@ from .common import (
     check_out,
     cli_errors,
     console,
+    ensure_kernel,
     load_walker,
     parse_formats,
     parse_knots,
@@ -20,6 +21,7 @@ from .common import (
     show_table,
     warn,
     write_result,
+    wrote_line,
 )
 from .options import (
     FormatsOpt,
@@ -137,6 +139,7 @@ def run_control(robot: str | None, gait: str | None, *, reference: str, profile:
         raise InputError(f"option --export: {export} is not a file path")
     walker = load_walker(robot, gait)
     runs = 2 + (thrust_model != "ideal")
+    ensure_kernel(quiet)
     with progress("controlled steps", runs * steps, quiet) as advance:
         result = control(
             walker, reference=reference, profile=prof, ramp=ramp, knots=kn, steps=steps,
@@ -156,8 +159,8 @@ def run_control(robot: str | None, gait: str | None, *, reference: str, profile:
         warn([f"control: {doc['status']}: {doc['reason']}"])
     if not quiet and json != "-":
         _table(doc)
-        console().print(f"wrote {out}/control.json, control_steps.csv and figures"
-                        + (f"; {export}" if export is not None else ""), markup=False)
+        console().print(wrote_line(out) + (f"; {export}" if export is not None else ""),
+                        markup=False)
     return doc
 
 

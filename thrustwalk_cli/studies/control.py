@@ -61,7 +61,7 @@ from ..errors import ComputationError, InputError
 from ..hzd.zero_dynamics import Schedule, ZeroDynamics, limit_cycles
 from ..simulation.closed_loop import MAX_STEPS, SimConfig
 from ..walker import Walker, walker_from
-from .records import SCHEMA_VERSION, Table, col, gait_record, robot_record, units
+from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 REFERENCES = ("speed", "zeta", "nominal")
 THRUST_MODELS = ("ideal", "first-order", "second-order")
@@ -275,6 +275,8 @@ class ControlResult:
     also never saturated, never met an infeasible QP, never left the friction cone and never
     left the prediction's error bound; else ``warning`` (or ``failed``), with ``reason``
     naming the steps."""
+
+    __repr__ = result_repr
 
     walker: Walker = field(repr=False)
     settings: dict
