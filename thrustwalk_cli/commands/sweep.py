@@ -69,7 +69,7 @@ def run_sweep_command(file: Path, out: Path | None, *, workers: int | None = Non
         warn(folder.notes)
         todo = len(sweep.tasks) - len(finished)
         if todo and sweep.study.prepare is not None and \
-                spec.settings.get("method") != "scipy":
+                dict(spec.settings).get("method") != "scipy":
             ensure_kernel(quiet)  # the study simulates: compile once here, with a word
         executor = sweep_executor(sweep, workers, scheduler, todo) if todo else None
         counts = {"ok": 0, "failed": 0}
