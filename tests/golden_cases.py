@@ -65,7 +65,8 @@ _add("sweep_thrust_torso_mass", ["sweep", "sweeps/thrust_torso_mass.yaml", "--wo
 
 # keys whose values are not results: wall-clock times and where things ran
 VOLATILE = {"provenance", "seconds", "wall_time", "qp_time", "qp_time_median", "qp_time_max",
-            "load_seconds", "compile_seconds", "created_utc", "executor", "elapsed"}
+            "load_seconds", "compile_seconds", "created_utc", "executor", "elapsed",
+            "polish_time", "polish_time_median", "polish_time_max"}
 
 
 VOLATILE_IN = {("qp", "time")}  # (parent key, key): the QP's wall-clock solve time
