@@ -4,11 +4,14 @@ processes or an existing Dask cluster."""
 from __future__ import annotations
 
 import hashlib
+import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
+from ..errors import InputError, Problem
 from .common import (
     check_out,
     cli_errors,
@@ -49,7 +52,8 @@ EPILOG = "Example: thrustwalk sweep sweeps/thrust_torso_mass.yaml --out out/thru
 
 def run_sweep_command(file: Path, out: Path | None, *, workers: int | None = None,
                       scheduler: str | None = None, quiet: bool = False,
-                      formats: set[str] | None = None, titles: bool = False) -> dict:
+                      formats: set[str] | None = None, titles: bool = False,
+                      robot: str | None = None, gait: str | None = None) -> dict:
     """Plain function behind the command; returns the ``sweep.json`` document it wrote."""
     from ..files import output
     from ..studies.sweep import load_sweep, run_sweep, sweep_executor
@@ -57,7 +61,14 @@ def run_sweep_command(file: Path, out: Path | None, *, workers: int | None = Non
     kinds = {"csv", "png", "pdf"} if formats is None else formats
     if out is not None:
         check_out(out, whole=False)
-    sweep = load_sweep(file)
+    if scheduler is not None:
+        from ..sweep.executors import quiet_dask_logs
+
+        quiet_dask_logs()
+    try:
+        sweep = load_sweep(file, robot=robot, gait=gait)
+    except InputError as exc:
+        raise InputError([_explicit_option(p) for p in exc.problems]) from None
     spec = sweep.spec
     out = Path("out") / spec.name if out is None else out
     check_out(out, whole=False)
@@ -96,7 +107,24 @@ def run_sweep_command(file: Path, out: Path | None, *, workers: int | None = Non
     if bad:
         more = f" (and {len(bad) - 1} more: sweep.json)" if len(bad) > 1 else ""
         warn([f"{len(bad)} point(s) failed; point {bad[0]['point']}: {bad[0]['reason']}{more}"])
+    lost = result.counts.lost
+    if lost:
+        more = f" (and {len(lost) - 1} more)" if len(lost) > 1 else ""
+        sys.stderr.write(f"error: {len(lost)} point(s) not run: point {sorted(lost)[0]}{more}: "
+                         f"{result.counts.lost_reason}; run the sweep again to retry\n")
     return doc
+
+
+def _explicit_option(p: Problem) -> Problem:
+    """A file the sweep file may not name (outside its folder): the message ends with the
+    parameter that takes it explicitly, in backquotes; here it becomes the option."""
+    from ..files.bundled import EXPLICITLY
+
+    head, sep, tail = p.message.partition(EXPLICITLY)
+    if not sep:
+        return p
+    tail = tail.replace("`robot`", "--robot PATH").replace("`gait`", "--gait PATH")
+    return replace(p, message=head + sep + tail)
 
 
 def _write_summary(result, folder, kinds: set[str], titles: bool) -> dict:
@@ -156,8 +184,16 @@ def register(app: typer.Typer) -> None:
                               "this process).")] = None,
         scheduler: Annotated[str | None, typer.Option(
             "--scheduler", help="Run on an existing Dask distributed cluster: its scheduler's "
-                                "address tcp://HOST:PORT (or tls://HOST:PORT); needs "
-                                "'thrustwalk[cluster]' here and on every worker.")] = None,
+                                "address tcp://HOST:PORT (or tls://HOST:PORT: certificates "
+                                "from Dask's configuration); needs 'thrustwalk[cluster]' "
+                                "here and on every worker.")] = None,
+        robot: Annotated[str | None, typer.Option(
+            "--robot", help="The base robot (file or bundled name) instead of the sweep "
+                            "file's robot: (which must be a bundled name or a file inside "
+                            "the sweep file's folder).")] = None,
+        gait: Annotated[str | None, typer.Option(
+            "--gait", help="The base gait (file or bundled name) instead of the sweep file's "
+                           "gait: (same rule as --robot).")] = None,
         formats: FormatsOpt = "csv,png,pdf",
         titles: TitlesOpt = False,
         quiet: QuietOpt = False,
@@ -165,7 +201,7 @@ def register(app: typer.Typer) -> None:
         with cli_errors(ctx):
             doc = run_sweep_command(file, out, workers=workers, scheduler=scheduler,
                                     quiet=quiet, formats=parse_formats(formats),
-                                    titles=titles)
+                                    titles=titles, robot=robot, gait=gait)
             if not doc["success"]:
                 raise typer.Exit(1)
 
