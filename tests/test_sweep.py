@@ -298,7 +298,7 @@ def test_outputs_of_a_sweep(cli, tmp_path, _cache_dir):
     assert doc["schema_version"] == 1 and doc["units"]["thrust"] == "N"
     assert doc["units"]["robot.MT"] == "kg" and doc["units"]["zeta_star"] == "kg^2 m^4/s^2"
     assert doc["counts"] == {"points": 6, "done": 6, "failed": 0, "skipped": 0, "computed": 6,
-                             "not_run": 0, "resubmitted": 0, "lost": 0}
+                             "not_run": 0, "resubmitted": 0}
     assert doc["executor"] == {"kind": "in-process", "workers": 1}
     assert doc["provenance"]["sweep"]["file"] == str(path)
     assert doc["wall_time"] > 0

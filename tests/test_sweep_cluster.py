@@ -616,16 +616,20 @@ class _Server:
         self.sock = socket.socket()
         self.sock.bind(("127.0.0.1", 0))
         self.sock.listen(8)
+        self.sock.settimeout(0.1)
         self.port = self.sock.getsockname()[1]
         self.conns: list = []
         self.mode = mode
+        self.stopped = threading.Event()
         self.thread = threading.Thread(target=self._serve, daemon=True)
         self.thread.start()
 
     def _serve(self) -> None:
-        while True:
+        while not self.stopped.is_set():
             try:
                 conn, _ = self.sock.accept()
+            except TimeoutError:
+                continue
             except OSError:
                 return
             self.conns.append(conn)
@@ -636,10 +640,11 @@ class _Server:
                     pass
 
     def close(self) -> None:
+        self.stopped.set()
+        self.thread.join(timeout=5)
         self.sock.close()
         for c in self.conns:
             c.close()
-        self.thread.join(timeout=5)
 
 
 def test_a_scheduler_address_that_is_not_dask_is_bad_input(tmp_path, cli):

@@ -357,7 +357,7 @@ def ensure_kernel(quiet: bool) -> dict | None:
     if kernel_status()["cached"]:
         return None
     if quiet:
-        return compile_kernel(on_wait=lambda line: None)
+        return compile_kernel()  # (cli_errors installs no wait reporter with --quiet)
     import threading
 
     sys.stderr.write(f"compiling the simulation kernel once for this machine (~"
@@ -375,8 +375,8 @@ def ensure_kernel(quiet: bool) -> dict | None:
             advance(steps - shown)
         ticker = threading.Thread(target=tick, daemon=True)
         ticker.start()
-        try:  # another process compiling it: this one says so, waits, and loads it
-            rec = compile_kernel(on_wait=_say)
+        try:  # another process compiling it: this one says so (the cache's wait reporter
+            rec = compile_kernel()  # of cli_errors: standard error), waits, and loads it
         finally:
             done.set()
             ticker.join()

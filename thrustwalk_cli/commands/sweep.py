@@ -32,7 +32,8 @@ base robot and gait, fixed settings, the axes (grid: a product; zip: lists varyi
 random: seeded uniform, normal or log-uniform samples) over study parameters (thrust [N],
 target_speed [m/s], kp [1/s^2], schedule.j, ...), robot parameters (robot.NAME) and gait
 parameters (gait.NAME), and the result fields to collect. Everything is checked before any
-point runs.
+point runs. The robot and gait a sweep file names are bundled ones or files inside its folder;
+--robot and --gait name files elsewhere.
 
 Each point is a task keyed by a content hash (robot and gait contents, settings, the point,
 tool version); its JSON is written to DIR/points/ atomically as it finishes. Running the same
@@ -80,7 +81,7 @@ def run_sweep_command(file: Path, out: Path | None, *, workers: int | None = Non
         warn(folder.notes)
         todo = len(sweep.tasks) - len(finished)
         if todo and sweep.study.prepare is not None and \
-                spec.settings.get("method") != "scipy":
+                dict(spec.settings).get("method") != "scipy":
             ensure_kernel(quiet)  # the study simulates: compile once here, with a word
         executor = sweep_executor(sweep, workers, scheduler, todo) if todo else None
         counts = {"ok": 0, "failed": 0}

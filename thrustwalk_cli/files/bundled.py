@@ -84,8 +84,8 @@ def resolve_inside(ref: str, kind: str, root: Path, base: Path | None = None,
         found = _bundled(ref, kind)
         if found is not None:
             return found
-        raise InputError(f"{ref}: no such file in {base} and no bundled {kind[:-1]} of that "
-                         f"name (bundled: {', '.join(bundled_names(kind))})")
+        raise InputError(f"{ref}: no such file and no bundled {kind[:-1]} of that name "
+                         f"(looked in {base}; bundled: {', '.join(bundled_names(kind))})")
     if p.is_absolute():
         raise InputError(f"{ref}: an absolute path, {rule}")
     target = Path(os.path.normpath(base / p))

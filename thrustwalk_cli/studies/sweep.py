@@ -295,8 +295,7 @@ class SweepResult:
             "counts": {"points": len(self.records), "done": self.done, "failed": self.failed,
                        "skipped": self.counts.skipped, "computed": self.counts.ok +
                        self.counts.failed, "not_run": self.missing,
-                       "resubmitted": self.counts.resubmitted,
-                       "lost": len(self.counts.lost)},
+                       "resubmitted": self.counts.resubmitted},
             "wall_time": self.counts.seconds,
             "executor": self.executor,
             "points_folder": "points",
