@@ -122,12 +122,7 @@ def written_by_thrustwalk(folder: Path) -> bool:
     if (folder / MANIFEST).is_file():
         return True
     for p in folder.glob("*.json"):
-        try:
-            if p.stat().st_size > 50e6:
-                continue
-            doc = json.loads(p.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            continue
+        doc = _read_json(p, 50)  # a regular file only (a FIFO would block), 50 MB at most
         if isinstance(doc, dict) and isinstance(doc.get("provenance"), dict) and \
                 doc["provenance"].get("tool") == "thrustwalk":
             return True

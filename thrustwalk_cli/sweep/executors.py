@@ -94,21 +94,40 @@ class LocalProcesses:
         self._pools: dict[int, futures.ProcessPoolExecutor] = {}  # id(future) -> its pool
         self._pool = self._start()
 
+    STARTS = 3  # attempts to start a pool whose processes die at once (killed from outside)
+
     def _start(self) -> futures.ProcessPoolExecutor:
+        """A new pool, its processes started now (before a progress bar's thread); a pool
+        whose processes die while starting is started again, up to ``STARTS`` times, then
+        :class:`ComputationError` (the finished points are kept)."""
         import multiprocessing
 
         method = "fork" if sys.platform.startswith("linux") else "spawn"
-        pool = futures.ProcessPoolExecutor(
-            max_workers=self.workers, mp_context=multiprocessing.get_context(method),
-            initializer=_watch_parent, initargs=(os.getpid(),))
-        pool.submit(int).result()  # start the processes now, before a progress bar's thread
-        return pool
+        for _ in range(self.STARTS):
+            pool = futures.ProcessPoolExecutor(
+                max_workers=self.workers, mp_context=multiprocessing.get_context(method),
+                initializer=_watch_parent, initargs=(os.getpid(),))
+            try:
+                pool.submit(int).result()
+                return pool
+            except futures.process.BrokenProcessPool:
+                pool.shutdown(wait=False, cancel_futures=True)
+        raise ComputationError(f"the {self.workers} local worker processes died as they "
+                               f"started, {self.STARTS} times (killed, or out of memory?); the "
+                               "finished points are kept: run the sweep again to resume")
 
     def describe(self) -> dict:
         return {"kind": self.kind, "workers": self.workers, "restarts": self.restarts}
 
     def submit(self, fn: Callable, task: Any) -> futures.Future:
-        f = self._pool.submit(fn, task)
+        """A future of ``fn(task)``; a pool broken since the last wait (a worker process
+        died) gives a future already failed with ``BrokenProcessPool``: the task is lost, as
+        those in flight, and the next wait restarts the pool."""
+        try:
+            f = self._pool.submit(fn, task)
+        except futures.process.BrokenProcessPool as exc:
+            f = futures.Future()
+            f.set_exception(exc)
         self._pools[id(f)] = self._pool
         f.add_done_callback(self._done.put)
         return f
