@@ -16,7 +16,7 @@ run in **chunks**: up to ``chunk`` consecutive points of one study in one task
 as if each point had been a task of its own (a point that raises gets the record it would have
 had alone; the others keep theirs). A chunk lost with its worker is submitted again point by
 point (each of its points counts the lost submission), so that a point that kills its worker
-is found and recorded as failed alone. Points that continue another (``after``) run one per
+is found and left without a record alone. Points that continue another (``after``) run one per
 task. :func:`chunk_size` is a rule for ``chunk``.
 """
 
@@ -31,7 +31,7 @@ from functools import partial
 from ..errors import ComputationError
 from .tasks import PointTask
 
-ATTEMPTS = 3  # submissions of a task whose worker is lost before it is recorded as failed
+ATTEMPTS = 3  # submissions of a task whose worker is lost before the run gives it up
 CHUNKS_PER_WORKER = 8  # chunk_size: at least this many chunks per worker (balance, progress)
 MOST_PER_CHUNK = 32  # chunk_size: at most this many points per chunk by default
 
