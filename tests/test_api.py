@@ -96,9 +96,9 @@ def test_walker_parses_each_file_once(monkeypatch, _cache_dir):
     seen: list[str] = []
     real = yamlio.load_yaml
 
-    def counting(path):
+    def counting(path, **kw):
         seen.append(Path(path).name)
-        return real(path)
+        return real(path, **kw)
 
     import thrustwalk_cli.files.gait_file as gf
     import thrustwalk_cli.files.robot_file as rf

@@ -18,6 +18,8 @@ from pathlib import Path
 
 import pytest
 
+from thrustwalk_cli.errors import InputError
+
 REPO = Path(__file__).parents[1]
 ROBOT = (REPO / "robots" / "three_link.yaml").read_text()
 GAIT = (REPO / "gaits" / "three_link_walk.yaml").read_text()
@@ -399,3 +401,159 @@ def test_bad_input(name, tmp_path, cli):
     assert _snapshot(out) == before, f"{name}: the output target changed"
     assert sorted(p.name for p in tmp_path.iterdir()) == listing, \
         f"{name}: something was written beside the target"
+
+
+# -- files a sweep file names, and files that are not of the expected kind (issue 30) ------------
+SECRET = "root:$6$SECRETHASH0123:19000:0:99999:7:::\ndaemon:*:19000:0:99999:7:::\n"
+SWEEP = """\
+name: s
+study: limit-cycle
+robot: three_link
+gait: GAIT
+grid:
+  thrust: {values: [0, -10]}
+collect: [speed]
+"""
+
+
+def _one_error(res, start: str) -> str:
+    """Exit 2, exactly one line on standard error, starting with ``start``, no traceback."""
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert res.exit_code == 2 and len(lines) == 1, res.stderr
+    assert lines[0].startswith(start), lines[0]
+    assert "Traceback" not in res.stderr + res.stdout
+    return lines[0]
+
+
+@pytest.mark.parametrize("how", ["dotdot-to-root", "dotdot", "absolute"])
+def test_a_sweep_file_cannot_name_a_file_outside_its_folder(how, cli, tmp_path, monkeypatch):
+    """``gait: ../../../../etc/passwd``-style paths, a ``..`` to a file beside the folder and
+    an absolute path are refused at the key's line, unread: nothing of the file is shown (on
+    main the secret's lines came back as "unknown key" errors), no folder is created."""
+    monkeypatch.chdir(tmp_path)
+    folder = tmp_path / "project" / "sweeps"
+    folder.mkdir(parents=True)
+    secret = tmp_path / "project" / "shadow.yaml"
+    secret.write_text(SECRET)
+    ref = {"dotdot-to-root": "../" * len(folder.parts) + str(secret).lstrip("/"),
+           "dotdot": "../shadow.yaml", "absolute": str(secret)}[how]
+    assert (folder / ref).resolve() == secret.resolve()
+    sweep = folder / "s.yaml"
+    sweep.write_text(SWEEP.replace("GAIT", ref))
+    line = _one_error(cli("sweep", sweep, "--out", tmp_path / "o", "-q"),
+                      f"error: {sweep}:4: gait: {ref}: ")
+    assert "outside the folder" in line and "--gait PATH" in line
+    assert "SECRET" not in line and "root:" not in line and "daemon" not in line
+    assert not (tmp_path / "o").exists()
+
+
+def test_an_explicit_gait_may_be_anywhere_and_keeps_its_own_robot_rule(tmp_path, _cache_dir):
+    """The ``robot:`` of a gait that the sweep file names is confined to the sweep file's
+    folder (``robot: ../walker5.yaml`` from a subfolder is refused at the gait's line); the
+    same gait given explicitly (``gait=``, the command's ``--gait``) keeps the rule of every
+    gait file: its ``robot:`` relative to its own folder, ``..`` allowed (as design-gait
+    writes it for ``--out gaits``)."""
+    from thrustwalk_cli.studies.sweep import load_sweep
+
+    data = Path(__file__).parent / "data"
+    (tmp_path / "walker5.yaml").write_text((data / "walker5.yaml").read_text())
+    sub_ = tmp_path / "sweeps"
+    sub_.mkdir()
+    text = (data / "walker5_walk.yaml").read_text()
+    gait = sub_ / "walk.yaml"
+    gait.write_text(sub(text, "robot: walker5.yaml", "robot: ../walker5.yaml"))
+    sweep = sub_ / "s.yaml"
+    sweep.write_text(SWEEP.replace("robot: three_link", "robot: walk.yaml")
+                     .replace("GAIT", "walk.yaml"))
+    with pytest.raises(InputError) as err:  # the sweep's own robot: is a gait file
+        load_sweep(sweep)
+    assert str(err.value) == f"{gait.resolve()}: this is a gait file, not a robot file: give " \
+                             "it as the GAIT argument (a gait file or bundled gait name)"
+    with pytest.raises(InputError) as err:
+        load_sweep(sweep, robot=str(tmp_path / "walker5.yaml"))
+    (p,) = err.value.problems
+    assert (p.file, p.path) == (str(gait.resolve()), "robot")
+    assert p.line == text.splitlines().index("robot: walker5.yaml") + 1
+    assert p.message.startswith("../walker5.yaml: outside the folder")
+    s = load_sweep(sweep, robot=str(tmp_path / "walker5.yaml"), gait=str(gait))
+    assert s.spec.gait == str(gait.resolve()) and len(s.tasks) == 2
+
+
+@pytest.mark.parametrize("content, kind", [
+    (SECRET, "a mapping without any key of a gait file"),
+    ("root:x:0:0:root:/root:/bin/bash\nbin:x:1:1::/bin:/sbin/nologin\n",
+     "not a mapping of keys"),
+    ("id,name\n1,\t'secret'\n", "not a mapping of keys"),
+    ("password: [SECRET\n  other: x\n", "a mapping without any key of a gait file"),
+], ids=["shadow", "passwd", "csv", "broken-yaml"])
+def test_a_file_of_another_kind_is_named_never_quoted(content, kind, cli, tmp_path,
+                                                      monkeypatch):
+    """A file inside the sweep's folder that is not a gait file, named as ``gait:``: one line
+    naming the file and the kind, none of its content (its keys would have been "unknown
+    keys", its syntax errors would have quoted it); the same as the ROBOT argument."""
+    monkeypatch.chdir(tmp_path)
+    notes = tmp_path / "notes.yaml"
+    notes.write_text(content)
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text(SWEEP.replace("GAIT", "notes.yaml"))
+    line = _one_error(cli("sweep", sweep, "--out", tmp_path / "o", "-q"),
+                      f"error: {notes}: not a gait file: its top level is {kind}")
+    res = cli("compile", notes)
+    line2 = _one_error(res, f"error: {notes}: not a robot file: its top level is "
+                            f"{kind.replace('gait', 'robot')}")
+    for text in (line, line2):
+        shown = text.split(str(notes), 1)[1]
+        assert "SECRET" not in shown and "root" not in shown and "secret" not in shown
+
+
+def _run_limited(args, tmp_path, timeout: float = 60):
+    """The CLI in a subprocess, bounded in time and in memory (a file read until memory runs
+    out must not take the machine with it)."""
+    import os
+    import resource
+    import subprocess
+    import sys
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))
+
+    return subprocess.run([sys.executable, "-m", "thrustwalk_cli", *map(str, args)],
+                          capture_output=True, text=True, timeout=timeout, cwd=tmp_path,
+                          preexec_fn=limit, env=dict(os.environ, MPLBACKEND="Agg"))
+
+
+@pytest.mark.parametrize("what", ["sweep-dev-zero", "sweep-fifo", "uncertainty-dev-zero",
+                                  "uncertainty-fifo", "gait-fifo-in-sweep"])
+def test_special_files_are_refused_unread(what, tmp_path):
+    """Issue 30 item 9: ``/dev/zero`` (read until memory ran out) and a FIFO (an open that
+    blocked for ever) as the sweep file, the uncertainty file, or a gait a sweep file names:
+    one line, exit 2, at once; nothing is created."""
+    import os
+
+    fifo = tmp_path / "pipe.yaml"
+    os.mkfifo(fifo)
+    special = "/dev/zero" if what.endswith("dev-zero") else str(fifo)
+    if what.startswith("sweep"):
+        args = ["sweep", special, "--out", tmp_path / "o", "-q"]
+    elif what.startswith("uncertainty"):
+        args = ["robustness", "--uncertainty", special, "--out", tmp_path / "o", "-q"]
+    else:
+        (tmp_path / "s.yaml").write_text(SWEEP.replace("GAIT", "pipe.yaml"))
+        args = ["sweep", tmp_path / "s.yaml", "--out", tmp_path / "o", "-q"]
+    res = _run_limited(args, tmp_path)
+    lines = res.stderr.splitlines()
+    assert res.returncode == 2 and len(lines) == 1, res.stderr[-2000:]
+    kind = "a character device" if special == "/dev/zero" else "a FIFO (named pipe)"
+    assert lines[0] == f"error: {special if what != 'gait-fifo-in-sweep' else fifo}: is " \
+                       f"{kind}, not a regular file: thrustwalk reads only regular files"
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_file_above_the_size_limit_is_refused_unread(cli, tmp_path):
+    from thrustwalk_cli.files.yamlio import MAX_FILE_MB
+
+    big = tmp_path / "big.yaml"
+    with open(big, "wb") as fh:
+        fh.truncate(int(MAX_FILE_MB * 1e6) + 1)  # sparse: no disk used
+    _one_error(cli("sweep", big, "--out", tmp_path / "o", "-q"),
+               f"error: {big}: larger than {MAX_FILE_MB} MB")

@@ -144,7 +144,8 @@ def test_write_failures_fall_back_to_memory_and_leave_no_temporary(err, where, f
     assert model.cache_path is None
     assert len(model.notes) == 1 and os.strerror(err) in model.notes[0], model.notes
     _same_numbers(model, three_link)
-    left = [p.name for p in fresh_cache.iterdir()] if fresh_cache.exists() else []
+    left = [p.name for p in fresh_cache.iterdir() if not p.name.endswith(".py.lock")] \
+        if fresh_cache.exists() else []  # the entry's (empty) build lock stays
     assert left == [], f"temporary files left behind: {left}"
 
 
@@ -236,9 +237,11 @@ def test_cli_with_unusable_cache_warns_once_and_still_writes_results(tmp_path, c
 
 
 # -- concurrency -------------------------------------------------------------------------------
-def test_four_processes_compiling_a_new_robot_leave_one_valid_entry(tmp_path, fresh_cache):
-    """Four processes compile the same never-seen robot into one empty cache at once: all
-    succeed with identical numbers and exactly one valid entry remains (no temporaries)."""
+def test_four_processes_compiling_a_new_robot_build_it_once(tmp_path, fresh_cache):
+    """Four processes compile the same never-seen robot into one empty cache at once (issue
+    30 item 4): one derives it (SymPy), the others wait for its build lock, say so through
+    the cache's wait reporter, and load its entry; all have identical numbers and exactly one
+    valid entry remains (beside its lock file; no temporaries)."""
     src = Path(__file__).parents[1] / "robots" / "three_link.yaml"
     robot_file = tmp_path / "three_link_heavy.yaml"
     robot_file.write_text(src.read_text().replace("name: three_link", "name: three_link_heavy")
@@ -246,14 +249,18 @@ def test_four_processes_compiling_a_new_robot_leave_one_valid_entry(tmp_path, fr
     go = tmp_path / "go"
     script = textwrap.dedent(f"""
         import json, os, time
+        from thrustwalk_cli.model import cache, compiler
         from thrustwalk_cli.model.compiler import load_model
         from thrustwalk_cli.files.robot_file import load_robot
         robot = load_robot({str(robot_file)!r})
+        said = []
+        getattr(cache, "set_wait_reporter", id)(said.append)  # (id: before issue 30)
         while not os.path.exists({str(go)!r}):
             time.sleep(0.005)
         m = load_model(robot)
         q = [0.1, -0.2, 0.3]
-        print(json.dumps({{"notes": list(m.notes), "key": m.key,
+        print(json.dumps({{"notes": list(m.notes), "key": m.key, "said": said,
+                          "derived": compiler.COMPILES, "hit": m.cache_hit,
                           "D": m.D(q).tolist(), "G": m.G(q).tolist()}}))
     """)
     env = dict(os.environ, THRUSTWALK_CACHE_DIR=str(fresh_cache))
@@ -268,9 +275,98 @@ def test_four_processes_compiling_a_new_robot_leave_one_valid_entry(tmp_path, fr
         results.append(json.loads(out))
     assert all(r["notes"] == [] for r in results), [r["notes"] for r in results]
     assert all(r["D"] == results[0]["D"] and r["G"] == results[0]["G"] for r in results)
+    assert sorted(r["derived"] for r in results) == [0, 0, 0, 1], results
+    builder = next(r for r in results if r["derived"])
+    assert not builder["hit"] and builder["said"] == []
+    others = [r for r in results if not r["derived"]]
+    assert all(r["hit"] for r in others)
+    waited = [r["said"] for r in others if r["said"]]
+    assert waited, "nobody waited: the processes did not overlap"
+    assert all(s == ["another thrustwalk process is building the model of robot "
+                     "'three_link_heavy': waiting for it, then loading it"] for s in waited)
     files = sorted(x.name for x in fresh_cache.iterdir())
-    assert len(files) == 1 and files[0].startswith("three_link_heavy-"), files
+    assert len(files) == 2 and files[0].startswith("three_link_heavy-"), files
+    assert files[1] == files[0] + ".lock"
     assert cache.verify_entry(fresh_cache / files[0], results[0]["key"]) is None
+
+
+TINY = "def f(x):\n    return x * x + 1.0\n"
+# a small module whose numba compile takes about a second (the processes overlap)
+SMALL_JIT = """import numpy as np
+def g(a):
+    s = 0.0
+    for i in range(a.shape[0]):
+        s += np.sin(a[i]) * np.cos(a[i]) + np.exp(-a[i] * a[i])
+    return s
+def h(a):
+    b = np.empty_like(a)
+    for i in range(a.shape[0]):
+        b[i] = g(a[i:]) + np.tanh(a[i])
+    return b
+def f(x):
+    a = np.linspace(0.0, x, 16)
+    return h(a).sum() * 0.0 + x * x + 1.0
+"""
+SMALL_JIT_NAMES = {"g": "float64(float64[:])", "h": "float64[:](float64[:])",
+                   "f": "float64(float64)"}
+
+
+def test_three_processes_compiling_one_jit_module_compile_it_once(tmp_path, fresh_cache):
+    """The numba modules (the simulation kernel) are built under the same lock: three
+    processes loading a new small jit module at once: numba compiles it in one, the others
+    wait (told through ``on_wait``) and load its machine code from the cache."""
+    go = tmp_path / "go"
+    script = textwrap.dedent(f"""
+        import json, os, time
+        import numba
+        from thrustwalk_cli.model import jit
+        said = []
+        while not os.path.exists({str(go)!r}):
+            time.sleep(0.005)
+        import inspect
+        kw = (dict(what="the test module", on_wait=said.append)
+              if "on_wait" in inspect.signature(jit.load).parameters else {{}})
+        jm = jit.load("locktest", {SMALL_JIT!r}, {SMALL_JIT_NAMES!r}, **kw)
+        print(json.dumps({{"hit": jm.cache_hit, "said": said, "f2": jm.module.f(2.0),
+                          "note": jm.note}}))
+    """)
+    env = dict(os.environ, THRUSTWALK_CACHE_DIR=str(fresh_cache))
+    procs = [subprocess.Popen([sys.executable, "-c", script], env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(3)]
+    time.sleep(1.5)  # numba imported in each
+    go.touch()
+    results = []
+    for i, p in enumerate(procs):
+        out, err = p.communicate(timeout=180)
+        assert p.returncode == 0, f"process {i} failed:\n{err}"
+        results.append(json.loads(out))
+    assert all(r["f2"] == 5.0 and r["note"] == "" for r in results)
+    assert sorted(r["hit"] for r in results) == [False, True, True], results
+    waited = [r["said"] for r in results if r["said"]]
+    assert waited and all(s == ["another thrustwalk process is building the test module: "
+                                "waiting for it, then loading it"] for s in waited)
+
+
+def test_a_folder_in_place_of_an_entry_or_its_lock_is_left_alone(fresh_cache, three_link):
+    """A folder where a jit module's file should be is reported and left as it is (the
+    module goes to a private folder for this process); a folder where a model's lock file
+    should be costs the lock, never the build."""
+    from thrustwalk_cli.model import jit
+
+    names = {"f": "float64(float64)"}
+    entry = jit.entry_path("probe", TINY, names)
+    (entry / "mine").mkdir(parents=True)
+    (entry / "mine" / "notes.txt").write_text("keep me\n")
+    path, note = jit._place("probe", TINY, names, False)
+    assert path.parent == jit._private_folder() and path.is_file()
+    assert f"cache entry {entry} is a folder, left as it is" in note
+    assert (entry / "mine" / "notes.txt").read_text() == "keep me\n"
+    model_entry = cache.entry_path(three_link.robot.name, three_link.key)
+    cache.lock_path(model_entry).mkdir(parents=True)
+    model = load_model(three_link.robot)
+    assert not model.cache_hit and model.notes == () and model.cache_path == model_entry
+    _same_numbers(model, three_link)
+    assert cache.lock_path(model_entry).is_dir()
 
 
 def test_compiled_simulation_runs_with_an_unusable_cache(fresh_cache, walker3, monkeypatch):

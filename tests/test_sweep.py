@@ -386,6 +386,76 @@ def test_a_half_written_point_file_is_never_read(tmp_path, _cache_dir):
     assert [r["fields"] for r in rerun.records] == [r["fields"] for r in res.records]
 
 
+def test_resume_verifies_every_point_file(cli, tmp_path, _cache_dir, monkeypatch):
+    """Issue 30 item 11: a folder in place of a point file, a truncated point file and a
+    hand-edited one (same key, another value, the JSON still valid) are each recomputed on
+    resume, with a warning naming the point; the folder is moved aside, not deleted; the
+    resumed records equal those of the first run (each point computed again from scratch),
+    and nothing stops the resume."""
+    monkeypatch.chdir(tmp_path)
+    path = sweep_file(tmp_path, SMALL)
+    out = tmp_path / "out"
+    assert cli("sweep", path, "--out", out, "--workers", "1", "-q").exit_code == 0
+    table = pd.read_csv(out / "results.csv")
+    keys = list(table["key"])
+    first = {k: json.loads((out / "points" / f"{k}.json").read_text()) for k in keys}
+    folder_point, truncated, edited = (out / "points" / f"{keys[i]}.json" for i in (1, 3, 4))
+    folder_point.unlink()
+    (folder_point / "inside").mkdir(parents=True)
+    truncated.write_text(truncated.read_text()[:-40])
+    rec = json.loads(edited.read_text())
+    rec["fields"]["zeta_star"] *= 1.5  # same key, another value: a hand edit
+    edited.write_text(json.dumps(rec, indent=2))
+    res = cli("sweep", path, "--out", out, "--workers", "1", "-q")
+    assert res.exit_code == 0, res.stderr
+    lines = res.stderr.splitlines()
+    assert len(lines) == 3, lines
+    assert lines[0].startswith("warning: point 1: ") and "is a folder" in lines[0]
+    assert lines[1].startswith("warning: point 3: ") and "truncated" in lines[1]
+    assert lines[2].startswith("warning: point 4: ") and "checksum" in lines[2]
+    assert all(line.endswith("the point runs again") for line in lines)
+    assert (out / "points" / f"{keys[1]}.json.moved-aside" / "inside").is_dir()
+    doc = json.loads((out / "sweep.json").read_text())
+    assert doc["counts"]["computed"] == 3 and doc["counts"]["skipped"] == 3
+    again = {k: json.loads((out / "points" / f"{k}.json").read_text()) for k in keys}
+    strip = lambda r: {k: v for k, v in r.items() if k not in ("seconds", "sha256")}  # noqa
+    assert [strip(again[k]) for k in keys] == [strip(first[k]) for k in keys]
+    assert pd.read_csv(out / "results.csv").equals(table)
+
+
+def test_a_lost_task_is_never_recorded_and_runs_again(tmp_path):
+    """Issue 30 item 3: a point whose task is lost every time (it kills its worker process)
+    gets no record (never a failed point) and the run says which; a later run tries it
+    again."""
+    from thrustwalk_cli.sweep.executors import LocalProcesses
+    from thrustwalk_cli.sweep.runner import run_tasks
+
+    tasks = _toy_tasks(8)
+    got: dict[str, dict] = {}
+    ex = LocalProcesses(2)
+    try:
+        counts = run_tasks(tasks, _always_crash_5, ex, got, lambda r: None)
+    finally:
+        ex.close()
+    assert counts.lost == [5] and "lost 3 times" in counts.lost_reason
+    assert sorted(got) == sorted(t.key for t in tasks if t.index != 5)
+    assert [got[t.key]["status"] for t in tasks if t.index != 5] == \
+        ["ok", "ok", "ok", "failed", "ok", "ok", "ok"]  # point 3 raises: a failed record
+    again: dict[str, dict] = dict(got)
+    counts = run_tasks(tasks, _toy_point, ex := LocalProcesses(2), again, lambda r: None)
+    ex.close()
+    assert counts.ok == 1 and counts.skipped == 7 and again["toy-key-005"]["fields"] == \
+        {"y": 25.0}
+
+
+def _always_crash_5(task) -> dict:
+    import os
+
+    if dict(task.values)["x"] == 5.0:
+        os._exit(1)
+    return _toy_point(task)
+
+
 def test_a_second_run_into_a_running_sweep_is_refused(tmp_path, _cache_dir):
     import thrustwalk_cli as tw
     from thrustwalk_cli.files.output import SweepFolder

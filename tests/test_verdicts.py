@@ -172,10 +172,12 @@ def test_walkable_means_contact_feasible_on_a_users_robot(tmp_path, cli, monkeyp
 
 def test_walkable_in_a_limit_cycle_sweep_is_the_feasibility_verdict(tmp_path, cli):
     sweep = tmp_path / "s.yaml"
-    sweep.write_text(f"name: s\nstudy: limit-cycle\nrobot: {WALKER5}\ngait: {WALKER5_WALK}\n"
+    sweep.write_text("name: s\nstudy: limit-cycle\nrobot: walker5.yaml\ngait: walk.yaml\n"
                      "grid:\n  thrust: {values: [0, -2, -6]}\n"
                      "collect: [walkable, contact_feasible, max_friction_ratio]\n")
-    res = cli("sweep", sweep, "--out", tmp_path / "out", "-q", "--workers", "1")
+    # files outside the sweep file's folder are named on the command line (issue 30)
+    res = cli("sweep", sweep, "--out", tmp_path / "out", "-q", "--workers", "1",
+              "--robot", WALKER5, "--gait", WALKER5_WALK)
     assert res.exit_code == 0, res.output
     import csv
 

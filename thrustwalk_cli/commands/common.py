@@ -123,7 +123,11 @@ def cli_errors(ctx: typer.Context | None = None) -> Iterator[None]:
     import os
     import warnings
 
+    from ..model import cache
+
     token = _CTX.set(ctx)
+    quiet = bool(ctx is not None and ctx.params.get("quiet"))
+    reporter = cache.set_wait_reporter(None if quiet else _say)  # waits for another build
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # overflow etc. are checked
@@ -154,6 +158,12 @@ def cli_errors(ctx: typer.Context | None = None) -> Iterator[None]:
         raise typer.Exit(1) from None
     finally:
         _CTX.reset(token)
+        cache.set_wait_reporter(reporter)
+
+
+def _say(line: str) -> None:
+    """One line on standard error (what a command says while it waits or compiles)."""
+    sys.stderr.write(line + "\n")
 
 
 MAX_VALUES = 10_000  # values in one sweep option
@@ -347,7 +357,7 @@ def ensure_kernel(quiet: bool) -> dict | None:
     if kernel_status()["cached"]:
         return None
     if quiet:
-        return compile_kernel()
+        return compile_kernel()  # (cli_errors installs no wait reporter with --quiet)
     import threading
 
     sys.stderr.write(f"compiling the simulation kernel once for this machine (~"
@@ -365,12 +375,15 @@ def ensure_kernel(quiet: bool) -> dict | None:
             advance(steps - shown)
         ticker = threading.Thread(target=tick, daemon=True)
         ticker.start()
-        try:
-            rec = compile_kernel()
+        try:  # another process compiling it: this one says so (the cache's wait reporter
+            rec = compile_kernel()  # of cli_errors: standard error), waits, and loads it
         finally:
             done.set()
             ticker.join()
     secs = rec["seconds"]
+    if rec["cache_hit"]:
+        _say("loaded the simulation kernel another process compiled")
+        return rec
     sys.stderr.write("compiled the simulation kernel" + (f" in {secs:.1f} s" if secs else "")
                      + (f" ({rec['note']})" if rec["note"] else "") + "\n")
     return rec

@@ -122,6 +122,10 @@ def run_robustness_command(
     if workers is not None and not 1 <= workers <= 1024:
         raise InputError(f"option --workers: must be 1 to 1024, got {workers}")
     check_out(out, whole=False, json=json)
+    if scheduler is not None:
+        from ..sweep.executors import quiet_dask_logs
+
+        quiet_dask_logs()
     walker = load_walker(robot, gait)
     plan = plan_robustness(
         walker, push_impulse=impulses, push_phase=phases, strategy=strategies, steps=steps,
@@ -138,7 +142,7 @@ def run_robustness_command(
                                       "study": "robustness", "points": len(plan.tasks)},
                                 records="trials")
     try:
-        finished = folder.finished(t.key for t in plan.tasks)
+        finished = folder.finished((t.key for t in plan.tasks), label="trial")
         warn(folder.notes)
         todo = len(plan.tasks) - len(finished)
         if todo:

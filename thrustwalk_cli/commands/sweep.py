@@ -4,11 +4,14 @@ processes or an existing Dask cluster."""
 from __future__ import annotations
 
 import hashlib
+import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
+from ..errors import InputError, Problem
 from .common import (
     check_out,
     cli_errors,
@@ -29,7 +32,8 @@ base robot and gait, fixed settings, the axes (grid: a product; zip: lists varyi
 random: seeded uniform, normal or log-uniform samples) over study parameters (thrust [N],
 target_speed [m/s], kp [1/s^2], schedule.j, ...), robot parameters (robot.NAME) and gait
 parameters (gait.NAME), and the result fields to collect. Everything is checked before any
-point runs.
+point runs. The robot and gait a sweep file names are bundled ones or files inside its folder;
+--robot and --gait name files elsewhere.
 
 Each point is a task keyed by a content hash (robot and gait contents, settings, the point,
 tool version); its JSON is written to DIR/points/ atomically as it finishes. Running the same
@@ -49,7 +53,8 @@ EPILOG = "Example: thrustwalk sweep sweeps/thrust_torso_mass.yaml --out out/thru
 
 def run_sweep_command(file: Path, out: Path | None, *, workers: int | None = None,
                       scheduler: str | None = None, quiet: bool = False,
-                      formats: set[str] | None = None, titles: bool = False) -> dict:
+                      formats: set[str] | None = None, titles: bool = False,
+                      robot: str | None = None, gait: str | None = None) -> dict:
     """Plain function behind the command; returns the ``sweep.json`` document it wrote."""
     from ..files import output
     from ..studies.sweep import load_sweep, run_sweep, sweep_executor
@@ -57,7 +62,14 @@ def run_sweep_command(file: Path, out: Path | None, *, workers: int | None = Non
     kinds = {"csv", "png", "pdf"} if formats is None else formats
     if out is not None:
         check_out(out, whole=False)
-    sweep = load_sweep(file)
+    if scheduler is not None:
+        from ..sweep.executors import quiet_dask_logs
+
+        quiet_dask_logs()
+    try:
+        sweep = load_sweep(file, robot=robot, gait=gait)
+    except InputError as exc:
+        raise InputError([_explicit_option(p) for p in exc.problems]) from None
     spec = sweep.spec
     out = Path("out") / spec.name if out is None else out
     check_out(out, whole=False)
@@ -96,7 +108,24 @@ def run_sweep_command(file: Path, out: Path | None, *, workers: int | None = Non
     if bad:
         more = f" (and {len(bad) - 1} more: sweep.json)" if len(bad) > 1 else ""
         warn([f"{len(bad)} point(s) failed; point {bad[0]['point']}: {bad[0]['reason']}{more}"])
+    lost = result.counts.lost
+    if lost:
+        more = f" (and {len(lost) - 1} more)" if len(lost) > 1 else ""
+        sys.stderr.write(f"error: {len(lost)} point(s) not run: point {sorted(lost)[0]}{more}: "
+                         f"{result.counts.lost_reason}; run the sweep again to retry\n")
     return doc
+
+
+def _explicit_option(p: Problem) -> Problem:
+    """A file the sweep file may not name (outside its folder): the message ends with the
+    parameter that takes it explicitly, in backquotes; here it becomes the option."""
+    from ..files.bundled import EXPLICITLY
+
+    head, sep, tail = p.message.partition(EXPLICITLY)
+    if not sep:
+        return p
+    tail = tail.replace("`robot`", "--robot PATH").replace("`gait`", "--gait PATH")
+    return replace(p, message=head + sep + tail)
 
 
 def _write_summary(result, folder, kinds: set[str], titles: bool) -> dict:
@@ -156,8 +185,16 @@ def register(app: typer.Typer) -> None:
                               "this process).")] = None,
         scheduler: Annotated[str | None, typer.Option(
             "--scheduler", help="Run on an existing Dask distributed cluster: its scheduler's "
-                                "address tcp://HOST:PORT (or tls://HOST:PORT); needs "
-                                "'thrustwalk[cluster]' here and on every worker.")] = None,
+                                "address tcp://HOST:PORT (or tls://HOST:PORT: certificates "
+                                "from Dask's configuration); needs 'thrustwalk[cluster]' "
+                                "here and on every worker.")] = None,
+        robot: Annotated[str | None, typer.Option(
+            "--robot", help="The base robot (file or bundled name) instead of the sweep "
+                            "file's robot: (which must be a bundled name or a file inside "
+                            "the sweep file's folder).")] = None,
+        gait: Annotated[str | None, typer.Option(
+            "--gait", help="The base gait (file or bundled name) instead of the sweep file's "
+                           "gait: (same rule as --robot).")] = None,
         formats: FormatsOpt = "csv,png,pdf",
         titles: TitlesOpt = False,
         quiet: QuietOpt = False,
@@ -165,7 +202,7 @@ def register(app: typer.Typer) -> None:
         with cli_errors(ctx):
             doc = run_sweep_command(file, out, workers=workers, scheduler=scheduler,
                                     quiet=quiet, formats=parse_formats(formats),
-                                    titles=titles)
+                                    titles=titles, robot=robot, gait=gait)
             if not doc["success"]:
                 raise typer.Exit(1)
 

@@ -26,6 +26,7 @@ from .schema import (
     dict_of,
     expect_kind,
     field,
+    kind_check,
     list_of,
     mapping,
     null_or,
@@ -102,14 +103,15 @@ def load_gait(ref: str, parameters: Mapping[str, float] | None = None
     The gait's ``robot`` is resolved relative to the gait file. ``parameters``: numbers
     replacing the file's named ``parameters:``, as if edited into the file."""
     path = resolve(ref, "gaits")
-    return parse_gait(load_yaml(path), path, parameters)
+    return parse_gait(load_yaml(path, expect=kind_check("gait", GAIT_SCHEMA)), path, parameters)
 
 
 def load_gait_text(text: str, file: str, parameters: Mapping[str, float] | None = None
                    ) -> tuple[Gait, GaitSource]:
     """:func:`load_gait` for YAML text that is not (yet) a file; ``file`` names it in
     messages and anchors a relative ``robot:`` path."""
-    return parse_gait(load_yaml_text(text, file), Path(file), parameters)
+    return parse_gait(load_yaml_text(text, file, expect=kind_check("gait", GAIT_SCHEMA)),
+                      Path(file), parameters)
 
 
 def anchor_robot_ref(ref: str, gait_file: Path) -> str:
@@ -135,7 +137,7 @@ def parse_gait(doc, path: Path, parameters: Mapping[str, float] | None = None
     """Validate a parsed gait document (with ``parameters`` replaced, see :func:`load_gait`)
     against ``GAIT_SCHEMA`` (every problem at once)."""
     doc = override_parameters(doc, parameters)
-    expect_kind(doc, "gait")
+    expect_kind(doc, "gait", GAIT_SCHEMA)
     res = check(doc, GAIT_SCHEMA)
     res.raise_if_problems()
     d = res.data

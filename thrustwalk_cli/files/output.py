@@ -122,12 +122,7 @@ def written_by_thrustwalk(folder: Path) -> bool:
     if (folder / MANIFEST).is_file():
         return True
     for p in folder.glob("*.json"):
-        try:
-            if p.stat().st_size > 50e6:
-                continue
-            doc = json.loads(p.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            continue
+        doc = _read_json(p, 50)  # a regular file only (a FIFO would block), 50 MB at most
         if isinstance(doc, dict) and isinstance(doc.get("provenance"), dict) and \
                 doc["provenance"].get("tool") == "thrustwalk":
             return True
@@ -379,26 +374,42 @@ class SweepFolder:
     def point_path(self, key: str) -> Path:
         return self.target / self.records / f"{key[:20]}.json"
 
-    def finished(self, keys: Iterable[str]) -> dict[str, dict]:
-        """The records of the points ``keys`` already written (key -> record). A point file
-        that cannot be read or does not hold its key's record is ignored (the point runs
-        again and replaces it), with a note in ``notes``."""
+    def finished(self, keys: Iterable[str], label: str = "point") -> dict[str, dict]:
+        """The records of the points ``keys`` (in point order: ``label`` N is the N-th)
+        already written and verified (key -> record). A point file that does not verify runs
+        again and is replaced, with a note in ``notes`` naming the point: one that cannot be
+        read (truncated, not JSON, a special file), that does not hold its key's record, or
+        whose checksum (``sha256``, :func:`record_digest`, written with every record) does
+        not match its content (edited by hand) or is missing. A folder where a point file
+        should be is moved aside (``NAME.json.moved-aside``), never deleted."""
         out = {}
-        for key in keys:
+        bad: list[str] = []
+        for i, key in enumerate(keys):
             p = self.point_path(key)
-            if not p.exists():
+            if not os.path.lexists(p):
                 continue
-            rec = _read_json(p)
-            if rec is None or rec.get("key") != key or rec.get("status") not in ("ok",
-                                                                                 "failed"):
-                self.notes.append(f"{p}: not a point record of this sweep; the point runs "
-                                  "again")
+            if p.is_dir() and not p.is_symlink():
+                moved = _move_aside(p)
+                bad.append(f"{label} {i}: {p} is a folder, not a point file: moved aside to "
+                           f"{moved.name}; the {label} runs again")
+                continue
+            rec, why = _read_record(p, key)
+            if rec is None:
+                bad.append(f"{label} {i}: {p} {why}; the {label} runs again")
                 continue
             out[key] = rec
+        if len(bad) > MAX_NOTES:
+            more = len(bad) - MAX_NOTES + 1
+            bad = bad[:MAX_NOTES - 1] + [f"{more} more {label} files did not verify and run "
+                                         "again"]
+        self.notes.extend(bad)
         return out
 
     def write_point(self, record: dict) -> Path:
-        return write_json(self.point_path(record["key"]), record)
+        """Write a point's record with its checksum ``sha256`` (:func:`record_digest`)."""
+        rec = jsonable(record)
+        rec["sha256"] = record_digest(rec)
+        return write_json(self.point_path(record["key"]), rec)
 
     def path(self, name: str) -> Path:
         return self.target / name
@@ -409,13 +420,63 @@ class SweepFolder:
             self._fd = None
 
 
-def _read_json(path: Path) -> dict | None:
-    """A JSON object from ``path``, or None (missing, unreadable, not a JSON object)."""
+def _read_json(path: Path, limit_mb: float = 256) -> dict | None:
+    """A JSON object from ``path``, or None (missing, unreadable, not a regular file, above
+    ``limit_mb`` MB, not a JSON object)."""
+    from .yamlio import read_input
+
     try:
-        doc = json.loads(path.read_bytes().decode("utf-8"))
-    except (OSError, ValueError):
+        doc = json.loads(read_input(path, limit_mb).decode("utf-8"))
+    except (InputError, ValueError):
         return None
     return doc if isinstance(doc, dict) else None
+
+
+MAX_NOTES = 10  # notes on point files that did not verify, at most (then a count)
+_RECORD_KEYS = ("key", "index", "status", "reason", "fields", "document", "extra",
+                "next_start")
+
+
+def record_digest(record: dict) -> str:
+    """The checksum of a point record: the SHA-256 of its canonical JSON (sorted keys, exact
+    floats) without ``sha256`` itself and ``seconds`` (the wall time, the one field that
+    differs between runs of the same point)."""
+    body = {k: v for k, v in record.items() if k not in ("sha256", "seconds")}
+    return hashlib.sha256(json.dumps(jsonable(body), sort_keys=True,
+                                     separators=(",", ":")).encode()).hexdigest()
+
+
+def _read_record(path: Path, key: str) -> tuple[dict | None, str]:
+    """The verified record of point ``key`` in ``path``, or None and why not."""
+    from .yamlio import read_input
+
+    try:
+        raw = read_input(path, 256)
+    except InputError as exc:
+        return None, f"cannot be read ({exc.problems[0].message})"
+    try:
+        rec = json.loads(raw.decode("utf-8"))
+    except ValueError:
+        return None, "is not a whole JSON record (truncated or damaged)"
+    if not isinstance(rec, dict) or rec.get("key") != key or \
+            rec.get("status") not in ("ok", "failed") or \
+            any(k not in rec for k in _RECORD_KEYS):
+        return None, "does not hold this point's record"
+    if rec.get("sha256") != record_digest(rec):
+        return None, ("has no checksum" if "sha256" not in rec else
+                      "does not match its checksum (edited or damaged)")
+    return rec, ""
+
+
+def _move_aside(path: Path) -> Path:
+    """Rename ``path`` to ``NAME.moved-aside`` (``-2``, ``-3``, ... when taken)."""
+    n = 1
+    while True:
+        new = path.with_name(path.name + ".moved-aside" + (f"-{n}" if n > 1 else ""))
+        if not os.path.lexists(new):
+            os.rename(path, new)
+            return new
+        n += 1
 
 
 def _try_lock(folder: Path):

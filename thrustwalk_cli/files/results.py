@@ -7,6 +7,11 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..errors import InputError
+from .yamlio import read_input
+
+MAX_RESULT_MB = 256  # a result JSON above this is skipped (with a note), never read
+
 
 @dataclass(frozen=True)
 class ResultFile:
@@ -28,8 +33,11 @@ def read_results(folder: Path, problems: list[str] | None = None) -> list[Result
     for js in sorted(folder.rglob("*.json")):
         if js.name.startswith("."):
             continue  # run manifests and temporaries
-        try:
-            doc = json.loads(js.read_bytes().decode("utf-8"))
+        try:  # a regular file of sane size (a FIFO named *.json would block for ever)
+            doc = json.loads(read_input(js, MAX_RESULT_MB).decode("utf-8"))
+        except InputError as exc:
+            _note(problems, js, exc.problems[0].message)
+            continue
         except UnicodeDecodeError:
             _note(problems, js, "not UTF-8 text")
             continue

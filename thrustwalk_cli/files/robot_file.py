@@ -27,6 +27,7 @@ from .schema import (
     choice,
     expect_kind,
     field,
+    kind_check,
     list_of,
     mapping,
     matrix,
@@ -164,7 +165,7 @@ def load_robot(ref: str, parameters: Mapping[str, float] | None = None, *,
     expression ``e`` becomes ``(e) * factor``), applied before ``parameters`` (a plant that
     differs from a controller's model)."""
     path = resolve(ref, "robots")
-    doc = load_yaml(path)
+    doc = load_yaml(path, expect=kind_check("robot", ROBOT_SCHEMA))
     if scale:
         doc = _scaled(doc, dict(scale))
     return parse_robot(doc, path, parameters)
@@ -174,7 +175,8 @@ def load_robot_text(text: str, file: str, parameters: Mapping[str, float] | None
                     ) -> Robot:
     """:func:`load_robot` for the YAML text of a robot file (``file`` names it in messages),
     e.g. a robot file's content shipped to a worker process or machine."""
-    return parse_robot(load_yaml_text(text, file), Path(file), parameters)
+    return parse_robot(load_yaml_text(text, file, expect=kind_check("robot", ROBOT_SCHEMA)),
+                       Path(file), parameters)
 
 
 def parse_robot(doc: Document, path: Path, parameters: Mapping[str, float] | None = None
@@ -182,7 +184,7 @@ def parse_robot(doc: Document, path: Path, parameters: Mapping[str, float] | Non
     """Validate a parsed robot document (with ``parameters`` replaced, see :func:`load_robot`)
     against ``ROBOT_SCHEMA`` and build the :class:`Robot` (every problem at once)."""
     doc = override_parameters(doc, parameters)
-    expect_kind(doc, "robot")
+    expect_kind(doc, "robot", ROBOT_SCHEMA)
     res = check(doc, ROBOT_SCHEMA)
     res.raise_if_problems()
     d = res.data

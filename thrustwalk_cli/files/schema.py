@@ -512,21 +512,42 @@ KIND_USE = {
 }
 
 
-def expect_kind(doc: Document, kind: str) -> None:
-    """Refuse a thrustwalk file of another kind given as a ``kind`` file (a gait file passed
-    as the robot, say) with one line naming both kinds and where the file belongs, instead
-    of a list of unknown keys: the file has at least two top-level keys of another kind and
-    none of its own."""
+def expect_kind(doc: Document, kind: str, schema: Kind | None = None) -> None:
+    """Refuse a file that is not a ``kind`` file with one line naming the file and the kind,
+    never quoting its content (a file given in the wrong place, or any other file: its keys
+    and values would otherwise be echoed as unknown keys and bad values):
+
+    * a thrustwalk file of another kind (a gait file passed as the robot, say): at least two
+      top-level keys of another kind and none of its own; the line says where it belongs;
+    * with ``schema`` (the kind's key table), any file whose top level is not a mapping
+      holding at least one key of that table (``/etc/passwd``, a CSV, a JSON list).
+
+    A file with at least one key of its kind is the kind's, and its problems are reported
+    in detail. Called by :func:`~.yamlio.load_yaml` before any other problem of the file."""
     data = doc.data
-    if not isinstance(data, dict):
-        return
-    keys = set(data)
+    keys = set(data) if isinstance(data, dict) else set()
     if keys & set(KIND_KEYS.get(kind, ())):
         return
     for other, marks in KIND_KEYS.items():
         if other != kind and len(keys & set(marks)) >= 2:
             raise InputError(Problem(doc.file, None, "", f"this is a {other} file, not a "
                                      f"{kind} file: give it as {KIND_USE[other]}"))
+    if schema is None:
+        return
+    own = [f.key for f in schema.fields]
+    if not keys & set(own):
+        what = (f"a mapping without any key of a {kind} file" if isinstance(data, dict)
+                else "not a mapping of keys")
+        raise InputError(Problem(doc.file, None, "", (
+            f"not a {kind} file: its top level is {what} (keys such as "
+            f"{', '.join(own[:4])}; docs/files.md)")))
+
+
+def kind_check(kind: str, schema: Kind):
+    """``expect(doc)`` for :func:`~.yamlio.load_yaml`: :func:`expect_kind` of ``kind``."""
+    def expect(doc: Document) -> None:
+        expect_kind(doc, kind, schema)
+    return expect
 
 
 def check(

@@ -11,6 +11,7 @@ lines kept by :class:`SweepSource`.
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import replace
 from pathlib import Path
@@ -19,8 +20,8 @@ from typing import Any
 import numpy as np
 
 from ..description.sweep import DISTRIBUTIONS, Axis, SweepSpec
-from ..errors import InputError, Problem
-from .bundled import resolve
+from ..errors import InputError, Problem, param_problem
+from .bundled import EXPLICITLY, resolve, resolve_inside
 from .schema import (
     Kind,
     ValidationResult,
@@ -32,6 +33,7 @@ from .schema import (
     expect_kind,
     field,
     integer,
+    kind_check,
     list_of,
     mapping,
     null_or,
@@ -248,9 +250,13 @@ def sweep_schema(parameters: Kind | None = None) -> Kind:
         field("name", string(), "sweep name (letters, digits, _ and -)"),
         field("description", string(nonempty=False), "free text", default=""),
         field("study", choice(*STUDIES), "the study run at every point"),
-        field("robot", string(), "base robot: bundled name or path relative to this file"),
-        field("gait", null_or(string()), "base gait: bundled name or path relative to this "
-              "file (default: the robot's bundled gait; none for design-gait)", default=None),
+        field("robot", string(), "base robot: bundled name or a path relative to this file "
+              "that stays in its folder (absolute paths and paths leaving the folder are "
+              "refused: a robot elsewhere is given to the command instead)"),
+        field("gait", null_or(string()), "base gait: bundled name or a path relative to this "
+              "file that stays in its folder, as `robot`; the gait's own `robot:` must stay "
+              "in this folder too (default: the robot's bundled gait; none for design-gait)",
+              default=None),
         field("settings", settings, "study parameters held fixed at every point (see the "
               "study's table)", default={}),
         field("grid", dict_of(AXIS, key_name="axis"), "axes combined as a product (the last "
@@ -277,10 +283,17 @@ _SCHEDULE_AXIS = re.compile(r"schedule\.(\d+)")
 
 
 class SweepSource:
-    """Validated sweep data kept for the checks made after loading (line numbers included)."""
+    """Validated sweep data kept for the checks made after loading (line numbers included).
 
-    def __init__(self, res: ValidationResult):
+    ``root``: the sweep file's folder, inside which the files it names are read;
+    ``gait_inside``: the gait is a file the sweep file named (not a bundled gait, not one
+    given explicitly), so its own ``robot:`` reference is confined to ``root`` too."""
+
+    def __init__(self, res: ValidationResult, root: Path | None = None,
+                 gait_inside: bool = False):
         self.res = res
+        self.root = root
+        self.gait_inside = gait_inside
 
     def where(self, key: tuple, message: str) -> Problem:
         """A problem at key path ``key`` of the sweep file (a :data:`~..errors.Where`)."""
@@ -349,12 +362,19 @@ def _random_axis(name: str, a: dict, key: tuple, res: ValidationResult,
     return p
 
 
-def load_sweep_file(ref: str | Path) -> tuple[SweepSpec, SweepSource]:
+def load_sweep_file(ref: str | Path, robot: str | None = None, gait: str | None = None
+                    ) -> tuple[SweepSpec, SweepSource]:
     """Read and validate a sweep file: every key, the axes and their values, the settings
-    against the study's parameter table; the robot and gait resolved relative to the file and
-    read. Raises :class:`InputError` with every problem (``file:line: key.path: message``)."""
+    against the study's parameter table; the robot and gait resolved and read. Raises
+    :class:`InputError` with every problem (``file:line: key.path: message``).
+
+    The sweep file's ``robot:`` and ``gait:`` are bundled names or paths inside the sweep
+    file's folder (:func:`~.bundled.resolve_inside`: an absolute path or one leaving the folder
+    is refused at its line). ``robot`` / ``gait``: files or bundled names given explicitly by
+    the caller instead of the file's (a path relative to the working folder, as for every
+    command), replacing the file's keys."""
     path = Path(ref)
-    doc = load_yaml(path)
+    doc = load_yaml(path, expect=kind_check("sweep", SWEEP_SCHEMA))
     data = doc.data
     study = data.get("study") if isinstance(data, dict) else None
     table = STUDY_PARAMETERS.get(study) if isinstance(study, str) else None
@@ -449,24 +469,34 @@ def load_sweep_file(ref: str | Path) -> tuple[SweepSpec, SweepSource]:
     if d["gait"] is not None and study in WITHOUT_GAIT:
         problems.append(res.problem(("gait",), f"the {study} study designs the gait: remove "
                                                "`gait`"))
-    base = path.parent
-    robot = gait = None
+    if gait is not None and study in WITHOUT_GAIT:
+        problems.append(param_problem("gait", f"the {study} study designs the gait: it takes "
+                                              "no gait"))
+    root = path.parent
+    given = {"robot": robot, "gait": gait}
+    found: dict[str, Path | None] = {"robot": None, "gait": None}
+    how = {"robot": f"{EXPLICITLY} `robot`", "gait": f"{EXPLICITLY} `gait`"}
     for key, kind in (("robot", "robots"), ("gait", "gaits")):
-        if d[key] is None:
-            continue
         try:
-            found = resolve(d[key], kind, base=base).resolve()
+            if given[key] is not None:
+                found[key] = resolve(given[key], kind).resolve()
+            elif d[key] is not None:
+                found[key] = resolve_inside(d[key], kind, root, how=how[key]).resolve()
         except InputError as exc:
-            problems.append(res.problem((key,), str(exc)))
-            continue
-        robot, gait = (found, gait) if key == "robot" else (robot, found)
+            problems.append(param_problem(key, exc.problems[0].message)
+                            if given[key] is not None else
+                            res.problem((key,), exc.problems[0].message))
     if problems:
         raise InputError(sorted(problems, key=lambda p: p.line or 0))
+    robot_path, gait_path = found["robot"], found["gait"]
+    gait_inside = gait is None and gait_path is not None and \
+        _within(gait_path, root) and not _bundled_file(gait_path)
     rnd_axes = [a for a in axes if a.group == "random"]
     spec = SweepSpec(
-        name=d["name"], study=study, robot=str(robot), robot_text=read_source(robot),
-        gait=None if gait is None else str(gait),
-        gait_text=None if gait is None else read_source(gait),
+        name=d["name"], study=study, robot=str(robot_path),
+        robot_text=read_source(robot_path, "robot"),
+        gait=None if gait_path is None else str(gait_path),
+        gait_text=None if gait_path is None else read_source(gait_path, "gait"),
         settings=tuple(sorted(settings.items())), axes=tuple(axes),
         collect=tuple(d["collect"]), samples=rnd["samples"] if rnd_axes else 0,
         seed=rnd["seed"] if rnd_axes else 0, description=d["description"],
@@ -474,9 +504,30 @@ def load_sweep_file(ref: str | Path) -> tuple[SweepSpec, SweepSource]:
     if spec.count > MAX_POINTS:
         raise InputError(res.problem(("grid",), f"{spec.count} points: the limit is "
                                                 f"{MAX_POINTS}"))
-    return spec, SweepSource(res)
+    return spec, SweepSource(res, root, gait_inside)
 
 
-def read_source(path: str | Path) -> str:
-    """A robot or gait file's text (UTF-8), as :func:`load_yaml` reads it."""
-    return load_yaml(path).text
+def _within(p: Path, root: Path) -> bool:
+    real, top = Path(os.path.realpath(p)), Path(os.path.realpath(root))
+    return real == top or top in real.parents
+
+
+def _bundled_file(p: Path) -> bool:
+    from .bundled import _bundled_dirs
+
+    return any(_within(p, d) for kind in ("robots", "gaits") for d in _bundled_dirs(kind))
+
+
+def read_source(path: str | Path, kind: str | None = None) -> str:
+    """A robot or gait file's text (UTF-8), as :func:`load_yaml` reads it; ``kind``
+    (``robot`` or ``gait``): a file of another kind is refused without quoting it."""
+    expect = None
+    if kind == "robot":
+        from .robot_file import ROBOT_SCHEMA
+
+        expect = kind_check("robot", ROBOT_SCHEMA)
+    elif kind == "gait":
+        from .gait_file import GAIT_SCHEMA
+
+        expect = kind_check("gait", GAIT_SCHEMA)
+    return load_yaml(path, expect=expect).text

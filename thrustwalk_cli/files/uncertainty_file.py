@@ -19,7 +19,16 @@ from pathlib import Path
 from ..description.sweep import Axis
 from ..description.uncertainty import Uncertainty
 from ..errors import InputError, Problem
-from .schema import ValidationResult, check, dict_of, expect_kind, field, integer, mapping, string
+from .schema import (
+    ValidationResult,
+    check,
+    dict_of,
+    field,
+    integer,
+    kind_check,
+    mapping,
+    string,
+)
 from .sweep_file import RANDOM_AXIS, _random_axis
 from .yamlio import load_yaml
 
@@ -47,8 +56,7 @@ class UncertaintySource:
 def load_uncertainty(ref: str | Path) -> tuple[Uncertainty, UncertaintySource]:
     """Read and validate an uncertainty file; raises :class:`InputError` with every problem."""
     path = Path(ref)
-    doc = load_yaml(path)
-    expect_kind(doc, "uncertainty")
+    doc = load_yaml(path, expect=kind_check("uncertainty", UNCERTAINTY_SCHEMA))
     res = check(doc, UNCERTAINTY_SCHEMA, parameters_path=None)
     res.raise_if_problems()
     d = res.data

@@ -8,8 +8,10 @@ key path is recorded, so later checks can point at ``file:line: key.path``.
 from __future__ import annotations
 
 import hashlib
+import os
 import re
-from collections.abc import Iterable
+import stat
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,6 +24,7 @@ PathKey = str | int
 KeyPath = tuple[PathKey, ...]
 
 MAX_NODES = 1_000_000  # guards against alias bombs ("billion laughs")
+MAX_FILE_MB = 16  # [MB] an input file larger than this is refused unread (10^6 bytes a MB)
 MAX_DEPTH = 64  # nesting levels; the composer and converter recurse once per level
 
 _TAG = "tag:yaml.org,2002:"
@@ -220,10 +223,28 @@ def _check_depth(text: str, file: str, loader=yaml.SafeLoader) -> None:
 
 
 _FAST = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+_TOP_KEY = re.compile(r"^([A-Za-z_][A-Za-z0-9_.\-]*)[ \t]*:(?=[ \t]|$)", re.MULTILINE)
 
 
-def load_yaml_text(text: str, file: str = "<string>", *, raw: bytes | None = None) -> Document:
-    """Parse YAML ``text``; raises :class:`InputError` listing every problem found."""
+def _top_keys(text: str) -> dict[str, None] | None:
+    """The top-level keys of YAML text that does not parse, found line by line (``key:`` at
+    the start of a line): enough to tell which kind of file it was meant to be (None: no
+    line looks like a key)."""
+    return dict.fromkeys(_TOP_KEY.findall(text)) or None
+
+
+Expect = Callable[[Document], None]
+
+
+def load_yaml_text(text: str, file: str = "<string>", *, raw: bytes | None = None,
+                   expect: Expect | None = None) -> Document:
+    """Parse YAML ``text``; raises :class:`InputError` listing every problem found.
+
+    ``expect(doc)``: the check that the file is of the expected kind (raises
+    :class:`InputError` naming the kind, never quoting the content), made before any other
+    problem is reported: on the data as parsed, or, when the text is not valid YAML, on its
+    top-level keys found line by line. A file of another kind is thus never quoted in a
+    message (a syntax error or an unknown key of ``/etc/shadow`` would be)."""
     raw = text.encode("utf-8") if raw is None else raw
     digest = hashlib.sha256(raw).hexdigest()
     try:
@@ -236,7 +257,13 @@ def load_yaml_text(text: str, file: str = "<string>", *, raw: bytes | None = Non
             _check_depth(text, file)
             root = yaml.compose(text, Loader=yaml.SafeLoader)
         except yaml.YAMLError as exc:
+            if expect is not None:
+                expect(Document(file=file, text=text, data=_top_keys(text), sha256=digest))
             raise InputError([_syntax_problem(file, text, exc)]) from None
+        except InputError:
+            if expect is not None:
+                expect(Document(file=file, text=text, data=_top_keys(text), sha256=digest))
+            raise
     if root is None:
         raise InputError([Problem(file, None, "", "file is empty")])
     conv = _Converter(file)
@@ -245,26 +272,79 @@ def load_yaml_text(text: str, file: str = "<string>", *, raw: bytes | None = Non
     except _TooLarge as exc:
         msg = f"document too large (more than {MAX_NODES} nodes after alias expansion)"
         raise InputError([Problem(file, exc.line, "", msg)]) from None
+    doc = Document(file=file, text=text, data=data, sha256=digest, lines=conv.lines)
+    if expect is not None:
+        expect(doc)
     if conv.problems:
         raise InputError(conv.problems)
-    return Document(file=file, text=text, data=data, sha256=digest, lines=conv.lines)
+    return doc
 
 
-def load_yaml(path: str | Path) -> Document:
-    """Read and parse a YAML file (UTF-8); raises :class:`InputError` on any problem."""
+_SPECIAL = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
+            (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
+
+
+def read_input(path: str | Path, limit_mb: float = MAX_FILE_MB) -> bytes:
+    """The bytes of the regular file ``path``, at most ``limit_mb`` MB (10^6 bytes).
+
+    A missing file, a folder, a special file (a FIFO, a device such as ``/dev/zero``, a
+    socket: never read, so never a hang or an endless read) and a file above the limit are
+    an :class:`InputError` in one line naming the file. The file is opened without blocking
+    (a FIFO without a writer would block an ordinary open) and read up to the limit, so a
+    file that grows while read is refused too."""
     file = str(path)
+    limit = int(limit_mb * 1e6)
+
+    def bad(message: str) -> InputError:
+        return InputError([Problem(file, None, "", message)])
+
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0)
     try:
-        raw = Path(path).read_bytes()
+        fd = os.open(path, flags)
     except FileNotFoundError:
-        raise InputError([Problem(file, None, "", "file not found")]) from None
+        raise bad("file not found") from None
     except IsADirectoryError:
-        raise InputError([Problem(file, None, "", "is a directory, not a file")]) from None
+        raise bad("is a directory, not a file") from None
     except OSError as exc:
-        reason = exc.strerror or str(exc)
-        raise InputError([Problem(file, None, "", f"cannot read file: {reason}")]) from None
+        raise bad(f"cannot read file: {exc.strerror or exc}") from None
+    try:
+        st = os.fstat(fd)
+        if stat.S_ISDIR(st.st_mode):
+            raise bad("is a directory, not a file")
+        if not stat.S_ISREG(st.st_mode):
+            what = next((w for test, w in _SPECIAL if test(st.st_mode)), "not a regular file")
+            raise bad(f"is {what}, not a regular file: thrustwalk reads only regular files")
+        too_big = f"larger than {limit_mb:g} MB: not an input file of thrustwalk (the limit)"
+        if st.st_size > limit:
+            raise bad(too_big)
+        chunks, size = [], 0
+        while True:
+            chunk = os.read(fd, min(1 << 20, limit + 1 - size))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+            if size > limit:
+                raise bad(too_big)
+        return b"".join(chunks)
+    except OSError as exc:
+        raise bad(f"cannot read file: {exc.strerror or exc}") from None
+    finally:
+        os.close(fd)
+
+
+def load_yaml(path: str | Path, expect: Expect | None = None) -> Document:
+    """Read (:func:`read_input`: a regular file of at most ``MAX_FILE_MB`` MB) and parse a
+    YAML file (UTF-8); raises :class:`InputError` on any problem. ``expect``: as for
+    :func:`load_yaml_text`."""
+    file = str(path)
+    raw = read_input(path)
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
+        if expect is not None:
+            expect(Document(file=file, text="", data=_top_keys(
+                raw.decode("utf-8", "replace")), sha256=""))
         line = raw.count(b"\n", 0, exc.start) + 1
         raise InputError([Problem(file, line, "", "file is not valid UTF-8 text")]) from None
-    return load_yaml_text(text, file, raw=raw)
+    return load_yaml_text(text, file, raw=raw, expect=expect)

@@ -3,17 +3,26 @@
 An entry is one generated Python file whose first line records the key and the SHA-256 of
 the rest. Entries are written to a unique temporary file and renamed into place, so readers
 never see a partial file; an entry whose key or checksum does not match (stale, corrupted,
-truncated) is reported as a miss and rebuilt by the caller.
+truncated) is reported as a miss and rebuilt by the caller. A folder where an entry should be
+is never removed: the caller reports it and works without that entry.
+
+Building an entry is locked (:func:`build_lock`: ``ENTRY.lock`` beside it, ``flock``): of
+several processes that miss the same entry at once (four first runs, Dask workers sharing a
+cache), one builds it while the others wait, say so through :func:`report_wait`'s reporter,
+and then load what it built.
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import importlib.util
 import os
 import sys
 import tempfile
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from types import ModuleType
 
@@ -137,6 +146,81 @@ def module_from_source(source: str, key: str, label: str = "<memory>") -> Module
     module.__file__ = label
     exec(compile(source, label, "exec"), module.__dict__)  # our own generated code
     return module
+#: the longest wait [s] for another process's build of an entry; then this process builds too
+LOCK_WAIT_SECONDS = 900.0
+_REPORTER: list[Callable[[str], None] | None] = [None]
+
+
+def set_wait_reporter(fn: Callable[[str], None] | None) -> Callable[[str], None] | None:
+    """Who is told (one line) that this process waits for another one's build of a cache
+    entry (the command line prints it; the library itself never prints). Returns the
+    previous reporter."""
+    old, _REPORTER[0] = _REPORTER[0], fn
+    return old
+
+
+def report_wait(message: str) -> None:
+    """Tell the reporter of :func:`set_wait_reporter` (if any)."""
+    if _REPORTER[0] is not None:
+        _REPORTER[0](message)
+
+
+def lock_path(entry: Path) -> Path:
+    return entry.with_name(entry.name + ".lock")
+
+
+@contextlib.contextmanager
+def build_lock(entry: Path | None, what: str,
+               on_wait: Callable[[str], None] | None = None,
+               wait_seconds: float | None = None) -> Iterator[bool]:
+    """Hold the exclusive lock on building ``entry`` (``flock`` of ``ENTRY.lock`` beside it;
+    released when the holder exits, even by ``kill -9``). When another process holds it,
+    ``on_wait`` (default :func:`report_wait`) is told once, naming ``what`` is built, and
+    this process waits for it (at most ``wait_seconds``, default ``LOCK_WAIT_SECONDS``).
+    Yields whether the lock is held: False without ``fcntl`` (Windows), without an entry,
+    when the lock file cannot be made (an unusable cache folder, a folder in its place) or
+    after the longest wait; the caller then builds without it (as before the lock existed:
+    correct, only slower)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows
+        yield False
+        return
+    if entry is None:
+        yield False
+        return
+    lock = lock_path(entry)
+    try:
+        lock.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
+    except OSError:
+        yield False
+        return
+    try:
+        held = True
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            (on_wait or report_wait)(f"another thrustwalk process is building {what}: "
+                                     "waiting for it, then loading it")
+            deadline = time.monotonic() + (LOCK_WAIT_SECONDS if wait_seconds is None
+                                           else wait_seconds)
+            while True:
+                time.sleep(0.05)
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    break
+                except BlockingIOError:
+                    if time.monotonic() > deadline:
+                        held = False
+                        break
+        except OSError:
+            held = False
+        yield held
+    finally:
+        os.close(fd)  # releases the lock
+
+
 def read_body(path: Path) -> str:
     """The generated source of a verified entry, without its header line."""
     return path.read_text().partition("\n")[2]

@@ -103,10 +103,13 @@ def load_model(robot: Robot, *, rebuild: bool = False) -> CompiledModel:
     and cache it, and bind the robot's numbers to it.
 
     A cache entry that is missing, stale, corrupted, partially written or that fails to import
-    (a syntax error behind a valid checksum) is rebuilt. When the cache cannot be used at all
-    (no home directory, the cache path is a file, a read-only or full disk, an entry replaced
-    by a directory) the model is compiled in memory for this process and
-    :attr:`CompiledModel.notes` says why in one line; nothing raises for cache trouble.
+    (a syntax error behind a valid checksum) is rebuilt, under the entry's build lock
+    (:func:`~.cache.build_lock`: of processes compiling the same new robot at once, one
+    derives it and the others wait, say so through the cache's wait reporter, and load it).
+    When the cache cannot be used at all (no home directory, the cache path is a file, a
+    read-only or full disk, a folder where the entry should be: never removed) the model is
+    compiled in memory for this process and :attr:`CompiledModel.notes` says why in one
+    line; nothing raises for cache trouble.
     Checks: dD/dq_N = 0 (when compiling) and, for every new set of numbers, D symmetric
     positive definite, R invertible and mapping the swing foot to the stance foot
     (``InputError`` naming the file and key otherwise).
@@ -138,11 +141,20 @@ def load_model(robot: Robot, *, rebuild: bool = False) -> CompiledModel:
             notes.append(f"model cache entry {path} could not be loaded "
                          f"({exc.__class__.__name__}); rebuilt")
     if model is None:
-        source = generate_source(robot, key)
-        module, path, note = _store(path, key, source)
-        if note:
-            notes.append(note)
-        model = CompiledModel(robot, module, path, key, False, 0.0, tuple(notes))
+        with cache.build_lock(path, f"the model of robot {robot.name!r}") as locked:
+            if locked and not rebuild and path is not None and not notes and \
+                    cache.verify_entry(path, key) is None:
+                try:  # another process built it while this one waited
+                    model = CompiledModel(robot, cache.import_entry(path, key), path, key,
+                                          True, 0.0, ())
+                except Exception:  # noqa: BLE001 - rebuilt below
+                    model = None
+            if model is None:
+                source = generate_source(robot, key)
+                module, path, note = _store(path, key, source)
+                if note:
+                    notes.append(note)
+                model = CompiledModel(robot, module, path, key, False, 0.0, tuple(notes))
     model.load_seconds = time.perf_counter() - t0
     _LOADED[memo_key] = (_signature(entry), key, model._m, model.cache_path, model.notes)
     _check_numbers(model)

@@ -175,46 +175,66 @@ def _place(tag: str, source: str | Callable[[], str], names: dict[str, str], reb
                 raise OSError(f"{path} reads back wrong")
         return path, ""
     except (OSError, cache.NoCacheDir) as exc:
+        why = getattr(exc, "strerror", None) or str(exc) or exc.__class__.__name__
+        try:
+            shared = entry_path(tag, ident, names, nrt_free=nrt_free)
+            if shared.is_dir():  # never removed: the user's folder, reported
+                why = f"cache entry {shared} is a folder, left as it is"
+        except (OSError, cache.NoCacheDir):
+            pass
         path = entry_path(tag, ident, names, _private_folder(), nrt_free)
         if cache.verify_entry(path, path.stem) is not None:
             cache.write_entry(path, path.stem, text())
-        why = getattr(exc, "strerror", None) or str(exc) or exc.__class__.__name__
         return path, (f"cache folder unusable ({why}): the compiled kernel is kept in a "
                       f"temporary folder for this process only")
 
 
 def load(tag: str, source: str | Callable[[], str], names: dict[str, str],
          rebuild: bool = False, fingerprint: str | None = None,
-         nrt_free: frozenset[str] = frozenset()) -> JitModule:
+         nrt_free: frozenset[str] = frozenset(), what: str = "",
+         on_wait: Callable[[str], None] | None = None) -> JitModule:
     """The jit module for ``source`` (its text, or a function making it, identified by
     ``fingerprint``): written to the cache if missing, then imported, which compiles every
     function in ``names`` (name -> numba signature, callees first) or loads its machine code
     from numba's cache. ``rebuild``: discard both and compile again. ``nrt_free``: the names
-    of functions that allocate no array, compiled without reference counting."""
-    key = _digest(tag, fingerprint if fingerprint is not None else source, names, nrt_free)
+    of functions that allocate no array, compiled without reference counting.
+
+    Unless the module is cached whole (:func:`status`), writing and compiling it hold its
+    build lock (:func:`~.cache.build_lock`): of processes that compile it at once, one
+    compiles and the others wait (``on_wait`` is told once, naming ``what``; default: the
+    cache's wait reporter) and then load its machine code."""
+    ident = fingerprint if fingerprint is not None else source
+    key = _digest(tag, ident, names, nrt_free)
     memo = _LOADED.get(key)
     if memo is not None and not rebuild:
         return memo
-    path, note = _place(tag, source, names, rebuild, fingerprint, nrt_free)
-    t0 = time.perf_counter()
-    if rebuild:
-        sys.modules.pop(f"thrustwalk_jit_{path.stem.replace('-', '_')}", None)
-    module = _import(path)
-    seconds = time.perf_counter() - t0
-    misses = sum(sum(getattr(module, n).stats.cache_misses.values()) for n in names)
-    hit = misses == 0
-    meta_path = path.with_suffix(".json")
-    if hit:
-        compile_seconds = (cache.read_meta(meta_path) or {}).get("compile_seconds")
-    else:
-        compile_seconds = seconds
+    entry = None
+    if rebuild or not status(tag, ident, names, nrt_free)["cached"]:
         try:
-            import numba
+            entry = entry_path(tag, ident, names, nrt_free=nrt_free)
+        except cache.NoCacheDir:
+            entry = None
+    with cache.build_lock(entry, what or f"the compiled module {tag}", on_wait):
+        path, note = _place(tag, source, names, rebuild, fingerprint, nrt_free)
+        t0 = time.perf_counter()
+        if rebuild:
+            sys.modules.pop(f"thrustwalk_jit_{path.stem.replace('-', '_')}", None)
+        module = _import(path)
+        seconds = time.perf_counter() - t0
+        misses = sum(sum(getattr(module, n).stats.cache_misses.values()) for n in names)
+        hit = misses == 0
+        meta_path = path.with_suffix(".json")
+        if hit:
+            compile_seconds = (cache.read_meta(meta_path) or {}).get("compile_seconds")
+        else:
+            compile_seconds = seconds
+            try:
+                import numba
 
-            cache.write_meta(meta_path, {"compile_seconds": seconds,
-                                         "numba": numba.__version__})
-        except OSError:
-            pass
+                cache.write_meta(meta_path, {"compile_seconds": seconds,
+                                             "numba": numba.__version__})
+            except OSError:
+                pass
     jm = JitModule(module, path, seconds, hit, compile_seconds, note)
     _LOADED[key] = jm
     return jm

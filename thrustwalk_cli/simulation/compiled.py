@@ -77,11 +77,13 @@ def _fingerprint() -> str:
         cache.package_file("scipy", "integrate/_ivp/dop853_coefficients.py"))
 
 
-def kernel(rebuild: bool = False) -> jit.JitModule:
+def kernel(rebuild: bool = False, on_wait: Callable[[str], None] | None = None
+           ) -> jit.JitModule:
     """The compiled kernel (every robot): compiled once per machine (numba) or loaded from
-    the cache."""
+    the cache; while another process compiles it, this one waits (``on_wait`` is told, see
+    :func:`thrustwalk_cli.model.jit.load`) and then loads it."""
     return jit.load(TAG, kernel_source, _names(), rebuild=rebuild, fingerprint=_fingerprint(),
-                    nrt_free=K.NRT_FREE)
+                    nrt_free=K.NRT_FREE, what="the simulation kernel", on_wait=on_wait)
 
 
 def kernel_status() -> dict:

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from ..files.robot_file import load_robot
 from ..model.compiled import CompiledModel
 from ..model.compiler import load_model
@@ -15,12 +17,14 @@ def compile_robot(robot: str, rebuild: bool = False) -> CompiledModel:
     return load_model(load_robot(robot), rebuild=rebuild)
 
 
-def compile_kernel(*, rebuild: bool = False) -> dict:
+def compile_kernel(*, rebuild: bool = False,
+                   on_wait: Callable[[str], None] | None = None) -> dict:
     """The compiled simulation kernel (SPEC 7), the same for every robot: compiled by numba
     once per machine and cached. ``{"cache_hit": bool, "seconds": float | None, "entry":
     path, "note": str}``: whether it came from the cache and how long the one-time numba
     compile took (measured now, or as recorded then); ``note`` says when the cache folder
-    was unusable. A warm cache is checked without importing numba."""
+    was unusable. A warm cache is checked without importing numba. ``on_wait``: told once
+    when another process is compiling it (this one waits for it, then loads it)."""
     from ..simulation.compiled import kernel, kernel_status
 
     if not rebuild:
@@ -28,6 +32,6 @@ def compile_kernel(*, rebuild: bool = False) -> dict:
         if st["cached"]:
             return {"cache_hit": True, "seconds": st["compile_seconds"], "entry": st["entry"],
                     "note": ""}
-    jm = kernel(rebuild=rebuild)
+    jm = kernel(rebuild=rebuild, on_wait=on_wait)
     return {"cache_hit": jm.cache_hit, "seconds": jm.compile_seconds, "entry": str(jm.path),
             "note": jm.note}

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..description.sweep import Axis, SweepSpec
 from ..errors import InputError, Problem
-from ..files.bundled import resolve
+from ..files.bundled import EXPLICITLY, resolve, resolve_inside
 from ..files.gait_file import load_gait_text, same_robot_file
 from ..files.robot_file import load_robot_text
 from ..files.schema import _suggest
@@ -67,11 +67,18 @@ class Sweep:
                 **{k: u for k, (u, _) in self.study.fields.items()}}
 
 
-def load_sweep(path: str | Path) -> Sweep:
+def load_sweep(path: str | Path, *, robot: str | None = None,
+               gait: str | None = None) -> Sweep:
     """Read and check a sweep file (see the module docstring); raises :class:`InputError`
     with every problem (``file:line: key.path: message``) before any point runs. Loads (and
-    compiles if needed) the base robot's model to check the gait against it."""
-    spec, source = load_sweep_file(path)
+    compiles if needed) the base robot's model to check the gait against it.
+
+    The files a sweep file names (``robot:``, ``gait:``, and the ``robot:`` of a gait it
+    names) are read only inside the sweep file's folder, or bundled
+    (:func:`~thrustwalk_cli.files.sweep_file.load_sweep_file`); ``robot`` / ``gait``: a file
+    (relative to the working folder) or bundled name given explicitly instead, read
+    wherever it is, its gait's ``robot:`` as for every command."""
+    spec, source = load_sweep_file(path, robot=robot, gait=gait)
     study = STUDIES[spec.study]
     problems: list[Problem] = []
     for i, name in enumerate(spec.collect):
@@ -88,15 +95,22 @@ def load_sweep(path: str | Path) -> Sweep:
         except InputError as exc:
             raise InputError(source.where(("gait",), exc.problems[0].message)) from None
         gpath = str(resolve(gait_name, "gaits").resolve())
-        spec = replace(spec, gait=gpath, gait_text=read_source(gpath))
+        spec = replace(spec, gait=gpath, gait_text=read_source(gpath, "gait"))
     gait_params: dict[str, float] = {}
     if study.uses_gait:
         gait, gsource = load_gait_text(spec.gait_text, spec.gait)
         gait_params = gsource.res.params
+        if source.gait_inside:  # named by the sweep file: its robot is confined as well
+            try:
+                resolve_inside(gsource.res.data["robot"], "robots", source.root,
+                               base=Path(spec.gait).parent,
+                               how=f"{EXPLICITLY} `gait` (the gait, read wherever it is)")
+            except InputError as exc:
+                raise InputError(gsource.where(("robot",), exc.problems[0].message)) from None
         if not same_robot_file(robot, gait.robot):
             try:
-                own = load_robot_text(read_source(str(resolve(gait.robot, "robots"))),
-                                      gait.robot).name
+                own = load_robot_text(read_source(str(resolve(gait.robot, "robots")),
+                                                  "robot"), gait.robot).name
             except InputError:
                 own = robot.name
             if own != robot.name:
@@ -243,7 +257,10 @@ class SweepResult:
         n = len(self.records)
         text = f"{self.done} of {n} points ok, {self.failed} failed"
         if self.missing:
-            text += f", {self.missing} not run (run the sweep again to resume)"
+            lost = len(self.counts.lost)
+            text += f", {self.missing} not run" + (
+                f" ({lost} lost: {self.counts.lost_reason})" if lost else "") + \
+                " (run the sweep again to resume)"
         return text
 
     def _axis_columns(self) -> list[tuple[str, str]]:
@@ -320,7 +337,8 @@ class SweepResult:
     def library_files(self) -> dict[str, str]:
         """``gaits/NAME.yaml`` of every feasible design point (the gait library)."""
         return {f"gaits/{self.gait_name(r['index'])}.yaml": r["extra"]["gait_yaml"]
-                for r in self.records if r is not None and r["extra"].get("gait_yaml")}
+                for r in self.records if r is not None and (r.get("extra") or {}).get(
+                    "gait_yaml")}
 
     def _library_table(self) -> Table:
         fields = [f for f in self.sweep.study.fields if f != "iterations"]
@@ -331,7 +349,7 @@ class SweepResult:
         for t, r in zip(self.sweep.tasks, self.records):
             if r is None:
                 continue
-            ok = bool(r["extra"].get("gait_yaml"))
+            ok = bool((r.get("extra") or {}).get("gait_yaml"))
             name = self.gait_name(t.index)
             vals = dict(t.values)
             rows.append([name if ok else None, f"gaits/{name}.yaml" if ok else None]

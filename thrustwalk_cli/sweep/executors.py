@@ -94,21 +94,40 @@ class LocalProcesses:
         self._pools: dict[int, futures.ProcessPoolExecutor] = {}  # id(future) -> its pool
         self._pool = self._start()
 
+    STARTS = 3  # attempts to start a pool whose processes die at once (killed from outside)
+
     def _start(self) -> futures.ProcessPoolExecutor:
+        """A new pool, its processes started now (before a progress bar's thread); a pool
+        whose processes die while starting is started again, up to ``STARTS`` times, then
+        :class:`ComputationError` (the finished points are kept)."""
         import multiprocessing
 
         method = "fork" if sys.platform.startswith("linux") else "spawn"
-        pool = futures.ProcessPoolExecutor(
-            max_workers=self.workers, mp_context=multiprocessing.get_context(method),
-            initializer=_watch_parent, initargs=(os.getpid(),))
-        pool.submit(int).result()  # start the processes now, before a progress bar's thread
-        return pool
+        for _ in range(self.STARTS):
+            pool = futures.ProcessPoolExecutor(
+                max_workers=self.workers, mp_context=multiprocessing.get_context(method),
+                initializer=_watch_parent, initargs=(os.getpid(),))
+            try:
+                pool.submit(int).result()
+                return pool
+            except futures.process.BrokenProcessPool:
+                pool.shutdown(wait=False, cancel_futures=True)
+        raise ComputationError(f"the {self.workers} local worker processes died as they "
+                               f"started, {self.STARTS} times (killed, or out of memory?); the "
+                               "finished points are kept: run the sweep again to resume")
 
     def describe(self) -> dict:
         return {"kind": self.kind, "workers": self.workers, "restarts": self.restarts}
 
     def submit(self, fn: Callable, task: Any) -> futures.Future:
-        f = self._pool.submit(fn, task)
+        """A future of ``fn(task)``; a pool broken since the last wait (a worker process
+        died) gives a future already failed with ``BrokenProcessPool``: the task is lost, as
+        those in flight, and the next wait restarts the pool."""
+        try:
+            f = self._pool.submit(fn, task)
+        except futures.process.BrokenProcessPool as exc:
+            f = futures.Future()
+            f.set_exception(exc)
         self._pools[id(f)] = self._pool
         f.add_done_callback(self._done.put)
         return f
@@ -150,25 +169,152 @@ def worker_version() -> str:
     return __version__
 
 
+def quiet_dask_logs() -> None:
+    """Keep Dask's own log lines and tracebacks (a lost scheduler, a reconnect that failed)
+    off standard error: a command says what happened in one line. Dask sets its loggers'
+    levels when it is imported, so it is imported here first (if installed)."""
+    import logging
+
+    try:
+        import distributed  # noqa: F401 - configures its loggers on import
+    except ImportError:
+        return
+    for name in ["distributed", "tornado", "asyncio",
+                 *[n for n in logging.Logger.manager.loggerDict
+                   if n.startswith(("distributed.", "tornado."))]]:
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+
+
+HANDSHAKE_SECONDS = 10.0  # [s] connect to a scheduler and read its Dask handshake, at most
+HANDSHAKE_BYTES = 65536  # a scheduler's handshake is ~60 bytes; more is not Dask
+
+
+def scheduler_address(address: str) -> tuple[str, str, int]:
+    """``(protocol, host, port)`` of ``tcp://HOST:PORT`` or ``tls://HOST:PORT`` (an IPv6 host
+    in brackets); :class:`InputError` on ``scheduler`` otherwise (a port outside 1-65535)."""
+    proto, sep, rest = address.partition("://")
+    host, colon, port = rest.rpartition(":")
+    host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+    if not sep or proto not in ("tcp", "tls") or not colon or not host or \
+            not port.isdigit() or not 1 <= int(port) <= 65535 or "/" in rest:
+        raise InputError.param("scheduler", f"expected tcp://HOST:PORT or tls://HOST:PORT "
+                                            f"(port 1 to 65535), got {address!r}")
+    return proto, host, int(port)
+
+
+def probe_scheduler(address: str, timeout: float = HANDSHAKE_SECONDS,
+                    ssl_context: Any = None) -> None:
+    """Check that ``address`` is a Dask scheduler before a Dask client connects to it: open a
+    TCP connection (TLS with ``ssl_context`` for ``tls://``) and read the handshake a Dask
+    server sends first (a length-prefixed msgpack mapping with ``python`` and
+    ``pickle-protocol``), within ``timeout`` seconds in all, at most ``HANDSHAKE_BYTES``;
+    then answer with this side's handshake and close. A Dask client connecting to a server
+    that is not Dask waits for a handshake that never comes, or reads a length from junk
+    and allocates it (exabytes). :class:`InputError` on ``scheduler``: unreachable, no
+    answer within the time, or an answer that is not a Dask handshake."""
+    import pickle
+    import socket
+    import struct
+
+    proto, host, port = scheduler_address(address)
+    deadline = time.monotonic() + timeout
+
+    def left() -> float:
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            raise TimeoutError
+        return remaining
+
+    def read(sock, n: int) -> bytes:
+        buf = b""
+        while len(buf) < n:
+            sock.settimeout(left())
+            chunk = sock.recv(n - len(buf))
+            if not chunk:
+                raise ConnectionError("closed the connection")
+            buf += chunk
+        return buf
+
+    def bad(why: str) -> InputError:
+        return InputError.param("scheduler", f"{address} {why}: is it a Dask scheduler's "
+                                             "address (dask scheduler prints it)?")
+
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout)
+    except (OSError, TimeoutError) as exc:
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else \
+            (str(exc) or type(exc).__name__)
+        raise InputError.param("scheduler", f"cannot reach {address} ({why})") from None
+    try:
+        if proto == "tls":
+            sock.settimeout(left())
+            sock = ssl_context.wrap_socket(sock, server_hostname=host)
+        (size,) = struct.unpack("Q", read(sock, 8))
+        if not 8 <= size <= HANDSHAKE_BYTES:
+            raise bad("answered with something that is not a Dask handshake")
+        body = read(sock, size)
+        try:
+            from distributed.protocol import dumps, loads
+            from distributed.protocol.utils import pack_frames, unpack_frames
+
+            info = loads(unpack_frames(body), deserialize=False)
+        except Exception:  # noqa: BLE001 - whatever the junk made the decoder raise
+            info = None
+        if not isinstance(info, dict) or not {"python", "pickle-protocol"} <= set(info):
+            raise bad("answered with something that is not a Dask handshake")
+        mine = {"compression": None, "python": tuple(sys.version_info)[:3],
+                "pickle-protocol": pickle.HIGHEST_PROTOCOL}
+        frames = pack_frames(dumps(mine))
+        sock.settimeout(left())
+        sock.sendall(struct.pack("Q", len(frames)) + frames)
+    except TimeoutError:
+        raise bad(f"did not send a Dask handshake within {timeout:g} s") from None
+    except InputError:
+        raise
+    except OSError as exc:  # reset, closed, a TLS failure
+        raise bad(f"broke off the Dask handshake ({exc.strerror or exc})") from None
+    finally:
+        sock.close()
+
+
 class DaskCluster:
-    """A client of a running Dask distributed scheduler at ``address``."""
+    """A client of a running Dask distributed scheduler at ``address``.
+
+    Before the Dask client connects, :func:`probe_scheduler` checks within
+    ``HANDSHAKE_SECONDS`` that the address answers as a Dask scheduler (an unreachable or
+    non-Dask address is an :class:`InputError` on ``scheduler``). For ``tls://`` the TLS
+    settings (CA, client certificate and key) come from Dask's configuration
+    (``distributed.comm.tls.*``: its YAML files or ``DASK_DISTRIBUTED__COMM__TLS__...``
+    environment variables), or from ``security`` (a ``distributed.Security``). A scheduler
+    lost while the sweep runs stops it (:class:`ComputationError` from :meth:`wait`); a
+    task the cluster cancels otherwise is a lost task (resubmitted by the runner)."""
 
     kind = "dask"
 
-    def __init__(self, address: str, timeout: float = 30.0):
-        if not address.startswith(("tcp://", "tls://")) or ":" not in address[6:]:
-            raise InputError.param("scheduler", f"expected tcp://HOST:PORT or tls://HOST:PORT, "
-                                                f"got {address!r}")
+    def __init__(self, address: str, timeout: float = 30.0, security: Any = None):
+        scheduler_address(address)
         try:
-            from distributed import Client
+            from distributed import Client, Security
         except ImportError:
             raise InputError.param("scheduler", "needs Dask distributed: pip install "
                                                 "'thrustwalk[cluster]'") from None
         self.address = address
+        if security is None:
+            security = Security()
+        ctx = None
+        if address.startswith("tls://"):
+            ctx = security.get_connection_args("client").get("ssl_context")
+            if ctx is None:
+                raise InputError.param("scheduler", (
+                    f"{address} is a TLS address, but Dask's configuration gives no TLS "
+                    "certificates: set distributed.comm.tls.ca-file, .client.cert and "
+                    ".client.key (e.g. DASK_DISTRIBUTED__COMM__TLS__CA_FILE=ca.pem)"))
+        probe_scheduler(address, min(timeout, HANDSHAKE_SECONDS), ctx)
         try:
-            self.client = Client(address, timeout=f"{timeout:g}s", set_as_default=False)
+            self.client = Client(address, timeout=f"{timeout:g}s", set_as_default=False,
+                                 security=security)
         except (OSError, TimeoutError) as exc:
-            raise ComputationError(f"cannot reach the Dask scheduler at {address}: "
+            raise ComputationError(f"cannot connect to the Dask scheduler at {address}: "
                                    f"{str(exc).splitlines()[0]}") from None
         try:
             self.client.wait_for_workers(1, timeout=timeout)
@@ -197,24 +343,45 @@ class DaskCluster:
         return {"kind": self.kind, "scheduler": self.address, "workers": self.workers}
 
     def submit(self, fn: Callable, task: Any) -> Any:
+        self._lost_check()
         f = self.client.submit(fn, task, pure=False)
         self._done.add(f)
         return f
 
+    def _lost_check(self) -> None:
+        """:class:`ComputationError` when the client has lost its scheduler (it cancels
+        every task then, and reconnects or closes)."""
+        if self.client.status != "running":
+            raise ComputationError(
+                f"lost the connection to the Dask scheduler at {self.address} (the "
+                "scheduler stopped or the network failed); the finished points are kept: "
+                "run the sweep again to resume")
+
     def wait(self, handles: Iterable) -> list[Outcome]:
+        """Every finished task (at least one). A task the cluster cancelled is lost
+        (``CancelledError``, resubmitted by the runner) while the client is connected; with
+        the scheduler gone, :class:`ComputationError`."""
         done = [next(self._done)] + self._done.next_batch(block=False)
         out: list[Outcome] = []
         for f in done:
             if f.status == "finished":
                 out.append((f, f.result(), None))
-            else:  # a lost worker (KilledWorker) or a cancelled task
+            elif f.status in ("cancelled", "lost"):
+                self._lost_check()
+                out.append((f, None, futures.CancelledError(f"the cluster cancelled the "
+                                                            f"task ({f.status})")))
+            else:  # a lost worker (KilledWorker) or the task's own error
                 try:
                     err = f.exception()
-                except BaseException as exc:  # noqa: BLE001 - cancelled futures raise here
+                except BaseException as exc:  # noqa: BLE001 - cancelled meanwhile
                     err = exc
-                out.append((f, None, err if err is not None else RuntimeError(f.status)))
+                out.append((f, None, err if err is not None else
+                            futures.CancelledError(str(f.status))))
             f.release()
         return out
 
     def close(self) -> None:
-        self.client.close()
+        try:
+            self.client.close(timeout=5)
+        except Exception:  # noqa: BLE001 - a client whose scheduler is gone: nothing to close
+            pass

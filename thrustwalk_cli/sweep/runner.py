@@ -4,9 +4,11 @@ finished.
 
 A point is finished when its record exists (``ok`` or ``failed``, with the reason): a failed
 computation is a result, recorded and never retried. A task lost with its worker (a worker
-process that died, a worker the cluster lost) is not a result: it is submitted again, up to
-``attempts`` times in all, then recorded as failed. Stopping the caller at any moment loses at
-most the points in flight; running again computes exactly the points without a record.
+process that died, a worker the cluster lost) or cancelled by the cluster is not a result: it
+is submitted again, up to ``attempts`` times in all, then left without a record (``lost`` in
+:class:`RunCounts`: the run is incomplete, and running again tries the point again). Stopping
+the caller at any moment loses at most the points in flight; running again computes exactly
+the points without a record.
 
 Points that are cheap beside the engine's own cost per task (pickling, submitting, waiting)
 run in **chunks**: up to ``chunk`` consecutive points of one study in one task
@@ -14,7 +16,7 @@ run in **chunks**: up to ``chunk`` consecutive points of one study in one task
 as if each point had been a task of its own (a point that raises gets the record it would have
 had alone; the others keep theirs). A chunk lost with its worker is submitted again point by
 point (each of its points counts the lost submission), so that a point that kills its worker
-is found and recorded as failed alone. Points that continue another (``after``) run one per
+is found and left without a record alone. Points that continue another (``after``) run one per
 task. :func:`chunk_size` is a rule for ``chunk``.
 """
 
@@ -23,13 +25,13 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import partial
 
 from ..errors import ComputationError
 from .tasks import PointTask
 
-ATTEMPTS = 3  # submissions of a task whose worker is lost before it is recorded as failed
+ATTEMPTS = 3  # submissions of a task whose worker is lost before the run gives it up
 CHUNKS_PER_WORKER = 8  # chunk_size: at least this many chunks per worker (balance, progress)
 MOST_PER_CHUNK = 32  # chunk_size: at most this many points per chunk by default
 
@@ -37,32 +39,53 @@ MOST_PER_CHUNK = 32  # chunk_size: at most this many points per chunk by default
 @dataclass
 class RunCounts:
     """What one run did: points computed ``ok`` or ``failed``, points ``skipped`` (a record
-    existed), points submitted again because their worker was lost (``resubmitted``), and the
-    wall time [s]."""
+    existed), points submitted again because their worker was lost (``resubmitted``), the
+    indices of the points left without a record because their task was lost ``attempts``
+    times (``lost``, with the last ``lost_reason``), and the wall time [s]."""
 
     ok: int = 0
     failed: int = 0
     skipped: int = 0
     resubmitted: int = 0
     seconds: float = 0.0
+    lost: list[int] = field(default_factory=list)
+    lost_reason: str = ""
 
 
-def lost_record(task: PointTask, reason: str) -> dict:
-    """The record of a point whose task could not be run (see the module docstring)."""
+def failed_record(task: PointTask, reason: str) -> dict:
+    """The record of a point whose task raised instead of returning its record (the same
+    keys as the record of :func:`~thrustwalk_cli.studies.sweep_studies.run_point`)."""
     return {"key": task.key, "index": task.index, "study": task.study,
             "values": dict(task.values), "status": "failed", "reason": reason,
-            "fields": {}, "document": None, "next_start": task.start, "seconds": 0.0}
+            "fields": {}, "document": None, "extra": {}, "next_start": task.start,
+            "seconds": 0.0}
+
+
+LOSSES = ("BrokenProcessPool", "KilledWorker", "CancelledError", "FutureCancelledError",
+          "CommClosedError")
 
 
 def _is_loss(err: BaseException) -> bool:
-    """Whether ``err`` lost the task with its worker (rather than failing the computation)."""
-    name = type(err).__name__
-    return name in ("BrokenProcessPool", "KilledWorker", "CancelledError", "CommClosedError")
+    """Whether ``err`` lost the task with its worker, or the cluster cancelled it (rather
+    than the computation failing)."""
+    return type(err).__name__ in LOSSES
 
 
 def _error_record(task: PointTask, err: BaseException) -> dict:
     """The record of a point whose task raised (not a lost worker)."""
-    return lost_record(task, f"the task could not run ({type(err).__name__}: {err})")
+    return failed_record(task, f"the task could not run ({type(err).__name__}: {err})")
+
+
+def _waiting_on(key: str, waiting: dict[str, list[PointTask]]) -> list[PointTask]:
+    """The tasks that continue from ``key``, directly or not (removed from ``waiting``): they
+    cannot start once that point is lost."""
+    out = []
+    stack = [key]
+    while stack:
+        for t in waiting.pop(stack.pop(), []):
+            out.append(t)
+            stack.append(t.key)
+    return out
 
 
 def chunk_size(todo: int, workers: int, most: int = MOST_PER_CHUNK,
@@ -168,10 +191,13 @@ def run_tasks(tasks: Sequence[PointTask], fn: Callable[[PointTask], dict], execu
                 if _is_loss(err) and tries[t.key] < attempts:
                     counts.resubmitted += 1
                     submit((t,))
-                elif _is_loss(err):
-                    record(lost_record(t, f"its worker was lost {tries[t.key]} times "
-                                          f"({type(err).__name__}): a crash in the "
-                                          "computation?"))
+                elif _is_loss(err):  # no record: a later run tries it again
+                    counts.lost.append(t.index)
+                    counts.lost_reason = (f"its task was lost {tries[t.key]} times "
+                                          f"({type(err).__name__}: a worker that died, or a "
+                                          "cluster that cancelled it)")
+                    for w in _waiting_on(t.key, waiting):
+                        counts.lost.append(w.index)
                 else:
                     record(_error_record(t, err))
     counts.seconds = time.perf_counter() - t0
