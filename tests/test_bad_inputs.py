@@ -467,8 +467,8 @@ def test_an_explicit_gait_may_be_anywhere_and_keeps_its_own_robot_rule(tmp_path,
                      .replace("GAIT", "walk.yaml"))
     with pytest.raises(InputError) as err:  # the sweep's own robot: is a gait file
         load_sweep(sweep)
-    assert str(err.value) == f"{gait.resolve()}: this is a gait file, not a robot file: give " \
-                             "it as the GAIT argument (a gait file or bundled gait name)"
+    assert str(err.value) == f"{gait.resolve()}: this is a gait file, not a robot file (a " \
+                             "gait file belongs in the GAIT argument or a gait: key)"
     with pytest.raises(InputError) as err:
         load_sweep(sweep, robot=str(tmp_path / "walker5.yaml"))
     (p,) = err.value.problems

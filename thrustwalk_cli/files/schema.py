@@ -506,8 +506,8 @@ KIND_KEYS = {
     "sweep": ("study", "collect", "grid", "zip", "random"),
 }
 KIND_USE = {
-    "robot": "the ROBOT argument (a robot file or bundled robot name)",
-    "gait": "the GAIT argument (a gait file or bundled gait name)",
+    "robot": "the ROBOT argument or a robot: key",
+    "gait": "the GAIT argument or a gait: key",
     "sweep": "thrustwalk sweep FILE",
 }
 
@@ -530,17 +530,23 @@ def expect_kind(doc: Document, kind: str, schema: Kind | None = None) -> None:
         return
     for other, marks in KIND_KEYS.items():
         if other != kind and len(keys & set(marks)) >= 2:
-            raise InputError(Problem(doc.file, None, "", f"this is a {other} file, not a "
-                                     f"{kind} file: give it as {KIND_USE[other]}"))
+            raise InputError(Problem(doc.file, None, "", f"this is {_a(other)} file, not "
+                                     f"{_a(kind)} file (a {other} file belongs in "
+                                     f"{KIND_USE[other]})"))
     if schema is None:
         return
     own = [f.key for f in schema.fields]
     if not keys & set(own):
-        what = (f"a mapping without any key of a {kind} file" if isinstance(data, dict)
+        what = (f"a mapping without any key of {_a(kind)} file" if isinstance(data, dict)
                 else "not a mapping of keys")
         raise InputError(Problem(doc.file, None, "", (
-            f"not a {kind} file: its top level is {what} (keys such as "
+            f"not {_a(kind)} file: its top level is {what} (keys such as "
             f"{', '.join(own[:4])}; docs/files.md)")))
+
+
+def _a(word: str) -> str:
+    """``word`` with its indefinite article."""
+    return ("an " if word[:1] in "aeiou" else "a ") + word
 
 
 def kind_check(kind: str, schema: Kind):
