@@ -727,7 +727,7 @@ def test_batched_jacobian_designs_the_same_gait(three_link, monkeypatch):
     Bezier coefficients, alpha_f and zeta* to 1e-9."""
     from thrustwalk_cli.design import solver
 
-    spec = DesignSpec(speed=SPEED, clearance=0.0, starts=1, max_iter=40)
+    spec = DesignSpec(speed=SPEED, clearance=0.0, starts=1, max_iter=25)
     fast = solve_design(three_link, spec)
     monkeypatch.setattr(solver._Cache, "jacobian", _by_columns)
     ref = solve_design(three_link, spec)

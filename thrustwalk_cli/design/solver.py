@@ -6,8 +6,9 @@ independent re-check in :mod:`thrustwalk_cli.design.verify`; what to design in
 :mod:`thrustwalk_cli.design.spec`. The report record and the gait file are rendered by
 :mod:`thrustwalk_cli.studies.design_gait`.
 
-Solver: SciPy SLSQP with one shared forward-difference Jacobian per point, several seeded
-starts (start 0 is the deterministic default start). The chosen gait is re-checked by the
+Solver: SciPy SLSQP with one shared forward-difference Jacobian per point (its perturbed
+points evaluated in one vectorised call, :meth:`Problem.evaluate_many`), several seeded starts
+(start 0 is the deterministic default start). The chosen gait is re-checked by the
 independent code paths (adaptive zero dynamics, :func:`limit_cycles`, the contact evaluation,
 dense grids); ``feasible`` is the verdict of that re-check.
 """
