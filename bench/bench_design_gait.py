@@ -9,10 +9,16 @@ Baselines measured in the same run (medians where repeated):
 * the whole design: batched Jacobians vs column-by-column ones (target >= 2x). SLSQP follows
   the same path, so the gaits must agree (printed: the largest difference of the Bezier
   coefficients, alpha_f and zeta*, target <= 1e-9), with the share of the Jacobians in each.
+
+BLAS runs single-threaded, as under the command line (``thrustwalk_cli.cli``): the benchmark
+runs itself in a child process when the environment does not say so (numpy reads it at import).
 """
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -49,6 +55,10 @@ def _design(model, spec, batched: bool):
 
 
 def main() -> None:
+    if os.environ.get("OPENBLAS_NUM_THREADS") != "1":
+        env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+        subprocess.run([sys.executable, __file__], env=env, check=True)
+        return
     from thrustwalk_cli.design.problem import Problem
     from thrustwalk_cli.design.solver import _Cache
     from thrustwalk_cli.design.spec import DesignSpec
@@ -80,3 +90,7 @@ def main() -> None:
           f"zeta* {dz} relative (target <= 1e-9); target ratio <= 0.5", flush=True)
     print(f"{'':<58s} {new.evaluations} evaluations, {new.starts[0].iterations} iterations, "
           f"feasible {new.feasible}, effort {new.objective:.5g} N^2 m s", flush=True)
+
+
+if __name__ == "__main__":
+    main()
