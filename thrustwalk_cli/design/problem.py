@@ -46,9 +46,14 @@ Safety margins inside the solver (so that the re-check on finer grids passes): f
 within 99 % of their limits, ``zeta >= min_zeta_ratio zeta^-``, lift-off >= ``min_liftoff`` and
 touch-down >= ``min_touchdown_velocity`` (each + 1e-5 m/s), ``delta_zero^2 <= max_delta_sq - 1e-5``:
 a point the solver accepts (normalised violation <= 1e-5) then meets the bounds the re-check
-enforces exactly. The foot-placement equality is polished by Newton on q_N (:meth:`polish`). The
-swing-foot height is constrained on a dense uniform grid through :func:`cell_minima` (dips
-between grid points count), so straight legs may touch the ground (3-link: ``clearance = 0``).
+enforces exactly. The foot-placement equality is polished by Newton on q_N (:meth:`polish`).
+The swing-foot height is constrained on a dense uniform grid through :func:`cell_minima`
+(dips between grid points count), so straight legs may touch the ground (3-link:
+``clearance = 0``).
+
+:meth:`Problem.evaluate_many` evaluates many points in one vectorised pass (a leading batch
+axis through every step; the forward-difference Jacobian's points), each row equal bit for bit
+to :meth:`Problem.evaluate` of that point alone.
 """
 
 from __future__ import annotations
@@ -474,15 +479,17 @@ class Problem:
         for b in range(B):
             ib = {}
             if info:
-                ib = self._info(b, locals())
+                ib = self._info(b, dict(cases=cases, iqd=iqd, F2=F2, T=T, L=L, d2=d2, q_d=q_d,
+                                        parts=parts, range_zeta=range_zeta, zm=zm, hgt=hgt,
+                                        zeta=zeta, V=V, span=span))
             out.append(Evaluation(True, float(J[b]), float(scaled[b]),
                                   {k: v[b] for k, v in eqd.items()},
                                   {k: v[b] for k, v in iqd.items()}, ib))
         return out, finite
 
     def _info(self, b: int, v: dict) -> dict:
-        """The diagnostics of row ``b`` of :meth:`_evaluate_batch` (its local variables
-        ``v``), read by :func:`~.solver.describe`."""
+        """The diagnostics of row ``b`` of :meth:`_evaluate_batch` (``v``: its batched
+        intermediate values by name), read by :func:`~.solver.describe`."""
         N, cases, iqd, F2 = self.N, v["cases"], v["iqd"], v["F2"][b]
         T, L, d2 = float(v["T"][b]), float(v["L"][b]), float(v["d2"][b])
         range_margin = np.full(N, np.inf)  # [rad] worst margin to the range less 0.01 rad
@@ -495,9 +502,8 @@ class Problem:
                 range_margin[i] = min(range_margin[i],
                                       float(((self.hi[i] - 0.01 - q_d[:, i]) / 0.1).min() * 0.1))
         parts = {k: p[b] for k, p in v["parts"].items()}
-        parts["fixed_point"] = float(parts["fixed_point"])
-        for k in ("delta", "monotonic"):
-            parts[k] = np.atleast_1d(parts[k])
+        for k in ("fixed_point", "delta", "monotonic"):
+            parts[k] = float(parts[k])
         rz = [np.ravel(r[b]) for r in v["range_zeta"]]
         parts["range"] = np.concatenate(rz) if rz else np.zeros(0)
         F1all = np.concatenate([c[0][b] for c in cases])
