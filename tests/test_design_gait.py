@@ -651,3 +651,89 @@ def test_design_figures_are_the_stick_figure(result3):
                for ln in ax.get_lines())  # the ground line (axhline)
     bad = replace(result3, design=replace(result3.design, feasible=False))
     assert bad.figures() == {}
+
+
+# -------------------------------------------------- batched forward differences (issue 26)
+def _walker5():
+    return load_walker(str(DATA / "walker5.yaml"), str(DATA / "walker5_walk.yaml")).model
+
+
+def _by_columns(self, x):
+    """_Cache.jacobian as it was: one evaluation per perturbed point (the reference)."""
+    x = np.asarray(x, float)
+    if self.jx is None or not np.array_equal(x, self.jx):
+        self.jx, self.jac = x.copy(), self.differences(x, batched=False)
+    return self.jac
+
+
+@pytest.mark.parametrize("case", ["walker5", "walker5_thrust_range", "three_link_peak_thrust"])
+def test_batched_jacobian_equals_the_column_by_column_one(case, three_link):
+    """The forward-difference Jacobian evaluates all its perturbed points in one vectorised
+    call (Problem.evaluate_many, a batch axis through Bezier, zero dynamics, stance terms and
+    the swing-foot checks); it equals evaluating them one at a time with the single-point
+    Problem.evaluate (same steps) to 1e-10 relative, at the default start and off it: on the
+    user robot walker5 (effort; with a thrust range over -40..0 N of its thruster `back`) and
+    on the 3-link with designed thrust and the peak objective (epigraph rows)."""
+    from thrustwalk_cli.design.solver import _Cache
+
+    model, kw = {
+        "walker5": (_walker5, dict(speed=0.6)),
+        "walker5_thrust_range": (_walker5, dict(speed=0.6, thrust_range=("back", -40.0, 0.0))),
+        "three_link_peak_thrust": (lambda: three_link, dict(speed=SPEED, clearance=0.0,
+                                                            thrust_design=True,
+                                                            objective="peak")),
+    }[case]
+    prob = Problem(model(), DesignSpec(starts=1, **kw))
+    x0 = prob.start(None)
+    prob.fix_shapes(prob.evaluate(x0))
+    x1 = x0 + np.random.default_rng(3).normal(0.0, 0.02, x0.size)
+    for x in (x0, x1):
+        cache = _Cache(prob)
+        n0 = prob.evaluations
+        fast = cache.differences(x)
+        assert prob.evaluations - n0 == 1 + x.size  # the point and one per column
+        ref = cache.differences(x, batched=False)
+        for got, want in zip(fast, ref):
+            assert got.shape == want.shape and np.all(np.isfinite(want))
+            assert np.abs(got - want).max() <= 1e-10 * max(1.0, np.abs(want).max())
+
+
+def test_evaluate_many_rows_are_single_evaluations(three_link):
+    """Each row of Problem.evaluate_many is Problem.evaluate of that row (values and
+    diagnostics), and a row that cannot be evaluated (NaN) fails alone, with the failed-point
+    values, while its neighbours keep theirs."""
+    prob = Problem(three_link, DesignSpec(speed=SPEED, clearance=0.0, starts=1))
+    x0 = prob.start(None)
+    prob.fix_shapes(prob.evaluate(x0))
+    bad = x0.copy()
+    bad[0] = np.nan
+    xs = np.array([x0, bad, 1.01 * x0])
+    many = prob.evaluate_many(xs, info=True)
+    assert [ev.ok for ev in many] == [True, False, True]
+    assert many[1].scaled == 1e3 and all(np.all(v == -10.0) for v in many[1].ineq.values())
+    for ev, x in zip(many[::2], xs[::2]):
+        one = prob.evaluate(x)
+        assert ev.scaled == one.scaled and ev.objective == one.objective
+        for a, b in ((ev.eq, one.eq), (ev.ineq, one.ineq)):
+            assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+        assert ev.info.keys() == one.info.keys()
+        assert ev.info["step_time"] == one.info["step_time"] > 0
+
+
+@pytest.mark.slow
+def test_batched_jacobian_designs_the_same_gait(three_link, monkeypatch):
+    """3-link from the default start: the design with the batched Jacobian is the design with
+    the column-by-column one (SLSQP follows the same path): same iterations and evaluations,
+    Bezier coefficients, alpha_f and zeta* to 1e-9."""
+    from thrustwalk_cli.design import solver
+
+    spec = DesignSpec(speed=SPEED, clearance=0.0, starts=1, max_iter=25)
+    fast = solve_design(three_link, spec)
+    monkeypatch.setattr(solver._Cache, "jacobian", _by_columns)
+    ref = solve_design(three_link, spec)
+    assert fast.starts[0].iterations == ref.starts[0].iterations
+    assert fast.evaluations == ref.evaluations
+    assert np.abs(np.array(fast.gait.A) - np.array(ref.gait.A)).max() <= 1e-9
+    assert fast.gait.alpha_f == pytest.approx(ref.gait.alpha_f, abs=1e-9)
+    zf, zr = fast.check["orbit"]["zeta_star"], ref.check["orbit"]["zeta_star"]
+    assert zf == pytest.approx(zr, rel=1e-9)

@@ -77,6 +77,9 @@ class StanceTerms:
 def stance_terms(model: CompiledModel, maps, alpha: np.ndarray) -> StanceTerms:
     """Lambda_0..2 (and torque / alpha'' counterparts) at ``alpha`` (SPEC 5), exactly.
 
+    ``alpha``: shape ``(g,)``, or ``(..., g)`` with leading batch axes that ``maps`` broadcasts
+    over (the gait design evaluates many gaits at once); every result gains those axes.
+
     Per unit zeta: ``alpha'^2 = 2 kappa_1^2``; the velocity part of ``h`` is
     ``alpha'^2 (h(q, Phi) - G)`` since ``h`` is quadratic in ``q'``. With ``E = e_N^T D Phi``:
     ``A0 = -G_N / E``, ``A1 = -2 kappa_1^2 (e_N^T (h(q,Phi) - G) + e_N^T D dPhi) / E``,
@@ -97,30 +100,30 @@ def stance_terms(model: CompiledModel, maps, alpha: np.ndarray) -> StanceTerms:
     hu_v = model.h_u(q, np.concatenate([phi, z2], axis=-1)) - Gu  # per unit alpha'^2
     h_v = model.h(q, phi) - G
     eD = D[..., N - 1, :]
-    E = np.einsum("gj,gj->g", eD, phi)
+    E = np.einsum("...j,...j->...", eD, phi)
     a2 = 2.0 / E**2  # alpha'^2 per unit zeta = 2 kappa_1^2
     A0 = -G[..., N - 1] / E
-    A1 = -a2 * (h_v[..., N - 1] + np.einsum("gj,gj->g", eD, dphi)) / E
-    A2 = BF[..., N - 1, :] / E[:, None]
+    A1 = -a2 * (h_v[..., N - 1] + np.einsum("...j,...j->...", eD, dphi)) / E
+    A2 = BF[..., N - 1, :] / E[..., None]
     AT = 1.0 / E
-    Q0 = phi * A0[:, None]
-    Q1 = phi * A1[:, None] + dphi * a2[:, None]
-    Q2 = phi[:, :, None] * A2[:, None, :]
-    QT = phi * AT[:, None]
+    Q0 = phi * A0[..., None]
+    Q1 = phi * A1[..., None] + dphi * a2[..., None]
+    Q2 = phi[..., :, None] * A2[..., None, :]
+    QT = phi * AT[..., None]
 
     def mv(M, v):
-        return np.einsum("gij,gj->gi", M, v)
+        return np.einsum("...ij,...j->...i", M, v)
 
-    Dc = Du[:, N:, :N]  # force rows, joint columns
-    L0 = mv(Dc, Q0) + Gu[:, N:]
-    L1 = mv(Dc, Q1) + a2[:, None] * hu_v[:, N:]
-    L2 = np.einsum("gij,gjm->gim", Dc, Q2) - BFu[:, N:, :]
+    Dc = Du[..., N:, :N]  # force rows, joint columns
+    L0 = mv(Dc, Q0) + Gu[..., N:]
+    L1 = mv(Dc, Q1) + a2[..., None] * hu_v[..., N:]
+    L2 = np.einsum("...ij,...jm->...im", Dc, Q2) - BFu[..., N:, :]
     LT = mv(Dc, QT)
     b = slice(0, N - 1)
-    U0 = (mv(D, Q0) + G)[:, b]
-    U1 = (mv(D, Q1) + a2[:, None] * h_v)[:, b]
-    U2 = (np.einsum("gij,gjm->gim", D, Q2) - BF)[:, b, :]
-    UT = mv(D, QT)[:, b]
+    U0 = (mv(D, Q0) + G)[..., b]
+    U1 = (mv(D, Q1) + a2[..., None] * h_v)[..., b]
+    U2 = (np.einsum("...ij,...jm->...im", D, Q2) - BF)[..., b, :]
+    UT = mv(D, QT)[..., b]
     return StanceTerms(alpha, L0, L1, L2, LT, U0, U1, U2, UT, A0, A1, A2, AT,
                        model.p_swing(q)[..., 1])
 

@@ -46,9 +46,14 @@ Safety margins inside the solver (so that the re-check on finer grids passes): f
 within 99 % of their limits, ``zeta >= min_zeta_ratio zeta^-``, lift-off >= ``min_liftoff`` and
 touch-down >= ``min_touchdown_velocity`` (each + 1e-5 m/s), ``delta_zero^2 <= max_delta_sq - 1e-5``:
 a point the solver accepts (normalised violation <= 1e-5) then meets the bounds the re-check
-enforces exactly. The foot-placement equality is polished by Newton on q_N (:meth:`polish`). The
-swing-foot height is constrained on a dense uniform grid through :func:`cell_minima` (dips
-between grid points count), so straight legs may touch the ground (3-link: ``clearance = 0``).
+enforces exactly. The foot-placement equality is polished by Newton on q_N (:meth:`polish`).
+The swing-foot height is constrained on a dense uniform grid through :func:`cell_minima`
+(dips between grid points count), so straight legs may touch the ground (3-link:
+``clearance = 0``).
+
+:meth:`Problem.evaluate_many` evaluates many points in one vectorised pass (a leading batch
+axis through every step; the forward-difference Jacobian's points), each row equal bit for bit
+to :meth:`Problem.evaluate` of that point alone.
 """
 
 from __future__ import annotations
@@ -195,6 +200,7 @@ class Problem:
         self.F_scale = max(float(np.abs(lim[np.isfinite(lim)]).max(initial=0.0)), self.weight)
         n = spec.nodes
         self.n_nodes = n
+        self.x_lobatto = -np.cos(np.pi * np.arange(n) / (n - 1))  # lobatto() on [-1, 1]
         # on [-1, 1] at the Lobatto nodes: cumulative integrals V = Q f and Clenshaw-Curtis
         # weights w (times (alpha_f - alpha_i)/2 on the step)
         unit = np.eye(n)
@@ -279,23 +285,33 @@ class Problem:
         out = []
         for v in (lo, hi):
             Fk = np.array(F, float)
-            Fk[j] = v
+            Fk[..., j] = v
             out.append(Fk)
         return out
 
     # -- evaluation -----------------------------------------------------------------------
     def evaluate(self, x: np.ndarray) -> Evaluation:
         """Objective and every constraint at ``x`` (see the module docstring)."""
-        self.evaluations += 1
+        return self.evaluate_many(np.asarray(x, float)[None, :], info=True)[0]
+
+    def evaluate_many(self, xs: np.ndarray, info: bool = False) -> list[Evaluation]:
+        """:meth:`evaluate` at every row of ``xs`` (shape ``(k, n)``) in one vectorised pass
+        (the points of a forward-difference Jacobian): each row is computed with the shapes
+        and operations of a single point, so the result equals ``[evaluate(x) for x in xs]``
+        bit for bit. ``info`` (the diagnostics :func:`~.solver.describe` reads) is filled only
+        when asked. A batch that raises (a singular impact matrix in one row) is evaluated row
+        by row, so one bad point fails alone."""
+        xs = np.atleast_2d(np.asarray(xs, float))
         try:
             with np.errstate(all="ignore"):
-                ev = self._evaluate(np.asarray(x, float))
+                evs, finite = self._evaluate_batch(xs, info)
         except (np.linalg.LinAlgError, FloatingPointError, ValueError, ZeroDivisionError):
-            ev = None
-        if ev is None or not np.isfinite(ev.scaled) or not all(
-                np.all(np.isfinite(v)) for v in (*ev.eq.values(), *ev.ineq.values())):
-            return self._failed()
-        return ev
+            if len(xs) == 1:
+                self.evaluations += 1
+                return [self._failed()]
+            return [self.evaluate_many(x[None, :], info)[0] for x in xs]
+        self.evaluations += len(xs)
+        return [ev if ok else self._failed() for ev, ok in zip(evs, finite)]
 
     def _failed(self) -> Evaluation:
         """A point where the model cannot be evaluated: every constraint badly violated."""
@@ -303,136 +319,208 @@ class Problem:
         ineq = {k: np.full(n, -10.0) for k, n in self.shapes[1].items()}
         return Evaluation(False, float("inf"), 1e3, eq, ineq, {})
 
-    def _evaluate(self, x: np.ndarray) -> Evaluation:
+    def _maps(self, xs: np.ndarray):
+        """The gait of every row of ``xs`` as :meth:`gait` and ``gait_maps`` make it (Bezier
+        columns 0 and 1 by hybrid invariance, :func:`apply_invariance`), batched: the
+        :class:`_Maps`, the pre-impact posture, the thrust, ``zeta^-``, the epigraph variable
+        and the impact maps at ``q^-``."""
+        model, N, M, m, nX = self.model, self.N, self.M, self.m, self.n_X
+        B = xs.shape[0]
+        c, Hinv = self.c, self.Hinv
+        qm = np.ascontiguousarray(xs[:, :N])
+        X = xs[:, N:N + nX].reshape(B, N - 1, M - 2)
+        F = np.repeat(self.F_fixed[None, :], B, axis=0)
+        if m:
+            F = xs[:, N + nX:N + nX + m] * self.F_scale
+        zm = xs[:, N + nX + m] * self.zeta_ref
+        tpk = xs[:, N + nX + m + 1] if self.spec.objective == "peak" else None
+        # coefficients(): straight line from q_b^+ to q_b^- plus the offsets X
+        qp = _relabel(model, qm)
+        k = np.arange(M + 1) / M
+        A = qp[:, :-1, None] + (qm[:, :-1] - qp[:, :-1])[:, :, None] * k
+        A[:, :, 2:M] += X
+        A[:, :, M] = qm[:, :-1]
+        af = _dot(c, qm)
+        # apply_invariance(): q^-, q^+, alpha_i; columns 0 and 1
+        q_minus = _mv(Hinv, np.concatenate([A[:, :, -1], af[:, None]], axis=1))
+        q_plus = _relabel(model, q_minus)
+        alpha_i = _dot(c, q_plus)
+        dh_f = M * (A[:, :, -1] - A[:, :, -2]) / (af - alpha_i)[:, None]
+        phi_f = _mv(Hinv, np.concatenate([dh_f, np.ones((B, 1))], axis=1))
+        impact = model.impact_maps(q_minus)
+        w = _mv(model.R, _mv(impact[2], phi_f))
+        A[:, :, 0] = q_plus[:, :-1]
+        A[:, :, 1] = A[:, :, 0] + ((af - alpha_i) / M)[:, None] * w[:, :-1] / _dot(c, w)[:, None]
+        # gait_maps() of that gait: the same q^-, q^+ and alpha_i (column M is unchanged)
+        return _Maps(A, Hinv, alpha_i, af, q_minus, q_plus), qm, F, zm, tpk, impact
+
+    def _evaluate_batch(self, xs: np.ndarray, info: bool) -> tuple[list[Evaluation], np.ndarray]:
+        """Objective and constraints at every row of ``xs`` (module docstring; see
+        :meth:`evaluate_many` for why each row equals a single evaluation bit for bit: matrix
+        products go through :func:`_mv`, :func:`_vm` and :func:`_dot`, stacks of the
+        single-point products), and whether each row's values are all finite."""
         model, spec, N = self.model, self.spec, self.N
-        qm, X, F, zm, tpk = self.unpack(x)
-        g = self.gait(x)
-        maps = gait_maps(model, g)
+        B = xs.shape[0]
+        maps, qm, F, zm, tpk, (Mu, MF, Delta) = self._maps(xs)
         a_i, a_f = maps.alpha_i, maps.alpha_f
         span = a_f - a_i
-        a = lobatto(a_i, a_f, self.n_nodes)
+        a = (0.5 * (a_i + a_f))[:, None] + (0.5 * (a_f - a_i))[:, None] * self.x_lobatto
         zt = zero_dynamics_terms(model, maps, a)
         st = stance_terms(model, maps, a)
         k1, E = zt["kappa1"], zt["eDPhi"]  # kappa_1 = 1 / (e_N^T D Phi)
-        V = self.Q @ ((zt["kappa2"] + zt["beta"] @ F) * E) * (0.5 * span)  # V_Z at the nodes
-        Mu, MF, Delta = model.impact_maps(maps.q_minus)
-        phi_f = maps.Phi(np.array(a_f))
+        half = (0.5 * span)[:, None]
+        V = _mv(self.Q, (zt["kappa2"] + _mv(zt["beta"], F)) * E) * half  # V_Z at the nodes
+        phi_f = maps.Phi(a_f[:, None])[:, 0]
         D_plus = model.D(maps.q_plus)
-        delta = float(D_plus[N - 1] @ model.R @ Delta @ phi_f * k1[-1])
-        d2 = delta**2
-        zeta = d2 * zm + V
+        delta = _dot(_vm(_vm(D_plus[:, N - 1, :], model.R), Delta), phi_f) * k1[:, -1]
+        d2 = _square(delta)
+        zeta = (d2 * zm)[:, None] + V
         # |alpha'| = |kappa_1| sqrt(2 zeta); the floor keeps T finite at infeasible points
         dT = 1.0 / (np.abs(k1) * np.sqrt(2.0 * np.maximum(zeta, 1e-3 * self.zeta_ref)))
-        T = float(self.w_cc @ dT * 0.5 * abs(span))
-        L = float(model.p_swing(qm)[0])
+        T = _dot(self.w_cc, dT) * 0.5 * np.abs(span)
+        p_sw = model.p_swing(qm)
+        L = p_sw[:, 0]
         hgt = st.swing_height
-        u = np.einsum("gim,m->gi", st.U2, F) + st.U1 * zeta[:, None] + st.U0
+        u = np.einsum("bgim,bm->bgi", st.U2, F) + st.U1 * zeta[:, :, None] + st.U0
         # objective
-        Lpos = max(L, 1e-3 * self.ell)
+        Lpos = np.maximum(L, 1e-3 * self.ell)
         if spec.objective == "effort":
-            J = float(self.w_cc @ ((u**2).sum(1) * dT) * 0.5 * abs(span)) / Lpos
+            J = _dot(self.w_cc, (u**2).sum(-1) * dT) * 0.5 * np.abs(span) / Lpos
             if self.m:
-                J += spec.thrust_weight * float(F @ F) * T / Lpos
+                J = J + spec.thrust_weight * _dot(F, F) * T / Lpos
             scaled = J / self.J_scale
         else:
-            J = float(np.abs(u).max())
-            scaled = float(tpk)
+            J = np.abs(u).reshape(B, -1).max(axis=1)
+            scaled = tpk
         # impact (SPEC 5): q'^- per unit |sigma^-|
-        sgn = np.sign(span) * np.sign(k1[0])
-        sig = np.sqrt(2.0 * max(zm, 0.0))
-        dq = phi_f * k1[-1] * sgn
-        F2 = MF @ dq * sig
-        v_trail = (Mu @ dq)[N:] * sig
-        td_unit = float(model.E_swing(qm)[1] @ dq)  # touch-down velocity per unit |sigma^-|
-        nF2 = max(float(np.linalg.norm(F2)), 1e-12)
-        # constraints (scaled)
+        sgn = np.sign(span) * np.sign(k1[:, 0])
+        sig = np.sqrt(2.0 * np.maximum(zm, 0.0))
+        dq = phi_f * k1[:, -1:] * sgn[:, None]
+        F2 = _mv(MF, dq) * sig[:, None]
+        v_trail = _mv(Mu, dq)[:, N:] * sig[:, None]
+        td_unit = _dot(model.E_swing(qm)[:, 1, :], dq)  # touch-down velocity per |sigma^-|
+        nF2 = np.maximum(np.sqrt(_dot(F2, F2)), 1e-12)
+        # constraints (scaled); every block has the batch as its first axis
         eq: dict[str, list] = {k: [] for k in FAMILIES}
         iq: dict[str, list] = {k: [] for k in FAMILIES}
-        eq["orbit"].append([((1.0 - d2) * zm - V[-1]) / self.zeta_ref])
-        parts = {"fixed_point": abs(eq["orbit"][0][0]),
-                 "zeta": (zeta - spec.min_zeta_ratio * zm) / self.zeta_ref,
+        eq["orbit"].append(((1.0 - d2) * zm - V[:, -1]) / self.zeta_ref)
+        parts = {"fixed_point": np.abs(eq["orbit"][0]),
+                 "zeta": (zeta - (spec.min_zeta_ratio * zm)[:, None]) / self.zeta_ref,
                  "delta": (d2 - 1e-3) * 10.0, "kappa1": self.sign_E * E / self.E_ref - 0.2,
                  "monotonic": (self.direction * span - 0.05) / 0.05}
-        iq["orbit"] += [parts["zeta"], [parts["delta"]], parts["kappa1"], [parts["monotonic"]]]
-        iq["stability"].append([(spec.max_delta_sq - STABILITY_MARGIN - d2) * 10.0])
+        iq["orbit"] += [parts["zeta"], parts["delta"], parts["kappa1"], parts["monotonic"]]
+        iq["stability"].append((spec.max_delta_sq - STABILITY_MARGIN - d2) * 10.0)
         if spec.speed is not None:
-            eq["speed"].append([(L / T - spec.speed) / spec.speed if T > 0 else 10.0])
+            eq["speed"].append(np.where(T > 0, (L / T - spec.speed) / spec.speed, 10.0))
         if spec.step_length is not None:
-            eq["step_length"].append([(L - spec.step_length) / (0.1 * self.ell)])
-        eq["foot_placement"].append([model.p_swing(qm)[1] / (0.1 * self.ell)])
-        iq["foot_placement"].append([(L - 0.05 * self.ell) / (0.1 * self.ell)])
-        iq["clearance"].append([(hgt[self.mid] - spec.clearance) / 0.01])
-        q_d = maps.q_Z(a_i + self.s_dense * span)
-        iq["scuffing"].append((cell_minima(model.p_swing(q_d)[:, 1]) + DIP) / 0.01)
+            eq["step_length"].append((L - spec.step_length) / (0.1 * self.ell))
+        eq["foot_placement"].append(p_sw[:, 1] / (0.1 * self.ell))
+        iq["foot_placement"].append((L - 0.05 * self.ell) / (0.1 * self.ell))
+        iq["clearance"].append((hgt[:, self.mid] - spec.clearance) / 0.01)
+        q_d = maps.q_Z(a_i[:, None] + self.s_dense * span[:, None])
+        iq["scuffing"].append((cell_minima(model.p_swing(q_d)[..., 1]) + DIP) / 0.01)
         mu_d = spec.mu - 0.005
-        iq["impact"].append([(mu_d * F2[1] - F2[0]) / nF2, (mu_d * F2[1] + F2[0]) / nF2,
-                             F2[1] / nF2 - 0.01])
+        iq["impact"] += [(mu_d * F2[:, 1] - F2[:, 0]) / nF2, (mu_d * F2[:, 1] + F2[:, 0]) / nF2,
+                         F2[:, 1] / nF2 - 0.01]
         # stance, lift-off and torques on the nominal orbit and on the orbits of the ends of
         # the thrust range (everything is affine in a constant thrust: the ends suffice), on
         # the dense grid: the Lambdas and V_Z are interpolated from the nodes (Chebyshev)
         P = self.P
-        Ld = [np.tensordot(P, t, axes=(1, 0)) for t in (st.L0, st.L1, st.L2, st.U0, st.U1,
-                                                         st.U2)]
+        Ld = [np.matmul(P, t.reshape(B, t.shape[1], -1)).reshape((B, P.shape[0]) + t.shape[2:])
+              for t in (st.L0, st.L1, st.L2, st.U0, st.U1, st.U2)]
 
         def on_dense(Fk, zk):
-            zk = P @ zk
-            return (np.einsum("gim,m->gi", Ld[2], Fk) + Ld[1] * zk[:, None] + Ld[0],
-                    np.einsum("gim,m->gi", Ld[5], Fk) + Ld[4] * zk[:, None] + Ld[3])
+            zk = _mv(P, zk)[:, :, None]
+            return (np.einsum("bgim,bm->bgi", Ld[2], Fk) + Ld[1] * zk + Ld[0],
+                    np.einsum("bgim,bm->bgi", Ld[5], Fk) + Ld[4] * zk + Ld[3])
 
-        cases = [(*on_dense(F, zeta), v_trail[1], td_unit * sig)]
+        cases = [(*on_dense(F, zeta), v_trail[:, 1], td_unit * sig)]
         range_zeta = []
         for Fk in self.range_cases(F):
-            Vk = V + self.Q @ ((zt["beta"] @ (Fk - F)) * E) * (0.5 * span)
-            zs_k = Vk[-1] / max(1.0 - d2, 1e-3)  # zeta* on that thrust's orbit
-            zk = d2 * zs_k + Vk
-            range_zeta += [[zs_k / self.zeta_ref - 1e-3],
-                           (zk - spec.min_zeta_ratio * zs_k) / self.zeta_ref]
-            sig_k = np.sqrt(2.0 * max(zs_k, 0.0))
-            cases.append((*on_dense(Fk, zk), v_trail[1] / max(sig, 1e-12) * sig_k,
+            Vk = V + _mv(self.Q, _mv(zt["beta"], Fk - F) * E) * half
+            zs_k = Vk[:, -1] / np.maximum(1.0 - d2, 1e-3)  # zeta* on that thrust's orbit
+            zk = (d2 * zs_k)[:, None] + Vk
+            range_zeta += [zs_k / self.zeta_ref - 1e-3,
+                           (zk - (spec.min_zeta_ratio * zs_k)[:, None]) / self.zeta_ref]
+            sig_k = np.sqrt(2.0 * np.maximum(zs_k, 0.0))
+            cases.append((*on_dense(Fk, zk), v_trail[:, 1] / np.maximum(sig, 1e-12) * sig_k,
                           td_unit * sig_k))
         iq["orbit"] += range_zeta
-        parts["range"] = (np.concatenate([np.ravel(v) for v in range_zeta]) if range_zeta
-                          else np.zeros(0))
         for F1k, _, lift, td in cases:
             iq["vertical_force"].append(
-                (F1k[:, 1] - self.eps - 0.005 * self.weight) / self.weight)
-            iq["friction"] += [(mu_d * F1k[:, 1] - F1k[:, 0]) / self.weight,
-                               (mu_d * F1k[:, 1] + F1k[:, 0]) / self.weight]
-            iq["impact"].append([(lift - spec.min_liftoff - VELOCITY_MARGIN) / 0.1])
-            iq["touchdown"].append([(-td - spec.min_touchdown_velocity - VELOCITY_MARGIN) / 0.1])
-        q_all = q_d
-        range_margin = np.full(N, np.inf)  # [rad] worst margin to the range less 0.01 rad
+                (F1k[:, :, 1] - self.eps - 0.005 * self.weight) / self.weight)
+            iq["friction"] += [(mu_d * F1k[:, :, 1] - F1k[:, :, 0]) / self.weight,
+                               (mu_d * F1k[:, :, 1] + F1k[:, :, 0]) / self.weight]
+            iq["impact"].append((lift - spec.min_liftoff - VELOCITY_MARGIN) / 0.1)
+            iq["touchdown"].append((-td - spec.min_touchdown_velocity - VELOCITY_MARGIN) / 0.1)
         for i in range(N):
             if np.isfinite(self.lo[i]):
-                iq["joint_range"].append((q_all[:, i] - self.lo[i] - 0.01) / 0.1)
-                range_margin[i] = min(range_margin[i], float(iq["joint_range"][-1].min() * 0.1))
+                iq["joint_range"].append((q_d[:, :, i] - self.lo[i] - 0.01) / 0.1)
             if np.isfinite(self.hi[i]):
-                iq["joint_range"].append((self.hi[i] - 0.01 - q_all[:, i]) / 0.1)
-                range_margin[i] = min(range_margin[i], float(iq["joint_range"][-1].min() * 0.1))
+                iq["joint_range"].append((self.hi[i] - 0.01 - q_d[:, :, i]) / 0.1)
         for i, lim in enumerate(self.torque_limit):
             if np.isfinite(lim):
                 for _, uk, _, _ in cases:
-                    iq["torque_limit"] += [(0.99 * lim - uk[:, i]) / lim,
-                                           (0.99 * lim + uk[:, i]) / lim]
-        eqd = {k: np.concatenate([np.ravel(v) for v in vs]) for k, vs in eq.items() if vs}
-        iqd = {k: np.concatenate([np.ravel(v) for v in vs]) for k, vs in iq.items() if vs}
+                    iq["torque_limit"] += [(0.99 * lim - uk[:, :, i]) / lim,
+                                           (0.99 * lim + uk[:, :, i]) / lim]
+
+        def rows(vs):
+            return np.concatenate([np.reshape(v, (B, -1)) for v in vs], axis=1)
+
+        eqd = {k: rows(vs) for k, vs in eq.items() if vs}
+        iqd = {k: rows(vs) for k, vs in iq.items() if vs}
         if spec.objective == "peak":
-            iqd["_epigraph"] = np.concatenate([tpk - u.ravel() / self.u_scale,
-                                               tpk + u.ravel() / self.u_scale])
-        F1all = np.concatenate([c[0] for c in cases])
+            ur = u.reshape(B, -1) / self.u_scale
+            iqd["_epigraph"] = np.concatenate([tpk[:, None] - ur, tpk[:, None] + ur], axis=1)
+        finite = np.isfinite(scaled)
+        for v in (*eqd.values(), *iqd.values()):
+            finite &= np.isfinite(v).all(axis=1)
+        out = []
+        for b in range(B):
+            ib = {}
+            if info:
+                ib = self._info(b, dict(cases=cases, iqd=iqd, F2=F2, T=T, L=L, d2=d2, q_d=q_d,
+                                        parts=parts, range_zeta=range_zeta, zm=zm, hgt=hgt,
+                                        zeta=zeta, V=V, span=span))
+            out.append(Evaluation(True, float(J[b]), float(scaled[b]),
+                                  {k: v[b] for k, v in eqd.items()},
+                                  {k: v[b] for k, v in iqd.items()}, ib))
+        return out, finite
+
+    def _info(self, b: int, v: dict) -> dict:
+        """The diagnostics of row ``b`` of :meth:`_evaluate_batch` (``v``: its batched
+        intermediate values by name), read by :func:`~.solver.describe`."""
+        N, cases, iqd, F2 = self.N, v["cases"], v["iqd"], v["F2"][b]
+        T, L, d2 = float(v["T"][b]), float(v["L"][b]), float(v["d2"][b])
+        range_margin = np.full(N, np.inf)  # [rad] worst margin to the range less 0.01 rad
+        q_d = v["q_d"][b]
+        for i in range(N):
+            if np.isfinite(self.lo[i]):
+                range_margin[i] = min(range_margin[i],
+                                      float(((q_d[:, i] - self.lo[i] - 0.01) / 0.1).min() * 0.1))
+            if np.isfinite(self.hi[i]):
+                range_margin[i] = min(range_margin[i],
+                                      float(((self.hi[i] - 0.01 - q_d[:, i]) / 0.1).min() * 0.1))
+        parts = {k: p[b] for k, p in v["parts"].items()}
+        for k in ("fixed_point", "delta", "monotonic"):
+            parts[k] = float(parts[k])
+        rz = [np.ravel(r[b]) for r in v["range_zeta"]]
+        parts["range"] = np.concatenate(rz) if rz else np.zeros(0)
+        F1all = np.concatenate([c[0][b] for c in cases])
         ratio = np.where(F1all[:, 1] > 0,
                          np.abs(F1all[:, 0]) / np.maximum(F1all[:, 1], 1e-300), np.inf)
-        info = dict(delta_zero_sq=d2, zeta_minus=zm, step_time=T, step_length=L,
-                    speed=L / T if T > 0 else 0.0, mid_height=float(hgt[self.mid]),
-                    min_height=float(iqd["scuffing"].min() * 0.01 - DIP),
+        return dict(delta_zero_sq=d2, zeta_minus=float(v["zm"][b]), step_time=T, step_length=L,
+                    speed=L / T if T > 0 else 0.0, mid_height=float(v["hgt"][b, self.mid]),
+                    min_height=float(iqd["scuffing"][b].min() * 0.01 - DIP),
                     min_vertical_force=float(F1all[:, 1].min()),
                     max_friction_ratio=float(ratio.max()),
                     impact_friction_ratio=float(abs(F2[0]) / F2[1]) if F2[1] > 0 else np.inf,
-                    liftoff_velocity=float(min(c[2] for c in cases)), min_zeta=float(zeta.min()),
-                    touchdown_velocity=float(max(c[3] for c in cases)), V_f=float(V[-1]),
-                    span=float(span), orbit_parts=parts, joint_range_margin=range_margin,
-                    max_abs_torque=np.max([np.abs(c[1]).max(axis=0) for c in cases], axis=0))
-        return Evaluation(True, J, scaled, eqd, iqd, info)
+                    liftoff_velocity=float(min(c[2][b] for c in cases)),
+                    min_zeta=float(v["zeta"][b].min()),
+                    touchdown_velocity=float(max(c[3][b] for c in cases)),
+                    V_f=float(v["V"][b, -1]), span=float(v["span"][b]), orbit_parts=parts,
+                    joint_range_margin=range_margin,
+                    max_abs_torque=np.max([np.abs(c[1][b]).max(axis=0) for c in cases], axis=0))
 
     def polish(self, x: np.ndarray, tol: float = 1e-13) -> np.ndarray:
         """``x`` with the swing foot exactly on the ground at impact: Newton on the unactuated
@@ -586,9 +674,99 @@ def cell_minima(h: np.ndarray) -> np.ndarray:
     the parabola through ``h_{j-1}, h_j, h_{j+1}``: ``h_j + c_1 t + c_2 t^2 / 2``. Catches dips
     narrower than the grid spacing (a straight-leg swing foot passing the stance foot; exact
     for a quadratic dip) and is continuous in the samples."""
-    c1 = 0.5 * (h[2:] - h[:-2])
-    c2 = h[2:] - 2.0 * h[1:-1] + h[:-2]
+    c1 = 0.5 * (h[..., 2:] - h[..., :-2])
+    c2 = h[..., 2:] - 2.0 * h[..., 1:-1] + h[..., :-2]
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.where(c2 > 0, np.clip(-c1 / c2, -1.0, 1.0), -np.sign(c1))
-    return h[1:-1] + c1 * t + 0.5 * c2 * t**2
+    return h[..., 1:-1] + c1 * t + 0.5 * c2 * t**2
+
+
+# ------------------------------------------------------------------ batched evaluation
+# Stacks of the products a single point computes, so that every row of a batch is computed
+# with the same BLAS call (same shapes, same kernel) as one point alone: a plain (k, n) @ (n,)
+# would be one larger product, equal only to rounding.
+def _mv(M: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``M @ v`` for a stack of vectors ``v`` (..., c) (``M`` (r, c) or a stack)."""
+    return np.matmul(M, v[..., None])[..., 0]
+
+
+def _vm(v: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """``v @ M`` for a stack of row vectors ``v`` (..., r)."""
+    return np.matmul(v[..., None, :], M)[..., 0, :]
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a @ b`` of two (stacks of) vectors, one dot product per row."""
+    return np.matmul(a[..., None, :], b[..., :, None])[..., 0, 0]
+
+
+def _square(v: np.ndarray) -> np.ndarray:
+    """``v**2`` of each entry as a Python float squares (C ``pow(v, 2)``, which can differ
+    from numpy's ``v * v`` in the last bit), as the single-point code did."""
+    return np.array([float(x) ** 2 for x in v])
+
+
+def _relabel(model: CompiledModel, q: np.ndarray) -> np.ndarray:
+    """:meth:`CompiledModel.relabel` of a stack of configurations (..., N)."""
+    return _vm(q, model.R.T) + model.b
+
+
+class _Maps:
+    """The geometry of a batch of gaits (one per row): ``q_Z``, ``Phi`` and ``dPhi`` of
+    :class:`~thrustwalk_cli.hzd.constraints.GaitMaps` (SPEC 2) for ``alpha`` of shape
+    ``(k, g)``, row ``r`` computed with the operations and shapes of gait ``r`` alone.
+    ``A``: (k, N-1, M+1) [rad]; ``alpha_i``, ``alpha_f``: (k,) [rad]."""
+
+    def __init__(self, A: np.ndarray, Hinv: np.ndarray, alpha_i: np.ndarray,
+                 alpha_f: np.ndarray, q_minus: np.ndarray, q_plus: np.ndarray):
+        self.A, self.Hinv = A, Hinv
+        self.alpha_i, self.alpha_f, self.q_minus, self.q_plus = alpha_i, alpha_f, q_minus, q_plus
+        self.span = alpha_f - alpha_i
+        self._last: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+
+    def _once(self, name: str, alpha: np.ndarray, fn) -> np.ndarray:
+        """``fn(alpha)``, reused when called again with the same ``alpha`` object (the zero
+        dynamics and the stance terms ask for q_Z and Phi at the same nodes)."""
+        last = self._last.get(name)
+        if last is None or last[0] is not alpha:
+            last = self._last[name] = (alpha, fn(alpha))
+        return last[1]
+
+    @staticmethod
+    def _rows(v: np.ndarray, ndim: int) -> np.ndarray:
+        return v.reshape(v.shape[:1] + (1,) * (ndim - 1))
+
+    def s(self, alpha: np.ndarray) -> np.ndarray:
+        return (alpha - self._rows(self.alpha_i, alpha.ndim)) / self._rows(self.span, alpha.ndim)
+
+    def _bezier(self, alpha: np.ndarray, deriv: int) -> np.ndarray:
+        """:func:`~thrustwalk_cli.hzd.constraints.bezier` of each row's ``A`` at its ``s``."""
+        A = self.A
+        for _ in range(deriv):
+            M = A.shape[-1] - 1
+            A = M * np.diff(A, axis=-1) if M > 0 else np.zeros(A.shape[:-1] + (1,))
+        M = A.shape[-1] - 1
+        k = np.arange(M + 1)
+        binom = np.array([comb(M, j) for j in k], float)
+        s = self.s(alpha)
+        basis = binom * s[..., None] ** k * (1.0 - s[..., None]) ** (M - k)
+        return basis @ np.swapaxes(A, -1, -2)
+
+    def q_Z(self, alpha: np.ndarray) -> np.ndarray:
+        return self._once("q_Z", alpha, self._q_Z)
+
+    def Phi(self, alpha: np.ndarray) -> np.ndarray:
+        return self._once("Phi", alpha, self._Phi)
+
+    def _q_Z(self, alpha: np.ndarray) -> np.ndarray:
+        hd = self._bezier(alpha, 0)
+        return np.concatenate([hd, alpha[..., None]], axis=-1) @ self.Hinv.T
+
+    def _Phi(self, alpha: np.ndarray) -> np.ndarray:
+        dh = self._bezier(alpha, 1) / self._rows(self.span, alpha.ndim + 1)
+        return np.concatenate([dh, np.ones(alpha.shape + (1,))], axis=-1) @ self.Hinv.T
+
+    def dPhi(self, alpha: np.ndarray) -> np.ndarray:
+        d2 = self._bezier(alpha, 2) / self._rows(_square(self.span), alpha.ndim + 1)
+        return np.concatenate([d2, np.zeros(alpha.shape + (1,))], axis=-1) @ self.Hinv.T
 

@@ -6,8 +6,9 @@ independent re-check in :mod:`thrustwalk_cli.design.verify`; what to design in
 :mod:`thrustwalk_cli.design.spec`. The report record and the gait file are rendered by
 :mod:`thrustwalk_cli.studies.design_gait`.
 
-Solver: SciPy SLSQP with one shared forward-difference Jacobian per point, several seeded
-starts (start 0 is the deterministic default start). The chosen gait is re-checked by the
+Solver: SciPy SLSQP with one shared forward-difference Jacobian per point (its perturbed
+points evaluated in one vectorised call, :meth:`Problem.evaluate_many`), several seeded starts
+(start 0 is the deterministic default start). The chosen gait is re-checked by the
 independent code paths (adaptive zero dynamics, :func:`limit_cycles`, the contact evaluation,
 dense grids); ``feasible`` is the verdict of that re-check.
 """
@@ -60,20 +61,29 @@ class _Cache:
         return ev.scaled, eq, iq
 
     def jacobian(self, x):
+        """Forward-difference Jacobian of the objective and the constraints at ``x`` (steps
+        ``1e-7 max(1, |x_j|)``): all perturbed points in one :meth:`Problem.evaluate_many`."""
         x = np.asarray(x, float)
         if self.jx is not None and np.array_equal(x, self.jx):
             return self.jac
+        self.jx, self.jac = x.copy(), self.differences(x)
+        return self.jac
+
+    def differences(self, x: np.ndarray, batched: bool = True):
+        """The forward differences of :meth:`jacobian` (not cached); ``batched=False``
+        evaluates the perturbed points one at a time (the reference the tests compare with:
+        the same numbers)."""
         f0, e0, i0 = self.flat(self.at(x))
         n = x.size
-        gf, ge, gi = np.zeros(n), np.zeros((e0.size, n)), np.zeros((i0.size, n))
-        for j in range(n):
-            h = 1e-7 * max(1.0, abs(x[j]))
-            xp = x.copy()
-            xp[j] += h
-            f1, e1, i1 = self.flat(self.p.evaluate(xp))
-            gf[j], ge[:, j], gi[:, j] = (f1 - f0) / h, (e1 - e0) / h, (i1 - i0) / h
-        self.jx, self.jac = x.copy(), (gf, ge, gi)
-        return self.jac
+        h = 1e-7 * np.maximum(1.0, np.abs(x))
+        xp = np.repeat(x[None, :], n, axis=0)
+        xp[np.arange(n), np.arange(n)] += h
+        evs = (self.p.evaluate_many(xp) if batched else [self.p.evaluate(xj) for xj in xp])
+        rows = [self.flat(ev) for ev in evs]
+        f1 = np.array([r[0] for r in rows])
+        e1 = np.array([r[1] for r in rows]).reshape(n, e0.size)
+        i1 = np.array([r[2] for r in rows]).reshape(n, i0.size)
+        return ((f1 - f0) / h, ((e1 - e0) / h[:, None]).T, ((i1 - i0) / h[:, None]).T)
 
 
 @dataclass(frozen=True)
