@@ -30,8 +30,8 @@ The URDF is untrusted XML: at most 16 MB, no DTD, no entities, no external refer
 are never read. A problem is one line naming the element and its line (exit 2); nothing is
 written then.
 """
-EPILOG = ("Examples: thrustwalk import-urdf rabbit.urdf --stance-foot left_foot:0,0,0 "
-          "--swing-foot right_foot:0,0,0 --side rabbit_side.yaml --out rabbit.yaml; "
+EPILOG = ("Example: thrustwalk import-urdf rabbit.urdf --stance-foot left_foot:0,0,0 "
+          "--swing-foot right_foot:0,0,0 --side rabbit_side.yaml --out rabbit.yaml. Another: "
           "thrustwalk import-urdf walker.urdf --stance-foot l_shin:0,0,-0.4 --swing-foot "
           "r_shin:0,0,-0.4 --thruster back:torso:0,0,0.3:-1,0 --out walker.yaml")
 

@@ -430,11 +430,11 @@ _JOINT = mapping(
     key("rotor_inertia", null_or(number("kg m^2", ge=0)), "rotor inertia J of the joint's "
         "motor (URDF has none); the model adds J G^2 on the joint angle", default=None),
     key("gear_ratio", null_or(number("1", gt=0)), "gear ratio G (default: the "
-        "<transmission>'s mechanicalReduction, else 1)", default=None),
+        "`<transmission>`'s `mechanicalReduction`, else 1)", default=None),
     key("torque_limit", null_or(number("N m", gt=0)), "maximum |torque| (default: the "
-        "<limit effort>)", default=None),
+        "`<limit effort>`)", default=None),
     key("range", null_or(vector(2, "rad")), "[lower, upper] of the URDF joint angle "
-        "(default: the <limit lower upper> of a revolute joint)", default=None),
+        "(default: the `<limit lower upper>` of a revolute joint)", default=None),
 )
 
 _SIDE_THRUSTER = mapping(
@@ -449,7 +449,7 @@ _SIDE_THRUSTER = mapping(
 )
 
 URDF_SIDE_SCHEMA = mapping(
-    key("name", null_or(string()), "robot name (default: the URDF's <robot name>)",
+    key("name", null_or(string()), "robot name (default: the URDF's `<robot name>`)",
         default=None),
     key("description", string(nonempty=False), "free text for the robot file", default=""),
     key("gravity", number("m/s^2", gt=0), "gravitational acceleration (URDF has none)",
@@ -468,7 +468,8 @@ URDF_SIDE_SCHEMA = mapping(
     key("relabel", null_or(mapping(
         key("swap", null_or(list_of(list_of(string(), min_len=2))), "link pairs that exchange "
             "roles at impact (URDF link names)", default=None),
-        key("R", null_or(matrix()), "explicit N x N relabelling matrix", default=None),
+        key("R", null_or(matrix()), "explicit N x N relabelling matrix, in the order of "
+            "the imported robot's links", default=None),
         key("b", null_or(vector(unit="rad")), "offset in q+ = R q- + b", default=None),
     )), "leg relabelling (default: detected from the mirrored legs)", default=None),
     key("thrusters", list_of(_SIDE_THRUSTER, max_len=16), "thrusters", default=[]),
