@@ -561,3 +561,32 @@ def test_meshes_are_never_opened(tmp_path, monkeypatch):
     assert res.urdf.meshes == 8
     assert str(RABBIT) in opened  # the spy sees the reads
     assert not any("mesh" in f or f.endswith((".dae", ".stl")) for f in opened), opened
+
+
+@pytest.mark.parametrize("side, pattern", [
+    ("joints:\n  left_kne: {rotor_inertia: 1.0e-4}\n",
+     r"error: side\.yaml:2: joints\.left_kne: unknown joint 'left_kne' in .*rabbit\.urdf"),
+    ("joints:\n  left_ankle: {rotor_inertia: 1.0e-4}\n",
+     r"error: side\.yaml:2: joints\.left_ankle: joint 'left_ankle' is fixed"),
+    ("joints:\n  left_knee: {rotor_inertia: -1}\n",
+     r"error: side\.yaml:2: joints\.left_knee\.rotor_inertia: must be >= 0"),
+    ("unactuated: {link: tors}\n", r"error: side\.yaml:1: unactuated\.link: unknown link 'tors'"),
+    ("relabel: {swap: [[left_foot, right_foot]], R: [[1]]}\n",
+     r"error: side\.yaml:1: relabel: give exactly one of `swap` or `R`"),
+    (None, r"error: .*three_link\.yaml: this is a robot file, not a URDF side file"),
+])
+def test_side_file_problems_name_the_side_file_line(side, pattern, cli, tmp_path,
+                                                   monkeypatch):
+    import re
+
+    monkeypatch.chdir(tmp_path)
+    if side is None:
+        path = str(Path(__file__).parents[1] / "robots" / "three_link.yaml")
+    else:
+        Path("side.yaml").write_text(side)
+        path = "side.yaml"
+    res = cli("import-urdf", str(RABBIT), *FEET, "--side", path, "--out", "out.yaml")
+    lines = res.stderr.strip().splitlines()
+    assert res.exit_code == 2 and len(lines) == 1, res.stderr
+    assert re.match(pattern, lines[0]), lines[0]
+    assert not Path("out.yaml").exists()
