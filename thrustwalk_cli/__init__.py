@@ -11,6 +11,9 @@ Loading
     load_robot          a robot file or bundled name -> :class:`Robot`
     load_model          :class:`Robot` -> :class:`CompiledModel` (cached by structure)
     compile_robot       a robot file or bundled name -> :class:`CompiledModel`
+    import_urdf         a URDF (+ side file) -> a commented robot YAML and its :class:`Robot`
+                        (SPEC 16; the import-urdf command)
+    robot_to_urdf       :class:`Robot` -> planar URDF text (SPEC 16)
     Robot               an immutable robot description (links, coordinates, thrusters)
     Gait                an immutable gait description (Bezier virtual constraints)
     ThrustSchedule      a piecewise-constant thrust schedule as written in a gait file
@@ -65,6 +68,7 @@ _HOMES = {
     "load_walker": "walker", "Walker": "walker",
     "load_robot": "files.robot_file", "load_model": "model.compiler",
     "compile_robot": "studies.compile", "inspect_state": "studies.inspect",
+    "import_urdf": "studies.import_urdf", "robot_to_urdf": "interchange.urdf",
     "Robot": "description.robot", "Gait": "description.gait",
     "ThrustSchedule": "description.gait", "CompiledModel": "model.compiled",
     "ZeroDynamics": "hzd.zero_dynamics", "Schedule": "hzd.zero_dynamics",

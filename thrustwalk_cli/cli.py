@@ -19,6 +19,7 @@ from .commands import (
     control,
     design_gait,
     feasibility,
+    import_urdf,
     inspect,
     limit_cycle,
     optimize,
@@ -31,8 +32,8 @@ from .commands import (
 )
 
 # Help lists the commands in this order.
-COMMANDS = (compile, inspect, limit_cycle, shape, feasibility, optimize, simulate, control,
-            stability, robustness, design_gait, sweep, report)
+COMMANDS = (compile, import_urdf, inspect, limit_cycle, shape, feasibility, optimize, simulate,
+            control, stability, robustness, design_gait, sweep, report)
 
 class _OneLineErrors(TyperGroup):
     """The command group, with usage errors (an unknown option, a value of the wrong type, a

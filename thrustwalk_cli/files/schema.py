@@ -504,11 +504,13 @@ KIND_KEYS = {
     "robot": ("links", "coordinates", "feet", "relabel", "thrusters", "gravity"),
     "gait": ("bezier", "alpha", "controller"),
     "sweep": ("study", "collect", "grid", "zip", "random"),
+    "URDF side": ("joints", "stance_foot", "swing_foot", "unactuated", "plane"),
 }
 KIND_USE = {
     "robot": "the ROBOT argument or a robot: key",
     "gait": "the GAIT argument or a gait: key",
     "sweep": "thrustwalk sweep FILE",
+    "URDF side": "the side file of thrustwalk import-urdf",
 }
 
 

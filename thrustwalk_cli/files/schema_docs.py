@@ -12,10 +12,11 @@ from .robot_file import ROBOT_SCHEMA
 from .schema import markdown_table
 from .sweep_file import STUDY_PARAMETERS, SWEEP_SCHEMA
 from .uncertainty_file import UNCERTAINTY_SCHEMA
+from .urdf_file import URDF_SIDE_SCHEMA
 
 SECTIONS = {"robot-keys": ROBOT_SCHEMA, "gait-keys": GAIT_SCHEMA, "sweep-keys": SWEEP_SCHEMA,
             **{f"sweep-{study}-settings": kind for study, kind in STUDY_PARAMETERS.items()},
-            "uncertainty-keys": UNCERTAINTY_SCHEMA}
+            "uncertainty-keys": UNCERTAINTY_SCHEMA, "urdf-side-keys": URDF_SIDE_SCHEMA}
 
 
 def render(text: str) -> str:
