@@ -23,6 +23,8 @@ GOLDEN = REPO / "tests" / "golden"
 
 # (name, command line without --out, the JSON file the command writes)
 CASES: list[tuple[str, list[str], str]] = []
+# cases compared loosely unless bit for bit is asked for: name -> (rtol, keys left out)
+LOOSE: dict[str, tuple[float, frozenset[str]]] = {}
 
 
 def _add(name: str, args: list[str], doc: str) -> None:
@@ -55,11 +57,19 @@ for _robot, _gait, _thr in (("three_link", "three_link_walk", "hip_x"),
                               "none,constant:-10,control", "--steps", "4",
                               "--basin-sigma", "-0.5:0.5", "--workers", "1"],
          "robustness.json")
+# an optimiser's end point: reproducible bit for bit on one machine, to about 1e-5 where the
+# BLAS (thread count, CPU kernels) sums in another order (SLSQP follows its rounding); the
+# runs converge, so their verdicts do not depend on it
 _add("design_gait_three", ["design-gait", "three_link", "--target-speed", "0.8", "--clearance",
-                           "0", "--starts", "1", "--max-iter", "40", "--name", "g"],
+                           "0", "--starts", "1", "--name", "g", "--formats", "none"],
      "g.report.json")
-_add("design_gait_rabbit", ["design-gait", "rabbit", "--target-speed", "0.5", "--starts", "1",
-                            "--max-iter", "20", "--name", "g"], "g.report.json")
+_add("design_gait_rabbit", ["design-gait", "rabbit", "--target-speed", "0.53", "--starts", "1",
+                            "--name", "g", "--formats", "none"], "g.report.json")
+# measured between 1 and 2 BLAS threads: coefficients and margins within 2e-4 relative; the
+# iteration counts and whether SLSQP's last line search certified the optimum differ
+for _name in ("design_gait_three", "design_gait_rabbit"):
+    LOOSE[_name] = (1e-3, frozenset({"evaluations", "iterations", "optimality", "starts",
+                                     "warnings", "status", "solver_value", "reason"}))
 _add("sweep_thrust_torso_mass", ["sweep", "sweeps/thrust_torso_mass.yaml", "--workers", "1"],
      "sweep.json")
 
@@ -93,23 +103,24 @@ def run_case(args: list[str], doc: str, out: Path, invoke) -> dict:
     return normalise(json.loads(path.read_text()), str(out))
 
 
-def differences(got, want, path: str = "", rtol: float = 0.0, atol: float = 0.0
-                ) -> list[str]:
+def differences(got, want, path: str = "", rtol: float = 0.0, atol: float = 0.0,
+                skip: frozenset[str] = frozenset()) -> list[str]:
     """Every place where ``got`` differs from ``want``: structure, strings, booleans and
-    numbers (``|g - w| <= atol + rtol |w|``; 0 and 0: exactly equal)."""
+    numbers (``|g - w| <= atol + rtol |w|``; 0 and 0: exactly equal); keys in ``skip`` are
+    not compared."""
     out: list[str] = []
     if isinstance(want, dict) and isinstance(got, dict):
-        for k in sorted(set(want) | set(got)):
+        for k in sorted((set(want) | set(got)) - skip):
             if k not in got or k not in want:
                 out.append(f"{path}.{k}: {'missing' if k not in got else 'new'}")
             else:
-                out += differences(got[k], want[k], f"{path}.{k}", rtol, atol)
+                out += differences(got[k], want[k], f"{path}.{k}", rtol, atol, skip)
         return out
     if isinstance(want, list) and isinstance(got, list):
         if len(want) != len(got):
             return [f"{path}: {len(got)} items, want {len(want)}"]
         for i, (g, w) in enumerate(zip(got, want)):
-            out += differences(g, w, f"{path}[{i}]", rtol, atol)
+            out += differences(g, w, f"{path}[{i}]", rtol, atol, skip)
         return out
     num = (int, float)
     if isinstance(want, num) and isinstance(got, num) and not isinstance(want, bool) \
@@ -148,5 +159,7 @@ if __name__ == "__main__":
         sys.exit("usage: python tests/golden_cases.py --update [CASE ...]")
     import os
 
+    for var in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # as the CLI and the tests run
+        os.environ.setdefault(var, "1")
     os.chdir(REPO)
     _update(sys.argv[2:])

@@ -2,7 +2,10 @@
 (tests/golden/, made by `make golden`; see tests/golden_cases.py): a change meant to move no
 number moves none. Numbers agree to 1e-7 relative (plus 1e-9 absolute), so that another CPU's
 last digits pass; THRUSTWALK_GOLDEN_EXACT=1 demands every number bit for bit (a change of
-layout is checked so). Strings, booleans, keys and list lengths always agree exactly."""
+layout is checked so). Strings, booleans, keys and list lengths always agree exactly. The
+design-gait cases are an optimiser's end point, which follows the BLAS's rounding: they agree
+to 1e-3 with the solver's path (iterations, evaluations, the certificate of its last line
+search) left out, and bit for bit in the exact mode."""
 
 from __future__ import annotations
 
@@ -10,7 +13,7 @@ import json
 import os
 
 import pytest
-from golden_cases import CASES, GOLDEN, REPO, differences, run_case
+from golden_cases import CASES, GOLDEN, LOOSE, REPO, differences, run_case
 
 EXACT = os.environ.get("THRUSTWALK_GOLDEN_EXACT") == "1"
 
@@ -24,5 +27,11 @@ def test_command_document_equals_its_golden_document(name, args, doc, cli, tmp_p
     monkeypatch.chdir(REPO)
     got = run_case(args, doc, tmp_path / name, lambda argv: cli(*argv).exit_code)
     want = json.loads(path.read_text())
-    diff = differences(got, want, rtol=0.0 if EXACT else 1e-7, atol=0.0 if EXACT else 1e-9)
+    if EXACT:
+        diff = differences(got, want)
+    elif name in LOOSE:
+        tol, skip = LOOSE[name]
+        diff = differences(got, want, rtol=tol, atol=tol, skip=skip)
+    else:
+        diff = differences(got, want, rtol=1e-7, atol=1e-9)
     assert not diff, f"{name}: {len(diff)} differences, first: " + "; ".join(diff[:10])
