@@ -21,11 +21,13 @@ were numbers (:class:`Folder`), so the code is as short as with the numbers subs
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import sympy as sp
 
 from ..description.robot import Robot
+from .codegen import Hoist
 
 
 @dataclass
@@ -49,6 +51,12 @@ class Derivation:
     #: the robot's numbers as symbols (or folded) and the term collector used on every result
     numbers: Numbers | None = None
     fold: Folder | None = None
+    #: :func:`derive` only: the definitions (symbol -> expression, in order: each reads
+    #: inputs, coefficients and earlier definitions) that ``exprs`` and ``programs`` are
+    #: written in; the tape programs; the coefficients of the robot's numbers (``k<j>``)
+    defs: dict[sp.Symbol, sp.Expr] = field(default_factory=dict)
+    programs: dict[str, tuple[int, list[sp.Expr]]] | None = None
+    hoist: Hoist | None = None
 
 
 def _rot(th: sp.Expr, v: tuple[sp.Expr, sp.Expr]) -> tuple[sp.Expr, sp.Expr]:
@@ -149,10 +157,347 @@ class Folder:
         return M.applyfunc(self) if self.P else M
 
 
-def derive(robot: Robot, folded: bool = False) -> Derivation:
-    """Derive every symbolic quantity the numeric model needs (SPEC 1). The robot's nonzero
-    numbers are the symbols of :class:`Numbers` (the inputs of the compiled model), or the
-    numbers themselves when ``folded``."""
+class _Staged:
+    """Definitions for :func:`derive`: ``define`` binds an expression to a new symbol (a
+    temporary of the generated code and a register of the tape), ``coef`` turns an
+    expression in the robot's numbers into a coefficient (:class:`Hoist`: computed once
+    per set of numbers), ``sincos`` gives the sine and cosine of an integer combination of
+    the coordinates (each combination defined once)."""
+
+    def __init__(self, q: list[sp.Symbol], hoist: Hoist):
+        self.q = q
+        self.hoist = hoist
+        self.defs: dict[sp.Symbol, sp.Expr] = {}
+        self.trig: dict[tuple, tuple[sp.Expr, sp.Expr]] = {}
+
+    def define(self, name: str, e: sp.Expr) -> sp.Expr:
+        if e.is_Atom:
+            return e
+        s = sp.Symbol(name, real=True)
+        self.defs[s] = e
+        return s
+
+    def coef(self, e: sp.Expr) -> sp.Expr:
+        if e == 0 or e.is_Number:
+            return e
+        if e.could_extract_minus_sign():
+            return -self.hoist(-e)
+        return self.hoist(e)
+
+    def sincos(self, row) -> tuple[sp.Expr, sp.Expr]:
+        """``(sin a, cos a)`` of ``a = sum_j row[j] q_j`` (integer ``row``)."""
+        combo = tuple((j, int(c)) for j, c in enumerate(row) if c)
+        if not combo:
+            return sp.Integer(0), sp.Integer(1)
+        sign = 1
+        if combo[0][1] < 0:
+            combo, sign = tuple((j, -c) for j, c in combo), -1
+        r = self.trig.get(combo)
+        if r is None:
+            a = sp.Add(*(c * self.q[j] for j, c in combo))
+            i = len(self.trig)
+            r = (self.define(f"zs{i}", sp.sin(a)), self.define(f"zc{i}", sp.cos(a)))
+            self.trig[combo] = r
+        return sign * r[0], r[1]
+
+
+def _lin(terms) -> sp.Expr:
+    """``sum c_i x_i`` over ``(c_i, x_i)`` with integer ``c_i`` (zeros dropped)."""
+    return sp.Add(*(int(c) * x for c, x in terms if c))
+
+
+def derive(robot: Robot, folded: bool = False,
+           progress: Callable[[str], None] | None = None) -> Derivation:
+    """Derive every quantity of the numeric model (SPEC 1) in absolute link angles
+    ``theta = T q`` and map them to ``q`` by the constant integer matrix ``T``.
+
+    With ``v_ij`` the constant vectors of :func:`derive_reference` (a point of link ``j`` is
+    ``foot + sum_i Rot(theta_i) v_ij``), ``a_i = sum_j m_j v_ij`` [kg m] and, for ``i < k``,
+    ``c_ik = sum_j m_j v_ij . v_kj``, ``s_ik = sum_j m_j v_ij x v_kj`` [kg m^2]:
+
+    * ``D_theta[i, k] = c_ik cos(theta_k - theta_i) - s_ik sin(theta_k - theta_i)`` (+ the
+      constant inertias and rotor terms), ``D = T^T D_theta T`` [kg m^2];
+    * ``W[i, k] = dD_theta[i, k]/dtheta_k`` (antisymmetric); the Christoffel symbols of
+      ``D_theta`` reduce to ``C_theta = W diag(theta')``, so
+      ``C = T^T W diag(T q') T`` and ``h = C q' + G = T^T (W theta'^2 + G_theta)`` with
+      ``G_theta,i = g (Rot(theta_i) S a_i)_y`` [N m] (``S``: the 90-degree rotation);
+    * unpinned (``q_u = [q; x_1; y_1]``): ``D_u``'s coupling block ``T^T X`` with rows
+      ``X_i = Rot(theta_i) S a_i`` [kg m], ``C_u``'s foot rows ``-Rot(theta_i) a_i theta_i'``
+      mapped by ``T`` (its foot columns are zero), ``h_u = [h; sum_i -Rot(theta_i) a_i
+      theta_i'^2 + (0, m g)]`` [N];
+    * a point's Jacobian ``dp/dq = sum_i (Rot(theta_i) S v_i) T[i, :]``.
+
+    These equal the Lagrange/Christoffel derivation of :func:`derive_reference` exactly
+    (the tests compare the two to 1e-12). Every nonlinear piece is a short definition
+    (``Derivation.defs``, emitted once per generated function that needs it and once per
+    tape program); the results are integer combinations of them, so the cost grows about
+    as N^3 and no simplification or common-subexpression search is needed. Coefficients
+    in the robot's numbers are hoisted (:class:`Hoist`) as they are made. ``progress``
+    is called with a short label after each part."""
+    n = robot.n
+    names = robot.link_names
+    idx = {nm: i for i, nm in enumerate(names)}
+    num = Numbers(robot, folded)
+    hoist = Hoist(num.inputs)
+    q = list(sp.symbols(f"q0:{n}", real=True))
+    dq = list(sp.symbols(f"dq0:{n}", real=True))
+    dxy = list(sp.symbols("dx1 dy1", real=True))
+    F = list(sp.symbols(f"F0:{max(len(robot.thrusters), 1)}", real=True))
+    Ti = robot.T.astype(int)
+    Tl = Ti.tolist()  # Python integers for products with SymPy terms
+    st = _Staged(q, hoist)
+    k, define = st.coef, st.define
+    done = progress or (lambda what: None)
+    Z = sp.Integer(0)
+    sf = num.vec("feet.stance")
+
+    def chain(link: str, local) -> list[tuple[int, tuple[sp.Expr, sp.Expr]]]:
+        """[(i, v_i)]: the world point = foot + sum Rot(theta_i) v_i (pinned); zeros out."""
+        path = robot.path_from_root(link)
+        terms: dict[int, list[list[sp.Expr]]] = {}
+        for a, b in zip(path[:-1], path[1:]):
+            j = num.vec(f"links.{b}.joint")
+            v = terms.setdefault(idx[a], [[], []])
+            v[0].append(j[0])
+            v[1].append(j[1])
+        v = terms.setdefault(idx[link], [[], []])
+        v[0].append(local[0])
+        v[1].append(local[1])
+        root = terms.setdefault(idx[path[0]], [[], []])
+        root[0].append(-sf[0])
+        root[1].append(-sf[1])
+        out = [(i, (sp.Add(*v[0]), sp.Add(*v[1]))) for i, v in terms.items()]
+        return [(i, v) for i, v in out if not _is_zero(v)]
+
+    angle = [st.sincos(Ti[i]) for i in range(n)]  # (sin, cos) of theta_i, made when used
+
+    def rot(i: int, v) -> tuple[sp.Expr, sp.Expr]:
+        """``Rot(theta_i) v`` with hoisted coefficients."""
+        s, c = angle[i]
+        return (k(v[0]) * c - k(v[1]) * s, k(v[0]) * s + k(v[1]) * c)
+
+    def rot_s(i: int, v) -> tuple[sp.Expr, sp.Expr]:
+        """``Rot(theta_i) S v = d/dtheta_i Rot(theta_i) v``."""
+        return rot(i, (-v[1], v[0]))
+
+    def through_T(cols: dict[int, sp.Expr]) -> list[sp.Expr]:
+        """``[sum_i T[i, a] x_i for a]`` of ``x = cols`` (a row vector in theta)."""
+        return [_lin((Tl[i][a], x) for i, x in cols.items()) for a in range(n)]
+
+    # -- rates: theta' = T q', along the link tree from the anchor (one add per link) -------
+    anchor = next(c.link for c in robot.coordinates if not c.actuated)
+    col = {c.link: j for j, c in enumerate(robot.coordinates) if c.actuated}
+    ucol = next(j for j, c in enumerate(robot.coordinates) if not c.actuated)
+    rate: dict[int, sp.Expr] = {idx[anchor]: dq[ucol]}
+    todo = [anchor]
+    children: dict[str, list[str]] = {}
+    for lk in robot.links:
+        if lk.parent is not None:
+            children.setdefault(lk.parent, []).append(lk.name)
+    parent = {lk.name: lk.parent for lk in robot.links}
+    while todo:
+        a = todo.pop()
+        for b in children.get(a, []) + ([parent[a]] if parent[a] else []):
+            if idx[b] in rate:
+                continue
+            if parent[b] == a:  # theta_b = theta_a + q_joint(b)
+                e = rate[idx[a]] + dq[col[b]]
+            else:  # b is a's parent: theta_b = theta_a - q_joint(a)
+                e = rate[idx[a]] - dq[col[a]]
+            rate[idx[b]] = define(f"zv{idx[b]}", e)
+            todo.append(b)
+    sq = {i: define(f"zq{i}", rate[i] ** 2) for i in range(n)}
+
+    # -- mass distribution: a_i, c_ik, s_ik and the constants of D_theta ----------------------
+    a_vec: dict[int, list[list[sp.Expr]]] = {}
+    cpair: dict[tuple[int, int], list[sp.Expr]] = {}
+    spair: dict[tuple[int, int], list[sp.Expr]] = {}
+    const: dict[tuple[int, int], list[sp.Expr]] = {}
+    for lk in robot.links:
+        pre = f"links.{lk.name}"
+        m = num(pre + ".mass")
+        terms = chain(lk.name, num.vec(pre + ".com")) if m != 0 else []
+        for i, v in terms:
+            acc = a_vec.setdefault(i, [[], []])
+            acc[0].append(m * v[0])
+            acc[1].append(m * v[1])
+            for kk, w in terms:
+                if kk < i:
+                    continue
+                dot = m * (v[0] * w[0] + v[1] * w[1])
+                if kk == i:
+                    const.setdefault((i, i), []).append(dot)
+                else:
+                    cpair.setdefault((i, kk), []).append(dot)
+                    spair.setdefault((i, kk), []).append(m * (v[0] * w[1] - v[1] * w[0]))
+        i = idx[lk.name]
+        const.setdefault((i, i), []).append(num(pre + ".inertia"))
+        J = num(pre + ".rotor_inertia")
+        if J != 0 and lk.parent is not None:
+            c, p = idx[lk.name], idx[lk.parent]
+            const.setdefault((c, c), []).append(J)
+            const.setdefault((p, p), []).append(J)
+            const.setdefault((min(c, p), max(c, p)), []).append(-J)
+    avec = {i: (sp.Add(*v[0]), sp.Add(*v[1])) for i, v in a_vec.items()}
+    avec = {i: v for i, v in avec.items() if not _is_zero(v)}
+    done("mass distribution")
+
+    # -- D_theta's varying entries and W ------------------------------------------------------
+    dvar: dict[tuple[int, int], sp.Expr] = {}
+    wvar: dict[tuple[int, int], sp.Expr] = {}
+    for (i, kk) in sorted(set(cpair) | set(spair)):
+        c = k(sp.Add(*cpair.get((i, kk), [])))
+        s = k(sp.Add(*spair.get((i, kk), [])))
+        if c == 0 and s == 0:
+            continue
+        sn, cs = st.sincos(Ti[kk] - Ti[i])
+        dvar[i, kk] = define(f"zd{i}_{kk}", c * cs - s * sn)
+        wvar[i, kk] = define(f"zW{i}_{kk}", -c * sn - s * cs)
+    Dc = {key: sp.Add(*v) for key, v in const.items()}
+
+    def D_entry(a: int, b: int) -> sp.Expr:
+        cst, terms = [], []
+        for (i, kk), e in Dc.items():
+            t = Tl[i][a] * Tl[kk][b] + (Tl[kk][a] * Tl[i][b] if i != kk else 0)
+            if t and e != 0:
+                cst.append(t * e)
+        for (i, kk), x in dvar.items():
+            terms.append((Tl[i][a] * Tl[kk][b] + Tl[kk][a] * Tl[i][b], x))
+        return k(sp.Add(*cst)) + _lin(terms)
+    D = sp.zeros(n, n)
+    for a in range(n):
+        for b in range(a, n):
+            D[a, b] = D[b, a] = D_entry(a, b)
+    done("mass matrix")
+
+    # -- gravity, potential, centre of mass, the unpinned coupling --------------------------
+    g = num("gravity")
+    mtot = num("total_mass")
+    X = {i: tuple(define(f"zX{i}_{r}", e) for r, e in enumerate(rot_s(i, v)))
+         for i, v in avec.items()}
+    Gth = {i: k(g * v[0]) * angle[i][1] - k(g * v[1]) * angle[i][0] for i, v in avec.items()}
+    G = sp.Matrix(through_T(Gth))
+    V = sp.Matrix([sp.Add(*(k(g * v[0]) * angle[i][0] + k(g * v[1]) * angle[i][1]
+                            for i, v in avec.items()))])
+    com = [sp.Add(*(rot(i, (v[0] / mtot, v[1] / mtot))[r] for i, v in avec.items()))
+           for r in range(2)]
+    Dqx = [through_T({i: x[r] for i, x in X.items()}) for r in range(2)]  # [r][a]
+    inv_m = k(1 / mtot)
+    J_com = sp.Matrix(2, n, lambda r, a: inv_m * Dqx[r][a])
+    Du = sp.zeros(n + 2, n + 2)
+    Du[:n, :n] = D
+    for r in range(2):
+        for a in range(n):
+            Du[a, n + r] = Du[n + r, a] = Dqx[r][a]
+    Du[n, n] = Du[n + 1, n + 1] = k(mtot)
+    done("gravity and centre of mass")
+
+    # -- Coriolis: h = T^T (W theta'^2 + G_theta), C = T^T W diag(theta') T -------------------
+    def W(i: int, j: int) -> sp.Expr:
+        if (i, j) in wvar:
+            return wvar[i, j]
+        return -wvar[j, i] if (j, i) in wvar else Z
+
+    bias = {i: define(f"ze{i}", sp.Add(*(W(i, j) * sq[j] for j in range(n)), Gth.get(i, Z)))
+            for i in range(n)}
+    h = sp.Matrix(through_T(bias))
+    Y = {(i, b): define(f"zy{i}_{b}", sp.Add(*(Tl[j][b] * W(i, j) * rate[j]
+                                                for j in range(n))))
+         for i in range(n) for b in range(n)}
+    C = sp.Matrix(n, n, lambda a, b: _lin((Tl[i][a], Y[i, b]) for i in range(n)))
+    # foot rows: U_i = -Rot(theta_i) a_i = (-X_i,y, X_i,x)
+    U = {i: (-x[1], x[0]) for i, x in X.items()}
+    foot_bias = [sp.Add(*(u[r] * sq[i] for i, u in U.items())) for r in range(2)]
+    foot_bias[1] = foot_bias[1] + k(mtot * g)
+    Cu = sp.zeros(n + 2, n + 2)
+    Cu[:n, :n] = C
+    for r in range(2):
+        for b in range(n):
+            Cu[n + r, b] = sp.Add(*(Tl[i][b] * u[r] * rate[i] for i, u in U.items()))
+    hu = sp.Matrix(list(h) + foot_bias)
+    done("Coriolis and gravity terms")
+
+    # -- points and their Jacobians ------------------------------------------------------------
+    def point(link: str, local, tag: str):
+        """(p (2 expressions), dp/dq (2 x n), {i: dp/dtheta_i}) of a point of ``link``."""
+        terms = chain(link, local)
+        p = [sp.Add(*(rot(i, v)[r] for i, v in terms)) for r in range(2)]
+        cols = {i: tuple(define(f"zj{tag}_{i}_{r}", e) for r, e in enumerate(rot_s(i, v)))
+                for i, v in terms}
+        J = [through_T({i: c[r] for i, c in cols.items()}) for r in range(2)]
+        return p, J, cols
+
+    p2, E2, E2cols = point(robot.swing_foot.link, num.vec("feet.swing"), "f")
+    E2m = sp.Matrix(E2)
+    E2u = sp.Matrix.hstack(E2m, sp.eye(2))
+    foot_vy = sp.Add(*(c[1] * rate[i] for i, c in E2cols.items()))
+    pts, ptsJ = [], []
+    for j, lk in enumerate(robot.links):
+        if lk.parent is None:
+            o = point(lk.name, (Z, Z), f"o{j}")
+        else:
+            o = point(lk.parent, num.vec(f"links.{lk.name}.joint"), f"o{j}")
+        e = point(lk.name, num.vec(f"links.{lk.name}.end"), f"e{j}")
+        pts += o[0] + e[0]
+        ptsJ += o[1] + e[1]
+    done("kinematics")
+
+    # -- thrusters -------------------------------------------------------------------------------
+    BF_cols, dirs, tpts = [], [], []
+    for t_i, t in enumerate(robot.thrusters):
+        d = num.vec(f"thrusters.{t.name}.direction")
+        L = idx[t.link]
+        p, _, _ = point(t.link, num.vec(f"thrusters.{t.name}.point"), f"t{t_i}")
+        tpts.append(p)
+        col_terms: dict[int, sp.Expr] = {}
+        for i, v in chain(t.link, num.vec(f"thrusters.{t.name}.point")):
+            if t.frame == "link":  # (S v) . Rot(theta_L - theta_i) d
+                sn, cs = st.sincos(Ti[L] - Ti[i])
+                e = k(v[0] * d[1] - v[1] * d[0]) * cs + k(v[1] * d[1] + v[0] * d[0]) * sn
+            else:  # (Rot(theta_i) S v) . d
+                sn, cs = angle[i]
+                e = k(v[0] * d[1] - v[1] * d[0]) * cs - k(v[0] * d[0] + v[1] * d[1]) * sn
+            col_terms[i] = define(f"zb{t_i}_{i}", e)
+        BF_cols.append(through_T(col_terms))
+        dirs.append(list(rot(L, d)) if t.frame == "link" else [k(d[0]), k(d[1])])
+    m_t = len(robot.thrusters)
+    BF = sp.Matrix(n, m_t, lambda a, c: BF_cols[c][a]) if m_t else sp.zeros(n, 0)
+    thr_dir = sp.Matrix(2, m_t, lambda r, c: dirs[c][r]) if m_t else sp.zeros(2, 0)
+    thr_pts = sp.Matrix(2, m_t, lambda r, c: tpts[c][r]) if m_t else sp.zeros(2, 0)
+    BFu = sp.Matrix.vstack(BF, thr_dir)
+    done("thrusters")
+
+    exprs = {
+        "D": D, "C": C, "G": G, "h": h, "V": V, "B_F": BF, "D_u": Du, "h_u": hu, "C_u": Cu,
+        "B_Fu": BFu, "p_swing": sp.Matrix(p2), "E_swing": E2m, "E_swing_u": E2u,
+        "p_com": sp.Matrix(com), "J_com": J_com, "thruster_points": thr_pts,
+        "thruster_dirs": thr_dir, "link_points": sp.Matrix(pts),
+        "link_points_J": sp.Matrix(ptsJ),
+    }
+    flat = lambda M: list(M) if M.shape[0] * M.shape[1] else []  # noqa: E731
+    accel = flat(D) + flat(h) + flat(BF)
+    ground = flat(Du[n:n + 2, :n]) + foot_bias + flat(thr_dir)
+    programs = {
+        "accel": (2 * n, accel),
+        "force": (2 * n, accel + ground),
+        "height": (n, p2),
+        "footvel": (2 * n, [foot_vy]),
+        "links": (n, pts),
+        "impact": (n, flat(Du) + flat(E2u)),
+        "energy": (n, flat(D) + flat(V)),
+        "push": (n, flat(D) + flat(exprs["link_points_J"])),
+    }
+    return Derivation(q=q, dq=dq, dxy=dxy, F=F, exprs=exprs, T=sp.Matrix(Ti.tolist()),
+                      mg=mtot * g, numbers=num, defs=st.defs, programs=programs, hoist=hoist)
+
+
+def derive_reference(robot: Robot, folded: bool = False) -> Derivation:
+    """The reference derivation (the one before issue 26): every quantity in ``q`` by
+    SymPy, ``C`` and ``C_u`` from the Christoffel symbols of ``D`` and ``D_u`` in ``q``
+    (SPEC 1), the tape's bias terms by :func:`_bias_theta`. The robot's nonzero numbers are
+    the symbols of :class:`Numbers`, or the numbers themselves when ``folded`` (what
+    :func:`thrustwalk_cli.model.compiler.folded_model` compiles: the reference the tests
+    compare :func:`derive` with). Its cost grows as N^4 to N^5 (16 links: minutes)."""
     n = robot.n
     names = robot.link_names
     num = Numbers(robot, folded)
@@ -370,6 +715,15 @@ def _bias_theta(der: Derivation) -> tuple[sp.Matrix, sp.Matrix]:
 
 
 def tape_programs(der: Derivation) -> dict[str, tuple[int, list[sp.Expr]]]:
+    """The expressions of every tape program (the table of :mod:`thrustwalk_cli.model.tape`):
+    name -> (number of inputs read, flat row-major outputs; inputs ``q`` then ``q'``). For
+    :func:`derive` they are expressions in its definitions (``Derivation.defs``)."""
+    if der.programs is not None:
+        return der.programs
+    return _reference_programs(der)
+
+
+def _reference_programs(der: Derivation) -> dict[str, tuple[int, list[sp.Expr]]]:
     """The expressions of every tape program (the table of :mod:`thrustwalk_cli.model.tape`):
     name -> (number of inputs read, flat row-major outputs). Inputs are ``q`` then ``q'``.
     The bias ``h`` and the ground-force bias rows come from :func:`_bias_theta` (shorter
