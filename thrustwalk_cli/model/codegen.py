@@ -32,7 +32,7 @@ from sympy.printing.pycode import PythonCodePrinter
 
 class _NpPrinter(NumPyPrinter):
     def __init__(self) -> None:
-        super().__init__({"fully_qualified_modules": False, "inline": True})
+        super().__init__({"fully_qualified_modules": False, "inline": True, "order": "none"})
 
     def _module_format(self, fqn: str, register: bool = True) -> str:  # numpy.cos -> _np.cos
         return "_np." + fqn.split(".")[-1]
@@ -40,7 +40,7 @@ class _NpPrinter(NumPyPrinter):
 
 class _MathPrinter(PythonCodePrinter):
     def __init__(self) -> None:
-        super().__init__({"fully_qualified_modules": False, "inline": True})
+        super().__init__({"fully_qualified_modules": False, "inline": True, "order": "none"})
 
     def _module_format(self, fqn: str, register: bool = True) -> str:  # math.cos -> _m.cos
         return "_m." + fqn.split(".")[-1]

@@ -195,12 +195,14 @@ def load_model(robot: Robot, *, rebuild: bool = False,
     return model
 
 
-def folded_model(robot: Robot) -> CompiledModel:
-    """The robot's model compiled with its numbers substituted into the code (as constants),
-    in memory and never cached: a reference for the model whose numbers are inputs (the
-    tests compare the two)."""
+def folded_model(robot: Robot, *, progress: Progress | None = None) -> CompiledModel:
+    """The robot's model compiled by the reference derivation
+    (:func:`derive.derive_reference`: Christoffel sums in ``q``, the derivation before
+    issue 26) with its numbers substituted into the code (as constants), in memory and never
+    cached: the reference for the model of :func:`load_model` (the tests compare the two;
+    16 links take minutes)."""
     key = model_key(robot, folded=True)
-    source = generate_source(robot, key, folded=True)
+    source = generate_source(robot, key, folded=True, progress=progress)
     model = CompiledModel(robot, cache.module_from_source(source, key), None, key, False, 0.0)
     check_model(model)
     return model

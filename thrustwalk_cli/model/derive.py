@@ -201,11 +201,6 @@ class _Staged:
         return sign * r[0], r[1]
 
 
-def _lin(terms) -> sp.Expr:
-    """``sum c_i x_i`` over ``(c_i, x_i)`` with integer ``c_i`` (zeros dropped)."""
-    return sp.Add(*(int(c) * x for c, x in terms if c))
-
-
 def derive(robot: Robot, folded: bool = False,
            progress: Callable[[str], None] | None = None) -> Derivation:
     """Derive every quantity of the numeric model (SPEC 1) in absolute link angles
@@ -280,32 +275,68 @@ def derive(robot: Robot, folded: bool = False,
         """``Rot(theta_i) S v = d/dtheta_i Rot(theta_i) v``."""
         return rot(i, (-v[1], v[0]))
 
-    def through_T(cols: dict[int, sp.Expr]) -> list[sp.Expr]:
-        """``[sum_i T[i, a] x_i for a]`` of ``x = cols`` (a row vector in theta)."""
-        return [_lin((Tl[i][a], x) for i, x in cols.items()) for a in range(n)]
-
-    # -- rates: theta' = T q', along the link tree from the anchor (one add per link) -------
+    # -- the map T as sums over the link tree --------------------------------------------------
+    # Seen from the anchor (the link whose absolute angle is q_N), joint j separates the
+    # links beyond it, F_j, from the anchor: T[i, j] = sigma_j for i in F_j, else 0 (sigma_j
+    # = -1 where the joint's child is on the anchor's side), and T[i, N] = 1. So
+    # (T^T x)_j = sigma_j S_j with S_j = x_far(j) + the S of the joints beyond far(j): one
+    # add per link instead of one per nonzero of T.
     anchor = next(c.link for c in robot.coordinates if not c.actuated)
-    col = {c.link: j for j, c in enumerate(robot.coordinates) if c.actuated}
     ucol = next(j for j, c in enumerate(robot.coordinates) if not c.actuated)
-    rate: dict[int, sp.Expr] = {idx[anchor]: dq[ucol]}
-    todo = [anchor]
-    children: dict[str, list[str]] = {}
+    col = {c.link: j for j, c in enumerate(robot.coordinates) if c.actuated}
+    joints: dict[str, list[tuple[int, str]]] = {nm: [] for nm in names}  # link -> (j, other)
     for lk in robot.links:
         if lk.parent is not None:
-            children.setdefault(lk.parent, []).append(lk.name)
-    parent = {lk.name: lk.parent for lk in robot.links}
-    while todo:
-        a = todo.pop()
-        for b in children.get(a, []) + ([parent[a]] if parent[a] else []):
-            if idx[b] in rate:
-                continue
-            if parent[b] == a:  # theta_b = theta_a + q_joint(b)
-                e = rate[idx[a]] + dq[col[b]]
-            else:  # b is a's parent: theta_b = theta_a - q_joint(a)
-                e = rate[idx[a]] - dq[col[a]]
-            rate[idx[b]] = define(f"zv{idx[b]}", e)
-            todo.append(b)
+            joints[lk.name].append((col[lk.name], lk.parent))
+            joints[lk.parent].append((col[lk.name], lk.name))
+    far: dict[int, int] = {}  # joint column -> the link beyond it
+    near: dict[int, int] = {}  # joint column -> the link on the anchor's side
+    order = [anchor]  # links, each after its neighbour nearer the anchor
+    for a in order:
+        for j, b in joints[a]:
+            if j not in far:
+                far[j], near[j] = idx[b], idx[a]
+                order.append(b)
+    sigma = {j: 1 if col.get(names[f]) == j else -1 for j, f in far.items()}
+    beyond = {j: [jj for jj, _ in joints[names[f]] if jj != j] for j, f in far.items()}
+    joint_order = sorted(far, key=lambda j: -order.index(names[far[j]]))  # farthest first
+    F: dict[int, set[int]] = {}
+    for j in joint_order:
+        F[j] = {far[j]}.union(*(F[jj] for jj in beyond[j]))
+    if any(Tl[i][j] != (sigma[j] if i in F[j] else 0) for j in far for i in range(n)) or \
+            any(Tl[i][ucol] != 1 for i in range(n)):  # pragma: no cover
+        raise ValueError("derive: T is not the map of the link tree (coordinate_map)")
+
+    def through_T(cols: dict[int, sp.Expr], tag: str, signed: bool = True
+                  ) -> list[sp.Expr]:
+        """``[sum_i T[i, a] x_i for a]`` of ``x = cols`` (a row vector in theta), by the
+        partial sums ``S_j`` (definitions ``zS<tag>_<j>``); without the signs ``sigma_a``
+        unless ``signed``."""
+        S: dict[int, sp.Expr] = {}
+        for j in joint_order:
+            S[j] = define(f"zS{tag}_{j}", sp.Add(cols.get(far[j], Z),
+                                                  *(S[jj] for jj in beyond[j])))
+        out = [(sigma[a] if signed else 1) * S[a] if a != ucol else Z for a in range(n)]
+        out[ucol] = sp.Add(cols.get(idx[anchor], Z), *(S[j] for j, _ in joints[anchor]))
+        return out
+
+    def through_T2(M: dict[tuple[int, int], sp.Expr], tag: str) -> list[list[sp.Expr]]:
+        """``T^T M T`` (as rows): the rows of ``M T`` by :func:`through_T`, then its
+        columns, the signs applied once at the end."""
+        rows = {}
+        for i in range(n):
+            r = through_T({kk: e for (ii, kk), e in M.items() if ii == i}, f"{tag}{i}_",
+                          signed=False)
+            rows[i] = [define(f"zR{tag}{i}", e) if b == ucol else e for b, e in enumerate(r)]
+        cols = [through_T({i: rows[i][b] for i in range(n)}, f"{tag}c{b}_")
+                for b in range(n)]
+        return [[(sigma[b] if b != ucol else 1) * cols[b][a] for b in range(n)]
+                for a in range(n)]
+
+    # -- rates: theta' = T q', along the link tree from the anchor (one add per link) -------
+    rate: dict[int, sp.Expr] = {idx[anchor]: dq[ucol]}
+    for j in sorted(far, key=lambda j: order.index(names[far[j]])):  # nearest first
+        rate[far[j]] = define(f"zv{far[j]}", rate[near[j]] + sigma[j] * dq[j])
     sq = {i: define(f"zq{i}", rate[i] ** 2) for i in range(n)}
 
     # -- mass distribution: a_i, c_ik, s_ik and the constants of D_theta ----------------------
@@ -355,19 +386,18 @@ def derive(robot: Robot, folded: bool = False,
         wvar[i, kk] = define(f"zW{i}_{kk}", -c * sn - s * cs)
     Dc = {key: sp.Add(*v) for key, v in const.items()}
 
-    def D_entry(a: int, b: int) -> sp.Expr:
-        cst, terms = [], []
+    def D_const(a: int, b: int) -> sp.Expr:
+        cst = []
         for (i, kk), e in Dc.items():
             t = Tl[i][a] * Tl[kk][b] + (Tl[kk][a] * Tl[i][b] if i != kk else 0)
             if t and e != 0:
                 cst.append(t * e)
-        for (i, kk), x in dvar.items():
-            terms.append((Tl[i][a] * Tl[kk][b] + Tl[kk][a] * Tl[i][b], x))
-        return k(sp.Add(*cst)) + _lin(terms)
+        return k(sp.Add(*cst))
+    Dv = through_T2({**dvar, **{(kk, i): x for (i, kk), x in dvar.items()}}, "D")
     D = sp.zeros(n, n)
     for a in range(n):
         for b in range(a, n):
-            D[a, b] = D[b, a] = D_entry(a, b)
+            D[a, b] = D[b, a] = D_const(a, b) + Dv[a][b]
     done("mass matrix")
 
     # -- gravity, potential, centre of mass, the unpinned coupling --------------------------
@@ -376,12 +406,12 @@ def derive(robot: Robot, folded: bool = False,
     X = {i: tuple(define(f"zX{i}_{r}", e) for r, e in enumerate(rot_s(i, v)))
          for i, v in avec.items()}
     Gth = {i: k(g * v[0]) * angle[i][1] - k(g * v[1]) * angle[i][0] for i, v in avec.items()}
-    G = sp.Matrix(through_T(Gth))
+    G = sp.Matrix(through_T(Gth, "G"))
     V = sp.Matrix([sp.Add(*(k(g * v[0]) * angle[i][0] + k(g * v[1]) * angle[i][1]
                             for i, v in avec.items()))])
     com = [sp.Add(*(rot(i, (v[0] / mtot, v[1] / mtot))[r] for i, v in avec.items()))
            for r in range(2)]
-    Dqx = [through_T({i: x[r] for i, x in X.items()}) for r in range(2)]  # [r][a]
+    Dqx = [through_T({i: x[r] for i, x in X.items()}, f"X{r}") for r in range(2)]  # [r][a]
     inv_m = k(1 / mtot)
     J_com = sp.Matrix(2, n, lambda r, a: inv_m * Dqx[r][a])
     Du = sp.zeros(n + 2, n + 2)
@@ -400,11 +430,9 @@ def derive(robot: Robot, folded: bool = False,
 
     bias = {i: define(f"ze{i}", sp.Add(*(W(i, j) * sq[j] for j in range(n)), Gth.get(i, Z)))
             for i in range(n)}
-    h = sp.Matrix(through_T(bias))
-    Y = {(i, b): define(f"zy{i}_{b}", sp.Add(*(Tl[j][b] * W(i, j) * rate[j]
-                                                for j in range(n))))
-         for i in range(n) for b in range(n)}
-    C = sp.Matrix(n, n, lambda a, b: _lin((Tl[i][a], Y[i, b]) for i in range(n)))
+    h = sp.Matrix(through_T(bias, "h"))
+    C = sp.Matrix(through_T2({(i, j): W(i, j) * rate[j] for i in range(n) for j in range(n)
+                              if W(i, j) != 0}, "C"))
     # foot rows: U_i = -Rot(theta_i) a_i = (-X_i,y, X_i,x)
     U = {i: (-x[1], x[0]) for i, x in X.items()}
     foot_bias = [sp.Add(*(u[r] * sq[i] for i, u in U.items())) for r in range(2)]
@@ -412,8 +440,8 @@ def derive(robot: Robot, folded: bool = False,
     Cu = sp.zeros(n + 2, n + 2)
     Cu[:n, :n] = C
     for r in range(2):
-        for b in range(n):
-            Cu[n + r, b] = sp.Add(*(Tl[i][b] * u[r] * rate[i] for i, u in U.items()))
+        Cu[n + r, :n] = sp.Matrix([through_T({i: u[r] * rate[i] for i, u in U.items()},
+                                             f"U{r}")])
     hu = sp.Matrix(list(h) + foot_bias)
     done("Coriolis and gravity terms")
 
@@ -424,7 +452,7 @@ def derive(robot: Robot, folded: bool = False,
         p = [sp.Add(*(rot(i, v)[r] for i, v in terms)) for r in range(2)]
         cols = {i: tuple(define(f"zj{tag}_{i}_{r}", e) for r, e in enumerate(rot_s(i, v)))
                 for i, v in terms}
-        J = [through_T({i: c[r] for i, c in cols.items()}) for r in range(2)]
+        J = [through_T({i: c[r] for i, c in cols.items()}, f"j{tag}{r}") for r in range(2)]
         return p, J, cols
 
     p2, E2, E2cols = point(robot.swing_foot.link, num.vec("feet.swing"), "f")
@@ -458,7 +486,7 @@ def derive(robot: Robot, folded: bool = False,
                 sn, cs = angle[i]
                 e = k(v[0] * d[1] - v[1] * d[0]) * cs - k(v[0] * d[0] + v[1] * d[1]) * sn
             col_terms[i] = define(f"zb{t_i}_{i}", e)
-        BF_cols.append(through_T(col_terms))
+        BF_cols.append(through_T(col_terms, f"b{t_i}"))
         dirs.append(list(rot(L, d)) if t.frame == "link" else [k(d[0]), k(d[1])])
     m_t = len(robot.thrusters)
     BF = sp.Matrix(n, m_t, lambda a, c: BF_cols[c][a]) if m_t else sp.zeros(n, 0)
