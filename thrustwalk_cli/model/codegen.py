@@ -350,13 +350,25 @@ class _TapeBuilder:
         raise ValueError(f"tape: unsupported expression {type(e).__name__}")
 
     def _linear(self, a: sp.Expr) -> tuple | None:
-        """``a`` as ((input register, integer coefficient), ...), or None."""
-        combo = []
-        for k, v in a.as_coefficients_dict().items():
-            if k not in self.inputs or not v.is_Integer:
-                return None
-            combo.append((self.inputs[k], int(v)))
-        return tuple(sorted(combo)) or None
+        """``a`` as ((input register, integer coefficient), ...), or None; definitions that
+        are integer combinations of inputs count as such."""
+        acc: dict[int, int] = {}
+
+        def walk(e: sp.Expr, m: int) -> bool:
+            for k, v in e.as_coefficients_dict().items():
+                if not v.is_Integer:
+                    return False
+                if k in self.inputs:
+                    acc[self.inputs[k]] = acc.get(self.inputs[k], 0) + m * int(v)
+                elif k in self.defs:
+                    if not walk(self.defs[k], m * int(v)):
+                        return False
+                else:
+                    return False
+            return True
+        if not walk(a, 1):
+            return None
+        return tuple(sorted((r, c) for r, c in acc.items() if c)) or None
 
     def _sincos(self, combo: tuple) -> tuple[int, int]:
         """Registers of ``sin`` and ``cos`` of ``sum k_i x_i``: ``sin(a + b) = s_a c_b + c_a
@@ -456,15 +468,13 @@ def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
     coefficients of the robot's numbers): ``consts`` names them, and the bound model
     supplies their values. ``defs``: definitions the expressions are written in (each is
     emitted where a program first reads it). ``progress`` is called with each program's
-    name when it is done.
+    name when it is encoded.
     """
     b = _TapeBuilder(inputs, params, defs)
     raw = {}
     for name, (n_in, exprs) in programs.items():
         b.start()
         outs = [b.emit(e) for e in exprs]
-        if progress is not None:
-            progress(name)
         need, live = set(outs), []
         for ins in reversed(b.ins):
             if ins[1] in need:
@@ -502,6 +512,8 @@ def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
         offsets[name] = len(code)
         code += [n_in, len(outs), len(order), base, *(where.get(r, r) for r in outs), *enc]
         nreg = max(nreg, base + len(order))
+        if progress is not None:
+            progress(name)
     consts: list = [0.0] * n_const
     for v, i in b.consts.items():
         consts[i] = str(v) if isinstance(v, sp.Symbol) else v

@@ -169,6 +169,7 @@ class _Staged:
         self.hoist = hoist
         self.defs: dict[sp.Symbol, sp.Expr] = {}
         self.trig: dict[tuple, tuple[sp.Expr, sp.Expr]] = {}
+        self.angles: dict[tuple, sp.Expr] = {}
 
     def define(self, name: str, e: sp.Expr) -> sp.Expr:
         if e.is_Atom:
@@ -178,11 +179,9 @@ class _Staged:
         return s
 
     def coef(self, e: sp.Expr) -> sp.Expr:
-        if e == 0 or e.is_Number:
-            return e
-        if e.could_extract_minus_sign():
-            return -self.hoist(-e)
-        return self.hoist(e)
+        """A coefficient as such (a number, or one hoisted symbol even when negative: a
+        product is then one multiplication, no negation)."""
+        return e if e.is_Number else self.hoist(e)
 
     def sincos(self, row) -> tuple[sp.Expr, sp.Expr]:
         """``(sin a, cos a)`` of ``a = sum_j row[j] q_j`` (integer ``row``)."""
@@ -194,11 +193,24 @@ class _Staged:
             combo, sign = tuple((j, -c) for j, c in combo), -1
         r = self.trig.get(combo)
         if r is None:
-            a = sp.Add(*(c * self.q[j] for j, c in combo))
+            a = self.angle(combo)
             i = len(self.trig)
             r = (self.define(f"zs{i}", sp.sin(a)), self.define(f"zc{i}", sp.cos(a)))
             self.trig[combo] = r
         return sign * r[0], r[1]
+
+    def angle(self, combo: tuple) -> sp.Expr:
+        """``sum c q_j`` over ``combo`` = ((j, c), ...): a definition (shared by the sine and
+        the cosine), built on the one of ``combo[:-1]``."""
+        if len(combo) == 1 and combo[0][1] == 1:
+            return self.q[combo[0][0]]
+        r = self.angles.get(combo)
+        if r is None:
+            j, c = combo[-1]
+            head = self.angle(combo[:-1]) if len(combo) > 1 else sp.Integer(0)
+            r = self.define(f"za{len(self.angles)}", head + c * self.q[j])
+            self.angles[combo] = r
+        return r
 
 
 def derive(robot: Robot, folded: bool = False,
@@ -377,13 +389,13 @@ def derive(robot: Robot, folded: bool = False,
     dvar: dict[tuple[int, int], sp.Expr] = {}
     wvar: dict[tuple[int, int], sp.Expr] = {}
     for (i, kk) in sorted(set(cpair) | set(spair)):
-        c = k(sp.Add(*cpair.get((i, kk), [])))
-        s = k(sp.Add(*spair.get((i, kk), [])))
+        c = sp.Add(*cpair.get((i, kk), []))
+        s = sp.Add(*spair.get((i, kk), []))
         if c == 0 and s == 0:
             continue
         sn, cs = st.sincos(Ti[kk] - Ti[i])
-        dvar[i, kk] = define(f"zd{i}_{kk}", c * cs - s * sn)
-        wvar[i, kk] = define(f"zW{i}_{kk}", -c * sn - s * cs)
+        dvar[i, kk] = define(f"zd{i}_{kk}", k(c) * cs + k(-s) * sn)
+        wvar[i, kk] = define(f"zW{i}_{kk}", k(-c) * sn + k(-s) * cs)
     Dc = {key: sp.Add(*v) for key, v in const.items()}
 
     def D_const(a: int, b: int) -> sp.Expr:
