@@ -10,13 +10,18 @@ with constant vectors ``v_ij``. Then, without any ``simplify``,
     a . Rot(phi) b = (a . b) cos(phi) - (a x b) sin(phi)
 
 and the relative-coordinate quantities follow from the constant map ``theta = T q``:
-``D = T^T D_theta T``, ``G = T^T G_theta``. ``C`` comes from the Christoffel symbols of ``D``
-in ``q`` (so ``D' - 2C`` is skew-symmetric by construction).
+``D = T^T D_theta T``, ``G = T^T G_theta``. :func:`derive` (what the compiler uses) takes the
+Coriolis terms in closed form, ``C_theta = W diag(theta')`` with ``W = dD_theta/dtheta``
+entrywise (the Christoffel symbols of ``D_theta``, so ``D' - 2C`` is skew-symmetric), and
+returns its results as sums of short definitions (cost about N^3, no simplification, no
+``cse``). :func:`derive_reference`, the derivation before issue 26, takes ``C`` from the
+Christoffel symbols of ``D`` in ``q`` by SymPy (cost N^4 to N^5); the tests compare the two.
 
 The robot's numbers (masses, lengths, inertias, gravity: ``Robot.numbers()``) are symbols
 ``P<i>``, so one compiled model serves every value of them (they are its inputs; zeros are
-folded in and belong to the robot's structure). Sums are collected as if those symbols
-were numbers (:class:`Folder`), so the code is as short as with the numbers substituted.
+folded in and belong to the robot's structure). :func:`derive` hoists every coefficient in
+them as it is made (:class:`Hoist`); :func:`derive_reference` collects sums as if those
+symbols were numbers (:class:`Folder`).
 """
 
 from __future__ import annotations
