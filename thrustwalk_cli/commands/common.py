@@ -253,23 +253,63 @@ def warn(lines) -> None:
         sys.stderr.write(f"warning: {render_mentions(line, ctx)}\n")
 
 
-def load_walker(robot: str | None, gait: str | None):
-    """:func:`thrustwalk_cli.walker.load_walker`, with the gait's warnings printed."""
+def load_walker(robot: str | None, gait: str | None, quiet: bool | None = None):
+    """:func:`thrustwalk_cli.walker.load_walker`, with the gait's warnings printed and the
+    progress of a long compile shown (:func:`compile_progress`)."""
     from ..walker import load_walker as _load
 
-    walker = _load(robot, gait)
+    with compile_progress(quiet) as report:
+        walker = _load(robot, gait, progress=report)
     warn(walker.model.notes)
     warn(walker.warnings)
     return walker
 
 
-def load_model(robot: str, rebuild: bool = False):
-    """:func:`thrustwalk_cli.studies.compile.compile_robot`, with cache notes printed."""
+def load_model(robot: str, rebuild: bool = False, quiet: bool | None = None):
+    """:func:`thrustwalk_cli.studies.compile.compile_robot`, with cache notes printed and
+    the progress of a long compile shown (:func:`compile_progress`)."""
     from ..studies.compile import compile_robot
 
-    model = compile_robot(robot, rebuild)
+    with compile_progress(quiet) as report:
+        model = compile_robot(robot, rebuild, progress=report)
     warn(model.notes)
     return model
+
+
+#: a compile shows its progress once it has run this long [s] (most robots take less)
+COMPILE_QUIET_SECONDS = 2.0
+
+
+@contextlib.contextmanager
+def compile_progress(quiet: bool | None = None) -> Iterator:
+    """A progress callback for :func:`thrustwalk_cli.model.compiler.load_model` (``done,
+    total, phase``; None with ``quiet``, which defaults to the running command's
+    ``--quiet``). Silent for the first :data:`COMPILE_QUIET_SECONDS` of a compile, then a
+    :func:`progress` bar on standard error with the phase (derivation, code generation,
+    tape, checks), and one line when it is done."""
+    if quiet is None:
+        ctx = _CTX.get()
+        quiet = bool(ctx is not None and ctx.params.get("quiet"))
+    if quiet:
+        yield None
+        return
+    t0 = time.monotonic()
+    shown = [0]
+    with contextlib.ExitStack() as stack:
+        bar: list = []
+
+        def report(done: int, total: int, phase: str) -> None:
+            if not bar:
+                if time.monotonic() - t0 < COMPILE_QUIET_SECONDS:
+                    return
+                bar.append(stack.enter_context(progress(
+                    "compiling the robot model (once per robot structure)", total, False)))
+            bar[0](done - shown[0], note=phase)
+            shown[0] = done
+        yield report
+    if shown[0]:
+        sys.stderr.write(f"compiled the robot model in {time.monotonic() - t0:.1f} s "
+                         "(cached: later runs load it)\n")
 
 
 def check_out(out: Path, *, whole: bool = True, json: str | None = None) -> None:
