@@ -34,7 +34,7 @@ from .options import (
 )
 
 HELP = """Run the gait's controller on MuJoCo's physics (soft contact) and compare every step
-with the rigid-impact model: the second opinion of SPEC 16.
+with the rigid-impact model: a second opinion on the contact.
 
 The robot is the MJCF of export-mjcf (feet: spheres of --foot-radius, friction --mu). The
 controller is simulate's output-zeroing law (gains from the gait file), evaluated from

@@ -127,7 +127,7 @@ class ContactModel:
 #: stiff one with a small timestep (the rigid-impact limit the checks use)
 CONTACT_PRESETS: dict[str, ContactModel] = {
     "soft": ContactModel("soft", timeconst=0.02, dampratio=1.0,
-                         solimp=(0.9, 0.95, 0.001, 0.5, 2.0), timestep=1e-3),
+                         solimp=(0.9, 0.95, 0.001, 0.5, 2.0), timestep=2e-3),
     "default": ContactModel("default"),
     "stiff": ContactModel("stiff", timeconst=0.001, dampratio=1.0,
                           solimp=(0.99, 0.999, 0.0005, 0.5, 2.0), timestep=1e-4),

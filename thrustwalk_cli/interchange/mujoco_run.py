@@ -517,7 +517,7 @@ def run_mujoco(zd: ZeroDynamics, thrust, value: float | None, *, steps: int,
             failure, reason = "no-impact", (f"step {k_step}: no touchdown by s = {s:.4g}, "
                                             f"t = {t:.6g} s")
             break
-        if lp_s(q)[root_end_y] < 0.0:
+        if not mj_steps & 15 and lp_s(q)[root_end_y] < 0.0:  # every 16 MuJoCo steps
             failure, reason = "fall", (f"step {k_step}: the stance link passes the horizontal "
                                        f"at t = {t:.6g} s")
             break
@@ -560,9 +560,10 @@ def run_mujoco(zd: ZeroDynamics, thrust, value: float | None, *, steps: int,
         mj_steps += 1
         t += dt
         # -- friction use of the stance contact (forces of the state this step started from)
-        if t - t_start > settle:
-            for i in range(d.ncon):
-                if contacts.geom1[i] == g_st or contacts.geom2[i] == g_st:
+        if t - t_start > settle and d.ncon:
+            g1, g2 = contacts.geom1, contacts.geom2
+            for i in range(len(g1)):
+                if g1[i] == g_st or g2[i] == g_st:
                     mj.mj_contactForce(m, d, i, f6)
                     if f6[0] > 0.0:
                         r = math.hypot(f6[1], f6[2]) / f6[0]
