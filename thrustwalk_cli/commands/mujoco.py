@@ -78,7 +78,7 @@ def contact_from_options(preset: str, *, timestep: float | None = None,
                          solref: str | None = None, solimp: str | None = None,
                          foot_radius: float | None = None, integrator: str | None = None):
     """The :class:`ContactModel` of the command line's contact options."""
-    from ..studies.mujoco import contact_settings
+    from ..interchange.mjcf import contact_settings
 
     return contact_settings(preset, timestep=timestep, solref=_floats(solref, "--solref", (2,)),
                             solimp=_floats(solimp, "--solimp", (3, 5)), integrator=integrator,

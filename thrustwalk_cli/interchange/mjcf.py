@@ -44,7 +44,7 @@ Conventions (SI units):
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
@@ -56,7 +56,7 @@ from ..errors import InputError
 #: [kg m^2] the planar inertia written for a link whose inertia is zero (point masses)
 INERTIA_FLOOR = 1e-12
 ROOT_JOINTS = ("root_x", "root_z", "root_angle")
-INTEGRATORS = ("Euler", "implicitfast", "RK4")
+INTEGRATORS = ("implicitfast", "Euler")  # what mj_step1/mj_step2 integrate (not RK4)
 CONES = ("elliptic", "pyramidal")
 
 
@@ -132,6 +132,40 @@ CONTACT_PRESETS: dict[str, ContactModel] = {
     "stiff": ContactModel("stiff", timeconst=0.001, dampratio=1.0,
                           solimp=(0.99, 0.999, 0.0005, 0.5, 2.0), timestep=1e-4),
 }
+
+
+def contact_settings(preset: str = "default", *, timestep: float | None = None,
+                     solref: Sequence[float] | None = None,
+                     solimp: Sequence[float] | None = None, integrator: str | None = None,
+                     foot_radius: float | None = None, impratio: float | None = None,
+                     cone: str | None = None) -> ContactModel:
+    """A :data:`CONTACT_PRESETS` entry (``soft``, ``default``, ``stiff``) with the given
+    settings replaced (``solref = (timeconst [s], dampratio)``, ``solimp = (d0, dwidth, width
+    [m][, midpoint, power])``, ``timestep`` [s], ``foot_radius`` [m]); validated."""
+    if preset not in CONTACT_PRESETS:
+        raise InputError.param("contact", f"unknown preset {preset!r} (choose from "
+                                          f"{', '.join(CONTACT_PRESETS)})")
+    ct = CONTACT_PRESETS[preset]
+    changes: dict = {}
+    if solref is not None:
+        if len(solref) != 2:
+            raise InputError.param("solref", "expected TIMECONST,DAMPRATIO (e.g. 0.005,1)")
+        changes.update(timeconst=float(solref[0]), dampratio=float(solref[1]))
+    if solimp is not None:
+        if len(solimp) not in (3, 5):
+            raise InputError.param("solimp", "expected D0,DWIDTH,WIDTH[,MIDPOINT,POWER] (e.g. "
+                                             "0.95,0.99,0.001)")
+        v = [float(x) for x in solimp] + ([0.5, 2.0] if len(solimp) == 3 else [])
+        changes["solimp"] = tuple(v)
+    for key, val in (("timestep", timestep), ("integrator", integrator),
+                     ("foot_radius", foot_radius), ("impratio", impratio), ("cone", cone)):
+        if val is not None:
+            changes[key] = float(val) if isinstance(val, (int, float)) else val
+    if changes:
+        ct = replace(ct, name=f"{preset} (changed: {', '.join(sorted(changes))})", **changes)
+    ct.validate()
+    return ct
+
 
 
 @dataclass(frozen=True)

@@ -176,10 +176,17 @@ def no_orbit_error():
     return NoOrbit
 
 
+def predicted_cycle(zd: ZeroDynamics, thrust) -> LimitCycle:
+    """The zero-dynamics limit cycle of the thrust (SPEC 3, 4): of the schedule, or of the
+    steady thrust of the dynamic models."""
+    from ..simulation.closed_loop import predicted_cycle as cycle
+
+    return cycle(zd, thrust)
+
+
 def rigid_prediction(zd: ZeroDynamics, thrust, x0: np.ndarray, steps: int):
     """The rigid model's prediction from ``x0``: the reduced cascade (SPEC 3) for ``steps``
     steps and the zero-dynamics limit cycle of the thrust (fixed point, step length)."""
-    from ..simulation.closed_loop import predicted_cycle
     from ..simulation.reduced import simulate_reduced
 
     cycle = predicted_cycle(zd, thrust)
@@ -376,10 +383,12 @@ def run_mujoco(zd: ZeroDynamics, thrust, value: float | None, *, steps: int,
     robot = model.robot
     try:
         x0 = start_state(zd, thrust, perturb)
-    except no_orbit_error() as exc:
+    except no_orbit_error():
         if progress is not None:
             progress(steps)
-        return MujocoRun(value, thrust, False, "no-orbit", str(exc), ())
+        cycle = predicted_cycle(zd, thrust)
+        return MujocoRun(value, thrust, False, "no-orbit", f"no orbit to start on for this "
+                         f"thrust: {cycle.reason}", (), cycle=cycle)
     N = robot.n
     err = mirror_error(model, x0[:N])
     if not err <= MIRROR_TOL:

@@ -13,10 +13,9 @@ from ..description.robot import Robot
 from ..errors import InputError
 from ..files.robot_file import load_robot
 from ..hzd.zero_dynamics import Schedule, limit_cycles
-from ..interchange.mjcf import ContactModel, layout, robot_to_mjcf
+from ..interchange.mjcf import ContactModel, contact_settings, layout, robot_to_mjcf
 from ..interchange.mujoco_run import INSTALL, compile_mjcf, mujoco_version
 from ..walker import Walker, load_walker
-from .mujoco import contact_settings
 from .records import SCHEMA_VERSION
 
 DEFAULT_MU = 0.7  # [1] without a gait: a gait file's default mu

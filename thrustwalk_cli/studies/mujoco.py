@@ -6,7 +6,7 @@ and the video are built here. Units: SI (zeta in kg^2 m^4/s^2, sigma in kg m^2/s
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -14,7 +14,7 @@ from ..contact.evaluate import evaluate as contact_evaluate
 from ..errors import InputError
 from ..hzd.schedule import check_limits, schedule_from_gait
 from ..hzd.zero_dynamics import Schedule
-from ..interchange.mjcf import CONTACT_PRESETS, ContactModel
+from ..interchange.mjcf import ContactModel, contact_settings
 from ..interchange.mujoco_run import (
     MAX_MJ_STEPS,
     MujocoRun,
@@ -38,39 +38,6 @@ COMPARED = (("zeta_minus", _Z), ("step_time", "s"), ("step_length", "m"), ("spee
             ("double_support", "s"), ("penetration", "m"))
 VIDEO_FPS = 12.0
 VIDEO_SIZE = (480, 360)  # [px] width, height
-
-
-def contact_settings(preset: str = "default", *, timestep: float | None = None,
-                     solref: Sequence[float] | None = None,
-                     solimp: Sequence[float] | None = None, integrator: str | None = None,
-                     foot_radius: float | None = None, impratio: float | None = None,
-                     cone: str | None = None) -> ContactModel:
-    """A :data:`CONTACT_PRESETS` entry (``soft``, ``default``, ``stiff``) with the given
-    settings replaced (``solref = (timeconst [s], dampratio)``, ``solimp = (d0, dwidth, width
-    [m][, midpoint, power])``, ``timestep`` [s], ``foot_radius`` [m]); validated."""
-    if preset not in CONTACT_PRESETS:
-        raise InputError.param("contact", f"unknown preset {preset!r} (choose from "
-                                          f"{', '.join(CONTACT_PRESETS)})")
-    ct = CONTACT_PRESETS[preset]
-    changes: dict = {}
-    if solref is not None:
-        if len(solref) != 2:
-            raise InputError.param("solref", "expected TIMECONST,DAMPRATIO (e.g. 0.005,1)")
-        changes.update(timeconst=float(solref[0]), dampratio=float(solref[1]))
-    if solimp is not None:
-        if len(solimp) not in (3, 5):
-            raise InputError.param("solimp", "expected D0,DWIDTH,WIDTH[,MIDPOINT,POWER] (e.g. "
-                                             "0.95,0.99,0.001)")
-        v = [float(x) for x in solimp] + ([0.5, 2.0] if len(solimp) == 3 else [])
-        changes["solimp"] = tuple(v)
-    for key, val in (("timestep", timestep), ("integrator", integrator),
-                     ("foot_radius", foot_radius), ("impratio", impratio), ("cone", cone)):
-        if val is not None:
-            changes[key] = float(val) if isinstance(val, (int, float)) else val
-    if changes:
-        ct = replace(ct, name=f"{preset} (changed: {', '.join(sorted(changes))})", **changes)
-    ct.validate()
-    return ct
 
 
 # ----------------------------------------------------------------------------- documents
