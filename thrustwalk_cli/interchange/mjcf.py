@@ -35,8 +35,8 @@ Conventions (SI units):
   gear is the unit direction (``ctrl`` = thrust [N]): in the site's frame for a ``link``
   thruster, in the world (``refsite="world"``) for a ``world`` thruster. Joint motors (gear 1,
   ``ctrlrange`` from ``torque_limit``) drive the actuated hinges. The MuJoCo run applies the
-  controller's torques and the thrust through ``qfrc_applied`` instead (so the relabelled legs
-  keep thrustwalk's model), and leaves these actuators at zero.
+  controller's torques and the thrust through ``qfrc_applied`` instead (generalised forces of
+  thrustwalk's model, also a generalised thrust on ``q_N``) and leaves these actuators at zero.
 * Contact and integration: ``solref``, ``solimp``, timestep, integrator and cone from a
   :class:`ContactModel` (presets :data:`CONTACT_PRESETS`).
 """

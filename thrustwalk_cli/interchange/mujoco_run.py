@@ -6,23 +6,26 @@ z_foot, a]``, thrustwalk's ``q = P a``). ``mujoco`` is imported only here and on
 starts (an optional extra: ``pip install 'thrustwalk[mujoco]'``). SI units throughout.
 
 **Labelling.** thrustwalk's pinned coordinates relabel the legs at every impact (SPEC 1,
-``q^+ = R q^- + b``); MuJoCo's tree stays rooted at one physical leg. After an even number of
-touchdowns the MJCF root's leg is the stance leg and ``q = P a``, ``q' = P a'``; after an odd
-number ``q = R P a + b``, ``q' = R P a'``. The stance foot's own velocity (MuJoCo lets it slip
-and sink) is not part of ``q'``: ``sigma_N = e_N^T D(q) q'`` (SPEC 3) and ``zeta = sigma_N^2 /
-2`` are thrustwalk's definitions evaluated at that state.
+``q^+ = R q^- + b``). MuJoCo's model does the same: at each touchdown it is re-rooted at the new
+stance foot (:meth:`MujocoModel.relabel`: ``q <- R q + b``, the root's slides at that foot's
+position and velocity; the same physical state, which needs legs that are mirror images:
+:func:`mirror_error`). So the stance foot is always the root's and thrustwalk's state is ``q =
+P a``, ``q' = P a'`` of MuJoCo's angles ``a = qpos[2:]``. (MuJoCo's contact leaves out the
+Jacobian's rate term ``J' q'``, zero for the root's foot but not for a foot at the end of the
+chain, where a stance contact becomes much softer: another reason to re-root.) The stance foot's
+own velocity (MuJoCo lets it slip and sink) is not part of ``q'``: ``sigma_N = e_N^T D(q) q'``
+(SPEC 3) and ``zeta = sigma_N^2 / 2`` are thrustwalk's definitions at that state.
 
 **Control**, every MuJoCo step (held over the step): the output-zeroing law of ``simulate``
 (SPEC 7: input-output linearisation of ``y = H_0 q - h_d(c q)`` with the gait's ``K_p``,
 ``K_d``, cancelling the thrust on the joints), evaluated through :class:`ControlLaw` (the one
 adapter to ``simulation/``) at thrustwalk's state. Its joint torques ``u`` [N m] (and, for a
-generalised-thrust schedule, ``T`` [N m] on ``q_N``) act as ``qfrc_applied = G^T [u; T]`` with
-``G = dq/da`` (the current labelling's map): exactly their virtual work. Thrusters (the
-dynamics of SPEC 7, integrated over each MuJoCo step by RK4) push with ``F_k d_k`` at their
-points, placed by thrustwalk's kinematics from the stance foot's MuJoCo position, on the
-physical body that carries that link in the current labelling (``mj_applyFT``). A push is the
-force ``P / timestep`` at the hip (the stance link's end) during one MuJoCo step. MuJoCo steps
-by ``mj_step1``/``mj_step2``, so the law sees the kinematics of the state it acts on.
+generalised-thrust schedule, ``T`` [N m] on ``q_N``) act as ``qfrc_applied = P^T [u; T]``:
+exactly their virtual work. Thrusters (the dynamics of SPEC 7, integrated over each MuJoCo
+step by RK4) push with ``F_k d_k`` at their points, placed by thrustwalk's kinematics from the
+stance foot's MuJoCo position, on the link's body (``mj_applyFT``). A push is the force ``P /
+timestep`` at the hip (the stance link's end) during one MuJoCo step. MuJoCo steps by
+``mj_step1``/``mj_step2``, so the law sees the kinematics of the state it acts on.
 
 **Steps.** Touchdown: the swing foot's first contact with the floor once the guard is armed
 (``s > min_impact_s``, as ``simulate``); ``zeta^-`` comes from the state at the contact instant
