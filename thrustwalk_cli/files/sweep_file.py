@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..description.sweep import DISTRIBUTIONS, Axis, SweepSpec
+from ..description.sweep import DISTRIBUTIONS, Axis, SweepSpec, range_count
 from ..errors import InputError, Problem
 from .bundled import resolve
 from .schema import (
@@ -314,13 +314,12 @@ def _range(a: dict, key: tuple, res: ValidationResult, problems: list[Problem]
             return None
         return tuple(float(v) for v in np.linspace(start, stop, n))
     step = a["step"]
-    if step == 0 or (stop - start) * step < 0:
-        problems.append(res.problem(key + ("step",), f"the step must be non-zero and point from "
-                                                     f"start to stop (got {step:g})"))
-        return None
-    count = int(abs((stop - start) / step) + 1e-9) + 1
-    if count > MAX_AXIS_VALUES:
-        problems.append(res.problem(key, f"{count} values: the limit is {MAX_AXIS_VALUES}"))
+    count = range_count(start, stop, step, MAX_AXIS_VALUES)
+    if isinstance(count, str):
+        many = count.endswith(f"the limit is {MAX_AXIS_VALUES}")
+        problems.append(res.problem(key if many else key + ("step",),
+                                    count if many or "resolution" in count else
+                                    f"{count} (got {step:g})"))
         return None
     return tuple(start + i * step for i in range(count))
 

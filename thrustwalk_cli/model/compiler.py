@@ -23,7 +23,7 @@ import numpy as np
 
 from .._version import __version__
 from ..description.robot import Robot
-from ..errors import InputError, Problem
+from ..errors import InputError, Problem, check_flag, check_instance
 from . import cache
 from .compiled import FUNCTIONS, VECTORS, CompiledModel
 
@@ -111,6 +111,8 @@ def load_model(robot: Robot, *, rebuild: bool = False) -> CompiledModel:
     positive definite, R invertible and mapping the swing foot to the stance foot
     (``InputError`` naming the file and key otherwise).
     """
+    check_instance("robot", robot, Robot, "a Robot (tw.load_robot)")
+    rebuild = check_flag("rebuild", rebuild)
     t0 = time.perf_counter()
     key = model_key(robot)
     notes: list[str] = []

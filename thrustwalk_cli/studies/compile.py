@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from ..errors import check_flag, check_path
 from ..files.robot_file import load_robot
 from ..model.compiled import CompiledModel
 from ..model.compiler import load_model
@@ -12,6 +13,8 @@ def compile_robot(robot: str, rebuild: bool = False) -> CompiledModel:
     """The compiled model of the robot file or bundled name ``robot``; ``rebuild`` ignores the
     cache. ``model.summary()`` lists links, coordinates, mass [kg], thrusters, time [s] and the
     cache entry."""
+    robot = check_path("robot", robot)
+    rebuild = check_flag("rebuild", rebuild)
     return load_model(load_robot(robot), rebuild=rebuild)
 
 

@@ -19,7 +19,15 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..description.sweep import Axis, SweepSpec
-from ..errors import InputError, Problem
+from ..errors import (
+    InputError,
+    Problem,
+    check_callable,
+    check_count,
+    check_instance,
+    check_path,
+    check_text,
+)
 from ..files.bundled import resolve
 from ..files.gait_file import load_gait_text, same_robot_file
 from ..files.robot_file import load_robot_text
@@ -71,7 +79,7 @@ def load_sweep(path: str | Path) -> Sweep:
     """Read and check a sweep file (see the module docstring); raises :class:`InputError`
     with every problem (``file:line: key.path: message``) before any point runs. Loads (and
     compiles if needed) the base robot's model to check the gait against it."""
-    spec, source = load_sweep_file(path)
+    spec, source = load_sweep_file(check_path("path", path))
     study = STUDIES[spec.study]
     problems: list[Problem] = []
     for i, name in enumerate(spec.collect):
@@ -185,14 +193,49 @@ def sweep_executor(sweep: Sweep, workers: int | None = None, scheduler: str | No
                          scheduler, todo)
 
 
+MAX_WORKERS = 1024  # local worker processes
+
+
+def check_executor(workers: object = None, scheduler: object = None) -> None:
+    """Where the points are to run, checked before anything is created: ``workers`` a whole
+    number 1 ... :data:`MAX_WORKERS` (or None), ``scheduler`` a Dask scheduler address
+    ``tcp://HOST:PORT`` or ``tls://HOST:PORT`` with a port 1 ... 65535 (or None; Dask
+    distributed must be installed), not both. :class:`InputError` naming the parameter."""
+    if workers is not None and scheduler is not None:
+        raise InputError.param(("workers", "scheduler"), "give one of them, not both")
+    check_count("workers", workers, ge=1, le=MAX_WORKERS, optional=True)
+    if scheduler is None:
+        return
+    from importlib.util import find_spec
+    from urllib.parse import urlsplit
+
+    address = check_text("scheduler", scheduler)
+    expected = f"expected tcp://HOST:PORT or tls://HOST:PORT, got {address!r}"
+    try:
+        parts = urlsplit(address.strip())
+        host = parts.hostname
+    except ValueError:  # e.g. an unclosed [
+        raise InputError.param("scheduler", expected) from None
+    if parts.scheme not in ("tcp", "tls") or not host or parts.path not in ("", "/") or \
+            parts.query or parts.fragment or "@" in parts.netloc:
+        raise InputError.param("scheduler", expected)
+    try:
+        port = parts.port
+    except ValueError:  # not a number, or beyond 65535
+        port = -1
+    if port is None or not 1 <= port <= 65535:
+        raise InputError.param("scheduler", f"the port must be a number 1 ... 65535 (got "
+                                            f"{address!r})")
+    if find_spec("distributed") is None:
+        raise InputError.param("scheduler", "needs Dask distributed: pip install "
+                                            "'thrustwalk[cluster]'")
+
+
 def task_executor(tasks, study: SweepStudy, settings: dict, workers: int | None = None,
                   scheduler: str | None = None, todo: int | None = None):
     """:func:`sweep_executor` for any tasks of ``study`` (``settings``: what its one-time
     preparation needs)."""
-    if workers is not None and scheduler is not None:
-        raise InputError.param(("workers", "scheduler"), "give one of them, not both")
-    if workers is not None and not 1 <= workers <= 1024:
-        raise InputError.param("workers", f"must be 1 to 1024, got {workers}")
+    check_executor(workers, scheduler)
     if scheduler is not None:
         return DaskCluster(scheduler)
     n = default_workers() if workers is None else workers
@@ -444,6 +487,14 @@ def run_sweep(sweep: Sweep, *, workers: int | None = None, scheduler: str | None
     points."""
     from .design_gait import robot_reference
 
+    check_instance("sweep", sweep, Sweep, "a Sweep (tw.load_sweep)")
+    if executor is None:
+        check_executor(workers, scheduler)
+    check_instance("finished", finished, Mapping, "a mapping of point keys to records",
+                   optional=True)
+    check_callable("on_point", on_point)
+    library = check_path("library", library, optional=True)
+    chunk = check_count("chunk", chunk, optional=True)
     done = {k: v for k, v in (finished or {}).items()
             if k in {t.key for t in sweep.tasks}}
     tasks = list(sweep.tasks)
