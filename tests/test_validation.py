@@ -388,3 +388,119 @@ def one_command():
 def test_bad_option(name, tmp_path, one_command, monkeypatch, _cache_dir):
     monkeypatch.chdir(tmp_path)
     check_case(name, CLI[name], tmp_path, one_command)
+
+
+# -- sweep files: every point's settings before the first task (item 6) -----------------------
+def _sweep(study: str, body: str) -> str:
+    gait = "" if study == "design-gait" else f"gait: {W5T}\n"
+    return f"name: s\nstudy: {study}\nrobot: {W5}\n{gait}{body}"
+
+
+SWEEPS = {
+    # name: (study, body, key path of the problem (a regular expression), message)
+    "steps-0": ("simulate", "grid:\n  steps: {values: [2, 0]}\ncollect: [status]\n",
+                r"grid\.steps", "value 0: must be >= 1"),
+    "steps-not-whole": ("push-trial", "random:\n  samples: 3\n  seed: 1\n  axes:\n    steps: "
+                        "{distribution: uniform, low: 1, high: 3}\ncollect: [outcome]\n",
+                        r"random\.axes\.steps", "value .*: must be a whole number"),
+    "start-sigma-minus-1": ("push-trial", "grid:\n  start_sigma: {values: [0, -1]}\n"
+                            "collect: [outcome]\n", r"grid\.start_sigma", "value -1: must be >"),
+    "knots-decreasing": ("limit-cycle", "settings:\n  schedule: {knots: [0, 0.6, 0.4, 1], "
+                         "values: [0, -10, 0]}\ngrid:\n  schedule.1: {values: [0, -5]}\n"
+                         "collect: [speed]\n", r"settings\.schedule\.knots\[2\]",
+                         "knots must increase strictly"),
+    "knots-not-to-1": ("feasibility", "settings:\n  schedule: {knots: [0, 0.5], values: [-10]}"
+                       "\ngrid:\n  schedule.1: {values: [0, -5]}\ncollect: [feasible]\n",
+                       r"settings\.schedule\.knots", "the first must be 0 and the last 1"),
+    "knots-beyond-1": ("limit-cycle", "settings:\n  schedule: {knots: [0, 1.5, 1], values: "
+                       "[0, 0]}\ngrid:\n  schedule.1: {values: [0]}\ncollect: [speed]\n",
+                       r"settings\.schedule\.knots\[1\]", "must be <= 1"),
+    "values-count": ("limit-cycle", "settings:\n  schedule: {knots: [0, 0.5, 1], values: "
+                     "[0, -10, -20]}\ngrid:\n  schedule.1: {values: [0, -5]}\ncollect: [speed]\n",
+                     r"settings\.schedule\.values", "expected 2 values"),
+    "schedule-axis-beyond-limits": ("limit-cycle", "settings:\n  schedule: {knots: [0, 0.5, 1], "
+                                    "values: [0, -10]}\ngrid:\n  schedule.2: {values: [0, "
+                                    "-500]}\ncollect: [speed]\n", r"grid\['schedule\.2'\]",
+                                    "-500 N is outside the limits"),
+    "schedule-without-piecewise": ("simulate", "settings:\n  steps: 2\n  schedule: {knots: [0, "
+                                   "1], values: [-10]}\ngrid:\n  kp: {values: [100, 400]}\n"
+                                   "collect: [status]\n", r"settings\.schedule",
+                                   "a schedule needs `thrust_model` piecewise"),
+    "thrust-and-schedule": ("limit-cycle", "settings:\n  thrust: -10\n  schedule: {knots: "
+                            "[0, 1], values: [-10]}\ngrid:\n  mu: {values: [0.7, 0.8]}\n"
+                            "collect: [speed]\n", r"settings\.thrust", "not both"),
+    "push-and-start-off-orbit": ("push-trial", "grid:\n  push_impulse: {values: [0, 5]}\n  "
+                                 "start_sigma: {values: [0, 0.1]}\ncollect: [outcome]\n",
+                                 r"grid\.push_impulse", "give a push or a start off the orbit, "
+                                 r"not both \(at start_sigma = 0\.1\)"),
+    "push-huge": ("push-trial", "grid:\n  push_impulse: {values: [0, 1e5]}\ncollect: "
+                  "[outcome]\n", r"grid\.push_impulse", r"an impulse of 100000 N s"),
+    "control-max-thrust": ("push-trial", "settings:\n  strategy: control\n  max_thrust: 1e6\n"
+                           "grid:\n  push_impulse: {values: [0, 1]}\ncollect: [outcome]\n",
+                           r"settings\.max_thrust", "1e\\+06 N is more than thruster back"),
+    "control-knots": ("reduced-walk", "settings:\n  strategy: control\n  knots: [0, 0.7, 0.5, "
+                      "1]\ngrid:\n  mu: {values: [0.7, 0.8]}\ncollect: [walks]\n",
+                      r"settings\.knots\[2\]", "knots must increase strictly"),
+    "rtol-beyond-what-runs": ("simulate", "settings:\n  rtol: 0.5\ngrid:\n  steps: {values: "
+                              "[1, 2]}\ncollect: [status]\n", r"settings\.rtol", "must be < 0.1"),
+    "stiff-thruster": ("simulate", "settings:\n  thrust_model: second-order\n  xi: 900\ngrid:\n"
+                       "  wn: {values: [1, 2]}\ncollect: [status]\n", r"grid\.wn",
+                       "a thruster with a .* ms time constant"),
+    "f0-beyond-limits": ("simulate", "settings:\n  thrust_model: first-order\n  f0: -500\n"
+                         "grid:\n  thrust: {values: [0, -10]}\ncollect: [status]\n",
+                         r"settings\.f0", "-500 N is outside the limits"),
+    "tiny-step": ("limit-cycle", "grid:\n  thrust: {start: 0, stop: -1, step: -5e-324}\n"
+                  "collect: [speed]\n", r"grid\.thrust\.step", "below the resolution"),
+    "design-order": ("design-gait", "grid:\n  order: {values: [6, 2.5]}\n  target_speed: "
+                     "{values: [0.6]}\ncollect: [feasible]\n", r"grid\.order",
+                     "value 2.5: must be a whole number"),
+}
+for _name, (_study, _body, _key, _msg) in SWEEPS.items():
+    CLI[f"sweep-file-{_name}"] = Case(("sweep", "{file}", "--workers", "1", "--out", "{out}"),
+                                      r"error: \{file\}:\d+: " + _key + ": " + _msg,
+                                      text=_sweep(_study, _body))
+
+
+def test_thruster_beside_a_schedule_drives_it(tmp_path, monkeypatch, one_command, walker5_thrust):
+    """``thruster:`` names the thruster of a force-mode ``schedule`` (the sweep table says
+    so): every point runs. A schedule of equal values on every interval is the constant
+    thrust: its speed is tw.limit_cycle's for that constant thrust."""
+    import json
+
+    import pandas as pd
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "s.yaml").write_text(_sweep(
+        "limit-cycle", "settings:\n  thruster: back\n  schedule: {knots: [0, 0.5, 1], values: "
+        "[-10, -10]}\ngrid:\n  schedule.2: {values: [-10, -20]}\ncollect: [speed]\n"))
+    res = one_command("sweep", "s.yaml", "--workers", "1", "--out", "o", "--formats", "csv",
+                      "-q")
+    assert res.exit_code == 0, res.stderr
+    doc = json.loads((tmp_path / "o" / "sweep.json").read_text())
+    assert doc["failures"] == [] and doc["counts"]["done"] == 2
+    table = pd.read_csv(tmp_path / "o" / "results.csv", comment="#")
+    speed = dict(zip(table["schedule_2_N"], table["speed_m_s"]))
+    ref = tw.limit_cycle(walker5_thrust, thrust=[-10.0], thruster="back").cycles[0].speed
+    assert speed[-10.0] == pytest.approx(ref, rel=1e-9)
+    assert speed[-20.0] > speed[-10.0]  # more forward thrust (back points -x), a faster walk
+
+
+@pytest.fixture(scope="module")
+def walker5_thrust(_cache_dir):
+    return tw.load_walker(W5, W5T)
+
+
+# -- a slow thruster whose step nearly stops (item 7) ------------------------------------------
+def test_slow_thruster_towards_a_stop_is_an_outcome_not_a_traceback(walker5_thrust):
+    """A zeta reference far below the orbit's under a second-order thruster: the controller's
+    step prediction (its time map) reaches zeta = 0 where the walker would stop. The run is a
+    result whose every number is finite or None (on main: ValueError, NaN in the time map)."""
+    import json
+
+    nominal = tw.control(walker5_thrust, reference="nominal", steps=1, knots=[0, 1],
+                         thrust_model="second-order", compare=False)
+    low = 0.08 * nominal.settings["nominal_zeta_star"]
+    res = tw.control(walker5_thrust, reference="zeta", profile=[(0, low)], knots=[0, 1],
+                     steps=4, thrust_model="second-order", compare=False)
+    json.dumps(res.document(), allow_nan=False)  # no NaN anywhere
+    assert res.status in ("ok", "warning", "failed") and res.reason

@@ -711,9 +711,8 @@ def control(walker: Walker, *, reference: str = "speed",
     plant_scale = check_number_map("plant_scale", plant_scale, optional=True, gt=0)
     noise = check_number("noise", noise)
     seed = check_count("seed", seed, ge=0)
-    mu = check_number("mu", mu, gt=0, optional=True)
-    min_vertical_force = check_number("min_vertical_force", min_vertical_force, ge=0,
-                                      unit="N")
+    mu = check_number("mu", mu, optional=True)  # its range: check_contact_options
+    min_vertical_force = check_number("min_vertical_force", min_vertical_force)
     zeta_min = check_number("zeta_min", zeta_min, gt=0, optional=True, unit="kg^2 m^4/s^2")
     max_thrust = check_number("max_thrust", max_thrust, gt=0, optional=True, unit="N")
     rate_limit = check_number("rate_limit", rate_limit, gt=0, optional=True, unit="N per step")

@@ -281,8 +281,8 @@ def feasibility(walker: Walker, thrust: Sequence[float] | None = None, *,
         raise InputError.param("schedule_where", "must be a parameter name or a function "
                                                  "(key, message) -> Problem")
     check_text("thruster", thruster, optional=True)
-    mu = check_number("mu", mu, gt=0, optional=True)
-    min_vertical_force = check_number("min_vertical_force", min_vertical_force, ge=0)
+    mu = check_number("mu", mu, optional=True)  # its range: check_contact_options
+    min_vertical_force = check_number("min_vertical_force", min_vertical_force)
     degree = check_count("degree", degree, ge=1, le=30, optional=True)
     fit_tol = check_number("fit_tol", fit_tol, gt=0, lt=1)
     shape = check_numbers("region_shape", region_shape, min_len=2, max_len=2, integer=True,

@@ -297,8 +297,8 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
     thrust = check_numbers("thrust", thrust, optional=True, min_len=0)
     check_text("thruster", thruster, optional=True)
     max_output = check_number("max_output", max_output, gt=0, largest=1e15)
-    mu = check_number("mu", mu, gt=0, optional=True)
-    min_vertical_force = check_number("min_vertical_force", min_vertical_force, ge=0)
+    mu = check_number("mu", mu, optional=True)  # its range: check_contact_options
+    min_vertical_force = check_number("min_vertical_force", min_vertical_force)
     zd = walker.zd
     mu = walker.gait.mu if mu is None else float(mu)
     eps = float(min_vertical_force)

@@ -254,8 +254,8 @@ def optimize_schedule(walker: Walker, *, knots: list[float] = (0.0, 0.25, 0.5, 0
     target_zeta = check_number("target_zeta", target_zeta, optional=True)
     target_speed = check_number("target_speed", target_speed, optional=True)
     max_thrust = check_number("max_thrust", max_thrust, optional=True)
-    mu = check_number("mu", mu, gt=0, optional=True)
-    min_vertical_force = check_number("min_vertical_force", min_vertical_force, ge=0)
+    mu = check_number("mu", mu, optional=True)  # its range: check_contact_options
+    min_vertical_force = check_number("min_vertical_force", min_vertical_force)
     zeta_min = check_number("zeta_min", zeta_min, optional=True)
     check_text("thruster", thruster, optional=True)
     check_choice("mode", mode, ("force", "generalized"))

@@ -35,7 +35,6 @@ from ..simulation.closed_loop import (
     MAX_TOTAL_STEPS,
     METHODS,
     SIMULATORS,
-    THRUST_MODELS,
     SimConfig,
     predicted_cycle,
 )
@@ -532,7 +531,6 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
     """
     check_walker(walker)
     steps = check_count("steps", steps, le=MAX_STEPS)
-    check_choice("thrust_model", thrust_model, THRUST_MODELS, optional=True)
     thrust = check_numbers("thrust", thrust, optional=True, min_len=0)
     wn = check_number("wn", wn, gt=0, unit="rad/s")
     xi = check_number("xi", xi, gt=0)

@@ -19,7 +19,6 @@ import numpy as np
 from ..errors import (
     InputError,
     check_callable,
-    check_choice,
     check_flag,
     check_number,
     check_numbers,
@@ -37,7 +36,6 @@ from ..floquet.multipliers import (
 from ..floquet.poincare import Setting
 from ..hzd.schedule import check_limits, schedule_from_gait
 from ..simulation.closed_loop import (
-    THRUST_MODELS,
     SimConfig,
     ThrustModel,
     check_thruster_rate,
@@ -412,7 +410,6 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
     parameters raise :class:`InputError` naming them. ``check_only``: check every argument,
     compute nothing and return None."""
     check_walker(walker)
-    check_choice("thrust_model", thrust_model, THRUST_MODELS, optional=True)
     thrust = check_number("thrust", thrust, optional=True, unit="N")
     check_text("thruster", thruster, optional=True)
     wn = check_number("wn", wn, gt=0, unit="rad/s")
