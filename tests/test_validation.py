@@ -164,10 +164,11 @@ def api(_cache_dir):
     import numpy as np
 
     walker = tw.load_walker(str(DATA / "walker5.yaml"), str(DATA / "walker5_thrust.yaml"))
-    sweep_file = Path(_cache_dir).parent / "api-sweep.yaml"
-    sweep_file.write_text(f"name: api\nstudy: limit-cycle\nrobot: {DATA / 'walker5.yaml'}\n"
-                          f"gait: {DATA / 'walker5_thrust.yaml'}\ngrid:\n  thrust: {{values: "
-                          "[0, -10]}\ncollect: [speed]\n")
+    folder = Path(_cache_dir).parent / "api-sweep"
+    folder.mkdir(exist_ok=True)
+    sweep_file = _with_walker5(folder) / "api-sweep.yaml"
+    sweep_file.write_text(_sweep("limit-cycle", "grid:\n  thrust: {values: [0, -10]}\n"
+                                                "collect: [speed]\n"))
     zd = walker.zd
     good = tw.Schedule.constant(zd, np.zeros((1, walker.model.n_thrusters)))
     stand_in = {"SPEC": tw.DesignSpec(speed=0.6), "ROBOT": walker.robot, "ZD": zd,
@@ -194,6 +195,20 @@ def test_a_bad_argument_is_an_input_error_naming_it(api, study, name, value):
     named = {p for pr in err.value.problems for p in pr.params}
     want = NAMED.get((study, name), name)
     assert want in named, f"{study}({name}={value!r}): {err.value} names {named or 'nothing'}"
+
+
+def _sweep(study: str, body: str) -> str:
+    """A sweep file over the test robot, whose robot and gait files lie beside it
+    (:func:`_with_walker5`: a sweep file reads no file outside its folder)."""
+    gait = "" if study == "design-gait" else "gait: walker5_thrust.yaml\n"
+    return f"name: s\nstudy: {study}\nrobot: walker5.yaml\n{gait}{body}"
+
+
+def _with_walker5(folder: Path) -> Path:
+    """``folder`` with copies of the test robot and its thrust gait (for a sweep file there)."""
+    for name in ("walker5.yaml", "walker5_thrust.yaml"):
+        (folder / name).write_bytes((DATA / name).read_bytes())
+    return folder
 
 
 # -- the command line -------------------------------------------------------------------------
@@ -344,8 +359,7 @@ for _args, _opt, _msg in ((["--workers", "0"], "--workers", "must be 1..1024"),
              ["robustness", *COMMANDS["robustness"], *_args, "--out", "{out}"], _opt, _msg)
     cli_case(f"executor-sweep{'='.join(_args)}",
              ["sweep", "{file}", *_args, "--out", "{out}"], _opt, _msg,
-             text=f"name: s\nstudy: limit-cycle\nrobot: {W5}\ngait: {W5T}\n"
-                  "grid:\n  thrust: {values: [0]}\ncollect: [speed]\n")
+             text=_sweep("limit-cycle", "grid:\n  thrust: {values: [0]}\ncollect: [speed]\n"))
 
 
 def test_the_command_line_corpus_covers_every_numeric_option():
@@ -387,13 +401,12 @@ def one_command():
 @pytest.mark.parametrize("name", sorted(CLI))
 def test_bad_option(name, tmp_path, one_command, monkeypatch, _cache_dir):
     monkeypatch.chdir(tmp_path)
+    if CLI[name].argv[0] == "sweep":
+        _with_walker5(tmp_path)
     check_case(name, CLI[name], tmp_path, one_command)
 
 
 # -- sweep files: every point's settings before the first task (item 6) -----------------------
-def _sweep(study: str, body: str) -> str:
-    gait = "" if study == "design-gait" else f"gait: {W5T}\n"
-    return f"name: s\nstudy: {study}\nrobot: {W5}\n{gait}{body}"
 
 
 SWEEPS = {
@@ -470,7 +483,7 @@ def test_thruster_beside_a_schedule_drives_it(tmp_path, monkeypatch, one_command
     import pandas as pd
 
     monkeypatch.chdir(tmp_path)
-    (tmp_path / "s.yaml").write_text(_sweep(
+    (_with_walker5(tmp_path) / "s.yaml").write_text(_sweep(
         "limit-cycle", "settings:\n  thruster: back\n  schedule: {knots: [0, 0.5, 1], values: "
         "[-10, -10]}\ngrid:\n  schedule.2: {values: [-10, -20]}\ncollect: [speed]\n"))
     res = one_command("sweep", "s.yaml", "--workers", "1", "--out", "o", "--formats", "csv",
