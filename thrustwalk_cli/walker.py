@@ -21,7 +21,7 @@ from math import pi
 from .contact.terms import scuff_reason, swing_clearance
 from .description.gait import Gait
 from .description.robot import Robot
-from .errors import InputError, Where
+from .errors import InputError, Where, check_instance, check_number_map, check_path
 from .files.bundled import bundled_names, resolve
 from .files.gait_file import GaitSource, bind_gait, load_gait, same_robot_file
 from .files.robot_file import load_robot
@@ -77,6 +77,12 @@ class Walker:
         if sw["scuffs"]:
             out.append(scuff_reason(sw))
         return tuple(out)
+
+
+def check_walker(value: object, name: str = "walker") -> Walker:
+    """``value`` if it is a :class:`Walker`, else an :class:`InputError` naming ``name`` (the
+    first check of every study)."""
+    return check_instance(name, value, Walker, "a Walker (tw.load_walker(robot, gait))")
 
 
 def walker_from(model: CompiledModel, gait: Gait, where: Where = "gait") -> Walker:
@@ -144,6 +150,10 @@ def load_walker(robot: str | None = None, gait: str | None = None, *,
     is not the robot the gait was written for, or when the swing foot is not on the ground at
     impact (angles in degrees, the wrong sign of alpha).
     """
+    robot = check_path("robot", robot, optional=True)
+    gait = check_path("gait", gait, optional=True)
+    robot_parameters = check_number_map("robot_parameters", robot_parameters, optional=True)
+    gait_parameters = check_number_map("gait_parameters", gait_parameters, optional=True)
     rob = load_robot(robot, robot_parameters) if robot else None
     if gait is None:
         gait = default_gait(rob)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import typer
 
+from ..description.sweep import range_count
 from ..errors import ComputationError, InputError, Problem
 
 _MENTION = re.compile(r"`([A-Za-z_][A-Za-z0-9_]*)`")
@@ -190,11 +191,9 @@ def parse_values(text: str, option: str, unit: str = "") -> list[float]:
             start, stop, step = parts
             if not all(abs(v) <= LARGEST for v in parts):
                 raise bad(f"values must be finite and at most {LARGEST:g} in size")
-            if step == 0 or (stop - start) * step < 0:
-                raise bad("the step must be non-zero and point from start to stop")
-            count = int(abs((stop - start) / step) + 1e-9) + 1
-            if count > MAX_VALUES:
-                raise bad(f"{count} values: the limit is {MAX_VALUES}")
+            count = range_count(start, stop, step, MAX_VALUES)
+            if isinstance(count, str):
+                raise bad(count)
             return [start + i * step for i in range(count)]
         values = [float(p) for p in text.split(",") if p.strip()]
     except ValueError:
@@ -225,8 +224,9 @@ def parse_knots(text: str, option: str = "--knots") -> list[float | None]:
         except ValueError:
             raise InputError(f"option {option}: {item!r} is not a number or ? (a free knot); "
                              "use e.g. 0,?,?,1, 0,0.3,0.6,1 or 0:1:0.25") from None
-        if v != v or v in (float("inf"), float("-inf")):
-            raise InputError(f"option {option}: knots must be finite, got {item!r}")
+        if not abs(v) <= LARGEST:
+            raise InputError(f"option {option}: knots must be finite and at most {LARGEST:g} "
+                             f"in size, got {item!r}")
         out.append(v)
     return out
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from .._version import __version__
 from ..description.robot import Robot
-from ..errors import InputError, Problem
+from ..errors import InputError, Problem, check_flag, check_instance
 from . import cache
 from .compiled import FUNCTIONS, VECTORS, CompiledModel
 from .tape import PROGRAMS
@@ -157,6 +157,8 @@ def load_model(robot: Robot, *, rebuild: bool = False,
     (``InputError`` naming the file and key otherwise). ``progress`` (:data:`Progress`) is
     told about every step of a compile (never called for a model from the cache).
     """
+    check_instance("robot", robot, Robot, "a Robot (tw.load_robot)")
+    rebuild = check_flag("rebuild", rebuild)
     t0 = time.perf_counter()
     key = model_key(robot)
     notes: list[str] = []

@@ -41,6 +41,32 @@ METHODS = ("DOP853", "RK45", "Radau", "LSODA", "BDF")  # solve_ivp integrators
 MAX_STEPS = 10_000  # steps per run
 MAX_SAMPLES = 10_000  # output samples per step
 MAX_TOTAL_STEPS = 20_000  # runs x steps in one call (about 70 ms per step with SciPy)
+MAX_THRUSTER_RATE = 1000.0  # [1/s] the fastest pole of a thruster model (thruster_rate)
+
+
+def thruster_rate(kind: str, wn: float, xi: float, tau: float) -> float:
+    """The fastest pole [1/s] of a thruster model: ``1/tau`` (first order), ``wn (xi +
+    sqrt(xi^2 - 1))`` when overdamped, else ``wn`` (second order); 0 for the others."""
+    if kind == "first-order":
+        return 1.0 / tau
+    if kind == "second-order":
+        return wn * (xi + np.sqrt(xi * xi - 1.0)) if xi > 1.0 else wn
+    return 0.0
+
+
+def check_thruster_rate(kind: str, wn: float, xi: float, tau: float) -> None:
+    """A thruster model's fastest pole at most :data:`MAX_THRUSTER_RATE` (a time constant of
+    1 ms): a faster thruster follows its command within a thousandth of a walking step, is
+    the ``constant`` model in effect, and makes the equations stiff (the explicit integrator
+    would take millions of steps). :class:`InputError` on ``tau`` or ``wn``/``xi``."""
+    rate = thruster_rate(kind, wn, xi, tau)
+    if rate > MAX_THRUSTER_RATE:
+        names = "tau" if kind == "first-order" else ("wn", "xi")
+        raise InputError.param(names, f"a thruster with a {1e3 / rate:.3g} ms time constant "
+                                      f"(poles up to {rate:.3g} 1/s) is faster than "
+                                      f"{1e3 / MAX_THRUSTER_RATE:g} ms: on a step's time scale it "
+                                      "is the constant thrust model (use that), and it makes the "
+                                      "equations stiff")
 
 
 # ----------------------------------------------------------------------------- thrust

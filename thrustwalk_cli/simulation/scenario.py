@@ -23,7 +23,13 @@ import numpy as np
 
 from ..errors import InputError, param_problem
 from ..hzd.zero_dynamics import Schedule, ZeroDynamics
-from .closed_loop import THRUST_MODELS, ThrustModel, predicted_cycle, zeta_star_at
+from .closed_loop import (
+    THRUST_MODELS,
+    ThrustModel,
+    check_thruster_rate,
+    predicted_cycle,
+    zeta_star_at,
+)
 from .full_order import NoOrbit, SimConfig, SimResult, Start, initial_state, simulate
 from .reduced import ReducedModel, ReducedResult, predict_step, simulate_reduced
 
@@ -126,6 +132,7 @@ def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
                                                f"(got {kw[key]:g})"))
     if problems:
         raise InputError(sorted(set(problems), key=str))
+    check_thruster_rate(kind, kw.get("wn", 2.0), kw.get("xi", 1.0), kw.get("tau", 0.5))
     kw["config"].validate()
     return Scenario(kind, tuple(values), idx, schedule=schedule, **kw)
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..contact.evaluate import CaseResult, check_contact_options, evaluate
 from ..contact.terms import scuff_reason
-from ..errors import InputError
+from ..errors import InputError, check_number, check_numbers, check_text
 from ..hzd.schedule import check_limits, schedule_from_gait
 from ..hzd.zero_dynamics import (
     LimitCycle,
@@ -30,7 +30,7 @@ from ..hzd.zero_dynamics import (
     grazing_warning,
     limit_cycles,
 )
-from ..walker import Walker
+from ..walker import Walker, check_walker
 from .records import (
     SCHEMA_VERSION,
     Table,
@@ -293,6 +293,12 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
 
     ``max_output`` [bytes]: a sweep whose CSV table would be larger is refused before any work.
     """
+    check_walker(walker)
+    thrust = check_numbers("thrust", thrust, optional=True, min_len=0)
+    check_text("thruster", thruster, optional=True)
+    max_output = check_number("max_output", max_output, gt=0, largest=1e15)
+    mu = check_number("mu", mu, optional=True)  # its range: check_contact_options
+    min_vertical_force = check_number("min_vertical_force", min_vertical_force)
     zd = walker.zd
     mu = walker.gait.mu if mu is None else float(mu)
     eps = float(min_vertical_force)
