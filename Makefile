@@ -1,9 +1,9 @@
 # thrustwalk: two commands on a fresh machine with only Python:
 #   make demo   -> .venv, install, the one-time compile of the simulation kernel, limit
 #                  cycles of the bundled 3-link robot and gait
-#   make test   -> .venv, install with the test dependencies (and MuJoCo), the whole test
-#                  suite on every core (pytest-xdist); the suite compiles the kernel once for
-#                  this checkout at its start (tests/conftest.py), with a message
+#   make test   -> .venv, install with the test dependencies (and MuJoCo) while the
+#                  simulation kernel compiles once for this checkout's tests (with a message),
+#                  the whole test suite on every core (pytest-xdist)
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
@@ -20,8 +20,12 @@ $(BASE): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e .
 	touch $(BASE)
 
+# while pip installs the test dependencies, the simulation kernel compiles for the tests
+# (once per checkout, into .pytest_cache/thrustwalk-kernel; tests/kernel_cache.py says so)
 $(STAMP): $(BASE)
-	$(BIN)/python -m pip install --quiet -e '.[test,mujoco]'
+	$(BIN)/python tests/kernel_cache.py & kernel=$$!; \
+	$(BIN)/python -m pip install --quiet -e '.[test,mujoco]'; status=$$?; \
+	wait $$kernel; exit $$status
 	touch $(STAMP)
 
 # `thrustwalk compile` compiles the simulation kernel into the user's cache if this machine

@@ -222,6 +222,7 @@ def test_platform_conventions(no_overrides, tmp_path):
 
 
 # -- through the command line -----------------------------------------------------------------
+@pytest.mark.slow
 def test_cli_with_unusable_cache_warns_once_and_still_writes_results(tmp_path, cli_subprocess):
     blocker = tmp_path / "cache-file"
     blocker.write_text("x\n")
@@ -238,6 +239,7 @@ def test_cli_with_unusable_cache_warns_once_and_still_writes_results(tmp_path, c
 
 
 # -- concurrency -------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_four_processes_compiling_a_new_robot_build_it_once(tmp_path, fresh_cache):
     """Four processes compile the same never-seen robot into one empty cache at once (issue
     30 item 4): one derives it (SymPy), the others wait for its build lock, say so through

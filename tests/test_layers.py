@@ -264,6 +264,7 @@ def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 
 # ------------------------------------------------------------------------------ the package
+@pytest.mark.slow
 def test_package_keeps_its_layers():
     bad = violations(PACKAGE)
     assert not bad, "\n".join(bad)

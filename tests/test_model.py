@@ -524,6 +524,7 @@ def _subprocess_env(cache_dir: Path) -> dict[str, str]:
     return env
 
 
+@pytest.mark.slow
 def test_cache_concurrent_compiles_leave_one_valid_entry(fresh_cache, three_link):
     """Two processes compiling the same robot into one empty cache both succeed, agree, and
     leave exactly one valid entry (atomic rename; no temporary files left)."""
