@@ -144,7 +144,8 @@ def test_export_cli_from_another_folder(cli, tmp_path, monkeypatch, _cache_dir):
     (["--solref", "0.0001,1"], "at least 2 timesteps"),
     (["--solref", "0.01"], "option --solref: expected 2"),
     (["--foot-radius", "-1"], "option --foot-radius: must lie in"),
-    (["--mu", "0"], "option --mu: must lie in (0, 10]"),
+    (["--mu", "0"], "option --mu: must be > 0"),
+    (["--mu", "11"], "option --mu: must be <= 10"),
 ])
 def test_export_bad_input_one_line(cli, tmp_path, args, message):
     res = cli("export-mjcf", "three_link", "--out", str(tmp_path / "x.xml"), *args)

@@ -143,6 +143,28 @@ STUDIES = {
         "sweep": [5, "sweep.yaml"], "workers": POS_COUNT,
         "scheduler": [5, "tcp://127.0.0.1:99999"], "finished": [5, ["a"]],
         "on_point": CALLBACK, "library": [5], "chunk": POS_COUNT}, {}),
+    "mujoco_run": (lambda w, **kw: tw.mujoco_run(**{"walker": w, **kw}), {
+        "walker": WALKER, "steps": POS_COUNT + [10**6], "thrust_model": [5, "bogus"],
+        "thrust": NUMBERS, "wn": POSITIVE, "xi": POSITIVE, "tau": POSITIVE, "f0": NUMBER,
+        "thruster": [5, "back", [5]], "push": ["2:0.5:10", 5, [(NAN, 0.5, 10)],
+                                            [(2, 0.5, 1e6)], [(2.5, 0.5, 1)], [(9, 0.5, 1)]],
+        "mu": POSITIVE + [11.0], "contact": [5, "rubber"], "perturb": NUMBER + [-1.0],
+        "min_impact_s": NUMBER, "zeta_tol": POSITIVE, "slip_tol": POSITIVE,
+        "samples": POS_COUNT + [1], "fps": NUMBER + [-1.0, 61.0], "progress": CALLBACK},
+        {"steps": 2}),
+    "import_urdf": (lambda w, **kw: tw.import_urdf(**kw), {
+        "urdf": [5, None, "", str(DATA / "missing.urdf")], "stance_foot": [5, "left_foot"],
+        "swing_foot": [5, "right_foot:a,b,c"], "plane": [5, "bogus"], "thrusters": [5, [5]],
+        "side": [5], "unactuated": [5], "name": [5], "out": [5, None]},
+        {"urdf": str(DATA / "urdf" / "rabbit.urdf"), "stance_foot": "left_foot:0,0,0",
+         "swing_foot": "right_foot:0,0,0", "side": str(DATA / "urdf" / "rabbit_side.yaml"),
+         "out": "OUT"}),
+    "robot_to_urdf": (lambda w, **kw: tw.robot_to_urdf(**kw), {"robot": ["walker5", 5, None]},
+                      {"robot": "ROBOT"}),
+    "robot_to_mjcf": (lambda w, **kw: tw.robot_to_mjcf(**kw), {
+        "robot": ["walker5", 5, None], "mu": POSITIVE + [11.0], "contact": [5, "soft"],
+        "keyframe": [5, "x", ([NAN] * 5, [0.0] * 5), ([0.0] * 2, [0.0] * 5)],
+        "notes": [5, [5]]}, {"robot": "ROBOT"}),
 }
 # the parameter a problem names when it is not the keyword's own name
 NAMED = {("ShapeRequest", "ks"): "k", ("DesignSpec", "speed"): "speed",
@@ -173,7 +195,8 @@ def api(_cache_dir):
     good = tw.Schedule.constant(zd, np.zeros((1, walker.model.n_thrusters)))
     stand_in = {"SPEC": tw.DesignSpec(speed=0.6), "ROBOT": walker.robot, "ZD": zd,
                 "SCHEDULE": good, "walker5": "walker5",
-                "NAN_SCHEDULE": tw.Schedule.constant(zd, np.full((1, 1), np.nan))}
+                "NAN_SCHEDULE": tw.Schedule.constant(zd, np.full((1, 1), np.nan)),
+                "OUT": str(folder / "imported.yaml")}
     return walker, walker.model, tw.load_sweep(sweep_file), stand_in
 
 

@@ -8,6 +8,7 @@ backquotes (`` `zeta0` ``), which the command line renders as its flag.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -246,4 +247,27 @@ def check_number_map(name: str, value: object, *, optional: bool = False, **boun
             out[key] = check_number(name, v, **bounds)
         except InputError as exc:
             raise InputError.param(name, f"{key}: {exc.problems[0].message}") from None
+    return out
+
+
+def check_pushes(name: str, push: object, robot, steps: int
+                 ) -> list[tuple[float, float, float, float]]:
+    """``push`` as (step, phase, P_x, P_y) [N s] tuples: a step 1 ... ``steps``, a phase in
+    [0, 1) and an impulse of at most :meth:`Robot.push_bound` (a push that changes the whole
+    robot's velocity by more than 10 m/s is a crash, not a push): ``robot`` is the
+    :class:`~thrustwalk_cli.description.robot.Robot` pushed."""
+    if push is None:
+        return []
+    if isinstance(push, (str, bytes, dict)) or not hasattr(push, "__iter__"):
+        raise InputError.param(name, f"must be a sequence of (step, phase, P_x, P_y) tuples, "
+                                     f"got {type(push).__name__} {push!r:.40}")
+    out = []
+    for p in push:
+        v = check_numbers(name, p, min_len=3, max_len=4)
+        stp, s, px, py = v[0], v[1], v[2], v[3] if len(v) == 4 else 0.0
+        if not (float(stp).is_integer() and 1 <= stp <= steps and 0.0 <= s < 1.0):
+            raise InputError.param(name, f"a push needs a step in 1..{steps} and a phase in "
+                                         f"[0, 1) (got step {stp:g}, phase {s:g})")
+        robot.check_push(name, float(math.hypot(px, py)))
+        out.append((stp, s, px, py))
     return out

@@ -51,7 +51,7 @@ import numpy as np
 
 from .._version import __version__
 from ..description.robot import Robot
-from ..errors import InputError
+from ..errors import InputError, check_instance, check_number, check_numbers
 
 #: [kg m^2] the planar inertia written for a link whose inertia is zero (point masses)
 INERTIA_FLOOR = 1e-12
@@ -251,10 +251,20 @@ def robot_to_mjcf(robot: Robot, *, mu: float = 1.0, contact: ContactModel | None
     ``keyframe``: thrustwalk's ``(q, q')`` [rad, rad/s] of a state with the stance foot at the
     origin, written as the key ``start`` (e.g. just after an impact on the predicted orbit);
     ``notes``: lines for the header comment."""
-    contact = contact or CONTACT_PRESETS["default"]
+    check_instance("robot", robot, Robot, "a Robot (tw.load_robot)")
+    mu = check_number("mu", mu, gt=0, le=10)
+    contact = check_instance("contact", contact or CONTACT_PRESETS["default"], ContactModel,
+                             "a ContactModel (contact_settings)")
     contact.validate()
-    if not (np.isfinite(mu) and 0 < mu <= 10):
-        raise InputError.param("mu", f"must lie in (0, 10] (got {mu:g})")
+    if keyframe is not None:
+        if not (isinstance(keyframe, tuple) and len(keyframe) == 2):
+            raise InputError.param("keyframe", "must be a pair (q, dq)")
+        n = len(robot.coordinates)
+        keyframe = (check_numbers("keyframe", keyframe[0], min_len=n, max_len=n),
+                    check_numbers("keyframe", keyframe[1], min_len=n, max_len=n))
+    if isinstance(notes, (str, bytes)) or not hasattr(notes, "__iter__") or any(
+            not isinstance(t, str) for t in notes):
+        raise InputError.param("notes", "must be a sequence of texts")
     lay = layout(robot)
     names = set(lay.hinges[1:]) | set(robot.link_names) | set(robot.thruster_names)
     clash = sorted(names & {*ROOT_JOINTS, "world", "floor", "foot_stance", "foot_swing"})

@@ -67,6 +67,7 @@ from ..errors import (
     check_number,
     check_number_map,
     check_numbers,
+    check_pushes,
     check_texts,
 )
 from ..hzd.zero_dynamics import Schedule, ZeroDynamics, limit_cycles
@@ -623,27 +624,6 @@ def _check_profile_pairs(profile) -> list[tuple[float, float]]:
     return out
 
 
-def _check_pushes(push, robot, steps: int) -> list[tuple[float, float, float, float]]:
-    """``push`` as (step, phase, P_x, P_y) [N s] tuples: a step 1 ... ``steps``, a phase in
-    [0, 1) and an impulse of at most :meth:`Robot.push_bound` (a push that changes the whole
-    robot's velocity by more than 10 m/s is a crash, not a push)."""
-    if push is None:
-        return []
-    if isinstance(push, (str, bytes, dict)) or not hasattr(push, "__iter__"):
-        raise InputError.param("push", f"must be a sequence of (step, phase, P_x, P_y) tuples, "
-                                       f"got {type(push).__name__} {push!r:.40}")
-    out = []
-    for p in push:
-        v = check_numbers("push", p, min_len=3, max_len=4)
-        stp, s, px, py = v[0], v[1], v[2], v[3] if len(v) == 4 else 0.0
-        if not (float(stp).is_integer() and 1 <= stp <= steps and 0.0 <= s < 1.0):
-            raise InputError.param("push", f"a push needs a step in 1..{steps} and a phase in "
-                                           f"[0, 1) (got step {stp:g}, phase {s:g})")
-        robot.check_push("push", float(np.hypot(px, py)))
-        out.append((stp, s, px, py))
-    return out
-
-
 def _plant(walker: Walker, plant_scale: dict[str, float]) -> tuple[ZeroDynamics, dict]:
     if not plant_scale:
         return walker.zd, {"same_as_model": True, "scale": {}}
@@ -707,7 +687,7 @@ def control(walker: Walker, *, reference: str = "speed",
     xi = check_number("xi", xi, gt=0)
     tau = check_number("tau", tau, gt=0, unit="s")
     thruster = check_texts("thruster", thruster, optional=True)
-    push = _check_pushes(push, walker.robot, steps)
+    push = check_pushes("push", push, walker.robot, steps)
     plant_scale = check_number_map("plant_scale", plant_scale, optional=True, gt=0)
     noise = check_number("noise", noise)
     seed = check_count("seed", seed, ge=0)

@@ -11,12 +11,22 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..contact.evaluate import evaluate as contact_evaluate
-from ..errors import InputError
+from ..errors import (
+    InputError,
+    check_callable,
+    check_count,
+    check_number,
+    check_numbers,
+    check_pushes,
+    check_text,
+    check_texts,
+)
 from ..hzd.schedule import check_limits, schedule_from_gait
 from ..hzd.zero_dynamics import Schedule
 from ..interchange.mjcf import ContactModel, contact_settings
 from ..interchange.mujoco_run import (
     MAX_MJ_STEPS,
+    MAX_STEPS,
     MujocoRun,
     Push,
     load_mujoco,
@@ -24,7 +34,7 @@ from ..interchange.mujoco_run import (
     run_mujoco,
     thrust_runs,
 )
-from ..walker import Walker
+from ..walker import Walker, check_walker
 from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 UNITS = units("time", "thrust", "alpha", "alpha_dot", "sigma_N", "zeta", "step_time",
@@ -306,22 +316,31 @@ def mujoco_run(walker: Walker, *, steps: int = 20, thrust_model: str | None = No
     whose stance foot slips more, is a ``warning``. ``fps`` > 0 keeps frames for
     :meth:`MujocoResult.video`. Needs MuJoCo (``pip install 'thrustwalk[mujoco]'``):
     :class:`InputError` otherwise."""
-    version = str(load_mujoco().__version__)
+    check_walker(walker)
+    steps = check_count("steps", steps, le=MAX_STEPS)
+    thrust = check_numbers("thrust", thrust, optional=True, min_len=0)
+    check_text("thrust_model", thrust_model, optional=True)  # its choices: make_scenario
+    wn = check_number("wn", wn, gt=0, unit="rad/s")
+    xi = check_number("xi", xi, gt=0)
+    tau = check_number("tau", tau, gt=0, unit="s")
+    f0 = check_number("f0", f0, unit="N")
+    thruster = check_texts("thruster", thruster, optional=True)
+    mu = check_number("mu", mu, gt=0, le=10, optional=True)
+    if not isinstance(contact, ContactModel):
+        check_text("contact", contact)
+    perturb = check_number("perturb", perturb, gt=-1)
+    min_impact_s = check_number("min_impact_s", min_impact_s)
+    zeta_tol = check_number("zeta_tol", zeta_tol, gt=0)
+    slip_tol = check_number("slip_tol", slip_tol, gt=0, unit="m")
+    samples = check_count("samples", samples, ge=2, le=10_000)
+    fps = check_number("fps", fps, ge=0, le=60, unit="1/s")
+    check_callable("progress", progress)
     zd = walker.zd
     if not zd.valid:
         raise InputError.param("gait", f"the gait has no walking orbit: {zd.invalid_reason}")
     ct = contact if isinstance(contact, ContactModel) else contact_settings(contact)
     ct.validate()
-    mu = zd.gait.mu if mu is None else float(mu)
-    if not (np.isfinite(mu) and 0 < mu <= 10):
-        raise InputError.param("mu", f"must lie in (0, 10] (got {mu:g})")
-    for key, v in (("zeta_tol", zeta_tol), ("slip_tol", slip_tol)):
-        if not (np.isfinite(v) and v > 0):
-            raise InputError.param(key, f"must be > 0 (got {v:g})")
-    if not 2 <= samples <= 10_000:
-        raise InputError.param("samples", f"must be 2..10000 samples per step (got {samples})")
-    if not (np.isfinite(fps) and 0 <= fps <= 60):
-        raise InputError.param("fps", f"must lie in [0, 60] frames per second (got {fps:g})")
+    mu = zd.gait.mu if mu is None else mu
     values = None if thrust is None else [float(v) for v in thrust]
     if thrust_model is None:
         thrust_model = ("piecewise" if walker.gait.thrust is not None and values is None
@@ -337,18 +356,15 @@ def mujoco_run(walker: Walker, *, steps: int = 20, thrust_model: str | None = No
         check_limits(zd, schedule, walker.where)
     runs_in = thrust_runs(zd, thrust_model, values, list(thruster) if thruster else None,
                           schedule=schedule, wn=wn, xi=xi, tau=tau, f0=f0)
-    pushes = []
-    for p in push:
-        stp, s, px, py = (float(v) for v in p)
-        if stp != int(stp):
-            raise InputError.param("push", f"the step of a push is a whole number (got {stp:g})")
-        pushes.append(Push(int(stp), s, (px, py)))
+    pushes = [Push(int(stp), s, (px, py))
+              for stp, s, px, py in check_pushes("push", push, walker.robot, steps)]
     # a bound on the work asked for: MuJoCo steps over every run
     lc_T = [_step_time(zd, th) for _, th in runs_in]
     need = sum(steps * T / ct.timestep for T in lc_T)
     if need > MAX_MJ_STEPS:
         raise InputError.param(("steps", "timestep"), f"about {need:.3g} MuJoCo steps, above "
                                                       f"the limit of {MAX_MJ_STEPS:g} per call")
+    version = str(load_mujoco().__version__)  # InputError when the extra is not installed
     runs, rigid = [], []
     for value, th in runs_in:
         runs.append(run_mujoco(zd, th, value, steps=steps, contact=ct, mu=mu, pushes=pushes,
