@@ -18,7 +18,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import matplotlib  # noqa: E402
 import pytest  # noqa: E402
-from kernel_cache import seed_kernel, shared_kernel  # noqa: E402 (tests/ is on sys.path)
+from kernel_cache import locked, seed_kernel, shared_kernel  # noqa: E402 (tests/ is on sys.path)
 
 matplotlib.use("Agg")
 
@@ -34,10 +34,13 @@ def pytest_sessionstart(session: pytest.Session) -> None:
 
 # ------------------------------------------------------------- running on every core (xdist)
 def _modules_with_module_fixtures(root: Path) -> set[str]:
-    """The test modules (node-id paths) that define a module-scoped fixture."""
+    """The test modules (node-id paths) that define a module-scoped fixture or say
+    ``ONE_WORKER = True`` (their tests share results computed once per process)."""
     out = set()
     for path in Path(__file__).parent.glob("test_*.py"):
-        if re.search(r"""fixture\(\s*scope=["']module["']""", path.read_text()):
+        text = path.read_text()
+        if re.search(r"""fixture\(\s*scope=["']module["']""", text) or \
+                re.search(r"^ONE_WORKER = True", text, re.M):
             out.add(path.relative_to(root).as_posix())
     return out
 
@@ -74,9 +77,21 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 @pytest.fixture(scope="session", autouse=True)
 def _cache_dir(tmp_path_factory: pytest.TempPathFactory):
     """Every test run uses its own model cache (never the user's), which starts with the
-    compiled simulation kernel of this checkout's tests (see :func:`shared_kernel`)."""
-    path = tmp_path_factory.mktemp("model-cache")
-    seed_kernel(path, shared_kernel())
+    compiled simulation kernel of this checkout's tests (see :func:`shared_kernel`). The
+    pytest-xdist workers of one run share it (a robot compiled by one worker is loaded by the
+    others, as processes sharing a user's cache do: the cache's build lock makes one compile),
+    seeded once under a lock."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        run_tmp = tmp_path_factory.getbasetemp().parent  # shared by the run's workers
+        path = run_tmp / "model-cache"
+        with locked(run_tmp):
+            if not (path / ".seeded").exists():
+                path.mkdir(exist_ok=True)
+                seed_kernel(path, shared_kernel())
+                (path / ".seeded").touch()
+    else:
+        path = tmp_path_factory.mktemp("model-cache")
+        seed_kernel(path, shared_kernel())
     old = os.environ.get("THRUSTWALK_CACHE_DIR")
     os.environ["THRUSTWALK_CACHE_DIR"] = str(path)
     yield path

@@ -49,7 +49,7 @@ def _cache_env(path: Path) -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def _locked(folder: Path) -> Iterator[None]:
+def locked(folder: Path) -> Iterator[None]:
     """An exclusive lock between the processes of a test run (no-op without fcntl)."""
     try:
         import fcntl
@@ -97,7 +97,7 @@ def shared_kernel(say: Callable[[str], None] | None = None) -> list[Path]:
     folder = shared_kernel_dir()
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        with _locked(folder):
+        with locked(folder):
             entries = _jit_entries(folder)
             if not all(ok for _, ok in entries):
                 if say is not None:

@@ -59,6 +59,9 @@ def _chain_module():
 
 
 chains = _chain_module()
+# the folded reference models (_pair) are computed once per process and used by two tests
+# each: pytest-xdist keeps this module in one worker (tests/conftest.py)
+ONE_WORKER = True
 
 
 def _robot(name: str, seed: int):
