@@ -23,9 +23,10 @@ from scipy.optimize import minimize, minimize_scalar
 
 from thrustwalk_cli.controller.planner import Planner, Settings
 from thrustwalk_cli.controller.step_model import IdealThrust, Terms, ThrusterDynamics
-from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
 from thrustwalk_cli.optimize.qp import ConvexQP
 from thrustwalk_cli.studies.control import control, reference_values
+from thrustwalk_cli.thrust.schedule import Schedule
 
 DATA = Path(__file__).parent / "data"
 

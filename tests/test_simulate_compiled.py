@@ -17,10 +17,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from thrustwalk_cli.description.gait import ThrustSchedule
-from thrustwalk_cli.hzd.schedule import schedule_from_gait
 from thrustwalk_cli.simulation.closed_loop import SimConfig, ThrustModel
 from thrustwalk_cli.simulation.full_order import Start, initial_state, simulate
+from thrustwalk_cli.thrust.schedule import WrittenSchedule
 
 REL = 1e-9  # zeta^- agreement between the methods (the requirement)
 
@@ -30,9 +29,9 @@ def _piecewise(walker, mode: str):
     zd, gait = walker.zd, walker.gait
     name = walker.robot.thruster_names[0]
     vals = ((name, (0.0, -3.0, 2.0)),) if mode == "force" else (("T", (-2.0, 0.0, 3.0)),)
-    sched = ThrustSchedule((0.0, 0.3, 0.7, 1.0), vals, mode, True)
+    sched = WrittenSchedule((0.0, 0.3, 0.7, 1.0), vals, mode, True)
     zd_s = replace(zd, gait=replace(gait, thrust=sched))
-    S = schedule_from_gait(zd_s, sched, "thrust", pad=True)[0]
+    S = sched.resolve(zd_s, zd_s.model.robot, "thrust", pad=True)[0]
     return zd_s, ThrustModel("piecewise", np.zeros(walker.model.n_thrusters), schedule=S)
 
 

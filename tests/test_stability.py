@@ -20,8 +20,9 @@ from scipy.linalg import expm
 import thrustwalk_cli as tw
 from thrustwalk_cli.floquet.poincare import Setting
 from thrustwalk_cli.floquet.variational import closed_loop, rhs_jacobian
-from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
 from thrustwalk_cli.simulation.closed_loop import ThrustModel
+from thrustwalk_cli.thrust.schedule import Schedule
 
 DATA = Path(__file__).resolve().parent / "data"
 

@@ -11,8 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..hzd.zero_dynamics import Schedule, ZeroDynamics
+from ..hzd.zero_dynamics import ZeroDynamics
 from ..model.compiled import CompiledModel
+from ..thrust.schedule import Schedule
 from .evaluate import friction_ratio, step_grid
 from .terms import impact_data, stance_terms
 

@@ -32,11 +32,12 @@ import numpy as np
 
 from ..contact.evaluate import friction_ratio
 from ..hzd.extrema import golden_min, grid_miss, neighbours, peaks
-from ..hzd.zero_dynamics import Schedule, ZeroDynamics
+from ..hzd.zero_dynamics import ZeroDynamics
 from ..simulation.batch import push_row
 from ..simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel
 from ..simulation.compiled import Stepper, failure_text, step_record
 from ..simulation.full_order import Start, initial_state
+from ..thrust.schedule import Schedule
 from .planner import Plan, Planner, predicted_margins
 from .step_model import ThrusterDynamics, interval_of
 
@@ -119,7 +120,7 @@ def run_loop(plant: ZeroDynamics, planner: Planner | None, *, label: str, steps:
     knots = np.asarray(knots, float)
     n_int = len(knots) - 1
     if dynamics is None:
-        sched = Schedule(knots, np.zeros((1, n_int, m)), np.zeros((1, n_int)))
+        sched = Schedule.zero(knots, m)
         th = ThrustModel("piecewise", np.zeros(m), schedule=sched)
     else:
         th = ThrustModel(dynamics.kind, np.zeros(m), wn=dynamics.wn, xi=dynamics.xi,

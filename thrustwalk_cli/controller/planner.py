@@ -40,8 +40,9 @@ from scipy.optimize import linprog
 from ..contact.terms import impact_data
 from ..errors import InputError
 from ..hzd.extrema import golden_min, grid_miss, neighbours, peaks
-from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
+from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, limit_cycles
 from ..optimize.qp import ConvexQP, normalise_rows
+from ..thrust.schedule import Schedule
 from .step_model import (
     IdealThrust,
     ResponseThrust,

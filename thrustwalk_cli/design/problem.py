@@ -65,11 +65,12 @@ import numpy as np
 from scipy.optimize import minimize
 
 from ..contact.terms import stance_terms
-from ..description.gait import Gait, ThrustSchedule
+from ..description.gait import Gait
 from ..hzd.constraints import apply_invariance, bezier, gait_maps
 from ..hzd.quadrature import ChebSeries, integrate, lobatto
 from ..hzd.zero_dynamics import zero_dynamics_terms
 from ..model.compiled import CompiledModel
+from ..thrust.schedule import WrittenSchedule
 from .spec import STABILITY_MARGIN, VELOCITY_MARGIN, DesignSpec
 
 FAMILIES = ("orbit", "stability", "speed", "step_length", "foot_placement", "clearance",
@@ -268,12 +269,12 @@ class Problem:
                  thrust=self.thrust_schedule(F))
         return apply_invariance(self.model, g)
 
-    def thrust_schedule(self, F: np.ndarray) -> ThrustSchedule | None:
+    def thrust_schedule(self, F: np.ndarray) -> WrittenSchedule | None:
         """The constant thrust of the gait file (designed, or fixed by ``spec.thrust``)."""
         if not self.m and self.spec.thrust is None:
             return None
         names = self.model.robot.thruster_names
-        return ThrustSchedule((0.0, 1.0), tuple((nm, (float(f),)) for nm, f in zip(names, F)))
+        return WrittenSchedule((0.0, 1.0), tuple((nm, (float(f),)) for nm, f in zip(names, F)))
 
     def range_cases(self, F: np.ndarray) -> list[np.ndarray]:
         """Thrust vectors [N] at the two ends of ``spec.thrust_range`` (the other thrusters at

@@ -35,6 +35,7 @@ import numpy as np
 
 from ..description.gait import Gait
 from ..model.compiled import CompiledModel
+from ..thrust.schedule import Schedule
 from .constraints import GaitMaps, gait_maps
 from .extrema import neighbours
 from .quadrature import ChebSeries, cumulative_with_error, integrate, lobatto
@@ -46,35 +47,6 @@ GRAZING_VELOCITY = 0.01  # [m/s] a touchdown slower than this is reported as gra
 
 MAX_NODES = 4097
 INVARIANCE_TOL = 1e-8  # [rad], [1]: impact residuals above this: the gait is not invariant
-
-
-@dataclass(frozen=True)
-class Schedule:
-    """Thrust piecewise constant in alpha, batched: ``k`` schedules sharing the knots.
-
-    knots: ``alpha_1 = alpha_i, ..., alpha_n = alpha_f`` [rad].
-    force: (k, n-1, m) physical thrust per interval and thruster [N].
-    generalized: (k, n-1) generalised force ``T_j`` on q_N per interval [N m] (SPEC 4).
-    """
-
-    knots: np.ndarray
-    force: np.ndarray
-    generalized: np.ndarray
-
-    @property
-    def size(self) -> int:
-        return self.force.shape[0]
-
-    @staticmethod
-    def constant(zd: ZeroDynamics, thrust: np.ndarray) -> Schedule:
-        """Constant thrust; ``thrust`` has shape (k, m)."""
-        thrust = np.atleast_2d(np.asarray(thrust, float))
-        k = thrust.shape[0]
-        return Schedule(
-            knots=np.array([zd.alpha_i, zd.alpha_f]),
-            force=thrust[:, None, :],
-            generalized=np.zeros((k, 1)),
-        )
 
 
 @dataclass(frozen=True)
@@ -547,9 +519,9 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> Li
     T_err = np.full(len(Vf), np.nan)
     T_ok = np.zeros(len(Vf), bool)
     if live.size:
-        sub = Schedule(kn, schedule.force[live], schedule.generalized[live])
+        sub = schedule.take(live)
         T[live], T_err[live], T_ok[live] = _step_times(zd, sub, zp[live], basis)
-    ext = _orbit_extrema(zd, Schedule(kn, schedule.force[live], schedule.generalized[live]),
+    ext = _orbit_extrema(zd, schedule.take(live),
                          zp[live], grid, k1, zeta[live], basis) if live.size else {}
     return LimitCycles(zd, grid, k1, Vf, zstar, zp, zeta, zmin, jmin, T, T_err, T_ok, live,
                        ext)
@@ -738,8 +710,7 @@ def grazing_warning(lc: LimitCycle) -> str | None:
 def paper_one_step_shift(zd: ZeroDynamics, schedule: Schedule) -> np.ndarray:
     """The paper's ``sum_j b_F T_j`` (+ force terms): the change of zeta^- in ONE step for a
     fixed zeta^+, not the fixed-point shift (SPEC 4 erratum)."""
-    nominal = Schedule(schedule.knots, np.zeros_like(schedule.force),
-                       np.zeros_like(schedule.generalized))
+    nominal = schedule.without_thrust()
     return (zd.V_Z(np.array(zd.alpha_f), schedule) - zd.V_Z(np.array(zd.alpha_f), nominal))
 
 

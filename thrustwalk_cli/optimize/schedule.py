@@ -46,8 +46,9 @@ from ..contact.evaluate import CaseResult, evaluate, step_grid
 from ..contact.terms import fit_terms, impact_data, stance_terms
 from ..errors import ComputationError, InputError
 from ..hzd.quadrature import integrate, lobatto
-from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
+from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, limit_cycles
 from ..model.compiled import CompiledModel
+from ..thrust.schedule import Schedule
 from .qp import active_set_qp, kkt, ldp_qp, lp_feasible, normalise_rows
 
 FAMILIES = {

@@ -33,7 +33,8 @@ import numpy as np
 
 from ..errors import InputError, param_problem
 from ..hzd.constraints import bezier
-from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
+from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, limit_cycles
+from ..thrust.schedule import Schedule
 
 THRUST_MODELS = ("constant", "first-order", "second-order", "piecewise")
 SIMULATORS = ("compiled", "scipy")  # the compiled kernel (default) or solve_ivp (reference)

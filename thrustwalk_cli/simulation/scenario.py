@@ -22,7 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError, param_problem
-from ..hzd.zero_dynamics import Schedule, ZeroDynamics
+from ..hzd.zero_dynamics import ZeroDynamics
+from ..thrust.schedule import Schedule
 from .closed_loop import THRUST_MODELS, ThrustModel, predicted_cycle, zeta_star_at
 from .full_order import NoOrbit, SimConfig, SimResult, Start, initial_state, simulate
 from .reduced import ReducedModel, ReducedResult, predict_step, simulate_reduced

@@ -58,8 +58,9 @@ from ..controller.planner import (
 )
 from ..controller.step_model import IdealThrust, ResponseThrust, Terms, ThrusterDynamics
 from ..errors import ComputationError, InputError
-from ..hzd.zero_dynamics import Schedule, ZeroDynamics, limit_cycles
+from ..hzd.zero_dynamics import ZeroDynamics, limit_cycles
 from ..simulation.closed_loop import MAX_STEPS, SimConfig
+from ..thrust.schedule import Schedule
 from ..walker import Walker, walker_from
 from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 

@@ -19,8 +19,9 @@ from ..design.verify import check_gait
 from ..errors import ComputationError, InputError
 from ..files.gait_file import bind_gait, load_gait_text, same_robot_file
 from ..hzd.constraints import apply_invariance
-from ..hzd.zero_dynamics import Schedule, limit_cycles, zero_dynamics
+from ..hzd.zero_dynamics import limit_cycles, zero_dynamics
 from ..model.compiled import CompiledModel
+from ..thrust.schedule import Schedule
 from ..walker import Walker
 from .records import SCHEMA_VERSION, result_repr, units
 

@@ -12,9 +12,10 @@ import numpy as np
 from ..contact.evaluate import check_contact_options
 from ..errors import InputError
 from ..files.bundled import resolve
-from ..hzd.zero_dynamics import LimitCycle, Schedule, limit_cycles
+from ..hzd.zero_dynamics import LimitCycle, limit_cycles
 from ..model.compiled import CompiledModel
 from ..optimize.schedule import OptimalSchedule, describe, optimize
+from ..thrust.schedule import Schedule
 from ..walker import Walker
 from .records import SCHEMA_VERSION, result_repr, units
 

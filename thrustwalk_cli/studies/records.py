@@ -11,8 +11,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
 from ..hzd.zero_dynamics import ZeroDynamics
 
 SCHEMA_VERSION = 1  # of every result document; bumped when a key changes meaning or goes
@@ -125,12 +123,3 @@ def robot_record(zd: ZeroDynamics) -> dict:
     r = zd.model.robot
     return {"name": r.name, "file": r.source_file, "coordinates": r.coordinate_names,
             "thrusters": r.thruster_names}
-
-
-def constant_thrust(zd: ZeroDynamics, values, thruster: int | None) -> np.ndarray:
-    """Thrust per thruster (k, m) [N] with ``values`` on thruster index ``thruster`` (None: a
-    robot without thrusters, shape (k, 0))."""
-    F = np.zeros((len(values), zd.model.n_thrusters))
-    if thruster is not None:
-        F[:, thruster] = values
-    return F

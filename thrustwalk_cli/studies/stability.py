@@ -27,7 +27,6 @@ from ..floquet.multipliers import (
     check_agreement_tol,
 )
 from ..floquet.poincare import Setting
-from ..hzd.schedule import check_limits, schedule_from_gait
 from ..simulation.closed_loop import SimConfig, ThrustModel
 from ..simulation.full_order import Start
 from ..simulation.scenario import make_scenario
@@ -400,8 +399,8 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
         if thrust is not None:
             raise InputError.param("thrust", "not used with the piecewise thrust model (the "
                                              "schedule comes from the gait's thrust: section)")
-        schedule = schedule_from_gait(zd, walker.gait.thrust, walker.where, pad=True)[0]
-        check_limits(zd, schedule, walker.where)
+        schedule = walker.gait.thrust.resolve(zd, zd.model.robot, walker.where, pad=True)[0]
+        schedule.check_limits(zd.model.robot, walker.where)
     base = 0.0 if thrust is None else float(thrust)
     values = [base] + (list(vary_t[1]) if vary_t and vary_t[0] == "thrust" else [])
     config = SimConfig(steps=1, rtol=rtol, atol=atol)

@@ -24,7 +24,6 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .._version import __version__
-from ..description.gait import ThrustSchedule
 from ..description.robot import Robot
 from ..errors import ComputationError, InputError
 from ..files.gait_file import load_gait_text
@@ -34,6 +33,7 @@ from ..model.compiled import CompiledModel
 from ..model.compiler import load_model
 from ..sweep.runner import chunk_size
 from ..sweep.tasks import PointTask, canonical
+from ..thrust.schedule import WrittenSchedule
 from ..walker import Walker, assemble_walker
 from .records import UNITS
 
@@ -72,7 +72,7 @@ class SweepStudy:
 
 
 # ------------------------------------------------------------------------------- helpers
-def _schedule(robot: Robot, p: Mapping) -> ThrustSchedule | None:
+def _schedule(robot: Robot, p: Mapping) -> WrittenSchedule | None:
     """The ``schedule`` setting with the point's ``schedule.j`` values applied."""
     s = p.get("schedule")
     if s is None:
@@ -82,12 +82,12 @@ def _schedule(robot: Robot, p: Mapping) -> ThrustSchedule | None:
         if k.startswith("schedule."):
             values[int(k.split(".")[1]) - 1] = float(v)
     if s["mode"] == "generalized":
-        return ThrustSchedule(tuple(s["knots"]), (("T", tuple(values)),), "generalized", True)
+        return WrittenSchedule(tuple(s["knots"]), (("T", tuple(values)),), "generalized", True)
     j = robot.driven_thruster(p.get("thruster"))
     if j is None:
         raise InputError.param("schedule", f"robot {robot.name} has no thruster: use mode "
                                            "generalized")
-    return ThrustSchedule(tuple(s["knots"]), ((robot.thruster_names[j], tuple(values)),),
+    return WrittenSchedule(tuple(s["knots"]), ((robot.thruster_names[j], tuple(values)),),
                           "force", True)
 
 
