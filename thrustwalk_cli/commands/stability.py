@@ -184,7 +184,8 @@ def register(app: typer.Typer) -> None:
         gait: GaitArg = None,
         thrust_model: Annotated[str | None, typer.Option(
             "--thrust-model",
-            help="constant | first-order | second-order | piecewise (default: piecewise for "
+            help="ideal | first-order | second-order | piecewise (`constant`: the deprecated "
+                 "name of ideal; default: piecewise for "
                  "a gait with a thrust: section and no --thrust, else second-order).")] = None,
         thrust: Annotated[str | None, typer.Option(
             "--thrust", help="Steady thrust F_ss [N], one value (default 0; sweep it with "

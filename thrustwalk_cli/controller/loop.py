@@ -37,9 +37,10 @@ from ..simulation.batch import push_row
 from ..simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel
 from ..simulation.compiled import Stepper, failure_text, step_record
 from ..simulation.full_order import Start, initial_state
+from ..thrust.dynamics import ThrusterDynamics
 from ..thrust.schedule import Schedule
 from .planner import Plan, Planner, predicted_margins
-from .step_model import ThrusterDynamics, interval_of
+from .step_model import interval_of
 
 SAMPLES = 81  # samples per step for the certificate and the figures
 REL_TOL = 1e-6  # numerical tolerance of the comparison, relative to the weight and to |F_1|
@@ -123,8 +124,7 @@ def run_loop(plant: ZeroDynamics, planner: Planner | None, *, label: str, steps:
         sched = Schedule.zero(knots, m)
         th = ThrustModel("piecewise", np.zeros(m), schedule=sched)
     else:
-        th = ThrustModel(dynamics.kind, np.zeros(m), wn=dynamics.wn, xi=dynamics.xi,
-                         tau=dynamics.tau, initial=np.full(m, f0))
+        th = ThrustModel(dynamics.kind, np.zeros(m), initial=np.full(m, f0), dynamics=dynamics)
     cfg = SimConfig(steps=1, rtol=config.rtol, atol=config.atol, scuff_tol=config.scuff_tol,
                     min_impact_s=config.min_impact_s, torque_limit=config.torque_limit)
     cl = ClosedLoop(plant, th, cfg)

@@ -631,7 +631,7 @@ class Planner:
         thrusters)."""
         if self.thrust.dynamic:
             th = self.thrust
-            th.start(z if z is not None else np.zeros(th.m * th.dyn.n_states))
+            th.start(z if z is not None else np.zeros(th.dyn.n_states))
         (u, status, target, act, viol, rw, margins, cut_a, iterations, rounds, step_time,
          t_qp, t_pol) = self._run(x_meas, x_ref, u_prev, steady=False)
         lo, hi = self.x_band(x_meas)

@@ -21,6 +21,7 @@ import numpy as np
 
 from ..description.sweep import DISTRIBUTIONS, Axis, SweepSpec
 from ..errors import InputError, Problem, param_problem
+from ..thrust.dynamics import ALIASES, model_names
 from .bundled import EXPLICITLY, resolve, resolve_inside
 from .schema import (
     Kind,
@@ -110,9 +111,9 @@ STUDY_PARAMETERS: dict[str, Kind] = {
     "simulate": mapping(
         _THRUSTER,
         field("thrust", number("N"), "steady thrust F_ss", default=0.0),
-        field("thrust_model", choice("constant", "first-order", "second-order", "piecewise"),
-              "thruster model (piecewise: the `schedule`, else the gait's thrust: section)",
-              default="constant"),
+        field("thrust_model", choice(*model_names(), "piecewise", *ALIASES),
+              "thruster model (piecewise: the `schedule`, else the gait's thrust: section; "
+              "constant: the deprecated name of ideal)", default="ideal"),
         _SCHEDULE,
         field("steps", integer("1", ge=1, le=10_000), "steps of the full-order run",
               default=10),

@@ -165,7 +165,7 @@ def realize(zd: ZeroDynamics, s: Strategy, *, mu: float, eps: float = 0.0,
     driven = []
     if s.kind == "none":
         sched = Schedule.constant(zd, np.zeros((1, m)))
-        thrust = ThrustModel("constant", np.zeros(m))
+        thrust = ThrustModel("ideal", np.zeros(m))
     elif s.kind == "constant" and s.thrust is not None:
         j = robot.driven_thruster(s.thruster)
         if j is None:
@@ -176,7 +176,7 @@ def realize(zd: ZeroDynamics, s: Strategy, *, mu: float, eps: float = 0.0,
             driven = [j]
         sched = Schedule.constant(zd, F[None, :])
         sched.check_limits(zd.model.robot, "strategy")
-        thrust = ThrustModel("constant", F)
+        thrust = ThrustModel("ideal", F)
     elif s.kind == "constant":
         g = zd.gait.thrust
         if g is None:
@@ -184,7 +184,7 @@ def realize(zd: ZeroDynamics, s: Strategy, *, mu: float, eps: float = 0.0,
                          "`constant` without a value is 0 N (the same as none); give one, e.g. "
                          "constant:-20")
             sched = Schedule.constant(zd, np.zeros((1, m)))
-            thrust = ThrustModel("constant", np.zeros(m))
+            thrust = ThrustModel("ideal", np.zeros(m))
         else:
             sched, _ = g.resolve(zd, zd.model.robot, "strategy", pad=True)
             sched.check_limits(zd.model.robot, "strategy")

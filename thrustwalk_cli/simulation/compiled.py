@@ -29,8 +29,6 @@ if TYPE_CHECKING:  # the closed loop (and the zero dynamics under it) load when 
     from .closed_loop import ClosedLoop, SimConfig
 
 TAG = "sim"
-KINDS = {"constant": K.K_CONSTANT, "first-order": K.K_FIRST, "second-order": K.K_SECOND,
-         "piecewise": K.K_PIECEWISE}
 BUF_ROWS = 512  # integrator steps per walking step kept for dense output (grows on demand)
 GRID = 201  # uniform samples of a step for its statistics (as the SciPy path)
 
@@ -96,7 +94,7 @@ def kernel_status() -> dict:
 class Packed:
     """The kernel's parameters for one gait, thrust model and configuration: float settings
     ``fs``, sizes and offsets ``ip``, the flat parameter vector ``par`` (gait rows, c,
-    breakpoints, thrust per segment, F_ss, R, b)."""
+    breakpoints, thrust per segment, F_ss, R, b, the thruster dynamics' matrices)."""
 
     fs: np.ndarray
     ip: np.ndarray
@@ -126,7 +124,7 @@ def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
         ip[slot] = K.N_IP + tape.programs[name]
     ip[K.I_NCONST], ip[K.I_C0], ip[K.I_NREG] = tape.consts.size, tape.n_inputs, tape.nreg
     ip = np.concatenate([ip, tape.code])
-    ip[K.I_KIND] = KINDS[th.kind]
+    ip[K.I_CMD] = K.CMD_PIECEWISE if th.piecewise else K.CMD_CONSTANT
     ip[K.I_ROOT_END] = cl.root_end
     ip[K.I_GUARD_IDX] = cl.breaks.index(cl.arm_s)
     ip[K.I_GRID] = grid
@@ -138,7 +136,6 @@ def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
     fs[K.F_TLIM] = np.inf if cfg.torque_limit is None else cfg.torque_limit
     fs[K.F_SCUFF], fs[K.F_MINIMP], fs[K.F_MAXS] = cfg.scuff_tol, cfg.min_impact_s, cfg.max_s
     fs[K.F_GROUND], fs[K.F_TMAX] = cfg.ground_tol, t_max
-    fs[K.F_WN], fs[K.F_XI], fs[K.F_TAU] = th.wn, th.xi, th.tau
     fs[K.F_MU] = np.inf if cfg.cone_mu is None else cfg.cone_mu
     fs[K.F_EPS] = cfg.cone_eps
     par = np.zeros(ip[K.P_SIZE])
@@ -151,6 +148,12 @@ def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
     p.part(K.P_TGT, m)[:] = np.asarray(th.target, float)
     p.part(K.P_R, N * N)[:] = np.asarray(model.R, float).ravel()
     p.part(K.P_B, N)[:] = model.b
+    nz = th.n_states
+    dyn = th.dynamics.kernel_data()  # the servo form (thrust/dynamics.py)
+    for key, slot, size in (("E", K.P_DE, nz), ("P", K.P_DP, nz * nz), ("Q", K.P_DQ, nz * m),
+                            ("K", K.P_DK, m * nz), ("C", K.P_DC, m * nz),
+                            ("D", K.P_DD, m * m)):
+        p.part(slot, size)[:] = dyn[key].ravel()
     return p
 
 

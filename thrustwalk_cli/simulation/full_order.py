@@ -151,7 +151,7 @@ def initial_state(zd: ZeroDynamics, thrust: ThrustModel, start: Start) -> np.nda
             F0 = np.zeros(thrust.m) if thrust.initial is None else thrust.initial
         else:
             F0 = thrust.target
-        if thrust.kind == "piecewise":
+        if thrust.piecewise:
             lc = predicted_cycle(zd, thrust)
             if not lc.exists:
                 raise NoOrbit(f"cannot start on the predicted orbit: {lc.reason}")

@@ -16,8 +16,9 @@ closed_loop.ClosedLoop`:
 
 * right-hand side: the input-output linearising controller ``y'' = -K_p y - K_d y'`` reduced
   to a 2 x 2 system in ``(alpha'', q_N'')``, torque saturation with ``D q'' = -h + B_tau u +
-  B_F F_T`` (+ ``e_N T``), the thruster states (constant, first-order, second-order,
-  piecewise in alpha, force or generalised mode);
+  B_F F_T`` (+ ``e_N T``), the thruster states of any linear model of
+  :mod:`thrustwalk_cli.thrust.dynamics` (its servo form's matrices in ``par``) under a command
+  constant over the run or piecewise in alpha (force or generalised mode);
 * integrator: DOP853 with SciPy's error norm, step-size control and initial step, and its
   7th-order dense output (Hairer, Norsett, Wanner, *Solving ODEs I*, II.4-II.6);
 * events located on the dense output by Brent's method as ``solve_ivp`` does (same
@@ -71,25 +72,29 @@ DOP_CX = np.zeros(3)
 # ------------------------------------------------------------------ layout
 # float settings fs[...]
 F_AI, F_SPAN, F_DIR, F_KP, F_KD, F_RTOL, F_ATOL, F_TLIM = 0, 1, 2, 3, 4, 5, 6, 7
-F_SCUFF, F_MINIMP, F_MAXS, F_GROUND, F_TMAX, F_WN, F_XI, F_TAU = 8, 9, 10, 11, 12, 13, 14, 15
-F_MU, F_EPS = 16, 17  # the cone a step's first exit is timed against (mu inf: no slip timing)
-N_FS = 18
+F_SCUFF, F_MINIMP, F_MAXS, F_GROUND, F_TMAX = 8, 9, 10, 11, 12
+F_MU, F_EPS = 13, 14  # the cone a step's first exit is timed against (mu inf: no slip timing)
+N_FS = 15
 # integer settings ip[...]: sizes, then offsets into par (P_*) and into the work array (W_*)
-I_N, I_M, I_NZ, I_KIND, I_ROOT_END, I_GUARD_IDX, I_GRID, I_NLINKS, I_NCOL, I_NBRK = range(10)
-P_ROWS, P_C, P_BRK, P_SEGF, P_SEGT, P_TGT, P_R, P_B, P_SIZE = range(10, 19)
+I_N, I_M, I_NZ, I_CMD, I_ROOT_END, I_GUARD_IDX, I_GRID, I_NLINKS, I_NCOL, I_NBRK = range(10)
+# par: gait rows, c, breakpoints, thrust commands (per segment, constant), R, b, and the
+# thruster dynamics in the servo form E z' = P z + Q (u - K z), F = C z + D u
+# (thrust/dynamics.py: ThrusterDynamics.kernel_data)
+(P_ROWS, P_C, P_BRK, P_SEGF, P_SEGT, P_TGT, P_R, P_B, P_DE, P_DP, P_DQ, P_DK, P_DC, P_DD,
+ P_SIZE) = range(10, 25)
 (W_D, W_H, W_BF, W_GR, W_RHS, W_F, W_GH, W_BY, W_DDQ, W_U, W_A, W_TO, W_P2, W_FV, W_LP,
  W_Y, W_YT, W_K, W_SC, W_Y1, W_F1, W_XS, W_YE, W_FF, W_FN, W_YN, W_X, W_XE, W_DQI, W_ACC,
- W_G, W_GN, W_ROOTS, W_LOWS, W_GRID2, W_OUT, W_SIZE) = range(19, 56)
+ W_G, W_GN, W_ROOTS, W_LOWS, W_GRID2, W_OUT, W_CMD, W_ERR, W_SIZE) = range(25, 64)
 # the model's tape (appended to ``ip``): offsets of its programs, the number of constants
 # (in ``fs`` from N_FS on) and their first register; registers are ``w[:nreg]``
-T_ACCEL, T_FORCE, T_HEIGHT, T_FOOTVEL, T_LINKS, T_IMPACT, T_ENERGY, T_PUSH = range(56, 64)
-I_NCONST, I_C0, I_NREG = 64, 65, 66
-N_IP = 67
+T_ACCEL, T_FORCE, T_HEIGHT, T_FOOTVEL, T_LINKS, T_IMPACT, T_ENERGY, T_PUSH = range(64, 72)
+I_NCONST, I_C0, I_NREG = 72, 73, 74
+N_IP = 75
 # what evaluate() computes (bit flags) and where its scalar results go (w[W_OUT + ...])
 E_ACCEL, E_U, E_FORCE, E_HEIGHT, E_FOOTVEL, E_ROOT, E_PRE = 1, 2, 4, 8, 16, 32, 64
 V_FH, V_FV, V_HEIGHT, V_FOOTVEL, V_ROOT, V_SAT, V_FNODE = 0, 1, 2, 3, 4, 5, 6
-# thrust kinds
-K_CONSTANT, K_FIRST, K_SECOND, K_PIECEWISE = 0, 1, 2, 3
+# thrust commands: constant over the run (P_TGT) or piecewise in alpha (P_SEGF, P_SEGT)
+CMD_CONSTANT, CMD_PIECEWISE = 0, 1
 # events
 EV_NONE, EV_BREAK, EV_GUARD, EV_OVERSHOOT, EV_SCUFF = 0, 1, 2, 3, 4
 EV_FOOT_MAX, EV_FOOT_MIN, EV_REVERSE, EV_HORIZONTAL, EV_FORCE, EV_PUSH = 5, 6, 7, 8, 9, 10
@@ -128,9 +133,11 @@ def layout(N, m, nz, nlinks, ncol, nbrk, nreg):
     nb = N - 1
     ip = [0] * N_IP
     ip[I_N], ip[I_M], ip[I_NZ], ip[I_NLINKS], ip[I_NCOL], ip[I_NBRK] = N, m, nz, nlinks, ncol, nbrk
+    nzz = max(nz, 1)
     par = [(P_ROWS, 3 * nb * ncol), (P_C, N), (P_BRK, max(nbrk, 1)),
            (P_SEGF, (nbrk + 1) * mm), (P_SEGT, nbrk + 1), (P_TGT, mm), (P_R, N * N),
-           (P_B, N)]
+           (P_B, N), (P_DE, nzz), (P_DP, nzz * nzz), (P_DQ, nzz * mm), (P_DK, mm * nzz),
+           (P_DC, mm * nzz), (P_DD, mm * mm)]
     off = 0
     for key, size in par:
         ip[key] = off
@@ -144,7 +151,7 @@ def layout(N, m, nz, nlinks, ncol, nbrk, nreg):
             (W_YT, n), (W_K, 16 * n), (W_SC, n), (W_Y1, n), (W_F1, n), (W_XS, n), (W_YE, n),
             (W_FF, n), (W_FN, n), (W_YN, n), (W_X, n), (W_XE, n), (W_DQI, n2), (W_ACC, 8),
             (W_G, MAX_EVENTS), (W_GN, MAX_EVENTS), (W_ROOTS, MAX_EVENTS), (W_LOWS, MAX_LOWS),
-            (W_GRID2, 65), (W_OUT, 8)]
+            (W_GRID2, 65), (W_OUT, 8), (W_CMD, mm), (W_ERR, mm)]
     off = nreg
     for key, size in work:
         ip[key] = off
@@ -227,7 +234,7 @@ def evaluate(x, seg, fs, ip, par, w, what):
     [m] and vertical velocity ``E_2,y q'`` [m/s]; ``E_ROOT``: height of the stance link's far
     end [m]. Returns False if the decoupling matrix (or D, when torques saturate) is
     singular."""
-    N, m, kind = ip[I_N], ip[I_M], ip[I_KIND]
+    N, m = ip[I_N], ip[I_M]
     vo = ip[W_OUT]
     if what & E_HEIGHT:
         tape_run(ip, ip[T_HEIGHT], x, w, ip[W_P2])
@@ -249,13 +256,7 @@ def evaluate(x, seg, fs, ip, par, w, what):
     oD, oh, oBF, orhs, oF = u(ip[W_D]), u(ip[W_H]), u(ip[W_BF]), u(ip[W_RHS]), u(ip[W_F])
     oH, oby, oddq, ou = u(ip[W_GH]), u(ip[W_BY]), u(ip[W_DDQ]), u(ip[W_U])
     c0 = u(ip[P_C])
-    for k in range(um):
-        if kind == K_PIECEWISE:
-            w[oF + k] = par[u(ip[P_SEGF] + seg * m) + k]
-        elif kind == K_CONSTANT:
-            w[oF + k] = par[u(ip[P_TGT]) + k]
-        else:
-            w[oF + k] = x[u(2 * N) + k]
+    thrust_out(x, seg, ip, par, w)
     # D, h, B_F (and with E_FORCE the ground-force rows) from the model's tape (already in
     # place with E_PRE)
     if not what & E_PRE:
@@ -268,7 +269,7 @@ def evaluate(x, seg, fs, ip, par, w, what):
             for k in range(um):
                 acc += w[oBF + i * um + k] * w[oF + k]
             w[orhs + i] += acc
-    if kind == K_PIECEWISE:
+    if ip[I_CMD] == CMD_PIECEWISE:
         w[orhs + unb] += par[ip[P_SEGT] + seg]
     alpha = 0.0
     adot = 0.0
@@ -364,6 +365,25 @@ def evaluate(x, seg, fs, ip, par, w, what):
     return True
 
 
+def thrust_out(x, seg, ip, par, w):
+    """The thrusters' commands ``u`` into ``w[W_CMD]`` (the segment's value of a piecewise
+    command, else ``F_ss``) and their thrust ``F = C z + D u`` [N] into ``w[W_F]``
+    (thrust/dynamics.py: the servo form's output)."""
+    N, m, nz = ip[I_N], ip[I_M], ip[I_NZ]
+    oU, oF = ip[W_CMD], ip[W_F]
+    o = ip[P_SEGF] + seg * m if ip[I_CMD] == CMD_PIECEWISE else ip[P_TGT]
+    for k in range(m):
+        w[oU + k] = par[o + k]
+    oC, oD, oz = ip[P_DC], ip[P_DD], 2 * N
+    for k in range(m):
+        acc = 0.0
+        for j in range(nz):
+            acc += par[oC + k * nz + j] * x[oz + j]
+        for j in range(m):
+            acc += par[oD + k * m + j] * w[oU + j]
+        w[oF + k] = acc
+
+
 def rhs_eval(t, x, seg, fs, ip, par, w, dx):
     """``x' = [q'; q''; z']`` (SPEC 7) into ``dx``; False if the controller is singular."""
     if not evaluate(x, seg, fs, ip, par, w, E_ACCEL):
@@ -385,22 +405,30 @@ def rhs_node(t, x, seg, fs, ip, par, w, dx):
 
 
 def state_rate(x, fs, ip, par, w, dx):
-    """``dx = [q'; q''; z']`` with ``q''`` in ``w[W_DDQ]`` (just computed)."""
-    N, m, kind = ip[I_N], ip[I_M], ip[I_KIND]
+    """``dx = [q'; q''; z']`` with ``q''`` in ``w[W_DDQ]`` and the commands in ``w[W_CMD]``
+    (just computed): the thruster states by the servo form ``E z' = P z + Q (u - K z)``, the
+    command error first, then per state ``(sum Q e + sum P z) / E`` (thrust/dynamics.py)."""
+    N, m, nz = ip[I_N], ip[I_M], ip[I_NZ]
     d0 = ip[W_DDQ]
     for i in range(N):
         dx[i] = x[N + i]
         dx[N + i] = w[d0 + i]
-    t0 = ip[P_TGT]
-    if kind == K_FIRST:
+    if nz == 0:
+        return
+    oU, oE, oz = ip[W_CMD], ip[W_ERR], 2 * N
+    oK, oQ, oP, oT = ip[P_DK], ip[P_DQ], ip[P_DP], ip[P_DE]
+    for k in range(m):
+        acc = 0.0
+        for j in range(nz):
+            acc += par[oK + k * nz + j] * x[oz + j]
+        w[oE + k] = w[oU + k] - acc
+    for i in range(nz):
+        acc = 0.0
         for k in range(m):
-            dx[2 * N + k] = (par[t0 + k] - x[2 * N + k]) / fs[F_TAU]
-    elif kind == K_SECOND:
-        w2 = fs[F_WN] * fs[F_WN]
-        d = 2.0 * fs[F_XI] * fs[F_WN]
-        for k in range(m):
-            dx[2 * N + k] = x[2 * N + m + k]
-            dx[2 * N + m + k] = w2 * (par[t0 + k] - x[2 * N + k]) - d * x[2 * N + m + k]
+            acc += par[oQ + i * m + k] * w[oE + k]
+        for j in range(nz):
+            acc += par[oP + i * nz + j] * x[oz + j]
+        dx[oz + i] = acc / par[oT + i]
 
 
 def vertical_force(x, seg, fs, ip, par, w):
@@ -1299,7 +1327,6 @@ def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
     sig_m, e_m = sigma_energy(x[:N], x[N:2 * N], ip, w)
     sig_p, e_p = sigma_energy(x_next[:N], x_next[N:2 * N], ip, w)
     sig_0, e_0 = sigma_energy(x0[:N], x0[N:2 * N], ip, w)
-    # thrust at impact (force(z, seg) of the last segment)
     rec[R_STEP] = k
     rec[R_T0] = t0
     rec[R_T1] = t
@@ -1331,14 +1358,9 @@ def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
         rec[off + i] = x0[2 * N + i]
         rec[off + nz + i] = x[2 * N + i]
     off += 2 * nz
-    kind = ip[I_KIND]
+    thrust_out(x, seg, ip, par, w)  # the thrust at impact (of the last segment)
     for i in range(m):
-        if kind == K_PIECEWISE:
-            rec[off + i] = par[ip[P_SEGF] + seg * m + i]
-        elif kind == K_CONSTANT:
-            rec[off + i] = par[ip[P_TGT] + i]
-        else:
-            rec[off + i] = x[2 * N + i]
+        rec[off + i] = w[ip[W_F] + i]
     out[O_STATUS] = OK
     out[O_STEP] = k
     out[O_T] = t
@@ -1406,6 +1428,7 @@ SIGNATURES = {
     "gauss": f"({_A}, {_I}, {_I})",
     "alpha_of": f"({_A}, {_IA}, {_A})",
     "alpha_rate": f"({_A}, {_IA}, {_A})",
+    "thrust_out": f"({_A}, {_I}, {_IA}, {_A}, {_A})",
     "evaluate": f"({_A}, {_I}, {_CTX}, {_I})",
     "state_rate": f"({_A}, {_CTX}, {_A})",
     "rhs_eval": f"({_F}, {_A}, {_I}, {_CTX}, {_A})",

@@ -23,8 +23,9 @@ import numpy as np
 
 from ..errors import InputError, param_problem
 from ..hzd.zero_dynamics import ZeroDynamics
+from ..thrust.dynamics import canonical
 from ..thrust.schedule import Schedule
-from .closed_loop import THRUST_MODELS, ThrustModel, predicted_cycle, zeta_star_at
+from .closed_loop import ThrustModel, predicted_cycle, thrust_model_names, zeta_star_at
 from .full_order import NoOrbit, SimConfig, SimResult, Start, initial_state, simulate
 from .reduced import ReducedModel, ReducedResult, predict_step, simulate_reduced
 
@@ -89,9 +90,10 @@ def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
     ``kind == "piecewise"``."""
     robot = zd.model.robot
     problems = []
-    if kind not in THRUST_MODELS:
+    kind = canonical(kind)  # the deprecated `constant` is `ideal`
+    if kind not in thrust_model_names():
         raise InputError.param("thrust_model", f"unknown model {kind!r} (choose from "
-                               f"{', '.join(THRUST_MODELS)})")
+                               f"{', '.join(thrust_model_names())})")
     if kind == "piecewise":
         if values is not None:
             raise InputError.param("thrust", "not used with the piecewise thrust model (the "
@@ -254,6 +256,6 @@ def _steps(steps) -> str:
 
 
 def _V_f(zd: ZeroDynamics, th: ThrustModel) -> float:
-    sched = th.schedule if th.kind == "piecewise" else Schedule.constant(
+    sched = th.schedule if th.piecewise else Schedule.constant(
         zd, np.asarray(th.target, float)[None, :])
     return float(zd.V_Z(np.array(zd.alpha_f), sched)[0])

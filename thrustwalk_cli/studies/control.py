@@ -56,16 +56,16 @@ from ..controller.planner import (
     Planner,
     regulator,
 )
-from ..controller.step_model import IdealThrust, ResponseThrust, Terms, ThrusterDynamics
+from ..controller.step_model import IdealThrust, ResponseThrust, Terms
 from ..errors import ComputationError, InputError
 from ..hzd.zero_dynamics import ZeroDynamics, limit_cycles
 from ..simulation.closed_loop import MAX_STEPS, SimConfig
+from ..thrust.dynamics import canonical, make, model_names
 from ..thrust.schedule import Schedule
 from ..walker import Walker, walker_from
 from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 REFERENCES = ("speed", "zeta", "nominal")
-THRUST_MODELS = ("ideal", "first-order", "second-order")
 TERMS = ("exact", "fitted")
 UNITS = units("thrust", "alpha", "zeta", "speed", "time", "force", "friction_ratio",
               "delta_zero_sq", "impulse", "step_length", "Lambda_0", "Lambda_1", "Lambda_2",
@@ -653,9 +653,10 @@ def control(walker: Walker, *, reference: str = "speed",
     if reference not in REFERENCES:
         raise InputError.param("reference", f"unknown reference {reference!r} (choose from "
                                             f"{', '.join(REFERENCES)})")
-    if thrust_model not in THRUST_MODELS:
+    thrust_model = canonical(thrust_model)  # the deprecated `constant` is `ideal`
+    if thrust_model not in model_names():
         raise InputError.param("thrust_model", f"unknown thrust model {thrust_model!r} "
-                                               f"(choose from {', '.join(THRUST_MODELS)})")
+                                               f"(choose from {', '.join(model_names())})")
     if terms not in TERMS:
         raise InputError.param("terms", f"unknown terms {terms!r} (choose from "
                                         f"{', '.join(TERMS)})")
@@ -715,7 +716,8 @@ def control(walker: Walker, *, reference: str = "speed",
     kn = zd.alpha_i + np.array(fr) * span
     fits = fit_terms(model, zd, tol=fit_tol) if terms == "fitted" else None
     tm = Terms(model, zd, fits)
-    dyn = None if thrust_model == "ideal" else ThrusterDynamics(thrust_model, wn, xi, tau)
+    dyn = (None if thrust_model == "ideal" else
+           make(thrust_model, model.n_thrusters, wn=wn, xi=xi, tau=tau))
     planner, lc0 = regulator(
         zd, kn, driven, mu=mu, eps=min_vertical_force, zeta_min=zeta_min,
         max_thrust=max_thrust, rate_limit=rate_limit, tracking_weight=tracking_weight,
@@ -767,8 +769,8 @@ def control(walker: Walker, *, reference: str = "speed",
         "reference": reference, "profile": [list(map(float, p)) for p in (profile or [])],
         "ramp": ramp, "knot_fractions": fr, "knots_alpha": list(map(float, kn)),
         "steps": steps, "thrust_model": thrust_model,
-        "thruster_dynamics": None if dyn is None else {"kind": dyn.kind, "wn": dyn.wn,
-                                                       "xi": dyn.xi, "tau": dyn.tau},
+        "thruster_dynamics": None if dyn is None else {"kind": dyn.kind, "wn": wn, "xi": xi,
+                                                       "tau": tau},
         "slow_thrusters": None if dyn is None else (
             "the controller uses the thruster's linear response: the delivered thrust over "
             "the step is affine in the setpoint and the thruster state at impact, on the "

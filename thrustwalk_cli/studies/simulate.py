@@ -119,7 +119,7 @@ def run_entries(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
                     flags["torque saturated"].append(st.step)
                     warn.append(f"step {st.step}: joint torques saturated")
         dev = deviations(oc, sc)
-        sched = oc.thrust.schedule if oc.thrust.kind == "piecewise" else Schedule.constant(
+        sched = oc.thrust.schedule if oc.thrust.piecewise else Schedule.constant(
             zd, np.asarray(oc.thrust.target, float)[None, :])
         zero = sched.without_thrust()
         z0 = _zeta_star(zd, zero)
