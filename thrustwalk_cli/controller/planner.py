@@ -40,9 +40,8 @@ from scipy.optimize import linprog
 from ..contact.terms import impact_data
 from ..errors import InputError
 from ..hzd.extrema import golden_min, grid_miss, neighbours, peaks
-from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, limit_cycles
+from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics
 from ..optimize.qp import ConvexQP, normalise_rows
-from ..thrust.schedule import Schedule
 from .step_model import (
     IdealThrust,
     ResponseThrust,
@@ -685,7 +684,7 @@ def regulator(zd: ZeroDynamics, knots: np.ndarray, driven: list[int], *, mu: flo
     if not zd.valid:
         raise InputError.param("gait", f"the gait has no walking orbit to control: "
                                        f"{zd.invalid_reason}")
-    lc0 = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, model.n_thrusters))))[0]
+    lc0 = zd.nominal_cycle()
     if not lc0.exists:
         raise InputError.param("gait", f"no zero-thrust periodic orbit to start from or "
                                        f"regulate to: {lc0.reason}")

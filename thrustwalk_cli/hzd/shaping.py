@@ -97,12 +97,13 @@ def one_step_change(zd: ZeroDynamics, schedule: Schedule) -> np.ndarray:
 def true_shift(zd: ZeroDynamics, schedule: Schedule) -> np.ndarray:
     """``Delta zeta* = (sum_j b_F T_j + sum_j Gamma_j . F_j) / (1 - delta_zero^2)``
     [kg^2 m^4/s^2] (SPEC 4): the shift of the Poincare fixed point."""
-    return one_step_change(zd, schedule) / (1.0 - zd.delta_zero_sq)
+    return zd.fixed_point_of(one_step_change(zd, schedule))
 
 
 def nominal_zeta_star(zd: ZeroDynamics) -> float:
-    """``zeta_0* = V_0(alpha_f) / (1 - delta_zero^2)`` [kg^2 m^4/s^2] (SPEC 3)."""
-    return float(zd.V0(np.array(zd.alpha_f))) / (1.0 - zd.delta_zero_sq)
+    """``zeta_0* = V_0(alpha_f) / (1 - delta_zero^2)`` [kg^2 m^4/s^2] (SPEC 3):
+    :meth:`ZeroDynamics.fixed_point` of zero thrust."""
+    return zd.fixed_point()
 
 
 def _coefficients(zd: ZeroDynamics, knots: np.ndarray, mode: str, thruster: int | None
@@ -250,17 +251,18 @@ def solve_target_speed(zd: ZeroDynamics, knots: np.ndarray, speed: float, mode: 
         hi, lc_hi = lo, lc_lo
         lo, lc_lo = cand, lc_c
 
-    def f(z: float) -> float:
+    def speed_of(z: float) -> float:
         lc = cycle(z)
         if not lc.exists:
             raise _NoOrbit(lc.reason)
-        return lc.speed - speed
+        return lc.speed
 
     if lc_lo.speed == speed:
         z = lo
     else:
         try:
-            z = brentq(f, lo, hi, xtol=xtol * hi, rtol=4 * np.finfo(float).eps, maxiter=200)
+            z = zd.zeta_for_speed(speed, speed_of, lo, hi, xtol=xtol * hi,
+                                  rtol=4 * np.finfo(float).eps, maxiter=200)
         except _NoOrbit as e:
             return TargetSolution(False, f"the orbit vanished inside the bracket [{lo:.6g}, "
                                   f"{hi:.6g}]: {e}", "speed", speed, evaluations=count)

@@ -28,7 +28,7 @@ to about 1e-12, not grid-limited.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -219,6 +219,53 @@ class ZeroDynamics:
             per = float(self.model.E_swing(self.maps.q_minus)[1] @ phi)
             self.__dict__["_touchdown_per_alpha_dot"] = per
         return per * float(alpha_dot_minus)
+
+    # -- the fixed point, the nominal orbit and the speed (SPEC 3, 4) ------------------------
+    def fixed_point_of(self, V_f):
+        """``zeta* = V_f / (1 - delta_zero^2)`` [kg^2 m^4/s^2] for ``V_f = V_Z(alpha_f)`` (a
+        float or an array), the Poincare map's fixed point (SPEC 3, 4); for a change of
+        ``V_Z(alpha_f)`` the shift of the fixed point (the SPEC 4 erratum: not the change
+        itself). Arrays give inf or NaN (no warning) where ``delta_zero^2 = 1``."""
+        if isinstance(V_f, np.ndarray):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                return V_f / (1.0 - self.delta_zero_sq)
+        return V_f / (1.0 - self.delta_zero_sq)
+
+    def fixed_point(self, schedule: Schedule | None = None):
+        """``zeta* = V_Z(alpha_f) / (1 - delta_zero^2)`` [kg^2 m^4/s^2] (SPEC 3, 4): of each
+        schedule of a batch (shape (k,)), or without one of zero thrust (``zeta_0* =
+        V_0(alpha_f) / (1 - delta_zero^2)``, a float). No existence check: see
+        :func:`limit_cycles` (zeta* <= 0: no orbit)."""
+        af = np.array(self.alpha_f)
+        if schedule is None:
+            return self.fixed_point_of(float(self.V0(af)))
+        return self.fixed_point_of(self.V_Z(af, schedule))
+
+    def nominal_cycle(self, knots: np.ndarray | None = None) -> LimitCycle:
+        """The periodic orbit without thrust (SPEC 3), :func:`limit_cycles` of the zero
+        schedule on ``knots`` [rad] (default: alpha_i, alpha_f)."""
+        m = self.model.n_thrusters
+        sched = (Schedule.constant(self, np.zeros((1, m))) if knots is None else
+                 Schedule.zero(knots, m))
+        return limit_cycles(self, sched)[0]
+
+    def zeta_for_speed(self, speed: float, speed_of: Callable[[float], float], lo: float,
+                       hi: float, *, xtol: float, rtol: float, maxiter: int = 100) -> float:
+        """The fixed point ``zeta*`` [kg^2 m^4/s^2] at which a family of thrust schedules
+        walks at ``speed`` [m/s] (SPEC 3: step length over the step time of the periodic
+        orbit): the root of ``speed_of(zeta*) - speed`` in ``[lo, hi]`` (a sign change),
+        by Brent's method (``scipy.optimize.brentq`` with ``xtol``, ``rtol``, ``maxiter``).
+
+        ``speed_of(zeta*)`` is the family's speed at that fixed point (it raises where the
+        family has no orbit). The three searches of the package are this one with their own
+        family and bracket: the minimum-norm thrust of shaping
+        (:func:`~thrustwalk_cli.hzd.shaping.solve_target_speed`), the minimum-effort QP
+        (:func:`~thrustwalk_cli.optimize.schedule.optimize`) and the controller's steady
+        state (:func:`~thrustwalk_cli.studies.control.speed_references`)."""
+        from scipy.optimize import brentq
+
+        return brentq(lambda z: speed_of(z) - speed, lo, hi, xtol=xtol, rtol=rtol,
+                      maxiter=maxiter)
 
     def poincare(self, zeta_minus: np.ndarray, schedule: Schedule) -> np.ndarray:
         """``rho(zeta^-) = delta_zero^2 zeta^- + V_Z(alpha_f)`` (SPEC 3); NaN-free, unchecked
@@ -507,8 +554,7 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> Li
     Vf = (basis.V0f[0] + np.einsum("jm,kjm->k", basis.dGf, schedule.force)
           + np.einsum("j,kj->k", basis.dBf, schedule.generalized))  # (k,)
     VZ = basis.combine(basis.V0g, basis.dGg, basis.dBg, schedule)  # (k, g)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        zstar = Vf / (1.0 - d2)
+    zstar = zd.fixed_point_of(Vf)
     zp = d2 * zstar
     zeta = zp[:, None] + VZ
     jmin = np.argmin(zeta, axis=1)
@@ -716,4 +762,4 @@ def paper_one_step_shift(zd: ZeroDynamics, schedule: Schedule) -> np.ndarray:
 
 def fixed_point_shift(zd: ZeroDynamics, schedule: Schedule) -> np.ndarray:
     """True shift ``Delta zeta* = sum_j b_F T_j / (1 - delta_zero^2)`` (SPEC 4)."""
-    return paper_one_step_shift(zd, schedule) / (1.0 - zd.delta_zero_sq)
+    return zd.fixed_point_of(paper_one_step_shift(zd, schedule))

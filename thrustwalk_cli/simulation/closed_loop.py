@@ -166,8 +166,7 @@ def predicted_cycle(zd: ZeroDynamics, thrust: ThrustModel) -> LimitCycle:
 def zeta_star_at(zd: ZeroDynamics, F: np.ndarray) -> float:
     """Fixed point for constant thrust ``F``: ``zeta* = V_Z(alpha_f; F) / (1 - delta_zero^2)``
     [kg^2 m^4/s^2] (SPEC 4; may be <= 0 when no orbit exists)."""
-    sched = Schedule.constant(zd, np.asarray(F, float)[None, :])
-    return float(zd.V_Z(np.array(zd.alpha_f), sched)[0] / (1.0 - zd.delta_zero_sq))
+    return float(zd.fixed_point(Schedule.constant(zd, np.asarray(F, float)[None, :]))[0])
 
 
 # ----------------------------------------------------------------------------- config

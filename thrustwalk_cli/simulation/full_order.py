@@ -142,7 +142,7 @@ def initial_state(zd: ZeroDynamics, thrust: ThrustModel, start: Start) -> np.nda
     if start.orbit not in ("predicted", "nominal"):
         raise InputError.param("start", f"unknown orbit {start.orbit!r} (predicted, nominal)")
     if zm is None and start.orbit == "nominal":
-        zm = zeta_star_at(zd, np.zeros(thrust.m))
+        zm = zd.fixed_point()  # of zero thrust
         if not zm > 0:
             raise InputError(f"cannot start on the nominal orbit: no fixed point without "
                              f"thrust (zeta* = {zm:.6g}); give `zeta0` or `q0`/`dq0`")

@@ -36,7 +36,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import brentq
 
 from ..contact.evaluate import check_contact_options
 from ..contact.terms import fit_terms, impact_data
@@ -212,18 +211,18 @@ def speed_references(planner: Planner, zd: ZeroDynamics, speeds: Sequence[float]
         if found:
             a, b = min(found, key=lambda br: abs(0.5 * (br[0] + br[1]) - x_nominal))
 
-            def miss(x: float, v: float = v) -> float:
+            def speed_of(x: float) -> float:
                 vx = steady_speed(planner, zd, x)[0]
                 if vx is None:  # the steady states form an interval: only round-off gets here
                     raise ComputationError(f"the controller's steady state at zeta^- = {x:.6g} "
                                            f"kg^2 m^4/s^2 could not be computed")
-                return vx - v
+                return vx
 
-            fa, fb = miss(a), miss(b)
+            fa, fb = speed_of(a) - v, speed_of(b) - v
             if fa == 0 or fb == 0:
                 x = a if fa == 0 else b
             else:
-                x = brentq(miss, a, b, xtol=1e-13 * b, rtol=1e-12)
+                x = zd.zeta_for_speed(v, speed_of, a, b, xtol=1e-13 * b, rtol=1e-12)
             vx, u = steady_speed(planner, zd, x)
             out[v] = SpeedReference(v, float(x), float(vx), True, tuple(map(float, u)))
         else:

@@ -325,7 +325,7 @@ def feasibility(walker: Walker, thrust: Sequence[float] | None = None, *,
     if 0 < d2 < 1:
         Vf = zd.V_Z(np.array(zd.alpha_f), unit)[0]
         V0f = zd.V0(np.array(zd.alpha_f))
-        curve = (V0f + scales * (Vf - V0f)) / (1 - d2)
+        curve = zd.fixed_point_of(V0f + scales * (Vf - V0f))
         zmax_guess = max(zmax_guess, float(curve.max()))
     zmax = 1.3 * zmax_guess if zmax_guess > 0 else 1000.0
     zetas = np.linspace(zmax / region_shape[1], zmax, region_shape[1])

@@ -184,9 +184,8 @@ class LimitCycleResult:
                 "fixed_point_formula": "zeta* = V_Z(alpha_f) / (1 - delta_zero^2)",
                 "Gamma_alpha_f": gamma,
                 "V0_alpha_f": float(zd.V0(af)),
-                "zeta_star_at_zero_thrust": (float(zd.V0(af)) / (1.0 - d2)
-                                             if d2 != 1.0 else None),
-                "zeta_star_per_newton": (gamma / (1.0 - d2)
+                "zeta_star_at_zero_thrust": zd.fixed_point() if d2 != 1.0 else None,
+                "zeta_star_per_newton": (zd.fixed_point_of(gamma)
                                          if d2 != 1.0 and gamma is not None else None),
             },
             "gait_schedule": (None if self.source != "gait" else {

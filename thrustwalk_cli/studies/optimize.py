@@ -12,10 +12,9 @@ import numpy as np
 from ..contact.evaluate import check_contact_options
 from ..errors import InputError
 from ..files.bundled import resolve
-from ..hzd.zero_dynamics import LimitCycle, limit_cycles
+from ..hzd.zero_dynamics import LimitCycle
 from ..model.compiled import CompiledModel
 from ..optimize.schedule import OptimalSchedule, describe, optimize
-from ..thrust.schedule import Schedule
 from ..walker import Walker
 from .records import SCHEMA_VERSION, result_repr, units
 
@@ -258,6 +257,5 @@ def optimize_schedule(walker: Walker, *, knots: list[float] = (0.0, 0.25, 0.5, 0
                    max_thrust=max_thrust, weights=weights)
     nominal = None
     if res.feasible:
-        m = model.n_thrusters
-        nominal = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, m))))[0]
+        nominal = zd.nominal_cycle()
     return OptimizeResult(walker, res, mu, eps, zeta_min, weights, nominal)

@@ -309,7 +309,7 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
             ksol = solve_knots(zd, fr, P, mode, th)
             if not ksol.success:
                 knots = knots_alpha(zd, np.array([0.0 if v is None else v for v in fr]))
-                nominal = limit_cycles(zd, Schedule.zero(knots, m))[0]
+                nominal = zd.nominal_cycle(knots)
                 return ShapeStudy(walker, False, ksol.reason, source, mode, th, pattern, nominal,
                                   knot_solution=ksol)
             fr = list(ksol.fractions)
@@ -326,14 +326,14 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
             target = solve_target_speed(zd, knots, req.target_speed, mode, th)
         ksol, labels, values, P_field = None, ("minimum-norm",), None, None
         if not target.success:
-            nominal = limit_cycles(zd, Schedule.zero(knots, m))[0]
+            nominal = zd.nominal_cycle(knots)
             return ShapeStudy(walker, False, target.reason, source, mode, th, None, nominal,
                               target=target)
         sched = Schedule.piecewise(knots, target.values[None, :], mode, m, th)
         try:
             sched.check_limits(zd.model.robot, "the minimum-norm thrust", ())
         except InputError as exc:
-            nominal = limit_cycles(zd, Schedule.zero(knots, m))[0]
+            nominal = zd.nominal_cycle(knots)
             return ShapeStudy(walker, False, f"the target needs more thrust than the thruster "
                               f"gives: {exc}", source, mode, th, None, nominal, target=target)
     else:
@@ -361,7 +361,7 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
         success, reason = True, "a stable shaped limit cycle for every schedule"
     return ShapeStudy(walker, success, reason, source, mode, th, pattern,
                       nominal, labels, values, ksol, target, intervals(zd, knots), sched, cycles,
-                      one_step, one_step / (1.0 - zd.delta_zero_sq), flabel, fsched, fcycle,
+                      one_step, zd.fixed_point_of(one_step), flabel, fsched, fcycle,
                       base)
 
 
