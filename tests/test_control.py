@@ -21,10 +21,11 @@ import pytest
 from scipy.optimize import minimize, minimize_scalar
 
 from thrustwalk_cli.controller.planner import Planner, Settings
+from thrustwalk_cli.controller.references import reference_values
 from thrustwalk_cli.controller.step_model import IdealThrust, Terms
 from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
 from thrustwalk_cli.optimize.qp import ConvexQP
-from thrustwalk_cli.studies.control import control, reference_values
+from thrustwalk_cli.studies.control import control
 from thrustwalk_cli.thrust.schedule import Schedule
 
 DATA = Path(__file__).parent / "data"
@@ -193,7 +194,7 @@ def test_speed_reference_of_the_nominal_speed_is_the_nominal_orbit(walker3, frac
     sample of the steady range has no steady state once the cutting planes are in, so the root
     lies between the range's end and the first sample."""
     from thrustwalk_cli.controller.planner import regulator
-    from thrustwalk_cli.studies.control import speed_references
+    from thrustwalk_cli.controller.references import speed_references
 
     zd = walker3.zd
     lc0 = _nominal(zd)

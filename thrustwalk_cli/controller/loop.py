@@ -3,7 +3,7 @@
 
 At every impact the controller measures ``x_k`` (zeta^- of the plant, with a seeded uniform
 relative error ``e_k in [-noise, noise]``: ``x_meas = x_k (1 + e_k)``), solves the SPEC 11 QP
-(:class:`~thrustwalk_cli.control.planner.Planner`) and sets the thrust values of the next step
+(:class:`~thrustwalk_cli.controller.planner.Planner`) and sets the thrust values of the next step
 on the plant (:class:`thrustwalk_cli.simulation.compiled.Stepper`, ``set_thrust`` between
 steps). The plant may differ from the controller's model (its own robot parameters, the same
 virtual constraints) and may be pushed (impulse at a phase of a step, SPEC 12).

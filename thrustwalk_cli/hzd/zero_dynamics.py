@@ -261,7 +261,7 @@ class ZeroDynamics:
         family and bracket: the minimum-norm thrust of shaping
         (:func:`~thrustwalk_cli.hzd.shaping.solve_target_speed`), the minimum-effort QP
         (:func:`~thrustwalk_cli.optimize.schedule.optimize`) and the controller's steady
-        state (:func:`~thrustwalk_cli.studies.control.speed_references`)."""
+        state (:func:`~thrustwalk_cli.controller.references.speed_references`)."""
         from scipy.optimize import brentq
 
         return brentq(lambda z: speed_of(z) - speed, lo, hi, xtol=xtol, rtol=rtol,
