@@ -34,8 +34,8 @@ def main() -> None:
     )
     from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
     from thrustwalk_cli.simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel
-    from thrustwalk_cli.simulation.compiled import Stepper
     from thrustwalk_cli.simulation.full_order import Start, initial_state
+    from thrustwalk_cli.simulation.stepper import Stepper
     from thrustwalk_cli.walker import load_walker
 
     for gait in _gaits():

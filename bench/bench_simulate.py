@@ -81,8 +81,8 @@ def main() -> None:
         ThrustModel,
         predicted_cycle,
     )
-    from thrustwalk_cli.simulation.compiled import Stepper, kernel, run_steps
     from thrustwalk_cli.simulation.full_order import Start, _one_step, initial_state, simulate
+    from thrustwalk_cli.simulation.stepper import Stepper, kernel, run_steps
     from thrustwalk_cli.walker import load_walker
 
     jm = kernel()

@@ -68,7 +68,7 @@ FRAMEWORKS = {
     "typer": {"commands", "cli"}, "click": {"commands", "cli"}, "rich": {"commands"},
     "matplotlib": {"plots"}, "PIL": {"plots"},
     "sympy": {"model.derive", "model.codegen"},
-    "numba": {"model.jit", "simulation.compiled"},
+    "numba": {"model.jit", "simulation.stepper"},
     "distributed": {"sweep.executors"}, "dask": {"sweep.executors"},
 }
 # Modules that may read files (input parsing; the model cache and its generator digest).

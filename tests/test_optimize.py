@@ -12,8 +12,8 @@ from scipy.optimize import linprog
 
 from thrustwalk_cli.contact.terms import impact_data
 from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
+from thrustwalk_cli.optimize import min_effort as opt
 from thrustwalk_cli.optimize import qp
-from thrustwalk_cli.optimize import schedule as opt
 from thrustwalk_cli.thrust.schedule import Schedule
 from thrustwalk_cli.walker import load_walker
 

@@ -198,14 +198,14 @@ def test_second_process_loads_the_compiled_kernel_from_the_cache(_cache_dir, wal
     """The kernel compiled by this session (cached in the thrustwalk cache folder, the same
     for every robot) is loaded, not recompiled, by a new process that simulates a robot:
     numba reports only cache hits."""
-    from thrustwalk_cli.simulation.compiled import kernel
+    from thrustwalk_cli.simulation.stepper import kernel
 
     kernel()  # compiled (or loaded) here
     code = ("import numpy as np\n"
             "from thrustwalk_cli.walker import load_walker\n"
             "from thrustwalk_cli.simulation.closed_loop import SimConfig, ThrustModel\n"
             "from thrustwalk_cli.simulation.full_order import simulate\n"
-            "from thrustwalk_cli.simulation.compiled import kernel\n"
+            "from thrustwalk_cli.simulation.stepper import kernel\n"
             "w = load_walker('rabbit', 'rabbit_walk')\n"
             "th = ThrustModel('constant', np.zeros(w.model.n_thrusters))\n"
             "res = simulate(w.zd, th, SimConfig(steps=1))\n"

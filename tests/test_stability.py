@@ -430,7 +430,7 @@ def test_bad_options_are_one_line_errors_exit_2_nothing_written(cli, tmp_path, a
 
 @pytest.mark.slow
 def test_command_writes_the_result_folder(cli, tmp_path):
-    from thrustwalk_cli.studies.records import UNITS
+    from thrustwalk_cli.studies.documents import UNITS
 
     res = cli("stability", "three_link", "three_link_walk", "--thrust-model", "constant",
               "--thrust", "-10", "--vary", "kp=100:1600:log3", "--out", tmp_path)

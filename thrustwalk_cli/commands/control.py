@@ -165,7 +165,7 @@ def run_control(robot: str | None, gait: str | None, *, reference: str, profile:
 
 
 def _table(doc: dict) -> None:
-    from ..studies.records import fmt
+    from ..studies.documents import fmt
 
     s = doc["summary"]
     un = doc["uncontrolled"]

@@ -123,7 +123,7 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
 
 
 def _table(doc: dict) -> None:
-    from ..studies.records import fmt
+    from ..studies.documents import fmt
 
     def status(r: dict) -> str:
         if r["status"] == "ok":

@@ -149,7 +149,7 @@ def run_stability(robot: str | None, gait: str | None, *, thrust_model: str | No
 
 
 def _table(doc: dict) -> None:
-    from ..studies.records import fmt
+    from ..studies.documents import fmt
 
     vary = doc["settings"]["vary"]
     rows = []

@@ -4,7 +4,7 @@
 At every impact the controller measures ``x_k`` (zeta^- of the plant, with a seeded uniform
 relative error ``e_k in [-noise, noise]``: ``x_meas = x_k (1 + e_k)``), solves the SPEC 11 QP
 (:class:`~thrustwalk_cli.controller.planner.Planner`) and sets the thrust values of the next step
-on the plant (:class:`thrustwalk_cli.simulation.compiled.Stepper`, ``set_thrust`` between
+on the plant (:class:`thrustwalk_cli.simulation.stepper.Stepper`, ``set_thrust`` between
 steps). The plant may differ from the controller's model (its own robot parameters, the same
 virtual constraints) and may be pushed (impulse at a phase of a step, SPEC 12).
 
@@ -35,8 +35,8 @@ from ..hzd.extrema import golden_min, grid_miss, neighbours, peaks
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..simulation.batch import push_row
 from ..simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel
-from ..simulation.compiled import Stepper, failure_text, step_record
 from ..simulation.full_order import Start, initial_state
+from ..simulation.stepper import Stepper, failure_text, step_record
 from ..thrust.dynamics import ThrusterDynamics
 from ..thrust.schedule import Schedule
 from .planner import Plan, Planner, predicted_margins

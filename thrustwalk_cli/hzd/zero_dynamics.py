@@ -260,7 +260,7 @@ class ZeroDynamics:
         family has no orbit). The three searches of the package are this one with their own
         family and bracket: the minimum-norm thrust of shaping
         (:func:`~thrustwalk_cli.hzd.shaping.solve_target_speed`), the minimum-effort QP
-        (:func:`~thrustwalk_cli.optimize.schedule.optimize`) and the controller's steady
+        (:func:`~thrustwalk_cli.optimize.min_effort.optimize`) and the controller's steady
         state (:func:`~thrustwalk_cli.controller.references.speed_references`)."""
         from scipy.optimize import brentq
 

@@ -189,7 +189,7 @@ def simulate(zd: ZeroDynamics, thrust: ThrustModel, config: SimConfig = SimConfi
     x = initial_state(zd, thrust, start)
     t_max = config.max_step_time or (10.0 * pred.step_time if pred.exists else 10.0)
     if config.method == "compiled":
-        from .compiled import run_steps
+        from .stepper import run_steps
 
         recs, segs, failure, reason, nfev = run_steps(cl, x, t_max, config.steps, progress)
         traj = _trajectory(cl, segs, config.samples_per_step)

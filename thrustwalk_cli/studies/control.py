@@ -49,7 +49,7 @@ from ..hzd.zero_dynamics import ZeroDynamics
 from ..simulation.closed_loop import MAX_STEPS, SimConfig
 from ..thrust.dynamics import canonical, make, model_names
 from ..walker import Walker, walker_from
-from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 REFERENCES = ("speed", "zeta", "nominal")
 TERMS = ("exact", "fitted")

@@ -23,7 +23,7 @@ from ..hzd.zero_dynamics import limit_cycles, zero_dynamics
 from ..model.compiled import CompiledModel
 from ..thrust.schedule import Schedule
 from ..walker import Walker
-from .records import SCHEMA_VERSION, result_repr, units
+from .documents import SCHEMA_VERSION, result_repr, units
 
 
 # ------------------------------------------------------------------------------ records

@@ -22,7 +22,7 @@ from ..files.gait_file import load_gait
 from ..hzd.zero_dynamics import grazing_warning
 from ..thrust.schedule import Schedule, WrittenSchedule
 from ..walker import Walker
-from .records import SCHEMA_VERSION, fmt, result_repr, units
+from .documents import SCHEMA_VERSION, fmt, result_repr, units
 
 UNITS = units("force", "impulse", "torque", "alpha", "thrust", "zeta", "velocity", "height",
               "Lambda_0", "Lambda_1", "Lambda_2", "Lambda_T", "friction_ratio",

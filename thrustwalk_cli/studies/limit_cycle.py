@@ -25,7 +25,7 @@ from ..errors import InputError
 from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, grazing_warning, limit_cycles
 from ..thrust.schedule import Schedule
 from ..walker import Walker
-from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 DEFAULT_THRUST = (0.0, -10.0, -20.0, -30.0, -40.0, -50.0)  # [N] the paper's sweep
 ORBIT_SAMPLES = 201  # samples of each orbit in the CSV table

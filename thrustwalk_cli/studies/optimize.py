@@ -1,5 +1,5 @@
 """The ``optimize`` study: the least thrust that reaches a target while staying walkable
-(SPEC 6), around :func:`thrustwalk_cli.optimize.schedule.optimize`: parameter checks, the JSON
+(SPEC 6), around :func:`thrustwalk_cli.optimize.min_effort.optimize`: parameter checks, the JSON
 record, the gait file with the optimal schedule, and the figure."""
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ from ..errors import InputError
 from ..files.bundled import resolve
 from ..hzd.zero_dynamics import LimitCycle
 from ..model.compiled import CompiledModel
-from ..optimize.schedule import OptimalSchedule, describe, optimize
+from ..optimize.min_effort import OptimalSchedule, describe, optimize
 from ..walker import Walker
-from .records import SCHEMA_VERSION, result_repr, units
+from .documents import SCHEMA_VERSION, result_repr, units
 
 
 def result_record(res: OptimalSchedule, model: CompiledModel) -> dict:

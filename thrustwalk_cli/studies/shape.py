@@ -32,7 +32,7 @@ from ..hzd.shaping import (
 from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, limit_cycles
 from ..thrust.schedule import MODES, Schedule, check_knots, knots_alpha, uniform_fractions
 from ..walker import Walker
-from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 
 # ---------------------------------------------------------------------------- pattern

@@ -23,7 +23,7 @@ from ..simulation.full_order import Start
 from ..simulation.scenario import Outcome, Scenario, deviations, make_scenario, run_scenario
 from ..thrust.schedule import Schedule
 from ..walker import Walker
-from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 UNITS = units("time", "thrust", "generalized_thrust", "alpha", "alpha_dot", "sigma_N", "zeta",
               "impulse", "force", "torque", "output_y", "output_rate", "energy", "wn", "tau",

@@ -32,7 +32,7 @@ from ..simulation.full_order import Start
 from ..simulation.scenario import make_scenario
 from ..thrust.dynamics import MODELS, canonical
 from ..walker import Walker
-from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 UNITS = units("thrust", "time", "q", "q_dot", "wn", "tau", "multiplier", "kp", "kd", "xi",
               "delta_zero_sq", "zeta")

@@ -35,7 +35,7 @@ from ..sweep.runner import chunk_size
 from ..sweep.tasks import PointTask, canonical
 from ..thrust.schedule import WrittenSchedule
 from ..walker import Walker, assemble_walker
-from .records import UNITS
+from .documents import UNITS
 
 
 @dataclass(frozen=True)

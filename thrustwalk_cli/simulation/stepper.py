@@ -9,7 +9,8 @@ folder (:mod:`thrustwalk_cli.model.jit`); the robot enters as data, its tape
 (:mod:`thrustwalk_cli.model.tape`) appended to the integer settings. It integrates with DOP853
 (same tolerance semantics, step-size control and events as ``solve_ivp``), so its steps agree
 with the SciPy path (``method="scipy"``) to the integration tolerance. numba is imported only
-here, when a compiled run is asked for.
+here, when a compiled run is asked for. (Named for :class:`Stepper`, which runs the compiled
+closed loop step by step; :mod:`thrustwalk_cli.model.compiled` is the compiled *model*.)
 """
 
 from __future__ import annotations

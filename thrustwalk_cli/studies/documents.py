@@ -1,4 +1,6 @@
-"""Pieces shared by every study's records: tables, number formatting, the gait record.
+"""Pieces shared by every study's result documents: units, tables, number formatting, the gait
+and robot records (not to be confused with :mod:`thrustwalk_cli.simulation.records`, the records
+of simulated steps).
 
 A study returns a result object that renders itself (the python-control pattern):
 ``document()`` is the JSON body (SI units, no NaN), ``tables()`` the CSV tables,
