@@ -27,6 +27,10 @@ not certified. Impact admissibility does not depend on the thrust (SPEC 11): che
 
 Every QP is solved exactly by :class:`thrustwalk_cli.optimize.qp.ConvexQP` (NNLS
 least-distance with generated rows). Units SI.
+
+One idea in one file (above 600 lines): the per-step QP with its rows, its exact
+polishing between grid points and its cutting planes, which together make one certified
+plan.
 """
 
 from __future__ import annotations

@@ -54,6 +54,9 @@ The swing-foot height is constrained on a dense uniform grid through :func:`cell
 :meth:`Problem.evaluate_many` evaluates many points in one vectorised pass (a leading batch
 axis through every step; the forward-difference Jacobian's points), each row equal bit for bit
 to :meth:`Problem.evaluate` of that point alone.
+
+One idea in one file (above 600 lines): the gait-design problem, its decision vector,
+constraints and their vectorised evaluation, which share one layout of the variables.
 """
 
 from __future__ import annotations

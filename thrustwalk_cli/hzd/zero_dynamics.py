@@ -23,6 +23,10 @@ nested error estimate is below ``rtol`` relative, and the estimate is reported. 
 the orbit (minimum and maximum ``|alpha'|``, minimum ``zeta``) are located on a grid and polished
 by Newton iterations on their stationarity conditions (:func:`_orbit_extrema`), so they are exact
 to about 1e-12, not grid-limited.
+
+One idea in one file (above 600 lines): the zero dynamics and their Poincare map, from the
+thrust-independent integrals to the map's fixed points and orbits for a batch of schedules
+(:func:`limit_cycles`, which reads the same series through :class:`_OrbitBasis`).
 """
 
 from __future__ import annotations
