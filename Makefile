@@ -1,24 +1,43 @@
 # thrustwalk: two commands on a fresh machine with only Python:
-#   make demo   -> .venv, install, limit cycles of the bundled 3-link robot and gait
-#   make test   -> .venv, install with test dependencies, whole test suite
+#   make demo   -> .venv, install, the one-time compile of the simulation kernel, limit
+#                  cycles of the bundled 3-link robot and gait
+#   make test   -> .venv, install with the test dependencies (and MuJoCo) while the
+#                  simulation kernel compiles once for this checkout's tests (with a message),
+#                  the whole test suite on every core (pytest-xdist)
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
-STAMP  := $(VENV)/.installed
+BASE   := $(VENV)/.installed
+STAMP  := $(VENV)/.installed-test
+# pytest-xdist workers: one per core (`make test TEST_WORKERS=0` runs in one process)
+TEST_WORKERS ?= auto
 
 .PHONY: demo test bench lint docs figures golden clean
 
-$(STAMP): pyproject.toml
+$(BASE): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e .
+	touch $(BASE)
+
+# while pip installs the test dependencies, the simulation kernel compiles for the tests
+# (once per checkout, into .pytest_cache/thrustwalk-kernel; tests/kernel_cache.py says so)
+$(STAMP): $(BASE)
+	$(BIN)/python tests/kernel_cache.py & kernel=$$!; \
+	$(BIN)/python -m pip install --quiet -e '.[test,mujoco]'; status=$$?; \
+	wait $$kernel; exit $$status
 	touch $(STAMP)
 
-demo: $(STAMP)
+# `thrustwalk compile` compiles the simulation kernel into the user's cache if this machine
+# has not (saying so, ~30 s), so that the first `thrustwalk simulate` starts at once
+demo: $(BASE)
+	$(BIN)/thrustwalk compile three_link
 	$(BIN)/thrustwalk limit-cycle three_link three_link_walk --thrust 0:-50:-2 --out out/demo
 
+# each test to the next free worker, slow ones first; the tests of a module with a
+# module-scoped fixture stay in one worker (tests/conftest.py)
 test: $(STAMP)
-	MPLBACKEND=Agg $(BIN)/python -m pytest -q
+	MPLBACKEND=Agg $(BIN)/python -m pytest -q -n $(TEST_WORKERS)
 	$(BIN)/ruff check .
 
 bench: $(STAMP)
@@ -42,7 +61,7 @@ golden: $(STAMP)
 # Sweep settings can be overridden (the test suite runs a reduced pipeline this way).
 FIG        ?= figures
 TW         ?= $(BIN)/thrustwalk
-TW_DEP     ?= $(STAMP)
+TW_DEP     ?= $(BASE)
 R3         := robots/three_link.yaml
 G3         := gaits/three_link_walk.yaml
 LC_THRUST  ?= 0:-50:-2

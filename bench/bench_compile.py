@@ -1,10 +1,14 @@
-"""Model benchmarks (robot-model issue, issue 13): compile/load times, the one-time numba
-kernel, D and bias evaluation, start-up, warm commands.
+"""Model benchmarks (robot-model issue, issue 13; big robots, issue 26): compile/load times,
+the one-time numba kernel, D and bias evaluation, start-up, warm commands, and the cold
+compile of planar chain bipeds of 3 to 20 links (``bench/chains.py``).
 
 Baselines measured in the same run: a bare ``python -c pass`` start (for start-up and warm
 load), a SymPy ``lambdify`` of the same expressions (per call), a Python loop over the
 generated scalar functions (per state in a batch), the generated NumPy batch (for the
-compiled batch D + C q' + G).
+compiled batch D + C q' + G), the 3-link chain's cold compile (for the chain scaling).
+
+``python bench/bench_compile.py --chains [--json FILE]`` runs only the chain scaling (and
+writes its CPU times to FILE for ``bench/plot_compile.py``).
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import tempfile
 import time
 
 import numpy as np
+from chains import write_chain
 from timing import median_time, report
 
 ROBOTS = ["three_link", "rabbit"]
@@ -37,7 +42,48 @@ def _cpu(cmd: list[str], env: dict) -> float:
             + after.children_system - before.children_system)
 
 
-def main() -> None:
+#: chain sizes of the scaling benchmark, and the issue's targets [s of CPU, whole process]
+CHAIN_SIZES = tuple(range(3, 21))
+CHAIN_TARGETS = {12: 8.0, 16: 20.0, 20: 45.0}
+
+
+def chain_scaling(sizes=CHAIN_SIZES, repeat: int = 1) -> dict[int, float]:
+    """Cold ``thrustwalk compile CHAIN --no-kernel -q`` of the N-link chain biped, whole
+    process, in a fresh model cache each time: CPU time (user + system) of the child [s],
+    the least of ``repeat`` runs (CPU, not wall time: the machine is shared)."""
+    folder = tempfile.mkdtemp(prefix="tw-bench-chains-")
+    out = {}
+    for n in sizes:
+        path = write_chain(n, folder)
+        runs = []
+        for r in range(repeat):
+            env = dict(os.environ, THRUSTWALK_CACHE_DIR=f"{folder}/cache-{n}-{r}")
+            runs.append(_cpu([sys.executable, "-m", "thrustwalk_cli", "compile", str(path),
+                              "--no-kernel", "-q"], env))
+        out[n] = min(runs)
+        base = out[min(out)]
+        target = CHAIN_TARGETS.get(n)
+        report(f"chain {n:2d} links: cold compile, CPU" + (f" (target <= {target:g} s)"
+                                                             if target else "")
+               + (" (baseline)" if n == min(out) else ""), out[n],
+               None if n == min(out) else base)
+    ns = sorted(out)
+    if len(ns) > 2:
+        slope = np.polyfit(np.log(ns), np.log([out[n] for n in ns]), 1)[0]
+        print(f"  compile CPU grows as N^{slope:.2f} over N = {ns[0]}..{ns[-1]}", flush=True)
+    return out
+
+
+def main(argv: list[str] | None = None) -> None:
+    argv = list(argv or [])
+    if "--chains" in argv:
+        res = chain_scaling()
+        if "--json" in argv:
+            import json
+
+            with open(argv[argv.index("--json") + 1], "w") as fh:
+                json.dump({str(n): t for n, t in res.items()}, fh, indent=1)
+        return
     base = min(_sub("pass") for _ in range(3))
     report("python -c pass (baseline)", base)
     ts = []
@@ -109,7 +155,8 @@ def main() -> None:
         n = m.n
         q, dq = rng.uniform(-1, 1, n), rng.uniform(-1, 1, n)
         ql, dql = q.tolist(), dq.tolist()
-        der = derive.derive(robot, folded=True)  # numbers written in, as lambdify users do
+        der = derive.derive_reference(robot, folded=True)  # numbers written in, as
+        # lambdify users do (one expression per entry, no definitions)
         lam = lambdify([der.q, der.dq], [der.exprs["D"], der.exprs["h"]], "numpy")
         t_lam = median_time(lambda: lam(q, dq), number=200)
         t_s = median_time(lambda: (m.D_s(ql), m.h_s(ql, dql)), number=2000)
@@ -129,8 +176,9 @@ def main() -> None:
         t_jit = median_time(lambda: jit.D_h_batch(m, Q, DQ), repeat=7) / 10000
         report(f"{name}: D+h per state, compiled tape batch (ratio to NumPy; target "
                "<= 0.3 us)", t_jit, t_batch, unit="us")
+    chain_scaling()
 
 
 if __name__ == "__main__":
     sys.path.insert(0, os.path.dirname(__file__))
-    main()
+    main(sys.argv[1:])

@@ -1,9 +1,14 @@
-"""Shared fixtures: compile the canonical robots once per session into a private cache; one
-CLI runner; the bundled walkers."""
+"""Shared fixtures: compile the canonical robots once per session into a private cache (which
+starts with the simulation kernel compiled once per checkout: tests/kernel_cache.py); one CLI
+runner; the bundled walkers. Tests of cache faults use their own folders."""
 
 from __future__ import annotations
 
+import contextlib
 import os
+import re
+import sys
+from pathlib import Path
 
 # BLAS single-threaded, as under the command line (thrustwalk_cli/cli.py): results that pass
 # through an optimiser (design-gait's SLSQP) depend on the BLAS thread count in their last
@@ -13,14 +18,65 @@ for _var in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import matplotlib  # noqa: E402
 import pytest  # noqa: E402
+from kernel_cache import seed_kernel, shared_kernel  # noqa: E402 (tests/ is on sys.path)
 
 matplotlib.use("Agg")
 
 
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """Compile the shared kernel before any test (and before pytest-xdist starts workers),
+    saying so on the terminal when it is not compiled yet."""
+    if hasattr(session.config, "workerinput"):
+        return  # an xdist worker: the controller did it (the fixture below checks again)
+    tr = session.config.pluginmanager.get_plugin("terminalreporter")
+    shared_kernel(tr.write_line if tr is not None else None)
+
+
+# ------------------------------------------------------------- running on every core (xdist)
+def _modules_with_module_fixtures(root: Path) -> set[str]:
+    """The test modules (node-id paths) that define a module-scoped fixture."""
+    out = set()
+    for path in Path(__file__).parent.glob("test_*.py"):
+        if re.search(r"""fixture\(\s*scope=["']module["']""", path.read_text()):
+            out.add(path.relative_to(root).as_posix())
+    return out
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log):
+    """``pytest -n N`` (``make test``): each test goes to the next free worker, except that
+    the tests of a module defining a module-scoped fixture go to one worker together, so that
+    the fixture is computed once, not once per worker (and again whenever a worker's tests
+    alternate between modules). Modules with more tests are handed out first. An explicit
+    ``--dist`` other than ``load`` is obeyed as it is."""
+    if config.getvalue("dist") != "load":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    grouped = _modules_with_module_fixtures(config.rootpath)
+
+    class ModuleFixtureScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            module = nodeid.split("::", 1)[0]
+            return module if module in grouped else nodeid
+
+    return ModuleFixtureScheduling(config, log)
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """In pytest-xdist workers, the tests marked slow come first (tests are handed out in
+    this order after the modules kept together), so that no long test starts last. A run
+    without workers keeps the order of the files."""
+    if hasattr(config, "workerinput"):
+        items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+
+
 @pytest.fixture(scope="session", autouse=True)
 def _cache_dir(tmp_path_factory: pytest.TempPathFactory):
-    """Every test run uses its own model cache (never the user's)."""
+    """Every test run uses its own model cache (never the user's), which starts with the
+    compiled simulation kernel of this checkout's tests (see :func:`shared_kernel`)."""
     path = tmp_path_factory.mktemp("model-cache")
+    seed_kernel(path, shared_kernel())
     old = os.environ.get("THRUSTWALK_CACHE_DIR")
     os.environ["THRUSTWALK_CACHE_DIR"] = str(path)
     yield path
@@ -67,15 +123,30 @@ def walk3(walker3):
 @pytest.fixture(scope="session")
 def cli():
     """Run ``thrustwalk ARGS...`` in-process; returns the click result (exit_code, stdout,
-    stderr kept apart)."""
-    from typer.testing import CliRunner
+    stderr kept apart). ``sys.argv`` is the command line while it runs (provenance records
+    it). The click command that typer builds from the app (about 50 ms of CPU: every option
+    of every command) is built once for the session, as a process builds it once."""
+    from unittest import mock
+
+    import typer.main
+    import typer.testing
 
     from thrustwalk_cli.cli import app
 
-    runner = CliRunner()
+    runner = typer.testing.CliRunner()
+    command = typer.main.get_command(app)
+    built = (mock.patch.object(typer.testing, "_get_command", lambda _app: command)
+             if hasattr(typer.testing, "_get_command") else contextlib.nullcontext())
 
     def run(*args: str):
-        return runner.invoke(app, [str(a) for a in args], catch_exceptions=False)
+        argv = [str(a) for a in args]
+        old = sys.argv
+        sys.argv = ["thrustwalk", *argv]
+        try:
+            with built:
+                return runner.invoke(app, argv, catch_exceptions=False)
+        finally:
+            sys.argv = old
     return run
 
 

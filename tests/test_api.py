@@ -56,6 +56,7 @@ def _without_provenance(doc: dict) -> dict:
     (["shape", "--k", "0,20"],
      lambda w: tw.shape(w, tw.ShapeRequest(ks=(0.0, 20.0))), "shape.json"),
 ])
+@pytest.mark.slow
 def test_python_result_is_the_document_the_command_writes(walker3, tmp_path, cli, command,
                                                           study, json_name):
     res = cli(*command, "--out", tmp_path, "-q")

@@ -372,7 +372,12 @@ def test_the_corpus_is_large_enough():
 
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_bad_input(name, tmp_path, cli):
-    case = CASES[name]
+    check_case(name, CASES[name], tmp_path, cli)
+
+
+def check_case(name: str, case: Case, tmp_path: Path, cli) -> None:
+    """Run one case and check the promise (module docstring); shared with the corpora of
+    later issues (tests/test_validation.py)."""
     out = _prepare(case, tmp_path)
     file = tmp_path / "input.yaml"
     if case.text is not None:

@@ -9,6 +9,7 @@ import errno
 import hashlib
 import json
 import os
+import shutil
 import subprocess
 import sys
 import textwrap
@@ -221,6 +222,7 @@ def test_platform_conventions(no_overrides, tmp_path):
 
 
 # -- through the command line -----------------------------------------------------------------
+@pytest.mark.slow
 def test_cli_with_unusable_cache_warns_once_and_still_writes_results(tmp_path, cli_subprocess):
     blocker = tmp_path / "cache-file"
     blocker.write_text("x\n")
@@ -237,6 +239,7 @@ def test_cli_with_unusable_cache_warns_once_and_still_writes_results(tmp_path, c
 
 
 # -- concurrency -------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_four_processes_compiling_a_new_robot_build_it_once(tmp_path, fresh_cache):
     """Four processes compile the same never-seen robot into one empty cache at once (issue
     30 item 4): one derives it (SymPy), the others wait for its build lock, say so through
@@ -369,23 +372,112 @@ def test_a_folder_in_place_of_an_entry_or_its_lock_is_left_alone(fresh_cache, th
     assert cache.lock_path(model_entry).is_dir()
 
 
-def test_compiled_simulation_runs_with_an_unusable_cache(fresh_cache, walker3, monkeypatch):
+def _sim_case():
+    from thrustwalk_cli.simulation.closed_loop import SimConfig, ThrustModel
+    from thrustwalk_cli.simulation.full_order import Start
+
+    th = ThrustModel("second-order", np.array([-3.0, 0.0]), wn=3.0, xi=0.7)
+    return th, SimConfig(steps=2), Start(perturb=0.05)
+
+
+def _session_kernel(session_cache: Path, monkeypatch):
+    """The compiled kernel as every test of the session gets it: loaded from the session's
+    cache (which starts with it compiled), whatever cache folder the test has set since."""
+    from thrustwalk_cli.simulation.stepper import kernel
+
+    with monkeypatch.context() as m:
+        m.setenv("THRUSTWALK_CACHE_DIR", str(session_cache))
+        return kernel()
+
+
+def test_compiled_simulation_runs_with_an_unusable_cache(fresh_cache, walker3, monkeypatch,
+                                                          _cache_dir):
     """A model kept in memory (``cache_path`` None) needs no file of its own for the compiled
     simulation: the robot is its tape, the kernel is shared; the run equals the one of the
-    session's cached model bit for bit, and warns nothing."""
+    session's cached model bit for bit, and warns nothing. (The kernel is the one this process
+    has loaded; how the kernel itself fares with an unusable cache: the two tests below.)"""
     from thrustwalk_cli.hzd.zero_dynamics import zero_dynamics
-    from thrustwalk_cli.simulation.closed_loop import SimConfig, ThrustModel
-    from thrustwalk_cli.simulation.full_order import Start, simulate
+    from thrustwalk_cli.simulation.full_order import simulate
 
+    _session_kernel(_cache_dir, monkeypatch)  # loaded before the cache folder breaks
     _cache_path_is_a_file(fresh_cache, walker3.model)
     model = load_model(walker3.robot)
     assert model.cache_path is None and model.notes
-    th = ThrustModel("second-order", np.array([-3.0, 0.0]), wn=3.0, xi=0.7)
-    cfg = SimConfig(steps=2)
-    got = simulate(zero_dynamics(model, walker3.gait), th, cfg, Start(perturb=0.05))
-    ref = simulate(walker3.zd, th, cfg, Start(perturb=0.05))
+    th, cfg, start = _sim_case()
+    got = simulate(zero_dynamics(model, walker3.gait), th, cfg, start)
+    ref = simulate(walker3.zd, th, cfg, start)
     assert got.success, got.reason
     assert [s.zeta_minus for s in got.steps] == [s.zeta_minus for s in ref.steps]
+
+
+def test_kernel_with_an_unusable_cache_is_imported_from_a_private_folder(
+        fresh_cache, walker3, monkeypatch, tmp_path, _cache_dir):
+    """When the cache folder cannot hold the compiled kernel, the kernel's module is placed in
+    this process's private folder, imported from there with a one-line note, and simulates
+    exactly as the cached kernel. numba's machine code of the session's kernel is put beside
+    the private folder's module first, as numba leaves it after compiling there, so that this
+    test imports it instead of paying a second kernel compile (that a jit module really is
+    compiled in the private folder: the next test, with a small module)."""
+    from thrustwalk_cli.model import jit
+    from thrustwalk_cli.simulation import stepper
+    from thrustwalk_cli.simulation.full_order import simulate
+
+    th, cfg, start = _sim_case()
+    ref_jm = _session_kernel(_cache_dir, monkeypatch)
+    ref = simulate(walker3.zd, th, cfg, start)
+    private = tmp_path / "private"
+    (private / "__pycache__").mkdir(parents=True)
+    entry = ref_jm.path
+    for f in entry.parent.glob(f"{entry.stem}.*"):
+        shutil.copy2(f, private / f.name)
+    for f in entry.parent.glob(f"__pycache__/{entry.stem}.*"):
+        shutil.copy2(f, private / "__pycache__" / f.name)
+    monkeypatch.setattr(jit, "_PRIVATE", [private])
+    monkeypatch.setattr(jit, "_LOADED", {})  # as in a new process
+    monkeypatch.delitem(sys.modules, f"thrustwalk_jit_{entry.stem.replace('-', '_')}")
+    _cache_path_is_a_file(fresh_cache, walker3.model)
+
+    jm = stepper.kernel()
+    assert jm.path == private / entry.name and fresh_cache not in jm.path.parents
+    assert jm.module is not ref_jm.module and jm.module.__file__ == str(jm.path)
+    assert "cache folder unusable" in jm.note and "this process only" in jm.note
+    assert jm.cache_hit, "numba must load the machine code beside the private module"
+    got = simulate(walker3.zd, th, cfg, start)
+    assert stepper.kernel() is jm
+    assert got.success, got.reason
+    assert [s.zeta_minus for s in got.steps] == [s.zeta_minus for s in ref.steps]
+    assert fresh_cache.read_text().startswith("not a folder"), "the user's file must not change"
+
+
+def test_jit_module_with_an_unusable_cache_is_compiled_in_a_private_folder(
+        fresh_cache, monkeypatch):
+    """A jit module that is not compiled anywhere yet, with the cache folder unusable, is
+    written to a new private temporary folder, compiled there by numba (its machine code
+    beside it) and works, with the one-line note; loaded again in the process, it is the same
+    module."""
+    from thrustwalk_cli.model import jit
+
+    monkeypatch.setattr(jit, "_PRIVATE", [])
+    monkeypatch.setattr(jit, "_LOADED", {})
+    fresh_cache.parent.mkdir(parents=True, exist_ok=True)
+    fresh_cache.write_text("a file where the cache folder should be\n")
+    source = f"def twice(x):\n    return 2.0 * x  # {time.time_ns()}: never compiled before\n"
+    names = {"twice": "float64(float64)"}
+    try:
+        jm = jit.load("probe", source, names)
+        private = jit._private_folder()
+        assert jm.path.parent == private and fresh_cache not in jm.path.parents
+        assert not jm.cache_hit and jm.compile_seconds is not None and jm.compile_seconds > 0
+        assert any(private.glob(f"__pycache__/{jm.path.stem}.*.nbi")), "no machine code"
+        assert "cache folder unusable" in jm.note and "this process only" in jm.note
+        assert jm.module.twice(1.5) == 3.0
+        assert jit.load("probe", source, names) is jm
+        assert fresh_cache.read_text().startswith("a file"), "the user's file must not change"
+    finally:
+        folder = jit._private_folder()
+        stem = jit.entry_path("probe", source, names, folder).stem
+        sys.modules.pop(f"thrustwalk_jit_{stem.replace('-', '_')}", None)
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def test_jit_module_falls_back_to_a_private_folder(fresh_cache, monkeypatch):

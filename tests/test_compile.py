@@ -58,3 +58,69 @@ def test_commands_that_draw_nothing_import_neither_matplotlib_nor_numba(_cache_d
         assert res.stdout.strip().splitlines()[-1] == "[]", (name, res.stdout[-500:])
     assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == [
         "limit_cycles.json"]
+
+
+def _chains():
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location(
+        "chains", Path(__file__).resolve().parents[1] / "bench" / "chains.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_a_compile_tells_its_progress(tmp_path, monkeypatch):
+    """``load_model(robot, progress=...)`` hears about every step of a compile, in order
+    (derivation, code generation, tape, checks), each once, ending at the total; loading
+    the cached model tells nothing."""
+    from thrustwalk_cli.files.robot_file import load_robot_text
+    from thrustwalk_cli.model.compiler import load_model
+
+    monkeypatch.setenv("THRUSTWALK_CACHE_DIR", str(tmp_path / "cache"))
+    robot = load_robot_text(_chains().chain_yaml(5), str(tmp_path / "chain5.yaml"))
+    seen: list[tuple[int, int, str]] = []
+    model = load_model(robot, progress=lambda *a: seen.append(a))
+    assert not model.cache_hit
+    total = seen[0][1]
+    assert [d for d, _, _ in seen] == list(range(1, total + 1))
+    assert {t for _, t, _ in seen} == {total}
+    phases = [p.split(":")[0] for _, _, p in seen]
+    assert phases[0] == "derivation" and phases[-1] == "checks"
+    assert sorted(set(phases), key=phases.index) == ["derivation", "code generation", "tape",
+                                                     "checks"]
+    assert sum(p == "code generation: D" for _, _, p in seen) == 1
+    seen.clear()
+    assert load_model(robot, progress=lambda *a: seen.append(a)).cache_hit and seen == []
+
+
+def test_a_long_compile_shows_its_progress_on_the_console(cli, tmp_path, monkeypatch):
+    """A compile that takes longer than ``COMPILE_QUIET_SECONDS`` (here 0) shows its phases
+    on standard error and says when it is done, in ``compile`` and in a command that loads
+    a walker; ``--quiet`` shows nothing, nor does a model from the cache."""
+    from pathlib import Path
+
+    from thrustwalk_cli.commands import common
+
+    monkeypatch.setattr(common, "COMPILE_QUIET_SECONDS", 0.0)
+    monkeypatch.setenv("THRUSTWALK_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.chdir(tmp_path)
+    robot = tmp_path / "robots" / "chain4.yaml"
+    robot.parent.mkdir()
+    robot.write_text(_chains().chain_yaml(4))
+    res = cli("compile", "robots/chain4.yaml", "--no-kernel")
+    assert res.exit_code == 0, res.output
+    assert "compiling the robot model (once per robot structure): " in res.stderr
+    for phase in ("derivation", "code generation", "tape", "checks"):
+        assert phase in res.stderr, (phase, res.stderr)
+    assert "compiled the robot model in" in res.stderr
+    res = cli("compile", "robots/chain4.yaml", "--no-kernel")  # cached
+    assert res.exit_code == 0 and "compiling" not in res.stderr, res.stderr
+    res = cli("compile", "robots/chain4.yaml", "--no-kernel", "--rebuild", "-q")
+    assert res.exit_code == 0 and res.stderr == "", res.stderr
+    data = Path(__file__).parent / "data"
+    res = cli("limit-cycle", str(data / "walker5.yaml"), str(data / "walker5_walk.yaml"),
+              "--formats", "none", "--out", str(tmp_path / "lc"))
+    assert res.exit_code == 0, res.output
+    assert "tape" in res.stderr and "compiled the robot model in" in res.stderr, res.stderr

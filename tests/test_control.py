@@ -236,6 +236,7 @@ def _exact_max_ratio(walker, knots, u, x, grid):
     return best
 
 
+@pytest.mark.slow
 def test_certificate_holds_between_grid_points(walker3):
     """Issue item 5's friction-limited run (the speed reference is out of reach, the friction
     rows active from step 5): every step is certified (main: round-off at an active row,
@@ -266,6 +267,7 @@ def test_certificate_holds_between_grid_points(walker3):
     assert res.document()["settings"]["certificate"]["friction_ratio_tolerance"] == tol
 
 
+@pytest.mark.slow
 def test_realised_extremes_are_polished(walker3, monkeypatch):
     """The realised extremes of a step are its dense output's, not a grid's: against 20,001
     samples of the same dense output, never lower (for the ratio) by more than 1e-12, and at
@@ -319,6 +321,7 @@ def test_full_order_tracking_rabbit(walker_rabbit):
     assert abs(res.controlled.steps[-1].speed - 0.6) < 1e-3
 
 
+@pytest.mark.slow
 def test_certified_steps_stay_in_the_cone(walker3):
     """Noisy measurements (2 %) and a fast reference (2.4 m/s) at mu = 0.42, so that the friction
     rows are active: every step the certificate calls feasible stays in the cone in the

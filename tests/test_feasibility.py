@@ -320,6 +320,7 @@ def test_cli_feasibility_writes_every_output(walk3, tmp_path, cli):
     assert "![ground reaction force](grf.png)" in md and "feasible_region.png" in md
 
 
+@pytest.mark.slow
 def test_cli_infeasible_verdict_exits_zero(walk3, tmp_path, cli):
     out = tmp_path / "inf"
     res = cli("feasibility", "--thrust", "0", "--mu", "0.05", "--out",

@@ -70,7 +70,14 @@ FRAMEWORKS = {
     "sympy": {"model.derive", "model.codegen"},
     "numba": {"model.jit", "simulation.stepper"},
     "distributed": {"sweep.executors"}, "dask": {"sweep.executors"},
+    "mujoco": {"interchange.mujoco_run"},
 }
+# Optional frameworks: imported inside the function that needs them, never at module level, so
+# that every other command runs without them installed.
+LAZY = {"mujoco", "distributed", "dask"}
+# One narrow adapter: where a unit may import a lower unit only through named modules
+# ((importer unit, imported unit) -> the importing modules allowed).
+ADAPTERS = {("interchange", "simulation"): {"interchange.mujoco_run"}}
 # Modules that may read files (input parsing; the model cache and its generator digest).
 READERS = {"files", "model.cache", "model.compiler"}
 # Modules that may write files: result writing, the model cache, the docs generator.
@@ -176,6 +183,9 @@ def violations(root: Path) -> list[str]:
                 if lib in FRAMEWORKS and not _matches(m, FRAMEWORKS[lib]):
                     bad.append(f"{m}:{line}: imports {lib} (only in "
                                f"{', '.join(sorted(FRAMEWORKS[lib]))})")
+                if lib in LAZY and level:
+                    bad.append(f"{m}:{line}: imports {lib} at module level (an optional "
+                               "package: import it where it is used)")
                 continue
             if name == "__init__":
                 bad.append(f"{m}:{line}: imports the package face (import from the home "
@@ -186,6 +196,10 @@ def violations(root: Path) -> list[str]:
             if target != unit and target not in ALLOWED.get(unit, set()):
                 bad.append(f"{m}:{line}: layer {unit} ({LAYER.get(unit)}) imports {name} "
                            f"(layer {target}, {LAYER.get(target)})")
+            only = ADAPTERS.get((unit, target))
+            if only is not None and m not in only:
+                bad.append(f"{m}:{line}: imports {name} ({unit} reaches {target} only "
+                           f"through {', '.join(sorted(only))})")
             if name in ("model.derive", "model.codegen") and level and unit == "model" \
                     and m not in ("model.derive", "model.codegen"):
                 bad.append(f"{m}:{line}: imports {name} at module level (SymPy only when "
@@ -251,6 +265,7 @@ def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 
 # ------------------------------------------------------------------------------ the package
+@pytest.mark.slow
 def test_package_keeps_its_layers():
     bad = violations(PACKAGE)
     assert not bad, "\n".join(bad)
@@ -322,6 +337,10 @@ CLEAN = {
                         "    write_json(p, {})\n"}, "writes a result"),
     ({"hzd/bad.py": "MSG = 'use --zeta0 instead'\n"}, "flag --zeta0"),
     ({"hzd/bad.py": "from .. import errors\nimport thrustwalk_cli\n"}, "package face"),
+    ({"hzd/bad.py": "def f():\n    import mujoco\n"}, "imports mujoco (only in"),
+    ({"interchange/mujoco_run.py": "import mujoco\n"}, "imports mujoco at module level"),
+    ({"interchange/mjcf.py": "from ..simulation.closed_loop import f\n"},
+     "interchange reaches simulation only through interchange.mujoco_run"),
 ])
 def test_checker_fires_on_each_rule(tmp_path, files, expected):
     bad = violations(_tree(tmp_path, {**CLEAN, **files}))

@@ -524,6 +524,7 @@ def _subprocess_env(cache_dir: Path) -> dict[str, str]:
     return env
 
 
+@pytest.mark.slow
 def test_cache_concurrent_compiles_leave_one_valid_entry(fresh_cache, three_link):
     """Two processes compiling the same robot into one empty cache both succeed, agree, and
     leave exactly one valid entry (atomic rename; no temporary files left)."""
@@ -549,7 +550,8 @@ def test_cache_concurrent_compiles_leave_one_valid_entry(fresh_cache, three_link
         D = np.array(json.loads(out)["D"])
         np.testing.assert_array_equal(D, three_link.D([0.1, -0.2, 0.3]),
                                       err_msg=f"process {i}: D")
-    files = sorted(x.name for x in fresh_cache.iterdir())
+    # one entry, beside the lock file its build held (thrustwalk_cli/model/cache.py)
+    files = sorted(x.name for x in fresh_cache.iterdir() if x.suffix != ".lock")
     assert len(files) == 1 and files[0].endswith(".py"), f"cache dir holds {files}"
     assert cache.verify_entry(fresh_cache / files[0], three_link.key) is None
 

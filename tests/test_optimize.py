@@ -149,6 +149,7 @@ def test_two_solvers_agree(solved):
     assert np.allclose(xa, xl, rtol=0, atol=1e-7 * (1 + np.abs(xl).max()))
 
 
+@pytest.mark.slow
 def test_target_speed_is_met(setup):
     model, gait, zd, prob, zlo, zhi, z0 = setup
     v0 = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, 2))))[0].speed

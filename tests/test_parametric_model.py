@@ -1,23 +1,30 @@
-"""The robot's numbers as inputs of the compiled model (issue 14): one compiled model per
-structure, bound to each robot's numbers, equal to a model compiled with the numbers folded
-into its code (``compiler.folded_model``, an independent SymPy simplification path and code
-generation) to 1e-12 relative: every generated function, the impact map, every tape program,
+"""The robot's numbers as inputs of the compiled model (issue 14) and the derivation in
+absolute link angles (issue 26): one compiled model per structure, bound to each robot's
+numbers, equal to a model compiled by the reference derivation with the numbers folded into
+its code (``compiler.folded_model``: ``derive.derive_reference``, the Lagrange derivation
+with Christoffel sums in ``q`` that the model used before issue 26, and SymPy's
+common-subexpression elimination) to 1e-12 relative: every generated function (D, C, G,
+h = C q' + G, B_F, the unpinned model, the kinematics), the impact map, every tape program,
 the compiled batch D and C q' + G, the limit cycle (zeta*, speed, delta_zero^2) and a short
-compiled simulation (zeta^- per step). Also: the cache key is the structure, new numbers are
-checked (a negative mass is reported with the robot file and key), and a sweep over a robot
-parameter compiles once.
+compiled simulation (zeta^- per step), on the bundled robots and on chain bipeds of 4 to 9
+links (``bench/chains.py``), which are also checked against ``tests/independent.py``. Also:
+the cache key is the structure, new numbers are checked (a negative mass is reported with
+the robot file and key), and a sweep over a robot parameter compiles once.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import textwrap
+from pathlib import Path
 
+import independent as ind
 import numpy as np
 import pytest
 
 from thrustwalk_cli.errors import InputError
-from thrustwalk_cli.files.robot_file import load_robot
+from thrustwalk_cli.files.robot_file import load_robot, load_robot_text
 from thrustwalk_cli.model import compiler, jit
 from thrustwalk_cli.model.compiled import FUNCTIONS
 from thrustwalk_cli.model.compiler import folded_model, load_model
@@ -43,10 +50,34 @@ LENGTHS = {"three_link": (), "rabbit": ("lf", "lt")}
 _FOLDED: dict[tuple[str, int], tuple] = {}
 
 
+def _chain_module():
+    spec = importlib.util.spec_from_file_location(
+        "chains", Path(__file__).resolve().parents[1] / "bench" / "chains.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+chains = _chain_module()
+
+
+def _robot(name: str, seed: int):
+    """A bundled robot or ``chain<N>`` (bench/chains.py) with its named parameters scaled
+    by seeded factors."""
+    if not name.startswith("chain"):
+        return load_robot(name, _parameters(name, seed))
+    text = chains.chain_yaml(int(name[5:]))
+    rng = np.random.default_rng(seed)
+    base = load_robot_text(text, f"{name}.yaml")
+    params = {k: v * float(rng.uniform(0.85, 1.15)) for k, v in base.parameters}
+    return load_robot_text(text, f"{name}.yaml", params)
+
+
 def _pair(name: str, seed: int):
-    """(robot, model with the numbers as inputs, model with the numbers folded in)."""
+    """(robot, model with the numbers as inputs, model with the numbers folded in by the
+    reference derivation)."""
     if (name, seed) not in _FOLDED:
-        robot = load_robot(name, _parameters(name, seed))
+        robot = _robot(name, seed)
         _FOLDED[name, seed] = (robot, load_model(robot), folded_model(robot))
     return _FOLDED[name, seed]
 
@@ -64,7 +95,10 @@ def _states(n: int, k: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     return rng.uniform(-np.pi, np.pi, (k, n)), rng.normal(0.0, 2.0, (k, n))
 
 
-over = pytest.mark.parametrize("name, seed", [(n, s) for n in GAITS for s in SEEDS])
+# chains: even (no torso, the anchor is the top stance link) and odd (a torso anchor)
+CHAINS = [("chain4", 1), ("chain7", 2),
+          pytest.param("chain9", 3, marks=pytest.mark.slow)]  # the reference: 5 s
+over = pytest.mark.parametrize("name, seed", [(n, s) for n in GAITS for s in SEEDS] + CHAINS)
 
 
 @over
@@ -106,6 +140,41 @@ def test_every_tape_program_equals_the_folded_model(name, seed, _cache_dir):
     D, h = jit.D_h_batch(model, q, dq)
     _close(f"{name}/{seed}: D_h_batch D vs NumPy", D, ref.D(q))
     _close(f"{name}/{seed}: D_h_batch h vs NumPy", h, ref.h(q, dq), rel=1e-11)
+
+
+@pytest.mark.parametrize("name, seed", [("chain4", 1), ("chain7", 2)])
+def test_chains_match_the_independent_computation(name, seed, _cache_dir):
+    """SPEC 1 on chain bipeds: D and D_u (sum of m J^T J + I w^T w), C and C_u (the
+    Christoffel symbols of those, by complex step), G = dV/dq, h = C q' + G, h_u = C_u q_u'
+    + G_u, the swing foot and its Jacobian, the thruster's power identity, all from
+    tests/independent.py (1e-10 relative; 1e-12 for positions)."""
+    robot = _robot(name, seed)
+    model = load_model(robot)
+    n = model.n
+    q, dq = _states(n, 4, seed)
+    q = q / 3  # [-pi/3, pi/3]
+    dqu = np.concatenate([dq, np.random.default_rng(seed).normal(size=(4, 2))], axis=1)
+    D_ref = np.array([ind.mass_matrix(robot, x) for x in q])
+    Du_ref = np.array([ind.unpinned_mass_matrix(robot, x) for x in q])
+    C_ref = np.array([ind.christoffel_C(robot, x, v) for x, v in zip(q, dq)])
+    Cu_ref = np.array([ind.christoffel_C(robot, x, v, unpinned=True) for x, v in zip(q, dqu)])
+    G_ref = np.array([ind.complex_step(lambda y: ind.potential(robot, y), x) for x in q])
+    G_u = np.concatenate([G_ref, np.zeros((4, 1)),
+                          np.full((4, 1), robot.total_mass * robot.gravity)], axis=1)
+    _close(f"{name}: D", model.D(q), D_ref, 1e-10)
+    _close(f"{name}: D_u", model.D_u(q), Du_ref, 1e-10)
+    _close(f"{name}: C", model.C(q, dq), C_ref, 1e-10)
+    _close(f"{name}: C_u", model.C_u(q, dqu), Cu_ref, 1e-10)
+    _close(f"{name}: G", model.G(q), G_ref, 1e-10)
+    _close(f"{name}: h", model.h(q, dq), np.einsum("kij,kj->ki", C_ref, dq) + G_ref, 1e-10)
+    _close(f"{name}: h_u", model.h_u(q, dqu), np.einsum("kij,kj->ki", Cu_ref, dqu) + G_u,
+           1e-10)
+    _close(f"{name}: p_swing", model.p_swing(q), [ind.swing_foot(robot, x) for x in q])
+    _close(f"{name}: E_swing", model.E_swing(q), [ind.swing_jacobian(robot, x) for x in q])
+    F = np.array([7.0])
+    for x, v in zip(q, dqu):
+        power = ind.thruster_power(robot, x, np.concatenate([v[:n], [0.0, 0.0]]), F)
+        _close(f"{name}: thruster power", v[:n] @ model.B_F(x) @ F, power, 1e-10)
 
 
 @pytest.mark.parametrize("name", list(GAITS))

@@ -130,6 +130,7 @@ def _synthetic_region(impact_ok: bool = True, eps: float = 20.0, mu: float = 0.7
 
 
 # ------------------------------------------------------------------------ limit cycles
+@pytest.mark.slow
 def test_impact_jumps_are_light_behind_the_orbits_and_drawn_like_their_legend(walker3):
     """A 2 N sweep (26 orbits): the jumps are one light, thin style, behind every orbit, and
     the legend's impact entry is that style (on main: one colour per jump, legend grey)."""
@@ -171,6 +172,7 @@ def _torque_axis(fig):
     return axes[0]
 
 
+@pytest.mark.slow
 def test_torque_panel_one_curve_per_joint_whatever_the_cases(walker5, feas5):
     """9 thrust cases x 4 joints on walker5: at most one curve per joint (on main 36), each the
     worst |u| over every case, computed here from the profiles; its peak agrees with the

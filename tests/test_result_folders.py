@@ -92,6 +92,7 @@ KILL_POINTS = [("write_bytes_atomic", k) for k in (1, 2, 3, 4, 6)] + \
 
 
 @pytest.mark.parametrize("what, k", KILL_POINTS, ids=[f"{w}-{k}" for w, k in KILL_POINTS])
+@pytest.mark.slow
 def test_killed_while_writing_leaves_one_whole_run(what, k, tmp_path, previous):
     out = tmp_path / "run"
     os.system(f"cp -a '{previous}' '{out}'")
@@ -121,6 +122,7 @@ def test_killed_while_writing_leaves_one_whole_run(what, k, tmp_path, previous):
     assert old  # the previous run was complete to begin with
 
 
+@pytest.mark.slow
 def test_a_killed_swap_is_restored_before_anything_else(tmp_path, previous):
     """Killed between moving the previous folder aside and moving the new one in: the next
     run's first step (``clean_stale``) puts the newest whole run back (here the new one, whose
@@ -138,6 +140,7 @@ def test_a_killed_swap_is_restored_before_anything_else(tmp_path, previous):
 
 
 @pytest.mark.parametrize("delay", [0.3, 0.8, 1.5, 2.5])
+@pytest.mark.slow
 def test_killed_at_a_random_moment(delay, tmp_path, previous):
     """SIGKILL after a delay (wherever the run is: loading, computing, drawing, writing)."""
     out = tmp_path / "run"
@@ -155,6 +158,7 @@ def test_killed_at_a_random_moment(delay, tmp_path, previous):
     assert _leftovers(tmp_path, "run") == []
 
 
+@pytest.mark.slow
 def test_two_runs_writing_one_folder_at_once(tmp_path, previous):
     """Both succeed; the folder holds one of the two runs, whole; no temporaries left."""
     out = tmp_path / "run"
@@ -171,6 +175,7 @@ def test_two_runs_writing_one_folder_at_once(tmp_path, previous):
     assert _leftovers(tmp_path, "run") == []
 
 
+@pytest.mark.slow
 def test_disk_full_midway_keeps_the_previous_run(tmp_path, previous, monkeypatch, cli):
     """ENOSPC while writing a figure: one line with the reason, exit 1, the previous run
     untouched and no temporary left."""

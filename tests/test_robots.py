@@ -75,8 +75,8 @@ def test_inertia_depending_on_qN_is_rejected(monkeypatch):
     robot = load_robot("three_link")
     real = derive.derive
 
-    def fake(r):
-        der = real(r)
+    def fake(r, **kw):
+        der = real(r, **kw)
         der.exprs["D"] = der.exprs["D"] + der.exprs["D"].applyfunc(lambda e: 0) + \
             der.q[-1] * np.eye(r.n).tolist()[0][0] * der.exprs["D"].applyfunc(lambda e: 1)
         return der

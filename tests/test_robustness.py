@@ -139,6 +139,7 @@ def _independent_bounds(walker, F: float, mu: float) -> tuple[float, float]:
 
 
 @pytest.mark.parametrize("F", [0.0, -20.0])
+@pytest.mark.slow
 def test_reduced_basin_bounds_equal_the_closed_form(walker3, F):
     zd = walker3.zd
     sched = Schedule.constant(zd, np.array([[F, 0.0]]))
@@ -161,6 +162,7 @@ def test_reduced_basin_bounds_equal_the_closed_form(walker3, F):
     assert not b.contains(lo * (1 - 1e-9)) and not b.contains(hi * (1 + 1e-9))
 
 
+@pytest.mark.slow
 def test_controlled_basin_ends_are_where_the_qp_stops_being_feasible(realized):
     """The controlled basin's ends (two LPs over (x, u)) against the planner's own QP: just
     inside a thrust exists, just outside the step is infeasible. It is wider than the
@@ -281,6 +283,7 @@ def test_a_push_after_an_earlier_scuff_is_never_judged(walker3, realized, dippin
     np.testing.assert_allclose(ok.push["reaction"], orbit["reaction"], rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_a_trial_that_leaves_the_cone_and_then_lifts_is_reported_at_the_exit(walker5):
     """Issue 6: the user's knee walker under constant -20 N, started with sigma_N^+ 50 %
     high: its stance force leaves the friction cone and later its vertical force becomes
@@ -405,6 +408,7 @@ def test_single_outcome_of_a_direction():
 
 
 # ---------------------------------------------------------------- the study and command
+@pytest.mark.slow
 def test_a_map_where_every_forward_push_lifts_says_so(cli, walker5, tmp_path, monkeypatch):
     """Issue 8: on the user's knee walker every forward push at the hip (the default push)
     lifts the stance foot, whatever its size and the strategy (its impulsive reaction's
@@ -436,6 +440,7 @@ def test_a_map_where_every_forward_push_lifts_says_so(cli, walker5, tmp_path, mo
     assert "`push_duration`" in doc["reason"]
 
 
+@pytest.mark.slow
 def test_no_single_outcome_warning_on_the_readme_map_or_with_a_push_duration(walker3,
                                                                             walker5):
     """The bundled 3-link map (README options, a small grid) mixes outcomes in each direction:
@@ -500,6 +505,7 @@ def test_command_writes_every_output_and_resumes(tmp_path, cli, walker3):
     assert res.exit_code == 2 and "holds another sweep" in res.output
 
 
+@pytest.mark.slow
 def test_a_trial_is_the_same_in_process_and_on_2_local_workers(walker3):
     kw = dict(push_impulse=[-4.0, 4.0, 12.0], push_phase=[0.1, 0.6], strategy=["none",
                                                                                "control"],
@@ -549,6 +555,7 @@ def one_per_task(mixed_plan):
     return run_robustness(mixed_plan, workers=1, chunk=1)
 
 
+@pytest.mark.slow
 def test_trials_in_chunks_equal_one_trial_per_task(mixed_plan, one_per_task, tmp_path, counting):
     """The trials run in chunks (the automatic size in this process and on 2 local workers,
     and 5 per task: chunks that straddle phases and strategies) give every trial the record
@@ -571,6 +578,7 @@ def test_trials_in_chunks_equal_one_trial_per_task(mixed_plan, one_per_task, tmp
         assert _outputs(res, tmp_path / name) == ref, name
 
 
+@pytest.mark.slow
 def test_a_trial_that_raises_keeps_the_other_trials_of_its_chunk(mixed_plan, one_per_task,
                                                                   monkeypatch):
     """A push trial whose computation raises inside a chunk is recorded as an error with its
@@ -604,6 +612,7 @@ def test_a_trial_that_raises_keeps_the_other_trials_of_its_chunk(mixed_plan, one
     assert chunked.errors == 3 and "3 trial(s) could not be computed" in chunked.reason
 
 
+@pytest.mark.slow
 def test_a_stopped_chunked_run_resumes_to_the_same_result(mixed_plan, one_per_task,
                                                           tmp_path):
     """A run stopped after some records (the caller stops mid-chunk) resumes with the records

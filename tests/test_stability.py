@@ -58,6 +58,7 @@ def second_order(walker3):
     return tw.stability(walker3, thrust_model="second-order", wn=2.0, xi=0.7, thrust=-20.0)
 
 
+@pytest.mark.slow
 def test_high_gains_one_multiplier_is_delta_zero_sq_and_the_others_are_small(walker3):
     res = tw.stability(walker3, thrust_model="constant", thrust=-10.0, kp=2500.0, kd=100.0)
     f = res.cases[0].floquet
@@ -185,6 +186,7 @@ def test_no_orbit_is_said_and_never_stable(walker3):
     assert doc["warnings"] and doc["cases"][0]["multipliers"] == []
 
 
+@pytest.mark.slow
 def test_vary_sweeps_one_parameter(walker3):
     res = tw.stability(walker3, thrust_model="second-order", thrust=-10.0,
                        vary=("wn", [0.5, 20.0]))
@@ -251,9 +253,10 @@ def walker5_run(tmp_path_factory, _cache_dir):
                                  catch_exceptions=False)
     text = (work / "out" / "stability.json").read_text()
     assert "NaN" not in text and "Infinity" not in text
-    return res, json.loads(text), kept[0]
+    return res, json.loads(text), next(k for k in kept if k is not None)  # not the check
 
 
+@pytest.mark.slow
 def test_walker5_designed_gait_is_stable_judged_on_the_multipliers(walker5_run):
     res, doc, result = walker5_run
     assert res.exit_code == 0, res.output

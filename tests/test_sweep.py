@@ -479,7 +479,8 @@ def test_workers_and_scheduler_are_checked(cli, tmp_path):
     res = cli("sweep", path, "--out", tmp_path / "o", "--scheduler", "127.0.0.1:8786")
     assert res.exit_code == 2 and "expected tcp://HOST:PORT" in res.stderr
     res = cli("sweep", path, "--out", tmp_path / "o", "--workers", "0")
-    assert res.exit_code == 2 and "option --workers: must be 1 to 1024" in res.stderr
+    assert res.exit_code == 2 and "option --workers: must be 1..1024" in res.stderr
+    assert not (tmp_path / "o").exists()  # checked before the folder exists
 
 
 def test_a_schedule_axis_equals_the_gait_with_that_schedule(tmp_path, _cache_dir):

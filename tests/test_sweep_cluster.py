@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 pytest.importorskip("distributed")
+pytestmark = pytest.mark.slow  # clusters and worker processes: seconds each
 
 # 21 feasibility points of ~0.02-0.1 s each (three robot models): enough that a kill after
 # 5 points lands mid-run even on an idle machine, few enough for CI

@@ -1,13 +1,13 @@
 """The model's instruction tape (model/tape.py) and its compiled interpreters against the
 generated NumPy functions (SPEC 1, 5).
 
-The NumPy functions are the independent computation: they come from the same robot through
-SymPy's printer with common-subexpression elimination, while the tape is built by another
-translation (value numbering, sines and cosines by angle addition), and its bias terms are
-derived a second way, in absolute link angles (``derive._bias_theta``), not from the
-Christoffel symbols in ``q``. Every program of the tape, on both bundled robots and a robot
-without thrusters, at 1, 33 and 200 states (the batch interpreter works in chunks of 64),
-and the scalar interpreter of the compiled kernel against the batch one.
+The NumPy functions come from the same definitions (``derive.derive``) through SymPy's
+printer, while the tape is built by another translation (value numbering, sines and cosines
+by angle addition, products folded into sums); the derivation itself is checked against the
+reference derivation and an independent computation in ``test_parametric_model.py`` and
+``test_model.py``. Every program of the tape, on both bundled robots and a robot without
+thrusters, at 1, 33 and 200 states (the batch interpreter works in chunks of 64), and the
+scalar interpreter of the compiled kernel against the batch one.
 """
 
 from __future__ import annotations

@@ -140,3 +140,33 @@ def test_a_new_thruster_model_has_the_floquet_multipliers_of_exp_AT(walker3, lag
     assert [m.value.imag for m in f.multipliers if m.kind == "thruster"] == [0.0, 0.0]
     names = res.document()["cases"][0]["state_names"]
     assert names[-2:] == ["F_hip_x", "F_torso_back"]
+
+
+def test_the_stiffness_bound_reads_any_model_of_the_family(walker3, monkeypatch):
+    """The 1 ms bound on a thruster model's fastest pole (MAX_THRUSTER_RATE): the classic
+    models' closed forms are max |eig(A)| of their matrices, and a model added in dynamics.py
+    alone is bounded by max |eig(A)| over the robot's thrusters, refused up front naming its
+    parameter (here a lag whose second thruster is 3 times faster: 1/tau = 500 1/s and
+    3/tau = 1500 1/s)."""
+    from thrustwalk_cli.simulation.closed_loop import (
+        MAX_THRUSTER_RATE,
+        check_thruster_rate,
+        thruster_rate,
+    )
+
+    for kind, wn, xi, tau in (("first-order", 2.0, 1.0, 0.01), ("second-order", 30.0, 0.4, 0.5),
+                              ("second-order", 30.0, 2.5, 0.5)):
+        A = D.make(kind, 1, wn=wn, xi=xi, tau=tau).matrices()[0]
+        assert thruster_rate(kind, wn, xi, tau) == pytest.approx(
+            np.max(np.abs(np.linalg.eigvals(A))), rel=1e-12)
+
+    def fast_second(m: int, tau: float) -> D.ThrusterDynamics:
+        return D.ThrusterDynamics("lag-fast", tuple(D.first_order_servo(tau / (1.0 + 2.0 * t))
+                                                    for t in range(m)))
+
+    monkeypatch.setitem(D.MODELS, "lag-fast", D.Model(("tau",), fast_second, "lags"))
+    assert thruster_rate("lag-fast", 2.0, 1.0, 0.002, m=2) == pytest.approx(1500.0)
+    check_thruster_rate("lag-fast", 2.0, 1.0, 3.0 / MAX_THRUSTER_RATE * 1.01, m=2)
+    with pytest.raises(tw.InputError, match="tau: a thruster with a 0.667 ms"):
+        tw.simulate(walker3, steps=1, thrust_model="lag-fast", thrust=[-10.0], tau=0.002,
+                    thruster=["hip_x", "torso_back"])

@@ -57,6 +57,7 @@ THRUSTED = GAIT + ("thrust:   # designed constant thrust [N]\n  mode: force\n  k
 
 
 # ---------------------------------------------------------------------- the mistakes corpus
+@pytest.mark.slow
 def test_corpus_of_user_mistakes_first_lines(tmp_path, cli):
     deg = _write(tmp_path, "degrees", _degrees(GAIT))
     flip = _write(tmp_path, "flipped", GAIT.replace("c: {q3: -1}", "c: {q3: 1}"))
@@ -102,6 +103,7 @@ def test_degrees_below_the_ground_point_at_the_coefficient(tmp_path):
 
 
 # ------------------------------------------------------------------ never call invalid good
+@pytest.mark.slow
 def test_not_invariant_gait_has_no_walking_orbit_anywhere(tmp_path, cli):
     ni = _write(tmp_path, "not_invariant", NOT_INVARIANT)
     res = cli("limit-cycle", "three_link", ni, "--thrust", "0,-10", "--out", tmp_path / "lc",
@@ -116,6 +118,7 @@ def test_not_invariant_gait_has_no_walking_orbit_anywhere(tmp_path, cli):
     assert fe["verdict"] == "infeasible" and "hybrid-invariant" in fe["cases"][0]["reason"]
 
 
+@pytest.mark.slow
 def test_scuffing_is_part_of_every_verdict(tmp_path, cli):
     sc = _write(tmp_path, "scuffing", SCUFFING)
     cli("limit-cycle", "three_link", sc, "--thrust", "0", "--out", tmp_path / "lc", "-q")
@@ -135,6 +138,7 @@ WALKER5 = REPO / "tests" / "data" / "walker5.yaml"
 WALKER5_WALK = REPO / "tests" / "data" / "walker5_walk.yaml"
 
 
+@pytest.mark.slow
 def test_walkable_means_contact_feasible_on_a_users_robot(tmp_path, cli, monkeypatch):
     """Issue 24 item 2: on a user's 5-link knee walker, limit-cycle called every thrust from 0
     to -12 N walkable while feasibility said infeasible from -2 N (friction ratio 0.83) and
@@ -185,6 +189,7 @@ def test_walkable_in_a_limit_cycle_sweep_is_the_feasibility_verdict(tmp_path, cl
     assert [r["walkable"] for r in rows] == ["true", "false", "false"], rows
 
 
+@pytest.mark.slow
 def test_simulate_never_plain_ok_when_the_cone_is_left(tmp_path, cli):
     res = cli("simulate", "--steps", "2", "--thrust", "0", "--thrust-model", "constant",
               "--mu", "0.3", "--samples", "10", "--out", tmp_path, "-q")
@@ -200,6 +205,7 @@ def test_simulate_never_plain_ok_when_the_cone_is_left(tmp_path, cli):
         "status"] == "ok"
 
 
+@pytest.mark.slow
 def test_animate_with_nothing_to_animate_writes_results_and_says_so(tmp_path, cli):
     res = cli("simulate", "--reduced", "--steps", "1", "--thrust", "0", "--animate",
               "--samples", "5", "--out", tmp_path, "-q")
@@ -209,6 +215,7 @@ def test_animate_with_nothing_to_animate_writes_results_and_says_so(tmp_path, cl
 
 
 # -------------------------------------------------------------- the gait's thrust by default
+@pytest.mark.slow
 def test_gait_thrust_is_the_default_everywhere(tmp_path, cli, walker3):
     g = _write(tmp_path, "thrusted", THRUSTED)
     res = cli("limit-cycle", "three_link", g, "--out", tmp_path / "lc")
@@ -238,6 +245,7 @@ def test_gait_thrust_is_the_default_everywhere(tmp_path, cli, walker3):
     assert k0["shift"]["true_fixed_point_shift"] == pytest.approx(0.0, abs=1e-9)
 
 
+@pytest.mark.slow
 def test_robot_alone_picks_its_bundled_gait(tmp_path, cli):
     res = cli("limit-cycle", "rabbit", "--thrust", "0", "--out", tmp_path, "-q")
     assert res.exit_code == 0, res.output
@@ -305,6 +313,7 @@ def test_every_json_has_units_and_a_schema_version(outputs):
             assert spelled and " / " not in unit and "per" not in unit, (path.name, key, unit)
 
 
+@pytest.mark.slow
 def test_json_to_stdout_is_the_document(tmp_path, cli):
     res = cli("limit-cycle", "--thrust", "0", "--out", tmp_path, "--json", "-")
     assert res.exit_code == 0
@@ -334,6 +343,7 @@ def test_max_output_refuses_huge_sweeps_before_any_work(tmp_path, cli):
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.slow
 def test_tables_never_split_a_number(tmp_path, cli, monkeypatch):
     """At a narrow terminal every number of the table is still whole on its line."""
     monkeypatch.setenv("COLUMNS", "50")
@@ -349,6 +359,7 @@ def test_tables_never_split_a_number(tmp_path, cli, monkeypatch):
     assert "[kg^2 m^4/s^2]" in res.stdout  # headers carry units
 
 
+@pytest.mark.slow
 def test_progress_lines_when_standard_error_is_not_a_terminal(tmp_path, cli):
     res = cli("simulate", "--steps", "2", "--thrust", "0", "--samples", "10", "--out", tmp_path)
     lines = [ln for ln in res.stderr.splitlines() if ln.startswith("simulating steps:")]
@@ -372,6 +383,7 @@ def test_progress_in_a_log_is_a_line_per_tenth_not_per_unit(capsys):
     assert all("eta" in ln for ln in lines)
 
 
+@pytest.mark.slow
 def test_help_cites_no_internal_document_and_completion_is_on(cli):
     from thrustwalk_cli.cli import COMMANDS
 
@@ -389,6 +401,7 @@ def test_inspect_warns_on_angles_beyond_pi_and_prints_a_table(cli):
     assert "potential energy" in res.stdout and "[[" not in res.stdout
 
 
+@pytest.mark.slow
 def test_shape_is_not_a_success_when_a_shaped_schedule_has_no_orbit(tmp_path, cli):
     """k = -500 N m (generalized) stops the walker before the end of the step: the study says
     so in the JSON (success false, the reason naming the schedule) and on standard error, and

@@ -14,6 +14,7 @@ Loading
     import_urdf         a URDF (+ side file) -> a commented robot YAML and its :class:`Robot`
                         (SPEC 16; the import-urdf command)
     robot_to_urdf       :class:`Robot` -> planar URDF text (SPEC 16)
+    robot_to_mjcf       :class:`Robot` -> MuJoCo MJCF text (SPEC 16; the export-mjcf command)
     Robot               an immutable robot description (links, coordinates, thrusters)
     Gait                an immutable gait description (Bezier virtual constraints)
     ThrustSchedule      a piecewise-constant thrust schedule as written in a gait file
@@ -37,6 +38,8 @@ Studies (one per command)
     OptimizeResult      the optimal schedule (or why none exists), gait file, figure
     simulate            full-order closed-loop simulation -> :class:`SimulationResult`
     SimulationResult    runs, per-step records, comparison with the zero dynamics, figures
+    mujoco_run          the gait's controller on MuJoCo's soft contact, each step beside the
+                        rigid model (SPEC 16; needs ``pip install 'thrustwalk[mujoco]'``)
     control             step-to-step thrust control, certified contact -> :class:`ControlResult`
     ControlResult       controlled vs uncontrolled runs, certificate per step, export, figures
     stability           Floquet multipliers of the full-order loop -> :class:`StabilityResult`
@@ -69,6 +72,7 @@ _HOMES = {
     "load_robot": "files.robot_file", "load_model": "model.compiler",
     "compile_robot": "studies.compile", "inspect_state": "studies.inspect",
     "import_urdf": "studies.import_urdf", "robot_to_urdf": "interchange.urdf",
+    "robot_to_mjcf": "interchange.mjcf", "mujoco_run": "studies.mujoco",
     "Robot": "description.robot", "Gait": "description.gait",
     "ThrustSchedule": "thrust.schedule", "CompiledModel": "model.compiled",
     "ZeroDynamics": "hzd.zero_dynamics", "Schedule": "thrust.schedule",

@@ -18,10 +18,12 @@ from .commands import (
     compile,
     control,
     design_gait,
+    export_mjcf,
     feasibility,
     import_urdf,
     inspect,
     limit_cycle,
+    mujoco,
     optimize,
     report,
     robustness,
@@ -32,8 +34,9 @@ from .commands import (
 )
 
 # Help lists the commands in this order.
-COMMANDS = (compile, import_urdf, inspect, limit_cycle, shape, feasibility, optimize, simulate,
-            control, stability, robustness, design_gait, sweep, report)
+COMMANDS = (compile, import_urdf, export_mjcf, inspect, limit_cycle, shape, feasibility,
+            optimize, simulate, mujoco, control, stability, robustness, design_gait, sweep,
+            report)
 
 class _OneLineErrors(TyperGroup):
     """The command group, with usage errors (an unknown option, a value of the wrong type, a

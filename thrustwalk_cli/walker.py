@@ -21,14 +21,14 @@ from math import pi
 from .contact.terms import scuff_reason, swing_clearance
 from .description.gait import Gait
 from .description.robot import Robot
-from .errors import InputError, Where
+from .errors import InputError, Where, check_instance, check_number_map, check_path
 from .files.bundled import bundled_names, resolve
 from .files.gait_file import GaitSource, bind_gait, load_gait, same_robot_file
 from .files.robot_file import load_robot
 from .hzd.constraints import apply_invariance, gait_maps
 from .hzd.zero_dynamics import ZeroDynamics, zero_dynamics
 from .model.compiled import CompiledModel
-from .model.compiler import load_model
+from .model.compiler import Progress, load_model
 
 FOOT_TOL = 1e-6  # [m] the swing foot must be this close to the ground at impact
 DEFAULT_GAIT = "three_link_walk"
@@ -77,6 +77,12 @@ class Walker:
         if sw["scuffs"]:
             out.append(scuff_reason(sw))
         return tuple(out)
+
+
+def check_walker(value: object, name: str = "walker") -> Walker:
+    """``value`` if it is a :class:`Walker`, else an :class:`InputError` naming ``name`` (the
+    first check of every study)."""
+    return check_instance(name, value, Walker, "a Walker (tw.load_walker(robot, gait))")
 
 
 def walker_from(model: CompiledModel, gait: Gait, where: Where = "gait") -> Walker:
@@ -129,18 +135,25 @@ def check_impact_posture(model: CompiledModel, gait: Gait, source: GaitSource) -
 
 def load_walker(robot: str | None = None, gait: str | None = None, *,
                 robot_parameters: Mapping[str, float] | None = None,
-                gait_parameters: Mapping[str, float] | None = None) -> Walker:
+                gait_parameters: Mapping[str, float] | None = None,
+                progress: Progress | None = None) -> Walker:
     """Load a gait and its robot (``robot`` overrides the gait's own ``robot:``), check them
     against each other, compile (or load) the model, apply ``invariance: auto`` (SPEC 2) and
     precompute the zero dynamics (SPEC 3). ``robot`` and ``gait`` are bundled names or paths;
     without a gait, the robot's bundled gait (or ``three_link_walk`` without a robot).
     ``robot_parameters`` / ``gait_parameters``: numbers replacing the files' named
     ``parameters:`` (as if edited into the files; e.g. ``{"MT": 12.0}`` [kg]).
+    ``progress(done, total, phase)`` hears about every step of a compile (none when the
+    model comes from the cache).
 
     Raises :class:`InputError` (``file:line: key.path: message``) on bad files, when ``robot``
     is not the robot the gait was written for, or when the swing foot is not on the ground at
     impact (angles in degrees, the wrong sign of alpha).
     """
+    robot = check_path("robot", robot, optional=True)
+    gait = check_path("gait", gait, optional=True)
+    robot_parameters = check_number_map("robot_parameters", robot_parameters, optional=True)
+    gait_parameters = check_number_map("gait_parameters", gait_parameters, optional=True)
     rob = load_robot(robot, robot_parameters) if robot else None
     if gait is None:
         gait = default_gait(rob)
@@ -160,16 +173,17 @@ def load_walker(robot: str | None = None, gait: str | None = None, *,
         except InputError as exc:  # name the gait file's line: that is where to fix it
             raise InputError(source.where(("robot",), str(exc))) from None
         rob = load_robot(g.robot, robot_parameters)
-    return assemble_walker(rob, g, source)
+    return assemble_walker(rob, g, source, progress=progress)
 
 
-def assemble_walker(robot: Robot, gait: Gait, source: GaitSource) -> Walker:
+def assemble_walker(robot: Robot, gait: Gait, source: GaitSource, *,
+                    progress: Progress | None = None) -> Walker:
     """A walker from a robot and a gait as loaded (:func:`load_gait`, not yet bound): check
     the gait against the robot, compile (or load) the model, check the impact posture, apply
     ``invariance: auto`` and precompute the zero dynamics. Problems name the gait file's
-    lines."""
+    lines. ``progress``: as for :func:`load_walker`."""
     g = bind_gait(gait, source, robot)
-    model = load_model(robot)
+    model = load_model(robot, progress=progress)
     check_impact_posture(model, g, source)
     if g.invariance == "auto":
         g = apply_invariance(model, g)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import typer
 
+from ..description.sweep import range_count
 from ..errors import ComputationError, InputError, Problem
 
 _MENTION = re.compile(r"`([A-Za-z_][A-Za-z0-9_]*)`")
@@ -190,11 +191,9 @@ def parse_values(text: str, option: str, unit: str = "") -> list[float]:
             start, stop, step = parts
             if not all(abs(v) <= LARGEST for v in parts):
                 raise bad(f"values must be finite and at most {LARGEST:g} in size")
-            if step == 0 or (stop - start) * step < 0:
-                raise bad("the step must be non-zero and point from start to stop")
-            count = int(abs((stop - start) / step) + 1e-9) + 1
-            if count > MAX_VALUES:
-                raise bad(f"{count} values: the limit is {MAX_VALUES}")
+            count = range_count(start, stop, step, MAX_VALUES)
+            if isinstance(count, str):
+                raise bad(count)
             return [start + i * step for i in range(count)]
         values = [float(p) for p in text.split(",") if p.strip()]
     except ValueError:
@@ -225,8 +224,9 @@ def parse_knots(text: str, option: str = "--knots") -> list[float | None]:
         except ValueError:
             raise InputError(f"option {option}: {item!r} is not a number or ? (a free knot); "
                              "use e.g. 0,?,?,1, 0,0.3,0.6,1 or 0:1:0.25") from None
-        if v != v or v in (float("inf"), float("-inf")):
-            raise InputError(f"option {option}: knots must be finite, got {item!r}")
+        if not abs(v) <= LARGEST:
+            raise InputError(f"option {option}: knots must be finite and at most {LARGEST:g} "
+                             f"in size, got {item!r}")
         out.append(v)
     return out
 
@@ -253,23 +253,63 @@ def warn(lines) -> None:
         sys.stderr.write(f"warning: {render_mentions(line, ctx)}\n")
 
 
-def load_walker(robot: str | None, gait: str | None):
-    """:func:`thrustwalk_cli.walker.load_walker`, with the gait's warnings printed."""
+def load_walker(robot: str | None, gait: str | None, quiet: bool | None = None):
+    """:func:`thrustwalk_cli.walker.load_walker`, with the gait's warnings printed and the
+    progress of a long compile shown (:func:`compile_progress`)."""
     from ..walker import load_walker as _load
 
-    walker = _load(robot, gait)
+    with compile_progress(quiet) as report:
+        walker = _load(robot, gait, progress=report)
     warn(walker.model.notes)
     warn(walker.warnings)
     return walker
 
 
-def load_model(robot: str, rebuild: bool = False):
-    """:func:`thrustwalk_cli.studies.compile.compile_robot`, with cache notes printed."""
+def load_model(robot: str, rebuild: bool = False, quiet: bool | None = None):
+    """:func:`thrustwalk_cli.studies.compile.compile_robot`, with cache notes printed and
+    the progress of a long compile shown (:func:`compile_progress`)."""
     from ..studies.compile import compile_robot
 
-    model = compile_robot(robot, rebuild)
+    with compile_progress(quiet) as report:
+        model = compile_robot(robot, rebuild, progress=report)
     warn(model.notes)
     return model
+
+
+#: a compile shows its progress once it has run this long [s] (most robots take less)
+COMPILE_QUIET_SECONDS = 2.0
+
+
+@contextlib.contextmanager
+def compile_progress(quiet: bool | None = None) -> Iterator:
+    """A progress callback for :func:`thrustwalk_cli.model.compiler.load_model` (``done,
+    total, phase``; None with ``quiet``, which defaults to the running command's
+    ``--quiet``). Silent for the first :data:`COMPILE_QUIET_SECONDS` of a compile, then a
+    :func:`progress` bar on standard error with the phase (derivation, code generation,
+    tape, checks), and one line when it is done."""
+    if quiet is None:
+        ctx = _CTX.get()
+        quiet = bool(ctx is not None and ctx.params.get("quiet"))
+    if quiet:
+        yield None
+        return
+    t0 = time.monotonic()
+    shown = [0]
+    with contextlib.ExitStack() as stack:
+        bar: list = []
+
+        def report(done: int, total: int, phase: str) -> None:
+            if not bar:
+                if time.monotonic() - t0 < COMPILE_QUIET_SECONDS:
+                    return
+                bar.append(stack.enter_context(progress(
+                    "compiling the robot model (once per robot structure)", total, False)))
+            bar[0](done - shown[0], note=phase)
+            shown[0] = done
+        yield report
+    if shown[0]:
+        sys.stderr.write(f"compiled the robot model in {time.monotonic() - t0:.1f} s "
+                         "(cached: later runs load it)\n")
 
 
 def check_out(out: Path, *, whole: bool = True, json: str | None = None) -> None:

@@ -139,16 +139,17 @@ def run_control(robot: str | None, gait: str | None, *, reference: str, profile:
         raise InputError(f"option --export: {export} is not a file path")
     walker = load_walker(robot, gait)
     runs = 2 + (thrust_model != "ideal")
+    args = dict(reference=reference, profile=prof, ramp=ramp, knots=kn, steps=steps,
+                thrust_model=thrust_model, wn=wn, xi=xi, tau=tau, thruster=thrusters,
+                push=pushes, plant_scale=scale, noise=noise, seed=seed, mu=mu,
+                min_vertical_force=min_vertical_force, zeta_min=zeta_min,
+                max_thrust=max_thrust, rate_limit=rate_limit, tracking_weight=tracking_weight,
+                effort_weight=effort_weight, rate_weight=rate_weight, terms=terms,
+                fit_tol=fit_tol, points=points)
+    control(walker, **args, check_only=True)  # every option before the kernel is compiled
     ensure_kernel(quiet)
     with progress("controlled steps", runs * steps, quiet) as advance:
-        result = control(
-            walker, reference=reference, profile=prof, ramp=ramp, knots=kn, steps=steps,
-            thrust_model=thrust_model, wn=wn, xi=xi, tau=tau, thruster=thrusters,
-            push=pushes, plant_scale=scale, noise=noise, seed=seed, mu=mu,
-            min_vertical_force=min_vertical_force, zeta_min=zeta_min, max_thrust=max_thrust,
-            rate_limit=rate_limit, tracking_weight=tracking_weight,
-            effort_weight=effort_weight, rate_weight=rate_weight, terms=terms,
-            fit_tol=fit_tol, points=points, progress=advance)
+        result = control(walker, **args, progress=advance)
     prov = output.provenance(walker.robot, walker.gait)
     doc = write_result(result, out, prov, json=json, formats=formats, titles=titles)
     if export is not None:

@@ -62,3 +62,9 @@ MaxOutputOpt = Annotated[
     float, typer.Option("--max-output", help="Refuse a sweep whose CSV table would exceed this "
                                              "many megabytes [MB].")
 ]
+ContactOpt = Annotated[
+    str, typer.Option("--contact", help="MuJoCo contact preset: soft (MuJoCo's default "
+                                        "contact), default, or stiff (with a small timestep; "
+                                        "the rigid-impact limit). --solref, --solimp, "
+                                        "--timestep change one setting.")
+]

@@ -105,7 +105,7 @@ def run_robustness_command(
     """Plain function behind the command; returns the ``robustness.json`` document."""
     from ..files import output
     from ..studies.robustness import plan_robustness, run_robustness
-    from ..studies.sweep import task_executor
+    from ..studies.sweep import check_executor, task_executor
     from ..studies.sweep_studies import STUDIES
 
     kinds = {"csv", "png", "pdf"} if formats is None else formats
@@ -117,10 +117,7 @@ def run_robustness_command(
     kn = parse_knots(knots)
     if any(k is None for k in kn):
         raise InputError("option --knots: the controller takes fixed knots (no ?)")
-    if workers is not None and scheduler is not None:
-        raise InputError("options --workers/--scheduler: give one of them, not both")
-    if workers is not None and not 1 <= workers <= 1024:
-        raise InputError(f"option --workers: must be 1 to 1024, got {workers}")
+    check_executor(workers, scheduler)  # every option before the folder exists
     check_out(out, whole=False, json=json)
     if scheduler is not None:
         from ..sweep.executors import quiet_dask_logs

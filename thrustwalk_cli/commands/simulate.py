@@ -92,16 +92,17 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
               "schedule (piecewise), started on its orbit"])
     n_runs = (1 if gait_schedule or thrust_model == "piecewise" else
               len(default_f_ss(walker)) if values is None else max(1, len(values)))
+    args = dict(steps=steps, thrust_model=thrust_model, thrust=values, wn=wn, xi=xi,
+                tau=tau, f0=f0, thruster=thrusters, perturb=perturb, zeta0=zeta0, q0=q, dq0=dq,
+                start=start_orbit, torque_limit=torque_limit, rtol=rtol, atol=atol,
+                method=method, integrator=integrator, samples=samples, scuff_tol=scuff_tol,
+                min_impact_s=min_impact_s, impact_s_tol=impact_s_tol, zeta_tol=zeta_tol,
+                reduced=reduced, mu=mu)
+    simulate(walker, **args, check_only=True)  # every option before the kernel is compiled
     if method == "compiled" and not reduced:
         ensure_kernel(quiet)
     with progress("simulating steps", n_runs * steps, quiet) as advance:
-        result = simulate(
-            walker, steps=steps, thrust_model=thrust_model, thrust=values, wn=wn, xi=xi,
-            tau=tau, f0=f0, thruster=thrusters, perturb=perturb, zeta0=zeta0, q0=q, dq0=dq,
-            start=start_orbit, torque_limit=torque_limit, rtol=rtol, atol=atol,
-            method=method, integrator=integrator, samples=samples, scuff_tol=scuff_tol,
-            min_impact_s=min_impact_s, impact_s_tol=impact_s_tol, zeta_tol=zeta_tol,
-            reduced=reduced, mu=mu, progress=advance)
+        result = simulate(walker, **args, progress=advance)
     extra = {}
     if animate:
         gif = result.animation()

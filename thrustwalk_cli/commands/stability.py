@@ -132,11 +132,12 @@ def run_stability(robot: str | None, gait: str | None, *, thrust_model: str | No
     check_out(out)
     walker = load_walker(robot, gait)
     n = 1 if sweep is None else len(sweep[1])
+    args = dict(thrust_model=thrust_model, thrust=F, thruster=thruster, wn=wn, xi=xi, tau=tau,
+                kp=kp, kd=kd, vary=sweep, rtol=rtol, atol=atol, agreement_tol=agreement_tol)
+    stability(walker, **args, check_only=True)  # every option before the kernel is compiled
     ensure_kernel(quiet)
     with progress("analysing settings", n, quiet) as advance:
-        result = stability(walker, thrust_model=thrust_model, thrust=F, thruster=thruster,
-                           wn=wn, xi=xi, tau=tau, kp=kp, kd=kd, vary=sweep, rtol=rtol,
-                           atol=atol, agreement_tol=agreement_tol, progress=advance)
+        result = stability(walker, **args, progress=advance)
     doc = write_result(result, out, output.provenance(walker.robot, walker.gait), json=json,
                        formats=formats, titles=titles)
     warn([w for w in doc["warnings"] if w not in walker.warnings])

@@ -57,9 +57,10 @@ def run_sweep_command(file: Path, out: Path | None, *, workers: int | None = Non
                       robot: str | None = None, gait: str | None = None) -> dict:
     """Plain function behind the command; returns the ``sweep.json`` document it wrote."""
     from ..files import output
-    from ..studies.sweep import load_sweep, run_sweep, sweep_executor
+    from ..studies.sweep import check_executor, load_sweep, run_sweep, sweep_executor
 
     kinds = {"csv", "png", "pdf"} if formats is None else formats
+    check_executor(workers, scheduler)  # every option before the folder exists
     if out is not None:
         check_out(out, whole=False)
     if scheduler is not None:

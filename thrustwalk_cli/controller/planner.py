@@ -51,6 +51,7 @@ from .step_model import (
     ResponseThrust,
     Rows,
     RowSeries,
+    StepStops,
     Terms,
     rows,
     series_nodes,
@@ -534,12 +535,20 @@ class Planner:
         step_time = None
         t_qp = t_pol = 0.0
         status, target, act, viol = "tracking", x_ref, [], 0.0
-        if dyn:
-            th.update(np.maximum(self.d2 * x_meas + th.V0n, 0.0))
+        stops = None
+        if dyn:  # the first guess: zeta of the unthrusted step, at least zeta_min
+            z0 = self.d2 * x_meas + th.V0n
+            th.update(np.maximum(z0, max(self.st.zeta_min, 1e-2 * float(np.max(z0)))))
         for _ in range(MAX_RESPONSE_ITER + MAX_CUT_ROUNDS):
             iterations += 1
             if dyn:
-                step_time = th.update(th.zeta_nodes(x_meas, u))
+                try:
+                    step_time = th.update(th.zeta_nodes(x_meas, u))
+                except StepStops as exc:
+                    if iterations > 1:  # the plan's own step stops: no step to predict
+                        stops = str(exc)
+                        break
+                    # the previous setpoint's step stops: plan on the guess's time map
                 cut_rows = None
             rw = self.grid_rows()
             t0 = time.perf_counter()
@@ -569,10 +578,15 @@ class Planner:
             cut_a, cut_i = np.concatenate([cut_a, new_a]), np.concatenate([cut_i, new_i])
             cut_rows = None
             rounds += 1
-        if dyn:
-            step_time = th.update(th.zeta_nodes(x_meas, u))
+        if dyn and stops is None:
+            try:
+                step_time = th.update(th.zeta_nodes(x_meas, u))
+            except StepStops as exc:
+                stops = str(exc)
             rw = self.grid_rows()
             margins = None
+        if stops is not None:  # planned on the last time map that exists; not certified
+            status, act, margins = "infeasible", [f"no time map: {stops}"], None
         if self.st.continuous and margins is None:
             t0 = time.perf_counter()
             margins = self._polish(rw, u, x_meas)[0]

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..contact.terms import Fits, stance_terms
+from ..errors import ComputationError
 from ..hzd.quadrature import ChebSeries, lobatto
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..model.compiled import CompiledModel
@@ -160,6 +161,12 @@ class IdealThrust:
         return np.zeros((g, self.m)), S, np.zeros(g), Iu
 
 
+class StepStops(ComputationError):
+    """A slow thruster's predicted step has no time map: zeta reaches 0 along it (the walker
+    would stop and fall back) or the time ``t(alpha)`` it gives is not resolved (not
+    increasing, not finite: zeta nearly 0 somewhere)."""
+
+
 class ResponseThrust:
     """A thruster with its own dynamics and one setpoint per step (SPEC 11, "slow
     thrusters"): the delivered thrust over the step is the linear response to the setpoint
@@ -208,11 +215,20 @@ class ResponseThrust:
 
     def update(self, zeta_nodes: np.ndarray) -> float:
         """Rebuild ``t(alpha)``, ``F`` and the integrals from zeta on the nodes; returns the
-        predicted step time [s]."""
-        z = np.maximum(zeta_nodes, 1e-12 * max(1.0, float(np.max(np.abs(zeta_nodes)))))
+        predicted step time [s]. :class:`StepStops` (nothing changed) when zeta is not > 0 on
+        every node or the time it gives does not increase along the step."""
+        z = np.asarray(zeta_nodes, float)
+        if not (np.all(np.isfinite(z)) and np.min(z) > 0.0):
+            i = int(np.nanargmin(np.where(np.isfinite(z), z, -np.inf)))
+            raise StepStops(f"the predicted step stops: zeta reaches {z[i]:.3g} kg^2 m^4/s^2 "
+                            f"at alpha = {self.nodes[i]:.4g} rad")
         inv = 1.0 / (self.k1 * self.sgn * np.sqrt(2.0 * z))
-        self.t_series = ChebSeries.from_values(self.a, self.b, inv).cumulative()
-        t = self.t_series(self.nodes)
+        t_series = ChebSeries.from_values(self.a, self.b, inv).cumulative()
+        t = t_series(self.nodes)
+        if not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0.0)):
+            raise StepStops(f"the predicted step nearly stops (zeta down to {np.min(z):.3g} "
+                            "kg^2 m^4/s^2): its time along the step is not resolved")
+        self.t_series = t_series
         f0 = np.zeros((t.size, self.m))
         S = np.zeros((t.size, self.m, self.nu))
         resp = self._response(t)

@@ -22,6 +22,8 @@ import numpy as np
 from ..errors import InputError
 
 Vec2 = tuple[float, float]
+SANE_THRUST_WEIGHTS = 10.0  # [robot weights] bound of a thruster without limits (thrust_bound)
+SANE_PUSH_SPEED = 10.0  # [m/s] the largest velocity change of the whole robot by a push
 
 
 @dataclass(frozen=True)
@@ -177,6 +179,49 @@ class Robot:
     @property
     def total_mass(self) -> float:
         return float(sum(lk.mass for lk in self.links))
+
+    def thrust_bound(self, j: int) -> float:
+        """The largest |thrust| [N] thruster ``j`` can give: the larger end of its ``limits``,
+        or, for a thruster without limits, :data:`SANE_THRUST_WEIGHTS` times the robot's
+        weight (a bound beyond that is a typo, not a thruster)."""
+        lo, hi = self.thrusters[j].limits
+        big = max(abs(lo), abs(hi))
+        return float(big) if np.isfinite(big) else SANE_THRUST_WEIGHTS * self.weight
+
+    def check_thrust_bound(self, param: str, value: float, driven) -> None:
+        """A thrust bound ``value`` [N] of the thrusters ``driven`` (indices) at most what they
+        can give (:meth:`thrust_bound`): :class:`InputError` on ``param`` otherwise."""
+        for j in driven:
+            big = self.thrust_bound(j)
+            if value > big:
+                lo, hi = self.thrusters[j].limits
+                why = (f"its limits [{lo:g}, {hi:g}] N" if np.isfinite(max(abs(lo), abs(hi)))
+                       else f"{SANE_THRUST_WEIGHTS:g} times the robot's weight: it has no "
+                            "limits")
+                raise InputError.param(param, f"{value:g} N is more than thruster "
+                                              f"{self.thrusters[j].name} can give ({big:g} N, "
+                                              f"{why})")
+
+    @property
+    def weight(self) -> float:
+        """The robot's weight m g [N]."""
+        return self.total_mass * float(self.gravity)
+
+    def push_bound(self) -> float:
+        """The largest push impulse [N s] worth simulating: one that changes the whole robot's
+        velocity by :data:`SANE_PUSH_SPEED` m/s (a larger one is a crash, not a push)."""
+        return SANE_PUSH_SPEED * self.total_mass
+
+    def check_push(self, param: str, impulse: float) -> None:
+        """A push impulse of size ``|impulse|`` [N s] at most :meth:`push_bound`:
+        :class:`InputError` on ``param`` otherwise."""
+        size, bound = abs(float(impulse)), self.push_bound()
+        if size > bound:
+            raise InputError.param(param, f"an impulse of {size:g} N s changes the robot's "
+                                          f"velocity by {size / self.total_mass:.3g} m/s: at "
+                                          f"most {bound:g} N s ({self.total_mass:g} kg x "
+                                          f"{SANE_PUSH_SPEED:g} m/s; a larger one is a crash, "
+                                          "not a push)")
 
     def path_from_root(self, name: str) -> list[str]:
         """Link names from the root to ``name`` (inclusive)."""

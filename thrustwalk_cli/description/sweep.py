@@ -16,6 +16,7 @@ An axis names a study parameter (``thrust`` [N], ``target_speed`` [m/s], ``kp`` 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 GROUPS = ("grid", "zip", "random")
@@ -98,3 +99,23 @@ class SweepSpec:
         if self.group("random"):
             n *= self.samples
         return n
+
+
+def range_count(start: float, stop: float, step: float, limit: int) -> int | str:
+    """The number of values of the range ``start:stop:step`` (stop included when a whole
+    number of steps reaches it), or why there is no such range: a step of 0, against the
+    direction from start to stop, below the resolution of the values (``start + step`` would
+    round to ``start``), or more than ``limit`` values. Counted in floats first, so that a tiny
+    step (5e-324) is refused instead of overflowing an integer."""
+    if not (step != 0 and (stop - start) * step >= 0):
+        return "the step must be non-zero and point from start to stop"
+    n = abs((stop - start) / step)
+    fine = f"the step {step:g} is below the resolution of the values"
+    if not math.isfinite(n):
+        return fine
+    if not n < limit:
+        shown = f"{int(n + 1e-9) + 1}" if n < 1e15 else f"{n:.3g}"
+        return f"{shown} values: the limit is {limit}"
+    if abs(step) <= 1e-12 * max(abs(start), abs(stop)):
+        return fine
+    return int(n + 1e-9) + 1

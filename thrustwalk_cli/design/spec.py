@@ -7,7 +7,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..description.robot import Robot
-from ..errors import InputError, param_problem
+from ..errors import (
+    LARGEST_COUNT,
+    InputError,
+    check_choice,
+    check_count,
+    check_flag,
+    check_number,
+    check_numbers,
+    check_text,
+    param_problem,
+)
 from ..model.compiled import CompiledModel
 
 OBJECTIVES = ("effort", "peak")
@@ -70,6 +80,29 @@ class DesignSpec:
     max_iter: int = 150
     nodes: int = 33
     name: str = "designed_gait"
+
+    def __post_init__(self) -> None:
+        """Every field of the right kind (numbers finite, counts whole, names strings):
+        :class:`InputError` naming the field; the ranges are :meth:`validate`'s."""
+        for key in ("speed", "step_length", "min_vertical_force"):
+            check_number(key, getattr(self, key), optional=True)
+        for key in ("mu", "clearance", "max_delta_sq", "min_liftoff", "min_touchdown_velocity",
+                    "min_zeta_ratio", "thrust_weight"):
+            check_number(key, getattr(self, key))
+        for key in ("order", "starts", "seed", "max_iter", "nodes"):
+            check_count(key, getattr(self, key), ge=-LARGEST_COUNT)
+        check_choice("objective", self.objective, OBJECTIVES)
+        check_flag("thrust_design", self.thrust_design)
+        check_numbers("thrust", self.thrust, optional=True, min_len=0)
+        check_numbers("alpha_c", self.alpha_c, optional=True, min_len=0)
+        check_text("name", self.name)
+        r = self.thrust_range
+        if r is not None and not (isinstance(r, (tuple, list)) and len(r) == 3
+                                  and isinstance(r[0], str)):
+            raise InputError.param("thrust_range", f"must be (thruster, low, high) [N], got "
+                                                   f"{type(r).__name__} {r!r:.40}")
+        if r is not None:
+            check_numbers("thrust_range", r[1:], min_len=2)
 
     def validate(self, model: CompiledModel) -> None:
         """Raise :class:`InputError` (one line per problem, naming the parameter)."""

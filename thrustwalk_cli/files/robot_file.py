@@ -20,7 +20,7 @@ from ..description.robot import (
     coordinate_map,
     symmetry_relabel,
 )
-from ..errors import InputError, Problem
+from ..errors import InputError, Problem, check_number_map, check_path
 from .bundled import resolve
 from .schema import (
     check,
@@ -164,6 +164,9 @@ def load_robot(ref: str, parameters: Mapping[str, float] | None = None, *,
     ``scale``: factors for named parameters (``{"MT": 1.1}``: 10 % more torso mass; an
     expression ``e`` becomes ``(e) * factor``), applied before ``parameters`` (a plant that
     differs from a controller's model)."""
+    ref = check_path("ref", ref)
+    parameters = check_number_map("parameters", parameters, optional=True)
+    scale = check_number_map("scale", scale, optional=True, gt=0)
     path = resolve(ref, "robots")
     doc = load_yaml(path, expect=kind_check("robot", ROBOT_SCHEMA))
     if scale:

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ..description.sweep import DISTRIBUTIONS, Axis, SweepSpec
+from ..description.sweep import DISTRIBUTIONS, Axis, SweepSpec, range_count
 from ..errors import InputError, Problem, param_problem
 from ..thrust.dynamics import ALIASES, model_names
 from .bundled import EXPLICITLY, resolve, resolve_inside
@@ -55,11 +55,11 @@ MAX_KNOTS = 256  # intervals of a thrust schedule (as in a gait file)
 _THRUSTER = field("thruster", null_or(string()), "thruster driven by `thrust` and by a force-mode "
                   "`schedule` (default: the first)", default=None)
 _SCHEDULE = field("schedule", null_or(mapping(
-    field("knots", vector(min_len=2, max_len=MAX_KNOTS + 1), "knots as fractions of the step, "
-          "0 first and 1 last"),
-    field("values", vector(min_len=1, max_len=MAX_KNOTS), "one value per interval [N] (force "
-          "mode, on `thruster`) or [N m] (generalized mode); axis `schedule.j` sweeps interval "
-          "j (1 = the first)"),
+    field("knots", vector(min_len=2, max_len=MAX_KNOTS + 1, ge=0, le=1), "knots as fractions "
+          "of the step, 0 first and 1 last, strictly increasing"),
+    field("values", vector(min_len=1, max_len=MAX_KNOTS), "one value per interval between the "
+          "knots [N] (force mode, on `thruster`; within its limits) or [N m] (generalized "
+          "mode); axis `schedule.j` sweeps interval j (1 = the first)"),
     field("mode", choice("force", "generalized"), "force: thrust [N] of `thruster`; "
           "generalized: T_j on q_N [N m]", default="force"),
 )), "piecewise-constant thrust on knots (SPEC 4), analysed instead of a constant `thrust`",
@@ -80,9 +80,10 @@ _STRATEGY = (
     field("thrust", null_or(number("N")), "constant thrust of the constant strategy (default: "
           "the gait's thrust: section, else 0)", default=None),
     _SCHEDULE,
-    field("knots", vector(min_len=2, max_len=MAX_KNOTS + 1), "control: knots as fractions of "
-          "the step, 0 first and 1 last", default=[0.0, 0.5, 1.0]),
-    field("max_thrust", null_or(number("N", gt=0)), "control: thrust bound within the "
+    field("knots", vector(min_len=2, max_len=MAX_KNOTS + 1, ge=0, le=1), "control: knots as "
+          "fractions of the step, 0 first and 1 last, strictly increasing",
+          default=[0.0, 0.5, 1.0]),
+    field("max_thrust", null_or(number("N", gt=0)), "control: thrust bound, at most the "
           "thruster's limits", default=None),
     _MU,
     field("min_vertical_force", number("N", ge=0), "least vertical ground force F^v (a step "
@@ -117,11 +118,13 @@ STUDY_PARAMETERS: dict[str, Kind] = {
         _SCHEDULE,
         field("steps", integer("1", ge=1, le=10_000), "steps of the full-order run",
               default=10),
-        field("wn", number("rad/s", gt=0), "natural frequency of the second-order thruster",
+        field("wn", number("rad/s", gt=0, le=1000), "natural frequency of the second-order "
+              "thruster (a faster one is the ideal model, and makes the equations stiff)",
               default=2.0),
         field("xi", number("1", gt=0), "damping ratio of the second-order thruster",
               default=1.0),
-        field("tau", number("s", gt=0), "lag of the first-order thruster", default=0.5),
+        field("tau", number("s", ge=0.001), "lag of the first-order thruster (a shorter one is "
+              "the ideal model, and makes the equations stiff)", default=0.5),
         field("f0", number("N"), "thrust at t = 0 of the dynamic thruster models",
               default=0.0),
         field("perturb", number("1", gt=-1), "start on the predicted orbit with zeta^- scaled "
@@ -135,13 +138,13 @@ STUDY_PARAMETERS: dict[str, Kind] = {
               "is reported)", default=None),
         field("method", choice("compiled", "scipy"), "compiled (the numba kernel) or scipy "
               "(solve_ivp, the reference)", default="compiled"),
-        field("rtol", number("1", gt=0, lt=1), "relative integration tolerance", default=1e-9),
-        field("atol", number("1", gt=0), "absolute integration tolerance", default=1e-9),
+        field("rtol", number("1", gt=0, lt=0.1), "relative integration tolerance", default=1e-9),
+        field("atol", number("1", gt=0, lt=0.1), "absolute integration tolerance", default=1e-9),
     ),
     "push-trial": mapping(
         *_STRATEGY,
         field("push_impulse", number("N s"), "signed size of the push along `push_direction` "
-              "(0: no push)", default=0.0),
+              "(0: no push; at most the robot's mass x 10 m/s)", default=0.0),
         field("push_phase", number("1", ge=0, le=1), "phase s of step 1 at which the push acts "
               "(1: just before the impact)", default=0.5),
         field("push_direction", vector(2), "direction of a positive push in the world frame "
@@ -165,9 +168,9 @@ STUDY_PARAMETERS: dict[str, Kind] = {
               "this fraction of the orbit's", default=0.05),
         field("output_tol", number("rad", gt=0), "recovered: max |y| over the last step at "
               "most this", default=1e-3),
-        field("rtol", number("1", gt=0, lt=1), "relative integration tolerance",
+        field("rtol", number("1", gt=0, lt=0.1), "relative integration tolerance",
               default=1e-9),
-        field("atol", number("1", gt=0), "absolute integration tolerance", default=1e-9),
+        field("atol", number("1", gt=0, lt=0.1), "absolute integration tolerance", default=1e-9),
     ),
     "reduced-walk": mapping(
         *_STRATEGY,
@@ -328,13 +331,12 @@ def _range(a: dict, key: tuple, res: ValidationResult, problems: list[Problem]
             return None
         return tuple(float(v) for v in np.linspace(start, stop, n))
     step = a["step"]
-    if step == 0 or (stop - start) * step < 0:
-        problems.append(res.problem(key + ("step",), f"the step must be non-zero and point from "
-                                                     f"start to stop (got {step:g})"))
-        return None
-    count = int(abs((stop - start) / step) + 1e-9) + 1
-    if count > MAX_AXIS_VALUES:
-        problems.append(res.problem(key, f"{count} values: the limit is {MAX_AXIS_VALUES}"))
+    count = range_count(start, stop, step, MAX_AXIS_VALUES)
+    if isinstance(count, str):
+        many = count.endswith(f"the limit is {MAX_AXIS_VALUES}")
+        problems.append(res.problem(key if many else key + ("step",),
+                                    count if many or "resolution" in count else
+                                    f"{count} (got {step:g})"))
         return None
     return tuple(start + i * step for i in range(count))
 
@@ -361,6 +363,53 @@ def _random_axis(name: str, a: dict, key: tuple, res: ValidationResult,
                                                     f"distribution, got {p[0]:g}"))
         return None
     return p
+
+
+def _knot_problems(knots: list[float], key: tuple, res: ValidationResult) -> list[Problem]:
+    """Knots as fractions of the step: 0 first, 1 last, strictly increasing."""
+    if knots[0] != 0.0 or knots[-1] != 1.0:
+        return [res.problem(key, f"knots are fractions of the step: the first must be 0 and the "
+                                 f"last 1 (got {knots[0]:g} and {knots[-1]:g})")]
+    for i in range(1, len(knots)):
+        if not knots[i] > knots[i - 1]:
+            return [res.problem(key + (i,), f"knots must increase strictly: knot {i + 1} "
+                                            f"({knots[i]:g}) does not follow knot {i} "
+                                            f"({knots[i - 1]:g})")]
+    return []
+
+
+def _settings_problems(settings: dict, res: ValidationResult) -> list[Problem]:
+    """What the schema cannot say about the settings: the knots of ``schedule`` and of the
+    controller (``knots``) in order, and one schedule value per interval between knots."""
+    out = []
+    sched = settings.get("schedule")
+    if sched is not None:
+        key = ("settings", "schedule")
+        out += _knot_problems(list(sched["knots"]), key + ("knots",), res)
+        n = len(sched["knots"]) - 1
+        if len(sched["values"]) != n:
+            out.append(res.problem(key + ("values",), f"expected {n} values (one per interval "
+                                                      f"between {n + 1} knots), got "
+                                                      f"{len(sched['values'])}"))
+    if settings.get("knots") is not None:
+        out += _knot_problems(list(settings["knots"]), ("settings", "knots"), res)
+    return out
+
+
+def value_problem(study: str, name: str, value: float) -> str | None:
+    """Why ``value`` is not a value of the study parameter ``name`` (its bounds and, for a
+    count, a whole number; from the parameter table), or None. For the values of an axis,
+    which the schema reads as plain numbers."""
+    for f in STUDY_PARAMETERS[study].fields:
+        if f.key != name:
+            continue
+        kind = f.kind.item if f.kind.tag == "null_or" else f.kind
+        if kind is None or kind.tag not in ("number", "integer"):
+            return None
+        if kind.tag == "integer" and not float(value).is_integer():
+            return f"must be a whole number, got {value:g}"
+        return kind.bounds.violation(float(value))
+    return None
 
 
 def load_sweep_file(ref: str | Path, robot: str | None = None, gait: str | None = None
@@ -440,6 +489,7 @@ def load_sweep_file(ref: str | Path, robot: str | None = None, gait: str | None 
                                                              "remove `unit` or write that"))
         return Axis(name, unit, group, ())
 
+    problems += _settings_problems(settings, res)
     for group in ("grid", "zip"):
         for name, a in d[group].items():
             key = (group, name)
@@ -447,6 +497,9 @@ def load_sweep_file(ref: str | Path, robot: str | None = None, gait: str | None 
             vals = _range(a, key, res, problems)
             if ax is not None and vals is not None:
                 axes.append(Axis(ax.name, ax.unit, group, vals))
+                bad = next(((v, m) for v in vals if (m := value_problem(study, name, v))), None)
+                if bad is not None:
+                    problems.append(res.problem(key, f"value {bad[0]:g}: {bad[1]}"))
     zipped = [a for a in axes if a.group == "zip"]
     if len({len(a.values) for a in zipped}) > 1:
         lens = ", ".join(f"{a.name}: {len(a.values)}" for a in zipped)
@@ -461,6 +514,10 @@ def load_sweep_file(ref: str | Path, robot: str | None = None, gait: str | None 
             par = _random_axis(name, a, key, res, problems)
             if ax is not None and par is not None:
                 axes.append(Axis(ax.name, ax.unit, "random", (), a["distribution"], par))
+                ends = par if a["distribution"] != "normal" else ()
+                bad = next(((v, m) for v in ends if (m := value_problem(study, name, v))), None)
+                if bad is not None:  # a normal axis: its draws are checked when drawn
+                    problems.append(res.problem(key, f"the range reaches {bad[0]:g}: {bad[1]}"))
     if not axes and not problems:
         problems.append(res.problem(("grid",), "no axis: give at least one of grid, zip or "
                                                "random"))

@@ -53,7 +53,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, check_number
 from ..hzd.zero_dynamics import ZeroDynamics
 from .poincare import (
     FDJacobian,
@@ -222,14 +222,8 @@ def output_reference(kp: float, kd: float, T: float) -> float:
 
 def check_agreement_tol(agreement_tol: float | None) -> None:
     """``agreement_tol`` [1]: None (the scaled rule) or a finite number > 0."""
-    if agreement_tol is None:
-        return
-    try:
-        v = float(agreement_tol)
-    except (TypeError, ValueError):
-        raise InputError.param("agreement_tol", f"must be a number > 0 (got "
-                                                f"{agreement_tol!r})") from None
-    if not (np.isfinite(v) and v > 0):
+    v = check_number("agreement_tol", agreement_tol, optional=True)  # a finite number
+    if v is not None and not v > 0:
         raise InputError.param("agreement_tol", f"must be a finite number > 0 (got {v:g})")
 
 

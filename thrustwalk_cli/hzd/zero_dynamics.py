@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..description.gait import Gait
+from ..errors import InputError, check_count, check_instance
 from ..model.compiled import CompiledModel
 from ..thrust.schedule import Schedule
 from .constraints import GaitMaps, gait_maps
@@ -551,6 +552,12 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> Li
     built when read (:class:`LimitCycles`, a sequence of :class:`LimitCycle`), so a sweep
     costs little more than one orbit.
     """
+    check_instance("zd", zd, ZeroDynamics, "a ZeroDynamics (walker.zd)")
+    check_instance("schedule", schedule, Schedule, "a Schedule (e.g. Schedule.constant)")
+    samples = check_count("samples", samples, ge=3, le=100_000)
+    arrays = (schedule.knots, schedule.force, schedule.generalized)
+    if not all(np.all(np.isfinite(np.asarray(a, float))) for a in arrays):
+        raise InputError.param("schedule", "knots and thrust values must be finite numbers")
     d2 = zd.delta_zero_sq
     kn = schedule.knots
     basis = orbit_basis(zd, kn, samples)

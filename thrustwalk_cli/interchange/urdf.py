@@ -46,7 +46,7 @@ import numpy as np
 
 from .._version import __version__
 from ..description.robot import Robot
-from ..errors import InputError, Problem, Where, locate
+from ..errors import InputError, Problem, Where, check_instance, locate
 from ..files.robot_file import MAX_LINKS, load_robot_text
 from ..files.urdf_file import Urdf, UrdfJoint
 
@@ -747,6 +747,7 @@ def robot_to_urdf(robot: Robot) -> str:
     Link masses [kg], centres of mass (x, 0, y) [m] and inertias (``iyy`` = the planar
     inertia [kg m^2]) as ``<inertial>``; no geometry. Feet, thrusters, rotors and the
     relabelling, which URDF cannot hold, are in :func:`robot_side` (and in comments)."""
+    check_instance("robot", robot, Robot, "a Robot (tw.load_robot)")
     coord = {c.link: c for c in robot.coordinates if c.actuated}
     L = ['<?xml version="1.0"?>',
          f"<!-- {_xml_comment(robot.name)}: exported by thrustwalk {__version__} "

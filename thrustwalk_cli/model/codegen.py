@@ -23,6 +23,8 @@ The generated module imports only ``math`` and ``numpy``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import sympy as sp
 from sympy.printing.numpy import NumPyPrinter
 from sympy.printing.pycode import PythonCodePrinter
@@ -30,7 +32,7 @@ from sympy.printing.pycode import PythonCodePrinter
 
 class _NpPrinter(NumPyPrinter):
     def __init__(self) -> None:
-        super().__init__({"fully_qualified_modules": False, "inline": True})
+        super().__init__({"fully_qualified_modules": False, "inline": True, "order": "none"})
 
     def _module_format(self, fqn: str, register: bool = True) -> str:  # numpy.cos -> _np.cos
         return "_np." + fqn.split(".")[-1]
@@ -38,10 +40,42 @@ class _NpPrinter(NumPyPrinter):
 
 class _MathPrinter(PythonCodePrinter):
     def __init__(self) -> None:
-        super().__init__({"fully_qualified_modules": False, "inline": True})
+        super().__init__({"fully_qualified_modules": False, "inline": True, "order": "none"})
 
     def _module_format(self, fqn: str, register: bool = True) -> str:  # math.cos -> _m.cos
         return "_m." + fqn.split(".")[-1]
+
+
+class Printers:
+    """The two printers (NumPy, ``math``) with a memo: a definition that several functions
+    need is printed once."""
+
+    def __init__(self) -> None:
+        self.np, self.m = _NpPrinter(), _MathPrinter()
+        self.memo: dict[tuple[bool, sp.Expr], str] = {}
+
+    def __call__(self, e: sp.Expr, numpy: bool) -> str:
+        key = (numpy, e)
+        r = self.memo.get(key)
+        if r is None:
+            r = (self.np if numpy else self.m).doprint(e)
+            self.memo[key] = r
+        return r
+
+
+def needed_definitions(defs: dict[sp.Symbol, sp.Expr], exprs: list[sp.Expr]
+                       ) -> list[tuple[sp.Symbol, sp.Expr]]:
+    """The definitions that ``exprs`` read, directly or through other definitions, in the
+    order of ``defs`` (each after the ones it reads)."""
+    seen: set[sp.Symbol] = set()
+    stack = [s for e in exprs for s in e.free_symbols if s in defs]
+    while stack:
+        s = stack.pop()
+        if s in seen:
+            continue
+        seen.add(s)
+        stack.extend(x for x in defs[s].free_symbols if x in defs and x not in seen)
+    return [(s, e) for s, e in defs.items() if s in seen]
 
 
 def generate_function(
@@ -50,20 +84,28 @@ def generate_function(
     args: list[tuple[str, list[sp.Symbol]]],
     doc: str,
     vector: bool = False,
+    defs: dict[sp.Symbol, sp.Expr] | None = None,
+    printers: Printers | None = None,
 ) -> str:
     """Source of ``name`` (vectorised) and ``name_s`` (scalar) evaluating matrix ``M``.
 
     ``args``: ``[(argument_name, [symbols in order])]``; the docstring lists the order.
     ``vector``: a column matrix is returned as a vector ``(..., rows)``.
+    ``defs``: definitions that ``M`` is written in (:func:`thrustwalk_cli.model.derive.derive`):
+    the ones it needs become the function's temporaries, in order, with no
+    common-subexpression search; without ``defs``, SymPy's ``cse`` finds the temporaries.
     """
     flat = list(M) if M.shape[0] * M.shape[1] else []
-    repl, reduced = sp.cse(flat, symbols=sp.numbered_symbols("t_"), order="none")
+    if defs is None:
+        repl, reduced = sp.cse(flat, symbols=sp.numbered_symbols("t_"), order="none")
+    else:
+        repl, reduced = needed_definitions(defs, flat), flat
+    pr = printers or Printers()
     shape = (M.shape[0],) if vector else tuple(M.shape)
     order = "; ".join(f"{a} = [{', '.join(str(s) for s in syms)}]" for a, syms in args)
     used = set().union(*(e.free_symbols for e in flat)) if flat else set()
     used |= set().union(*(e.free_symbols for _, e in repl)) if repl else set()
     sig = ", ".join(a for a, _ in args)
-    np_p, m_p = _NpPrinter(), _MathPrinter()
     dims = ", ".join(map(str, shape))
     lines = [f"def {name}({sig}):", f'    """{doc}\n\n    Argument order: {order}.',
              f'    Returns shape (..., {dims})."""']
@@ -76,14 +118,14 @@ def generate_function(
                 lines.append(f"    {s} = {a}[..., {i}]")
     lines.append(f"    _b = _np.broadcast_shapes({', '.join(batch)})")
     for s, e in repl:
-        lines.append(f"    {s} = {np_p.doprint(e)}")
+        lines.append(f"    {s} = {pr(e, True)}")
     lines.append(f"    _out = _np.empty(_b + {shape!r})")
     for k, e in enumerate(reduced):
         if len(shape) == 1:
             idx = f"..., {k}"
         else:
             idx = f"..., {k // shape[1]}, {k % shape[1]}"
-        lines.append(f"    _out[{idx}] = {np_p.doprint(e)}")
+        lines.append(f"    _out[{idx}] = {pr(e, True)}")
     lines.append("    return _out")
     lines.append("")
     lines.append(f"def {name}_s({sig}):")
@@ -95,8 +137,8 @@ def generate_function(
         else:
             lines.append(f"    {', '.join(names_)} = {a}")
     for s, e in repl:
-        lines.append(f"    {s} = {m_p.doprint(e)}")
-    items = ", ".join(m_p.doprint(sp.Float(e) if e.is_Number else e) for e in reduced)
+        lines.append(f"    {s} = {pr(e, False)}")
+    items = ", ".join(pr(sp.Float(e) if e.is_Number else e, False) for e in reduced)
     lines.append(f"    return [{items}]")
     lines.append("")
     return "\n".join(lines)
@@ -201,12 +243,14 @@ class _TapeBuilder:
     ``cos`` per input angle instead of one call per distinct argument).
     """
 
-    def __init__(self, inputs: list[sp.Symbol], params: set[sp.Symbol] = frozenset()):
+    def __init__(self, inputs: list[sp.Symbol], params: set[sp.Symbol] = frozenset(),
+                 defs: dict[sp.Symbol, sp.Expr] | None = None):
         from .tape import OPS
 
         self.op_code = OPS
         self.inputs = {s: i for i, s in enumerate(inputs)}
         self.params = params
+        self.defs = defs or {}
         self.consts: dict[float | sp.Symbol, int] = {}
 
     def start(self) -> None:
@@ -255,6 +299,8 @@ class _TapeBuilder:
         if e.is_Symbol:
             if e in self.params:
                 return self.const(e)
+            if e in self.defs:
+                return self.emit(self.defs[e])
             if e not in self.reg:
                 raise ValueError(f"tape: unknown symbol {e}")
             return self.reg[e]
@@ -304,13 +350,25 @@ class _TapeBuilder:
         raise ValueError(f"tape: unsupported expression {type(e).__name__}")
 
     def _linear(self, a: sp.Expr) -> tuple | None:
-        """``a`` as ((input register, integer coefficient), ...), or None."""
-        combo = []
-        for k, v in a.as_coefficients_dict().items():
-            if k not in self.inputs or not v.is_Integer:
-                return None
-            combo.append((self.inputs[k], int(v)))
-        return tuple(sorted(combo)) or None
+        """``a`` as ((input register, integer coefficient), ...), or None; definitions that
+        are integer combinations of inputs count as such."""
+        acc: dict[int, int] = {}
+
+        def walk(e: sp.Expr, m: int) -> bool:
+            for k, v in e.as_coefficients_dict().items():
+                if not v.is_Integer:
+                    return False
+                if k in self.inputs:
+                    acc[self.inputs[k]] = acc.get(self.inputs[k], 0) + m * int(v)
+                elif k in self.defs:
+                    if not walk(self.defs[k], m * int(v)):
+                        return False
+                else:
+                    return False
+            return True
+        if not walk(a, 1):
+            return None
+        return tuple(sorted((r, c) for r, c in acc.items() if c)) or None
 
     def _sincos(self, combo: tuple) -> tuple[int, int]:
         """Registers of ``sin`` and ``cos`` of ``sum k_i x_i``: ``sin(a + b) = s_a c_b + c_a
@@ -394,7 +452,9 @@ def _pair_trig(order: list[tuple[int, int, int, int, int]], ops: dict[str, int]
 
 
 def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
-                  inputs: list[sp.Symbol], params: set[sp.Symbol] = frozenset()) -> dict:
+                  inputs: list[sp.Symbol], params: set[sp.Symbol] = frozenset(),
+                  defs: dict[sp.Symbol, sp.Expr] | None = None,
+                  progress: Callable[[str], None] | None = None) -> dict:
     """Compile groups of expressions into one tape (plain data, see
     :mod:`thrustwalk_cli.model.tape` for its layout and interpreter).
 
@@ -406,9 +466,11 @@ def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
     instruction is a ``skip``: the sine and cosine of one angle are one library call).
     ``params``: symbols that are constants whose values come with the bound model (the
     coefficients of the robot's numbers): ``consts`` names them, and the bound model
-    supplies their values.
+    supplies their values. ``defs``: definitions the expressions are written in (each is
+    emitted where a program first reads it). ``progress`` is called with each program's
+    name when it is encoded.
     """
-    b = _TapeBuilder(inputs, params)
+    b = _TapeBuilder(inputs, params, defs)
     raw = {}
     for name, (n_in, exprs) in programs.items():
         b.start()
@@ -450,6 +512,8 @@ def generate_tape(programs: dict[str, tuple[int, list[sp.Expr]]],
         offsets[name] = len(code)
         code += [n_in, len(outs), len(order), base, *(where.get(r, r) for r in outs), *enc]
         nreg = max(nreg, base + len(order))
+        if progress is not None:
+            progress(name)
     consts: list = [0.0] * n_const
     for v, i in b.consts.items():
         consts[i] = str(v) if isinstance(v, sp.Symbol) else v

@@ -56,6 +56,41 @@ METHODS = ("DOP853", "RK45", "Radau", "LSODA", "BDF")  # solve_ivp integrators
 MAX_STEPS = 10_000  # steps per run
 MAX_SAMPLES = 10_000  # output samples per step
 MAX_TOTAL_STEPS = 20_000  # runs x steps in one call (about 70 ms per step with SciPy)
+MAX_THRUSTER_RATE = 1000.0  # [1/s] the fastest pole of a thruster model (thruster_rate)
+
+
+def thruster_rate(kind: str, wn: float, xi: float, tau: float, m: int = 1) -> float:
+    """The fastest pole [1/s] of a thruster model: ``1/tau`` (first order), ``wn (xi +
+    sqrt(xi^2 - 1))`` when overdamped, else ``wn`` (second order); 0 for ideal thrusters and
+    piecewise commands; for any other model of :data:`thrustwalk_cli.thrust.dynamics.MODELS`
+    the largest ``|eig(A)|`` of its dynamics for ``m`` thrusters (:meth:`~thrustwalk_cli.
+    thrust.dynamics.ThrusterDynamics.matrices`; a model may give each thruster its own)."""
+    kind = thruster_models.canonical(kind)
+    if kind == "first-order":
+        return 1.0 / tau
+    if kind == "second-order":
+        return wn * (xi + np.sqrt(xi * xi - 1.0)) if xi > 1.0 else wn
+    if kind == PIECEWISE or kind not in thruster_models.MODELS:
+        return 0.0
+    A = thruster_models.make(kind, m, wn=wn, xi=xi, tau=tau).matrices()[0]
+    return float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
+
+
+def check_thruster_rate(kind: str, wn: float, xi: float, tau: float, m: int = 1) -> None:
+    """A thruster model's fastest pole at most :data:`MAX_THRUSTER_RATE` (a time constant of
+    1 ms): a faster thruster follows its command within a thousandth of a walking step, is
+    the ``ideal`` model in effect, and makes the equations stiff (the explicit integrator
+    would take millions of steps). :class:`InputError` on the model's parameters (``tau``;
+    ``wn``, ``xi``). ``m``: the robot's thrusters (:func:`thruster_rate`)."""
+    rate = thruster_rate(kind, wn, xi, tau, m)
+    if rate > MAX_THRUSTER_RATE:
+        params = thruster_models.MODELS[thruster_models.canonical(kind)].params
+        names = params[0] if len(params) == 1 else (tuple(params) or "thrust_model")
+        raise InputError.param(names, f"a thruster with a {1e3 / rate:.3g} ms time constant "
+                                      f"(poles up to {rate:.3g} 1/s) is faster than "
+                                      f"{1e3 / MAX_THRUSTER_RATE:g} ms: on a step's time scale it "
+                                      "is the ideal thrust model (use that), and it makes the "
+                                      "equations stiff")
 
 
 # ----------------------------------------------------------------------------- thrust

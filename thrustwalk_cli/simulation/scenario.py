@@ -25,7 +25,13 @@ from ..errors import InputError, param_problem
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..thrust.dynamics import canonical
 from ..thrust.schedule import Schedule
-from .closed_loop import ThrustModel, predicted_cycle, thrust_model_names, zeta_star_at
+from .closed_loop import (
+    ThrustModel,
+    check_thruster_rate,
+    predicted_cycle,
+    thrust_model_names,
+    zeta_star_at,
+)
 from .full_order import NoOrbit, SimConfig, SimResult, Start, initial_state, simulate
 from .reduced import ReducedModel, ReducedResult, predict_step, simulate_reduced
 
@@ -129,6 +135,8 @@ def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
                                                f"(got {kw[key]:g})"))
     if problems:
         raise InputError(sorted(set(problems), key=str))
+    check_thruster_rate(kind, kw.get("wn", 2.0), kw.get("xi", 1.0), kw.get("tau", 0.5),
+                        zd.model.n_thrusters)
     kw["config"].validate()
     return Scenario(kind, tuple(values), idx, schedule=schedule, **kw)
 

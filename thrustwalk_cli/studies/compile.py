@@ -5,16 +5,21 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from ..errors import check_flag, check_path
 from ..files.robot_file import load_robot
 from ..model.compiled import CompiledModel
-from ..model.compiler import load_model
+from ..model.compiler import Progress, load_model
 
 
-def compile_robot(robot: str, rebuild: bool = False) -> CompiledModel:
+def compile_robot(robot: str, rebuild: bool = False,
+                  progress: Progress | None = None) -> CompiledModel:
     """The compiled model of the robot file or bundled name ``robot``; ``rebuild`` ignores the
-    cache. ``model.summary()`` lists links, coordinates, mass [kg], thrusters, time [s] and the
-    cache entry."""
-    return load_model(load_robot(robot), rebuild=rebuild)
+    cache; ``progress(done, total, phase)`` hears about every step of a compile.
+    ``model.summary()`` lists links, coordinates, mass [kg], thrusters, time [s] and the cache
+    entry."""
+    robot = check_path("robot", robot)
+    rebuild = check_flag("rebuild", rebuild)
+    return load_model(load_robot(robot), rebuild=rebuild, progress=progress)
 
 
 def compile_kernel(*, rebuild: bool = False,

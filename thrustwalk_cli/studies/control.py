@@ -44,11 +44,22 @@ from ..controller.planner import (
 )
 from ..controller.references import SpeedReference, reference_values, speed_references
 from ..controller.step_model import IdealThrust, ResponseThrust, Terms
-from ..errors import InputError
+from ..errors import (
+    InputError,
+    check_callable,
+    check_choice,
+    check_count,
+    check_flag,
+    check_number,
+    check_number_map,
+    check_numbers,
+    check_pushes,
+    check_texts,
+)
 from ..hzd.zero_dynamics import ZeroDynamics
-from ..simulation.closed_loop import MAX_STEPS, SimConfig
-from ..thrust.dynamics import canonical, make, model_names
-from ..walker import Walker, walker_from
+from ..simulation.closed_loop import MAX_STEPS, SimConfig, check_thruster_rate
+from ..thrust.dynamics import canonical, check_model, make, model_names
+from ..walker import Walker, check_walker, walker_from
 from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 REFERENCES = ("speed", "zeta", "nominal")
@@ -441,6 +452,20 @@ def _run_summary(run: Run | None, certificate: bool = False) -> dict | None:
 
 
 # ----------------------------------------------------------------------------- the study
+def _check_profile_pairs(profile) -> list[tuple[float, float]]:
+    """``profile`` as (step, value) pairs of finite numbers (their meaning: check_profile)."""
+    if profile is None:
+        return []
+    if isinstance(profile, (str, bytes, dict)) or not hasattr(profile, "__iter__"):
+        raise InputError.param("profile", f"must be a sequence of (step, value) pairs, got "
+                                          f"{type(profile).__name__} {profile!r:.40}")
+    out = []
+    for p in profile:
+        pair = check_numbers("profile", p, min_len=2, max_len=2)
+        out.append((pair[0], pair[1]))
+    return out
+
+
 def _plant(walker: Walker, plant_scale: dict[str, float]) -> tuple[ZeroDynamics, dict]:
     if not plant_scale:
         return walker.zd, {"same_as_model": True, "scale": {}}
@@ -471,8 +496,8 @@ def control(walker: Walker, *, reference: str = "speed",
             rate_limit: float | None = None, tracking_weight: float | None = None,
             effort_weight: float = 1.0, rate_weight: float = 0.0, terms: str = "exact",
             fit_tol: float = 1e-3, points: int = 401, zeta0: float | None = None,
-            compare: bool = True, progress: Callable[[int], None] | None = None
-            ) -> ControlResult:
+            compare: bool = True, progress: Callable[[int], None] | None = None,
+            check_only: bool = False) -> ControlResult | None:
     """Step-to-step thrust control (SPEC 11) in closed loop with the full-order simulation.
 
     ``reference``: ``speed`` [m/s], ``zeta`` [kg^2 m^4/s^2] (``profile`` of ``(step, value)``,
@@ -488,8 +513,42 @@ def control(walker: Walker, *, reference: str = "speed",
     :mod:`thrustwalk_cli.controller.planner`. ``terms``: ``exact`` Lambdas or ``fitted``
     polynomials (relative tolerance ``fit_tol``) with their error bound added to the margins.
     ``zeta0``: the start's zeta^- (default zeta*_0). ``compare``: also run the uncontrolled
-    walker (and, for slow thrusters, the controller that ignores the lag).
+    walker (and, for slow thrusters, the controller that ignores the lag). ``check_only``:
+    check every argument, compute nothing and return None (a command checks its options before
+    it compiles the simulation kernel). A push is at most 10 m/s of the whole robot's velocity
+    (:meth:`~thrustwalk_cli.description.robot.Robot.push_bound`).
     """
+    check_walker(walker)
+    check_choice("reference", reference, REFERENCES)
+    profile = _check_profile_pairs(profile)
+    ramp = check_flag("ramp", ramp)
+    knots = check_numbers("knots", knots, min_len=0)
+    steps = check_count("steps", steps, le=MAX_STEPS)
+    thrust_model = check_model(thrust_model)  # the deprecated `constant` is `ideal`
+    wn = check_number("wn", wn, gt=0, unit="rad/s")
+    xi = check_number("xi", xi, gt=0)
+    tau = check_number("tau", tau, gt=0, unit="s")
+    thruster = check_texts("thruster", thruster, optional=True)
+    push = check_pushes("push", push, walker.robot, steps)
+    plant_scale = check_number_map("plant_scale", plant_scale, optional=True, gt=0)
+    noise = check_number("noise", noise)
+    seed = check_count("seed", seed, ge=0)
+    mu = check_number("mu", mu, optional=True)  # its range: check_contact_options
+    min_vertical_force = check_number("min_vertical_force", min_vertical_force)
+    zeta_min = check_number("zeta_min", zeta_min, gt=0, optional=True, unit="kg^2 m^4/s^2")
+    max_thrust = check_number("max_thrust", max_thrust, gt=0, optional=True, unit="N")
+    rate_limit = check_number("rate_limit", rate_limit, gt=0, optional=True, unit="N per step")
+    tracking_weight = check_number("tracking_weight", tracking_weight, gt=0, optional=True)
+    effort_weight = check_number("effort_weight", effort_weight)
+    rate_weight = check_number("rate_weight", rate_weight)
+    check_choice("terms", terms, TERMS)
+    fit_tol = check_number("fit_tol", fit_tol, gt=0, lt=1)
+    points = check_count("points", points, ge=21, le=10_000)
+    zeta0 = check_number("zeta0", zeta0, gt=0, optional=True, unit="kg^2 m^4/s^2")
+    compare = check_flag("compare", compare)
+    check_callable("progress", progress)
+    if thrust_model != "ideal":
+        check_thruster_rate(thrust_model, wn, xi, tau, walker.model.n_thrusters)
     zd, model, robot = walker.zd, walker.model, walker.robot
     problems = []
     if reference not in REFERENCES:
@@ -509,6 +568,8 @@ def control(walker: Walker, *, reference: str = "speed",
     driven = [robot.thruster_index(n) for n in names]
     if len(set(driven)) != len(driven):
         raise InputError.param("thruster", "a thruster is named twice")
+    if max_thrust is not None:
+        robot.check_thrust_bound("max_thrust", max_thrust, driven)
     fr = [float(k) for k in knots]
     if len(fr) < 2 or fr[0] != 0.0 or fr[-1] != 1.0 or any(
             b <= a for a, b in zip(fr[:-1], fr[1:])):
@@ -554,6 +615,8 @@ def control(walker: Walker, *, reference: str = "speed",
     if not zd.valid:
         raise InputError.param("gait", f"the gait has no walking orbit to control: "
                                        f"{zd.invalid_reason}")
+    if check_flag("check_only", check_only):
+        return None
     span = zd.alpha_f - zd.alpha_i
     kn = zd.alpha_i + np.array(fr) * span
     fits = fit_terms(model, zd, tol=fit_tol) if terms == "fitted" else None

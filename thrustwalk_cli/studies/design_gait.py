@@ -16,13 +16,13 @@ from ..description.robot import Robot
 from ..design.solver import DesignResult, WarmStart, solve_design
 from ..design.spec import DesignSpec
 from ..design.verify import check_gait
-from ..errors import ComputationError, InputError
+from ..errors import ComputationError, InputError, check_callable, check_instance
 from ..files.gait_file import bind_gait, load_gait_text, same_robot_file
 from ..hzd.constraints import apply_invariance
 from ..hzd.zero_dynamics import limit_cycles, zero_dynamics
 from ..model.compiled import CompiledModel
 from ..thrust.schedule import Schedule
-from ..walker import Walker
+from ..walker import Walker, check_walker
 from .documents import SCHEMA_VERSION, result_repr, units
 
 
@@ -315,6 +315,12 @@ def design_gait(robot: CompiledModel, spec: DesignSpec, *, compare: Walker | Non
     optionally evaluate an existing gait (``compare``) with the same objective and
     constraints. ``progress(done, total, message)`` after every solver start. ``initial``: a
     finished neighbouring design to start from (continuation; replaces the default start)."""
+    check_instance("robot", robot, CompiledModel, "a CompiledModel (tw.compile_robot)")
+    check_instance("spec", spec, DesignSpec, "a DesignSpec (tw.DesignSpec(speed=...))")
+    if compare is not None:
+        check_walker(compare, "compare")
+    check_callable("progress", progress)
+    check_instance("initial", initial, WarmStart, "a WarmStart", optional=True)
     spec.validate(robot)
     if compare is not None and compare.robot.name != robot.robot.name:
         raise InputError.param("compare", f"gait {compare.gait.name!r} is for robot "

@@ -17,11 +17,20 @@ import numpy as np
 from ..contact.evaluate import CaseResult, ContactReport, check_contact_options, evaluate
 from ..contact.region import Region, feasible_region
 from ..contact.terms import SCUFF_TOL, SWING_WINDOW, Fits, ImpactData, fit_terms
-from ..errors import InputError, Problem, Where
+from ..errors import (
+    InputError,
+    Problem,
+    Where,
+    check_count,
+    check_number,
+    check_numbers,
+    check_path,
+    check_text,
+)
 from ..files.gait_file import load_gait
 from ..hzd.zero_dynamics import grazing_warning
 from ..thrust.schedule import Schedule, WrittenSchedule
-from ..walker import Walker
+from ..walker import Walker, check_walker
 from .documents import SCHEMA_VERSION, fmt, result_repr, units
 
 UNITS = units("force", "impulse", "torque", "alpha", "thrust", "zeta", "velocity", "height",
@@ -263,6 +272,22 @@ def feasibility(walker: Walker, thrust: Sequence[float] | None = None, *,
     for a robot without thrusters, which accepts no other value).
     ``mu`` [-] defaults to the gait's; ``min_vertical_force`` [N] is the least F^v allowed;
     ``degree``/``fit_tol`` set the polynomial fits L_k."""
+    check_walker(walker)
+    thrust = check_numbers("thrust", thrust, optional=True, min_len=0)
+    if schedule is not None and not isinstance(schedule, WrittenSchedule):
+        schedule = check_path("schedule", schedule)
+    if not (isinstance(schedule_where, str) or callable(schedule_where) or (
+            isinstance(schedule_where, tuple) and all(isinstance(n, str) for n in schedule_where))):
+        raise InputError.param("schedule_where", "must be a parameter name or a function "
+                                                 "(key, message) -> Problem")
+    check_text("thruster", thruster, optional=True)
+    mu = check_number("mu", mu, optional=True)  # its range: check_contact_options
+    min_vertical_force = check_number("min_vertical_force", min_vertical_force)
+    degree = check_count("degree", degree, ge=1, le=30, optional=True)
+    fit_tol = check_number("fit_tol", fit_tol, gt=0, lt=1)
+    shape = check_numbers("region_shape", region_shape, min_len=2, max_len=2, integer=True,
+                          ge=2, le=1000)
+    region_shape = (int(shape[0]), int(shape[1]))
     if thrust is not None and schedule is not None:
         raise InputError.param(("thrust", "schedule"), "give one of them, not both")
     model, zd = walker.model, walker.zd

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..description.robot import Robot
-from ..errors import InputError
+from ..errors import InputError, check_path, check_text
 from ..files.urdf_file import Urdf, UrdfSide, load_urdf, load_urdf_side
 from ..interchange.urdf import (
     PLANES,
@@ -138,6 +138,24 @@ def import_urdf(urdf: str | Path, stance_foot: PointArg | None = None,
     (default: the URDF root's). Options override the side file. ``out`` names the robot file
     in messages; nothing is written here (``result.yaml`` is the file's text).
     Raises :class:`InputError` naming the URDF element and line or the parameter."""
+    urdf = check_path("urdf", urdf)
+    if not Path(urdf).is_file():
+        raise InputError.param("urdf", f"{urdf}: no such file")
+    side = check_path("side", side, optional=True)
+    for param, value in (("stance_foot", stance_foot), ("swing_foot", swing_foot)):
+        if not (value is None or isinstance(value, str) or (
+                isinstance(value, tuple) and len(value) == 2 and isinstance(value[0], str))):
+            raise InputError.param(param, f"must be 'LINK:X,Y,Z' or (LINK, (X, Y, Z)), got "
+                                          f"{type(value).__name__} {value!r:.40}")
+    check_text("plane", plane, optional=True)
+    if isinstance(thrusters, (str, bytes)) or not hasattr(thrusters, "__iter__") or any(
+            not isinstance(t, (str, ThrusterSpec)) for t in thrusters):
+        raise InputError.param("thrusters", "must be a sequence of "
+                                            "'NAME:LINK:X,Y,Z:DX,DZ[:world|link]' texts")
+    thrusters = list(thrusters)
+    check_text("unactuated", unactuated, optional=True)
+    check_text("name", name, optional=True)
+    check_path("out", out)
     u = load_urdf(urdf)
     sd: UrdfSide | None = load_urdf_side(side) if side is not None else None
     d = sd.data if sd is not None else {}

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from ..errors import InputError
+from ..errors import InputError, check_instance, check_numbers
 from ..model.compiled import CompiledModel
 from .documents import SCHEMA_VERSION, units
 
@@ -19,7 +19,7 @@ def _vector(value: str | Sequence[float], param: str, n: int, names: list[str]) 
             raise InputError.param(param, f"expected {n} comma-separated numbers "
                                           f"({', '.join(names)}), got {value!r}") from None
     else:
-        vals = [float(v) for v in value]
+        vals = list(check_numbers(param, value, min_len=0, largest=1e6))
     if len(vals) != n:
         raise InputError.param(param, f"expected {n} values ({', '.join(names)}), "
                                       f"got {len(vals)}")
@@ -35,6 +35,7 @@ def inspect_state(model: CompiledModel, q: str | Sequence[float],
     """D [kg m^2], C q' [N m], G [N m], B_F [m], the swing foot [m] at ``q`` [rad] and, with
     ``dq`` [rad/s], the impact map; with ``thrust`` [N] per thruster, ``B_F F_T`` (keys fixed
     by the robot-model issue)."""
+    check_instance("model", model, CompiledModel, "a CompiledModel (tw.load_model)")
     names = model.robot.coordinate_names
     if thrust is not None and not model.robot.thrusters:
         raise InputError.param("thrust", f"robot {model.robot.name} has no thruster: there is "

@@ -21,10 +21,10 @@ import numpy as np
 
 from ..contact.evaluate import CaseResult, check_contact_options, evaluate
 from ..contact.terms import scuff_reason
-from ..errors import InputError
+from ..errors import InputError, check_number, check_numbers, check_text
 from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, grazing_warning, limit_cycles
 from ..thrust.schedule import Schedule
-from ..walker import Walker
+from ..walker import Walker, check_walker
 from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 DEFAULT_THRUST = (0.0, -10.0, -20.0, -30.0, -40.0, -50.0)  # [N] the paper's sweep
@@ -277,6 +277,12 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
 
     ``max_output`` [bytes]: a sweep whose CSV table would be larger is refused before any work.
     """
+    check_walker(walker)
+    thrust = check_numbers("thrust", thrust, optional=True, min_len=0)
+    check_text("thruster", thruster, optional=True)
+    max_output = check_number("max_output", max_output, gt=0, largest=1e15)
+    mu = check_number("mu", mu, optional=True)  # its range: check_contact_options
+    min_vertical_force = check_number("min_vertical_force", min_vertical_force)
     zd = walker.zd
     mu = walker.gait.mu if mu is None else float(mu)
     eps = float(min_vertical_force)

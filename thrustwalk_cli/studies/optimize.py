@@ -10,12 +10,18 @@ from pathlib import Path
 import numpy as np
 
 from ..contact.evaluate import check_contact_options
-from ..errors import InputError
+from ..errors import (
+    InputError,
+    check_choice,
+    check_number,
+    check_numbers,
+    check_text,
+)
 from ..files.bundled import resolve
 from ..hzd.zero_dynamics import LimitCycle
 from ..model.compiled import CompiledModel
 from ..optimize.min_effort import OptimalSchedule, describe, optimize
-from ..walker import Walker
+from ..walker import Walker, check_walker
 from .documents import SCHEMA_VERSION, result_repr, units
 
 
@@ -240,6 +246,20 @@ def optimize_schedule(walker: Walker, *, knots: list[float] = (0.0, 0.25, 0.5, 0
     force ``>= min_vertical_force`` [N] and ``zeta >= zeta_min`` (default 1 % of zeta*). An
     infeasible problem is a result with ``success`` false and the violated constraint
     families. A robot without thrusters has only ``mode="generalized"``."""
+    check_walker(walker)
+    if isinstance(knots, (list, tuple)) and any(k is None for k in knots):
+        raise InputError.param("knots", "free knots (?) are solved only by shape-only shaping "
+                                        "(the shape command); give every knot")
+    knots = list(check_numbers("knots", knots, min_len=0))
+    target_zeta = check_number("target_zeta", target_zeta, optional=True)
+    target_speed = check_number("target_speed", target_speed, optional=True)
+    max_thrust = check_number("max_thrust", max_thrust, optional=True)
+    mu = check_number("mu", mu, optional=True)  # its range: check_contact_options
+    min_vertical_force = check_number("min_vertical_force", min_vertical_force)
+    zeta_min = check_number("zeta_min", zeta_min, optional=True)
+    check_text("thruster", thruster, optional=True)
+    check_choice("mode", mode, ("force", "generalized"))
+    check_choice("weights", weights, ("alpha", "time"))
     model, zd = walker.model, walker.zd
     mu = walker.gait.mu if mu is None else float(mu)
     eps = float(min_vertical_force)
@@ -250,6 +270,8 @@ def optimize_schedule(walker: Walker, *, knots: list[float] = (0.0, 0.25, 0.5, 0
                                        "needs one (use mode generalized, a generalised force "
                                        "T_j on q_N in N m)")
     j = model.robot.thruster_index(thruster) if mode == "force" else 0
+    if mode == "force" and max_thrust is not None:
+        model.robot.check_thrust_bound("max_thrust", max_thrust, [j])
     fr = np.asarray(knots, float)
     fr[0], fr[-1] = 0.0, 1.0
     res = optimize(model, zd, fr, target_zeta=target_zeta, target_speed=target_speed,

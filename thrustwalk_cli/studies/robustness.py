@@ -37,7 +37,17 @@ from pathlib import Path
 import numpy as np
 
 from ..description.uncertainty import Uncertainty
-from ..errors import InputError, Problem
+from ..errors import (
+    InputError,
+    Problem,
+    check_callable,
+    check_count,
+    check_instance,
+    check_number,
+    check_numbers,
+    check_path,
+    check_text,
+)
 from ..files.gait_file import load_gait
 from ..files.robot_file import load_robot_text
 from ..files.sweep_file import STUDY_PARAMETERS, read_source
@@ -55,7 +65,7 @@ from ..resilience.trials import OUTCOMES
 from ..sweep.points import draw
 from ..sweep.runner import RunCounts, run_tasks
 from ..sweep.tasks import PointTask, identity, task_key
-from ..walker import Walker
+from ..walker import Walker, check_walker
 from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 from .sweep_studies import STUDIES, _realized, run_point, trial_chunk
 
@@ -167,12 +177,56 @@ def plan_robustness(walker: Walker, *, push_impulse: Sequence[float] | None = No
     ``max_thrust`` [N]), the basin slice (``basin_grid`` points per axis, 0: none;
     ``basin_sigma`` range of the relative change of sigma_N^+; ``basin_rate`` [rad/s] range
     +- of the rate of ``basin_joint``), ``uncertainty`` (a file or :class:`Uncertainty`) with
-    ``samples`` draws, and the integrator tolerances."""
+    ``samples`` draws, and the integrator tolerances. A push impulse is at most
+    :meth:`~thrustwalk_cli.description.robot.Robot.push_bound` (10 m/s of the whole robot's
+    velocity)."""
+    check_walker(walker)
+    push_impulse = check_numbers("push_impulse", push_impulse, optional=True, min_len=0,
+                                 max_len=MAX_TRIALS)
+    push_phase = check_numbers("push_phase", push_phase, optional=True, min_len=0,
+                               max_len=MAX_TRIALS)
+    if strategy is not None and (isinstance(strategy, (str, bytes)) or
+                                 not hasattr(strategy, "__iter__")):
+        raise InputError.param("strategy", f"must be a list of strategies (e.g. [\"none\", "
+                                           f"\"control\"]), got {type(strategy).__name__} "
+                                           f"{strategy!r:.40}")
+    if strategy is not None:
+        strategy = list(strategy)
+        for s in strategy:
+            if not isinstance(s, (str, Strategy)):
+                raise InputError.param("strategy", f"a strategy is a name such as "
+                                                   f"\"constant:-20\" or a Strategy, got "
+                                                   f"{type(s).__name__} {s!r:.40}")
+    steps = check_count("steps", steps, le=1000)
+    push_direction = check_numbers("push_direction", push_direction, min_len=2, max_len=2)
+    check_text("push_link", push_link, optional=True)
+    push_at = check_number("push_at", push_at)
+    push_duration = check_number("push_duration", push_duration, unit="s")
+    recovery_tol = check_number("recovery_tol", recovery_tol)
+    output_tol = check_number("output_tol", output_tol, unit="rad")
+    mu = check_number("mu", mu, optional=True)
+    min_vertical_force = check_number("min_vertical_force", min_vertical_force, unit="N")
+    check_text("thruster", thruster, optional=True)
+    knots = check_numbers("knots", knots)
+    max_thrust = check_number("max_thrust", max_thrust, gt=0, optional=True, unit="N")
+    basin_grid = check_count("basin_grid", basin_grid, ge=0, le=201)
+    basin_sigma = check_numbers("basin_sigma", basin_sigma, min_len=2, max_len=2)
+    basin_rate = check_number("basin_rate", basin_rate, unit="rad/s")
+    check_text("basin_joint", basin_joint, optional=True)
+    if uncertainty is not None and not isinstance(uncertainty, Uncertainty):
+        uncertainty = check_path("uncertainty", uncertainty)
+    samples = check_count("samples", samples, le=MAX_SAMPLES)
+    rtol = check_number("rtol", rtol)
+    atol = check_number("atol", atol)
     robot, zd = walker.robot, walker.zd
     impulses = tuple(float(v) for v in (push_impulse if push_impulse is not None
                                         else np.arange(-30.0, 30.0 + 1e-9, 2.0)))
     phases = tuple(float(v) for v in (push_phase if push_phase is not None
                                       else np.round(np.arange(0.0, 1.0 + 1e-9, 0.05), 12)))
+    if impulses:
+        robot.check_push("push_impulse", max(impulses, key=abs))
+    if max_thrust is not None and robot.thrusters:
+        robot.check_thrust_bound("max_thrust", max_thrust, [robot.thruster_index(thruster)])
     problems: list[Problem] = []
 
     def bad(param, message):
@@ -752,10 +806,12 @@ def run_robustness(plan: RobustnessPlan, *, workers: int | None = None,
     the other as the chunk returns). ``chunk``: push and basin trials per engine task
     (default :func:`trial_chunk` of the trials to run and the executor's workers; 1: one per
     task; samples always run one per task); the records do not depend on it."""
-    from .sweep import task_executor
+    from .sweep import check_executor, task_executor
 
-    if chunk is not None and not chunk >= 1:
-        raise InputError.param("chunk", f"must be >= 1 trial per task (got {chunk})")
+    check_instance("plan", plan, RobustnessPlan, "a RobustnessPlan (plan_robustness)")
+    check_executor(workers, scheduler)
+    chunk = check_count("chunk", chunk, optional=True)
+    check_callable("on_record", on_record)
     t0 = time.perf_counter()
     done = {k: v for k, v in (finished or {}).items() if k in {t.key for t in plan.tasks}}
     todo = sum(t.key not in done for t in plan.tasks)
@@ -785,6 +841,17 @@ def robustness(walker: Walker, *, workers: int | None = None, scheduler: str | N
     (SPEC 12; module docstring); ``options`` as :func:`plan_robustness`. Runs on ``workers``
     local processes (default: one per core) or the Dask cluster at ``scheduler``;
     ``progress(1)`` for every trial's record (those of a chunk together, as it returns)."""
+    import inspect
+
+    from .sweep import check_executor
+
+    check_executor(workers, scheduler)
+    check_callable("progress", progress)
+    known = inspect.signature(plan_robustness).parameters
+    for name in options:
+        if name not in known or name == "walker":
+            raise InputError.param(name, "not an option of robustness (they are: "
+                                         f"{', '.join(k for k in known if k != 'walker')})")
     plan = plan_robustness(walker, **options)
     return run_robustness(plan, workers=workers, scheduler=scheduler,
                           on_record=None if progress is None else (lambda r: progress(1)))

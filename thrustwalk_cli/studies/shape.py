@@ -12,7 +12,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import (
+    InputError,
+    check_callable,
+    check_choice,
+    check_count,
+    check_flag,
+    check_instance,
+    check_number,
+    check_numbers,
+    check_text,
+)
 from ..files import expr
 from ..hzd.shaping import (
     DEFAULT_FIELD_K,
@@ -31,7 +41,7 @@ from ..hzd.shaping import (
 )
 from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, limit_cycles
 from ..thrust.schedule import MODES, Schedule, check_knots, knots_alpha, uniform_fractions
-from ..walker import Walker
+from ..walker import Walker, check_walker
 from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 
@@ -83,6 +93,29 @@ class ShapeRequest:
     thruster: str | None = None
     target_zeta: float | None = None
     target_speed: float | None = None
+
+    def __post_init__(self) -> None:
+        """Every field of the right kind (:class:`InputError` naming it; ``ks`` is ``k``)."""
+        if self.knots is not None:
+            if isinstance(self.knots, (str, bytes)) or not hasattr(self.knots, "__iter__"):
+                raise InputError.param("knots", f"must be a sequence of numbers or None (a "
+                                                f"free knot), got {self.knots!r:.40}")
+            check_numbers("knots", [k for k in self.knots if k is not None], min_len=0,
+                          max_len=MAX_KNOTS + 1)
+        check_flag("alpha_knots", self.alpha_knots)
+        check_count("n_knots", self.n_knots, ge=2, le=MAX_KNOTS + 1)
+        if self.pattern is not None and not isinstance(self.pattern, str):
+            raise InputError.param("pattern", f"must be a string (arithmetic in j and k), got "
+                                              f"{type(self.pattern).__name__}")
+        check_numbers("k", self.ks, optional=True, min_len=0)
+        check_number("field_k", self.field_k, optional=True)
+        check_choice("mode", self.mode, MODES, optional=True)
+        check_text("thruster", self.thruster, optional=True)
+        check_number("target_zeta", self.target_zeta, optional=True)
+        check_number("target_speed", self.target_speed, optional=True)
+
+
+MAX_KNOTS = 256  # knot intervals of a shaped schedule (as in a gait file)
 
 
 @dataclass(frozen=True)
@@ -274,6 +307,10 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
     be larger is refused before any work."""
     from .limit_cycle import ORBIT_SAMPLES, ROW_BYTES
 
+    check_walker(walker)
+    check_instance("req", req, ShapeRequest, "a ShapeRequest")
+    check_callable("progress", progress)
+    max_output = check_number("max_output", max_output, gt=0, largest=1e15)
     n = len(req.ks) if req.ks is not None else 1
     size = (n + 1) * (ORBIT_SAMPLES + 2) * ROW_BYTES
     if size > max_output:

@@ -16,13 +16,31 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..design.problem import legs
-from ..errors import InputError
+from ..errors import (
+    InputError,
+    check_callable,
+    check_choice,
+    check_count,
+    check_flag,
+    check_number,
+    check_numbers,
+    check_text,
+    check_texts,
+)
 from ..hzd.zero_dynamics import ZeroDynamics, limit_cycles, paper_one_step_shift
-from ..simulation.closed_loop import MAX_TOTAL_STEPS, METHODS, SimConfig, predicted_cycle
+from ..simulation.closed_loop import (
+    MAX_SAMPLES,
+    MAX_STEPS,
+    MAX_TOTAL_STEPS,
+    METHODS,
+    SIMULATORS,
+    SimConfig,
+    predicted_cycle,
+)
 from ..simulation.full_order import Start
 from ..simulation.scenario import Outcome, Scenario, deviations, make_scenario, run_scenario
 from ..thrust.schedule import Schedule
-from ..walker import Walker
+from ..walker import Walker, check_walker
 from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 UNITS = units("time", "thrust", "generalized_thrust", "alpha", "alpha_dot", "sigma_N", "zeta",
@@ -482,7 +500,8 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
              samples: int = 80,
              scuff_tol: float = 1e-4, min_impact_s: float = 0.75, impact_s_tol: float = 1e-3,
              zeta_tol: float = 1e-3, reduced: bool = False, mu: float | None = None,
-             progress: Callable[[int], None] | None = None) -> SimulationResult:
+             progress: Callable[[int], None] | None = None, check_only: bool = False
+             ) -> SimulationResult | None:
     """Simulate ``steps`` steps of the full-order closed loop (SPEC 7) for each steady thrust
     ``thrust`` [N] (default 0 to -50 N in steps of 10, only 0 for a robot without thrusters;
     not with ``thrust_model="piecewise"``, which uses the gait's ``thrust:`` section) on
@@ -507,7 +526,35 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
     early-strike threshold, in [0.5, 1)); a completed run whose impacts are farther than
     ``impact_s_tol`` from s = 1, or whose zeta^- differs from the zero-dynamics prediction by
     more than ``zeta_tol`` (relative), gets status ``warning`` with the reason.
+    ``check_only``: check every argument, compute nothing and return None (a command checks
+    its options before it compiles the simulation kernel).
     """
+    check_walker(walker)
+    steps = check_count("steps", steps, le=MAX_STEPS)
+    thrust = check_numbers("thrust", thrust, optional=True, min_len=0)
+    wn = check_number("wn", wn, gt=0, unit="rad/s")
+    xi = check_number("xi", xi, gt=0)
+    tau = check_number("tau", tau, gt=0, unit="s")
+    f0 = check_number("f0", f0, unit="N")
+    thruster = check_texts("thruster", thruster, optional=True)
+    perturb = check_number("perturb", perturb, gt=-1)
+    zeta0 = check_number("zeta0", zeta0, gt=0, optional=True, unit="kg^2 m^4/s^2")
+    q0 = check_numbers("q0", q0, optional=True)
+    dq0 = check_numbers("dq0", dq0, optional=True)
+    check_choice("start", start, ("predicted", "nominal"))
+    torque_limit = check_number("torque_limit", torque_limit, gt=0, optional=True, unit="N m")
+    rtol = check_number("rtol", rtol, gt=0, lt=0.1)
+    atol = check_number("atol", atol, gt=0, lt=0.1)
+    check_choice("method", method, SIMULATORS + METHODS)
+    check_text("integrator", integrator)
+    samples = check_count("samples", samples, ge=2, le=MAX_SAMPLES)
+    scuff_tol = check_number("scuff_tol", scuff_tol, ge=0, unit="m")
+    min_impact_s = check_number("min_impact_s", min_impact_s)
+    impact_s_tol = check_number("impact_s_tol", impact_s_tol, gt=0)
+    zeta_tol = check_number("zeta_tol", zeta_tol, gt=0)
+    reduced = check_flag("reduced", reduced)
+    mu = check_number("mu", mu, gt=0, optional=True)
+    check_callable("progress", progress)
     if (q0 is None) != (dq0 is None):
         raise InputError.param(("q0", "dq0"), "give both or neither")
     if q0 is not None and (zeta0 is not None or perturb != 0.0):
@@ -544,4 +591,6 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
                        schedule=schedule, wn=wn, xi=xi, tau=tau, f0=f0, start=st,
                        config=config, reduced_only=reduced, impact_s_tol=impact_s_tol,
                        zeta_tol=zeta_tol)
+    if check_flag("check_only", check_only):
+        return None
     return SimulationResult(walker, sc, tuple(run_scenario(zd, sc, progress)), mu)

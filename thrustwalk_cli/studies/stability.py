@@ -16,7 +16,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import (
+    InputError,
+    check_callable,
+    check_flag,
+    check_number,
+    check_numbers,
+    check_text,
+)
 from ..floquet.multipliers import (
     AGREEMENT_FLOOR,
     AGREEMENT_RULE,
@@ -27,11 +34,15 @@ from ..floquet.multipliers import (
     check_agreement_tol,
 )
 from ..floquet.poincare import Setting
-from ..simulation.closed_loop import SimConfig, ThrustModel
+from ..simulation.closed_loop import (
+    SimConfig,
+    ThrustModel,
+    check_thruster_rate,
+)
 from ..simulation.full_order import Start
 from ..simulation.scenario import make_scenario
 from ..thrust.dynamics import MODELS, canonical
-from ..walker import Walker
+from ..walker import Walker, check_walker
 from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 UNITS = units("thrust", "time", "q", "q_dot", "wn", "tau", "multiplier", "kp", "kd", "xi",
@@ -343,10 +354,16 @@ PARAM_LABEL = {"kp": "$K_p$", "kd": "$K_d$", "wn": r"$\omega_n$", "xi": r"$\xi$"
                "tau": r"$\tau$", "thrust": "$F_{ss}$"}
 
 
-def _check_vary(vary, kind: str) -> tuple[str, tuple[float, ...]] | None:
+def _check_vary(vary, kind: str, wn: float, xi: float, tau: float
+                ) -> tuple[str, tuple[float, ...]] | None:
     if vary is None:
         return None
-    name, values = vary[0], tuple(float(v) for v in vary[1])
+    if isinstance(vary, (str, bytes)) or not isinstance(vary, (tuple, list)) or \
+            len(vary) != 2 or not isinstance(vary[0], str):
+        raise InputError.param("vary", "must be a pair (name, values), e.g. (\"wn\", [1.0, "
+                                       f"2.0]); got {type(vary).__name__} {vary!r:.40}")
+    name = vary[0]
+    values = check_numbers("vary", vary[1], min_len=0)
     if name not in VARY:
         raise InputError.param("vary", f"unknown parameter {name!r} (choose from "
                                        f"{', '.join(VARY)})")
@@ -367,6 +384,13 @@ def _check_vary(vary, kind: str) -> tuple[str, tuple[float, ...]] | None:
     if name != "thrust" and not all(v > 0 for v in values):
         raise InputError.param("vary", f"{name} must be > 0 (got "
                                        f"{min(values):g})")
+    if name in ("wn", "xi", "tau"):
+        for v in values:
+            try:
+                check_thruster_rate(kind, **{"wn": wn, "xi": xi, "tau": tau, name: v})
+            except InputError as exc:
+                raise InputError.param("vary", f"{name} = {v:g}: "
+                                               f"{exc.problems[0].message}") from None
     return name, values
 
 
@@ -375,7 +399,8 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
               kp: float | None = None, kd: float | None = None,
               vary: tuple[str, Sequence[float]] | None = None, rtol: float = 1e-12,
               atol: float = 1e-12, agreement_tol: float | None = None,
-              progress: Callable[[int], None] | None = None) -> StabilityResult:
+              progress: Callable[[int], None] | None = None, check_only: bool = False
+              ) -> StabilityResult | None:
     """Floquet multipliers of the full-order closed loop (SPEC 13) at steady thrust ``thrust``
     [N] (default 0) on ``thruster`` (default: the first), thrust model ``thrust_model``
     (``constant``, ``first-order`` with ``tau`` [s], ``second-order`` with ``wn`` [rad/s] and
@@ -388,15 +413,27 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
     methods (finite, > 0; default None: ``max(1e-6, 10 e_j)`` per multiplier, ``e_j`` the
     finite-difference error estimate carried to it; see
     :mod:`thrustwalk_cli.floquet.multipliers`). ``progress(1)`` after each case. Bad
-    parameters raise :class:`InputError` naming them."""
+    parameters raise :class:`InputError` naming them. ``check_only``: check every argument,
+    compute nothing and return None."""
+    check_walker(walker)
+    thrust = check_number("thrust", thrust, optional=True, unit="N")
+    check_text("thruster", thruster, optional=True)
+    wn = check_number("wn", wn, gt=0, unit="rad/s")
+    xi = check_number("xi", xi, gt=0)
+    tau = check_number("tau", tau, gt=0, unit="s")
+    kp = check_number("kp", kp, gt=0, optional=True, unit="1/s^2")
+    kd = check_number("kd", kd, gt=0, optional=True, unit="1/s")
+    rtol = check_number("rtol", rtol, gt=0, lt=0.1)
+    atol = check_number("atol", atol, gt=0, lt=0.1)
     check_agreement_tol(agreement_tol)
+    check_callable("progress", progress)
     zd = walker.zd
     robot = walker.robot
     if thrust_model is None:
         thrust_model = ("piecewise" if walker.gait.thrust is not None and thrust is None
                         else "second-order")
     thrust_model = canonical(thrust_model)  # the deprecated `constant` is `ideal`
-    vary_t = _check_vary(vary, thrust_model)
+    vary_t = _check_vary(vary, thrust_model, wn, xi, tau)
     kp = float(walker.gait.kp if kp is None else kp)
     kd = float(walker.gait.kd if kd is None else kd)
     schedule = None
@@ -418,6 +455,8 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
     for key, v in (("kp", kp), ("kd", kd)):
         if not v > 0:
             raise InputError.param(key, f"must be > 0 (got {v:g})")
+    if check_flag("check_only", check_only):
+        return None
     m = zd.model.n_thrusters
     driven = robot.thruster_names[sc.thrusters[0]] if sc.thrusters else None
 

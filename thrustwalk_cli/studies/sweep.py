@@ -19,16 +19,24 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..description.sweep import Axis, SweepSpec
-from ..errors import InputError, Problem
+from ..errors import (
+    InputError,
+    Problem,
+    check_callable,
+    check_count,
+    check_instance,
+    check_path,
+    check_text,
+)
 from ..files.bundled import EXPLICITLY, resolve, resolve_inside
 from ..files.gait_file import load_gait_text, same_robot_file
 from ..files.robot_file import load_robot_text
 from ..files.schema import _suggest
-from ..files.sweep_file import SweepSource, load_sweep_file, read_source
+from ..files.sweep_file import SweepSource, load_sweep_file, read_source, value_problem
 from ..sweep.executors import DaskCluster, InProcess, LocalProcesses
 from ..sweep.points import expand, grid_coordinates, neighbours
 from ..sweep.runner import RunCounts, run_tasks
-from ..sweep.tasks import PointTask, identity, task_key
+from ..sweep.tasks import PointTask, canonical, identity, task_key
 from ..walker import assemble_walker, default_gait
 from .documents import SCHEMA_VERSION, Table, col, result_repr
 from .sweep_studies import (
@@ -78,7 +86,9 @@ def load_sweep(path: str | Path, *, robot: str | None = None,
     (:func:`~thrustwalk_cli.files.sweep_file.load_sweep_file`); ``robot`` / ``gait``: a file
     (relative to the working folder) or bundled name given explicitly instead, read
     wherever it is, its gait's ``robot:`` as for every command."""
-    spec, source = load_sweep_file(path, robot=robot, gait=gait)
+    robot = None if robot is None else check_path("robot", robot)
+    gait = None if gait is None else check_path("gait", gait)
+    spec, source = load_sweep_file(check_path("path", path), robot=robot, gait=gait)
     study = STUDIES[spec.study]
     problems: list[Problem] = []
     for i, name in enumerate(spec.collect):
@@ -132,35 +142,61 @@ def load_sweep(path: str | Path, *, robot: str | None = None,
         from ..model.compiler import load_model
 
         base = load_model(robot)
-    _check_parameters(spec, study, source, base)
-    return _plan(spec, study, gait_name)
+    sweep = _plan(spec, study, gait_name)
+    _check_parameters(sweep, source, base)
+    return sweep
 
 
-def _check_parameters(spec: SweepSpec, study: SweepStudy, source: SweepSource, base) -> None:
-    """The study's own check of every value a parameter takes (settings, then each axis
-    value), reported at the settings key or the axis."""
-    if study.check is None:
-        return
+MAX_CHECKED = 20_000  # distinct parameter sets checked one by one (more: each value once)
+
+
+def _check_parameters(sweep: Sweep, source: SweepSource, base) -> None:
+    """Every point's study parameters before any point runs: each axis value against the
+    parameter table's bounds (the draws of random axes included), then the study's own check
+    of every distinct set of study parameters the points take (beyond :data:`MAX_CHECKED`
+    sets: the settings with the first value of every axis, then each value of each axis).
+    Each problem is reported once, at the axis that sets the parameter, else at its key under
+    ``settings`` (``schedule.knots``: ``settings.schedule.knots``)."""
+    spec, study = sweep.spec, sweep.study
     settings = dict(spec.settings)
-    where: dict[str, tuple] = {k: ("settings", k) for k in settings}
+    axes = {a.name: a for a in spec.axes if a.target == "study"}
     problems: dict[tuple, Problem] = {}
 
-    def run(p: dict) -> None:
-        for name, message in study.check(base, p):
-            key = where.get(name, ("settings",))
-            problems.setdefault(key, source.where(key, message))
+    def key_of(name: str) -> tuple:
+        if name in axes:
+            return source.axis_key(axes[name])
+        parts = tuple(name.split("."))
+        if parts[0] == "schedule" and len(parts) > 1 and parts[1] == "values":
+            swept = [a for a in axes if a.startswith("schedule.")]
+            if swept:  # a value of the schedule: the first axis that sets one
+                return source.axis_key(axes[swept[0]])
+        return ("settings", *parts) if parts[0] in settings else ("settings",)
 
-    swept = {a.name: a.values or (a.parameters if a.distribution != "normal" else
-                                  a.parameters[:1])
-             for a in spec.axes if a.target == "study" and not a.name.startswith("schedule.")}
-    for a in spec.axes:
-        if a.name in swept:
-            where[a.name] = source.axis_key(a)
-    first = {**settings, **{k: v[0] for k, v in swept.items()}}
-    run(first)  # the settings with the first value of every axis, then every axis value
-    for name, values in swept.items():
-        for v in values[1:]:
-            run({**first, name: v})
+    points = [t.parameters for t in sweep.tasks]
+    for name in axes:  # the values of every axis, drawn ones included
+        for v in sorted({p[name] for p in points}):
+            bad = value_problem(spec.study, name, v)
+            if bad:
+                problems.setdefault(key_of(name), source.where(key_of(name),
+                                                               f"value {v:g}: {bad}"))
+                break
+    if problems:
+        raise InputError(sorted(problems.values(), key=lambda p: p.line or 0))
+    if study.check is None:
+        return
+    distinct = {canonical(p): p for p in points}
+    if len(distinct) > MAX_CHECKED:
+        first = points[0]
+        sets = [first] + [{**first, n: v} for n in axes for v in {p[n] for p in points}]
+        distinct = {canonical(p): p for p in sets}
+    for i, p in enumerate(distinct.values()):  # the first point first
+        for name, message in study.check(base, p):
+            key = key_of(name)
+            if key not in problems:  # a problem of some points only says which
+                shown = ", ".join(f"{n} = {p[n]:g}" for n in axes
+                                  if source.axis_key(axes[n]) != key)
+                where = f" (at {shown})" if shown and i else ""
+                problems[key] = source.where(key, message + where)
     if problems:
         raise InputError(sorted(problems.values(), key=lambda p: p.line or 0))
 
@@ -199,14 +235,49 @@ def sweep_executor(sweep: Sweep, workers: int | None = None, scheduler: str | No
                          scheduler, todo)
 
 
+MAX_WORKERS = 1024  # local worker processes
+
+
+def check_executor(workers: object = None, scheduler: object = None) -> None:
+    """Where the points are to run, checked before anything is created: ``workers`` a whole
+    number 1 ... :data:`MAX_WORKERS` (or None), ``scheduler`` a Dask scheduler address
+    ``tcp://HOST:PORT`` or ``tls://HOST:PORT`` with a port 1 ... 65535 (or None; Dask
+    distributed must be installed), not both. :class:`InputError` naming the parameter."""
+    if workers is not None and scheduler is not None:
+        raise InputError.param(("workers", "scheduler"), "give one of them, not both")
+    check_count("workers", workers, ge=1, le=MAX_WORKERS, optional=True)
+    if scheduler is None:
+        return
+    from importlib.util import find_spec
+    from urllib.parse import urlsplit
+
+    address = check_text("scheduler", scheduler)
+    expected = f"expected tcp://HOST:PORT or tls://HOST:PORT, got {address!r}"
+    try:
+        parts = urlsplit(address.strip())
+        host = parts.hostname
+    except ValueError:  # e.g. an unclosed [
+        raise InputError.param("scheduler", expected) from None
+    if parts.scheme not in ("tcp", "tls") or not host or parts.path not in ("", "/") or \
+            parts.query or parts.fragment or "@" in parts.netloc:
+        raise InputError.param("scheduler", expected)
+    try:
+        port = parts.port
+    except ValueError:  # not a number, or beyond 65535
+        port = -1
+    if port is None or not 1 <= port <= 65535:
+        raise InputError.param("scheduler", f"the port must be a number 1 ... 65535 (got "
+                                            f"{address!r})")
+    if find_spec("distributed") is None:
+        raise InputError.param("scheduler", "needs Dask distributed: pip install "
+                                            "'thrustwalk[cluster]'")
+
+
 def task_executor(tasks, study: SweepStudy, settings: dict, workers: int | None = None,
                   scheduler: str | None = None, todo: int | None = None):
     """:func:`sweep_executor` for any tasks of ``study`` (``settings``: what its one-time
     preparation needs)."""
-    if workers is not None and scheduler is not None:
-        raise InputError.param(("workers", "scheduler"), "give one of them, not both")
-    if workers is not None and not 1 <= workers <= 1024:
-        raise InputError.param("workers", f"must be 1 to 1024, got {workers}")
+    check_executor(workers, scheduler)
     if scheduler is not None:
         return DaskCluster(scheduler)
     n = default_workers() if workers is None else workers
@@ -462,6 +533,14 @@ def run_sweep(sweep: Sweep, *, workers: int | None = None, scheduler: str | None
     points."""
     from .design_gait import robot_reference
 
+    check_instance("sweep", sweep, Sweep, "a Sweep (tw.load_sweep)")
+    if executor is None:
+        check_executor(workers, scheduler)
+    check_instance("finished", finished, Mapping, "a mapping of point keys to records",
+                   optional=True)
+    check_callable("on_point", on_point)
+    library = check_path("library", library, optional=True)
+    chunk = check_count("chunk", chunk, optional=True)
     done = {k: v for k, v in (finished or {}).items()
             if k in {t.key for t in sweep.tasks}}
     tasks = list(sweep.tasks)

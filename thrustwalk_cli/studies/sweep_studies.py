@@ -25,7 +25,7 @@ import numpy as np
 
 from .._version import __version__
 from ..description.robot import Robot
-from ..errors import ComputationError, InputError
+from ..errors import ComputationError, InputError, param_problem
 from ..files.gait_file import load_gait_text
 from ..files.output import jsonable
 from ..files.robot_file import load_robot_text
@@ -121,8 +121,9 @@ def _pick(entry: dict, names, rename: Mapping[str, str] | None = None) -> dict:
     return {n: entry.get(rename.get(n, n)) for n in names}
 
 
-def _check_thrust(base, p: Mapping) -> list[tuple[str, str]]:
-    """The thruster exists and constant thrust values lie within its limits."""
+def _check_thrust(base, p: Mapping, name: str = "thrust") -> list[tuple[str, str]]:
+    """The thruster exists and the constant thrust ``p["thrust"]`` lies within its limits
+    (reported on ``name``)."""
     robot = base.robot
     out = []
     try:
@@ -134,13 +135,39 @@ def _check_thrust(base, p: Mapping) -> list[tuple[str, str]]:
         return out
     if j is None:
         if v != 0:
-            out.append(("thrust", f"robot {robot.name} has no thruster: only 0 N"))
+            out.append((name, f"robot {robot.name} has no thruster: only 0 N"))
         return out
     lo, hi = robot.thrusters[j].limits
     if not lo <= v <= hi:
-        out.append(("thrust", f"{v:g} N is outside the limits [{lo:g}, {hi:g}] N of "
-                              f"thruster {robot.thruster_names[j]}"))
+        out.append((name, f"{v:g} N is outside the limits [{lo:g}, {hi:g}] N of "
+                          f"thruster {robot.thruster_names[j]}"))
     return out
+
+
+def _schedule_problems(walker: Walker, p: Mapping) -> list[tuple[str, str]]:
+    """The point's ``schedule`` (with its ``schedule.j`` values) checked against the walker:
+    a thruster for force mode, the knots, one value per interval, the thruster's limits.
+    Problems name ``schedule.knots`` / ``schedule.values`` (their keys in the sweep file)."""
+    def where(key: tuple, message: str):
+        return param_problem("schedule." + str(key[1]) if len(key) > 1 else "schedule",
+                             message)
+    try:
+        sched = _schedule(walker.robot, p)
+        if sched is not None:
+            s = sched.resolve(walker.zd, walker.robot, where, pad=True)[0]
+            s.check_limits(walker.robot, where)
+    except InputError as exc:
+        return [(pr.params[0] if pr.params else "schedule", pr.message) for pr in exc.problems]
+    return []
+
+
+def _check_case(walker: Walker, p: Mapping) -> list[tuple[str, str]]:
+    """A limit-cycle or feasibility point: the thruster and thrust, or the schedule, not
+    both."""
+    out = _check_thrust(walker, p)
+    if p.get("schedule") is not None and p.get("thrust") is not None:
+        out.append(("thrust", "give `thrust` or a `schedule`, not both"))
+    return out + _schedule_problems(walker, p)
 
 
 # ---------------------------------------------------------------------------- the studies
@@ -172,8 +199,9 @@ def _limit_cycle_point(walker: Walker, p: dict, start: dict | None) -> PointResu
     from .limit_cycle import limit_cycle
 
     w, thrust = _thrust_case(walker, p)
-    res = limit_cycle(w, thrust, p.get("thruster"), mu=p.get("mu"),
-                      min_vertical_force=p.get("min_vertical_force", 0.0))
+    # a schedule names its thruster itself (`thruster` drove it into the schedule)
+    res = limit_cycle(w, thrust, p.get("thruster") if thrust is not None else None,
+                      mu=p.get("mu"), min_vertical_force=p.get("min_vertical_force", 0.0))
     doc = res.document()
     case = _first(doc, "cycles")
     fields = _pick(case, [k for k in _LC_FIELDS if k not in ("contact_feasible",
@@ -247,7 +275,7 @@ def _simulate_point(walker: Walker, p: dict, start: dict | None) -> PointResult:
     res = simulate(w, steps=int(p["steps"]), thrust_model=p["thrust_model"],
                    thrust=None if piecewise else [float(p["thrust"])],
                    wn=p["wn"], xi=p["xi"], tau=p["tau"], f0=p["f0"],
-                   thruster=[p["thruster"]] if p.get("thruster") else None,
+                   thruster=[p["thruster"]] if p.get("thruster") and not piecewise else None,
                    perturb=p["perturb"], torque_limit=p.get("torque_limit"),
                    rtol=p["rtol"], atol=p["atol"], method=p["method"], mu=p.get("mu"),
                    samples=2)
@@ -272,13 +300,24 @@ def _simulate_point(walker: Walker, p: dict, start: dict | None) -> PointResult:
 
 
 def _check_simulate(walker: Walker, p: dict) -> list[tuple[str, str]]:
+    from ..simulation.closed_loop import PIECEWISE, check_thruster_rate
+    from ..thrust.dynamics import canonical
+
     out = _check_thrust(walker, p)
-    if p["thrust_model"] == "piecewise" and p.get("schedule") is None and \
-            walker.gait.thrust is None:
+    model = p["thrust_model"]
+    if model == "piecewise" and p.get("schedule") is None and walker.gait.thrust is None:
         out.append(("thrust_model", "piecewise needs a `schedule` or a gait with a thrust: "
                                     "section"))
-    if p.get("schedule") is not None and p["thrust_model"] != "piecewise":
+    if p.get("schedule") is not None and model != "piecewise":
         out.append(("schedule", "a schedule needs `thrust_model` piecewise"))
+    out += _schedule_problems(walker, p)
+    if canonical(model) not in ("ideal", PIECEWISE):  # a model with thruster states
+        out += _check_thrust(walker, {**p, "thrust": p["f0"]}, "f0")
+        try:
+            check_thruster_rate(model, float(p["wn"]), float(p["xi"]), float(p["tau"]),
+                                walker.model.n_thrusters)
+        except InputError as exc:
+            out += [(pr.params[0], pr.message) for pr in exc.problems]
     return out
 
 
@@ -495,6 +534,10 @@ def _push_trial_point(walker: Walker, p: dict, start: dict | None) -> PointResul
 def _check_push_trial(walker: Walker, p: dict) -> list[tuple[str, str]]:
     out = _check_strategy(walker, p)
     try:
+        walker.robot.check_push("push_impulse", float(p["push_impulse"]))
+    except InputError as exc:
+        out.append(("push_impulse", exc.problems[0].message))
+    try:
         _trial_setup(walker, p)
     except InputError as exc:
         out += [(pr.params[0], pr.message) for pr in exc.problems]
@@ -509,6 +552,11 @@ def _check_strategy(walker: Walker, p: dict) -> list[tuple[str, str]]:
     """The strategy's own problems (thruster, thrust limits, schedule, knots), found before
     any point runs."""
     try:
+        if p.get("strategy") == "control" and p.get("max_thrust") is not None:
+            robot = walker.robot
+            if robot.thrusters:
+                robot.check_thrust_bound("max_thrust", float(p["max_thrust"]),
+                                         [robot.thruster_index(p.get("thruster"))])
         _realized(walker, p)
     except InputError as exc:
         return [(pr.params[0] if pr.params else "strategy", pr.message) for pr in exc.problems]
@@ -557,9 +605,9 @@ def _prepare_trials(walker: Walker, settings: dict) -> None:
 
 STUDIES: dict[str, SweepStudy] = {
     "limit-cycle": SweepStudy("limit-cycle", _LC_FIELDS, _limit_cycle_point,
-                              check=_check_thrust),
+                              check=_check_case),
     "feasibility": SweepStudy("feasibility", _FE_FIELDS, _feasibility_point,
-                              check=_check_thrust),
+                              check=_check_case),
     "simulate": SweepStudy("simulate", _SIM_FIELDS, _simulate_point, check=_check_simulate,
                            prepare=_prepare_simulate),
     "push-trial": SweepStudy("push-trial", _PT_FIELDS, _push_trial_point,

@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, check_choice
 
 
 @dataclass(frozen=True, eq=False)
@@ -342,13 +342,22 @@ ALIASES = {"constant": "ideal"}  # deprecated option values (one release)
 
 
 def canonical(kind: str) -> str:
-    """The model's name for ``kind`` (an alias replaced); unknown names unchanged."""
-    return ALIASES.get(kind, kind)
+    """The model's name for ``kind`` (an alias replaced); unknown names (and values that are
+    not strings) unchanged."""
+    return ALIASES.get(kind, kind) if isinstance(kind, str) else kind
 
 
 def model_names() -> tuple[str, ...]:
     """The names of the models, in table order."""
     return tuple(MODELS)
+
+
+def check_model(value: object, extra: Sequence[str] = (), name: str = "thrust_model") -> str:
+    """``value`` a model's name (an alias accepted: the model's name returned) or one of
+    ``extra`` (e.g. ``piecewise``, a command rather than dynamics); :class:`InputError`
+    naming ``name`` otherwise (:func:`~thrustwalk_cli.errors.check_choice`)."""
+    return check_choice(name, canonical(value) if isinstance(value, str) else value,
+                        (*model_names(), *extra))
 
 
 def make(kind: str, m: int, **values: float) -> ThrusterDynamics:
