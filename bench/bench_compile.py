@@ -97,10 +97,10 @@ def main(argv: list[str] | None = None) -> None:
     # the numba kernel: compiled once per machine (a fresh cache folder), shared by robots
     cache = tempfile.mkdtemp(prefix="tw-bench-")
     env = dict(os.environ, THRUSTWALK_CACHE_DIR=cache)
-    kcode = ("from thrustwalk_cli.simulation.compiled import kernel; "
+    kcode = ("from thrustwalk_cli.simulation.stepper import kernel; "
              "jm = kernel(); assert not jm.cache_hit")
     t_kernel = _sub(kcode, env)
-    t_kload = min(_sub("from thrustwalk_cli.simulation.compiled import kernel; "
+    t_kload = min(_sub("from thrustwalk_cli.simulation.stepper import kernel; "
                        "assert kernel().cache_hit", env) for _ in range(3))
     report("numba kernel: one-time compile (per machine), whole process", t_kernel, base)
     report("numba kernel: load from the cache, whole process", t_kload, base)

@@ -26,16 +26,13 @@ def _gaits() -> list[str]:
 
 def main() -> None:
     from thrustwalk_cli.controller.planner import Planner, Settings
-    from thrustwalk_cli.controller.step_model import (
-        IdealThrust,
-        ResponseThrust,
-        Terms,
-        ThrusterDynamics,
-    )
-    from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+    from thrustwalk_cli.controller.step_model import IdealThrust, ResponseThrust, Terms
+    from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
     from thrustwalk_cli.simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel
-    from thrustwalk_cli.simulation.compiled import Stepper
     from thrustwalk_cli.simulation.full_order import Start, initial_state
+    from thrustwalk_cli.simulation.stepper import Stepper
+    from thrustwalk_cli.thrust.dynamics import second_order
+    from thrustwalk_cli.thrust.schedule import Schedule
     from thrustwalk_cli.walker import load_walker
 
     for gait in _gaits():
@@ -66,7 +63,7 @@ def main() -> None:
                f"{lc.step_time:.3f} s of walking)", t_step, unit="ms")
         report(f"{gait}: one QP per step (ratio to the simulated step)", t_qp, t_step,
                unit="ms")
-        dyn = ThrusterDynamics("second-order", wn=20.0, xi=1.0)
+        dyn = second_order(model.n_thrusters, wn=20.0, xi=1.0)
         ps = Planner(zd, Terms(model, zd), ResponseThrust(zd, dyn, [0]), st)
         z = np.zeros(2 * m)
         t_slow = median_time(lambda: ps.plan(zs, 1.2 * zs, np.zeros(1), z), repeat=5)

@@ -12,9 +12,10 @@ from timing import median_time, report
 from thrustwalk_cli.contact.evaluate import evaluate
 from thrustwalk_cli.contact.region import feasible_region
 from thrustwalk_cli.contact.terms import fit_terms, stance_terms
-from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
+from thrustwalk_cli.optimize import min_effort as opt
 from thrustwalk_cli.optimize import qp
-from thrustwalk_cli.optimize import schedule as opt
+from thrustwalk_cli.thrust.schedule import Schedule
 from thrustwalk_cli.walker import load_walker
 
 

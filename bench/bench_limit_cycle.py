@@ -12,7 +12,8 @@ from timing import median_time, report
 
 
 def main() -> None:
-    from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles, zero_dynamics
+    from thrustwalk_cli.hzd.zero_dynamics import limit_cycles, zero_dynamics
+    from thrustwalk_cli.thrust.schedule import Schedule
     from thrustwalk_cli.walker import load_walker
 
     for gait in ("three_link_walk", "rabbit_walk"):

@@ -11,10 +11,10 @@ from timing import median_time, report
 
 
 def main() -> None:
-    from thrustwalk_cli.hzd.schedule import make_schedule
     from thrustwalk_cli.hzd.shaping import DEFAULT_PATTERN, solve_knots
     from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
     from thrustwalk_cli.studies.shape import ShapeRequest, pattern_values, shape
+    from thrustwalk_cli.thrust.schedule import Schedule
     from thrustwalk_cli.walker import load_walker
 
     walker = load_walker(None, "three_link_walk")
@@ -23,8 +23,9 @@ def main() -> None:
     P = pattern_values(DEFAULT_PATTERN, 3, ks)
     t_knots = median_time(lambda: solve_knots(zd, [0.0, None, None, 1.0], P, "generalized"))
     sol = solve_knots(zd, [0.0, None, None, 1.0], P, "generalized")
-    one = make_schedule(zd, sol.alpha, P[-1:], "generalized")
-    many = make_schedule(zd, sol.alpha, P, "generalized")
+    m = zd.model.n_thrusters
+    one = Schedule.piecewise(sol.alpha, P[-1:], "generalized", m)
+    many = Schedule.piecewise(sol.alpha, P, "generalized", m)
     t_one = median_time(lambda: limit_cycles(zd, one), repeat=9)
     t_many = median_time(lambda: limit_cycles(zd, many), repeat=9)
     t_study = median_time(lambda: shape(walker, ShapeRequest(ks=tuple(ks))), repeat=5)

@@ -72,7 +72,7 @@ def _batch_part(args):
 def main() -> None:
     import numba
 
-    from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles, zero_dynamics
+    from thrustwalk_cli.hzd.zero_dynamics import limit_cycles, zero_dynamics
     from thrustwalk_cli.simulation import kernel as K
     from thrustwalk_cli.simulation.batch import simulate_batch, start_states
     from thrustwalk_cli.simulation.closed_loop import (
@@ -81,8 +81,9 @@ def main() -> None:
         ThrustModel,
         predicted_cycle,
     )
-    from thrustwalk_cli.simulation.compiled import Stepper, kernel, run_steps
     from thrustwalk_cli.simulation.full_order import Start, _one_step, initial_state, simulate
+    from thrustwalk_cli.simulation.stepper import Stepper, kernel, run_steps
+    from thrustwalk_cli.thrust.schedule import Schedule
     from thrustwalk_cli.walker import load_walker
 
     jm = kernel()

@@ -68,13 +68,12 @@ def _jit_entries(folder: Path) -> list[tuple[Path, bool]]:
     """(entry file, cached with numba's machine code?) of every robot-independent jit module
     in ``folder`` (checked without importing numba)."""
     from thrustwalk_cli.model import jit, tape
-    from thrustwalk_cli.simulation import compiled
-    from thrustwalk_cli.simulation import kernel as K
+    from thrustwalk_cli.simulation import stepper
 
     with _cache_env(folder):
         out = []
         for tag, ident, names, nrt_free in (
-                (compiled.TAG, compiled._fingerprint(), compiled._names(), K.NRT_FREE),
+                (stepper.TAG, stepper._fingerprint(), stepper._names(), stepper.NRT_FREE),
                 (jit.BATCH_TAG, jit._batch_source(), tape.SIGNATURES, tape.NRT_FREE)):
             st = jit.status(tag, ident, names, nrt_free)
             out.append((Path(st["entry"]), st["cached"]))

@@ -383,7 +383,7 @@ def _sim_case():
 def _session_kernel(session_cache: Path, monkeypatch):
     """The compiled kernel as every test of the session gets it: loaded from the session's
     cache (which starts with it compiled), whatever cache folder the test has set since."""
-    from thrustwalk_cli.simulation.compiled import kernel
+    from thrustwalk_cli.simulation.stepper import kernel
 
     with monkeypatch.context() as m:
         m.setenv("THRUSTWALK_CACHE_DIR", str(session_cache))
@@ -419,7 +419,7 @@ def test_kernel_with_an_unusable_cache_is_imported_from_a_private_folder(
     test imports it instead of paying a second kernel compile (that a jit module really is
     compiled in the private folder: the next test, with a small module)."""
     from thrustwalk_cli.model import jit
-    from thrustwalk_cli.simulation import compiled
+    from thrustwalk_cli.simulation import stepper
     from thrustwalk_cli.simulation.full_order import simulate
 
     th, cfg, start = _sim_case()
@@ -437,13 +437,13 @@ def test_kernel_with_an_unusable_cache_is_imported_from_a_private_folder(
     monkeypatch.delitem(sys.modules, f"thrustwalk_jit_{entry.stem.replace('-', '_')}")
     _cache_path_is_a_file(fresh_cache, walker3.model)
 
-    jm = compiled.kernel()
+    jm = stepper.kernel()
     assert jm.path == private / entry.name and fresh_cache not in jm.path.parents
     assert jm.module is not ref_jm.module and jm.module.__file__ == str(jm.path)
     assert "cache folder unusable" in jm.note and "this process only" in jm.note
     assert jm.cache_hit, "numba must load the machine code beside the private module"
     got = simulate(walker3.zd, th, cfg, start)
-    assert compiled.kernel() is jm
+    assert stepper.kernel() is jm
     assert got.success, got.reason
     assert [s.zeta_minus for s in got.steps] == [s.zeta_minus for s in ref.steps]
     assert fresh_cache.read_text().startswith("not a folder"), "the user's file must not change"

@@ -18,14 +18,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.linalg import expm
 from scipy.optimize import minimize, minimize_scalar
 
 from thrustwalk_cli.controller.planner import Planner, Settings
-from thrustwalk_cli.controller.step_model import IdealThrust, Terms, ThrusterDynamics
-from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.controller.references import reference_values
+from thrustwalk_cli.controller.step_model import IdealThrust, Terms
+from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
 from thrustwalk_cli.optimize.qp import ConvexQP
-from thrustwalk_cli.studies.control import control, reference_values
+from thrustwalk_cli.studies.control import control
+from thrustwalk_cli.thrust.schedule import Schedule
 
 DATA = Path(__file__).parent / "data"
 
@@ -90,22 +91,6 @@ def test_convex_qp_reports_incompatible_rows():
     qp = ConvexQP(np.eye(2), np.array([[1.0, 0.0], [-1.0, 0.0]]))
     x, _ = qp.solve(np.zeros(2), np.array([-1.0, -1.0]))  # x <= -1 and x >= 1
     assert x is None
-
-
-@pytest.mark.parametrize("dyn", [ThrusterDynamics("second-order", wn=20, xi=1),
-                                 ThrusterDynamics("second-order", wn=3, xi=0.3),
-                                 ThrusterDynamics("second-order", wn=5, xi=2.5),
-                                 ThrusterDynamics("first-order", tau=0.3)])
-def test_thruster_response_equals_the_matrix_exponential(dyn):
-    A, B, C = dyn.matrices
-    t = np.linspace(0.0, 1.5, 9)
-    Phi, Psi = dyn.response(t)
-    k = A.shape[0]
-    aug = np.zeros((k + 1, k + 1))
-    aug[:k, :k], aug[:k, k] = A, B
-    E = np.array([expm(tt * aug) for tt in t])
-    np.testing.assert_allclose(Phi, E[:, :k, :k].transpose(0, 2, 1) @ C, atol=1e-12)
-    np.testing.assert_allclose(Psi, E[:, :k, k] @ C, atol=1e-12)
 
 
 def test_reference_profiles_hold_or_ramp():
@@ -209,7 +194,7 @@ def test_speed_reference_of_the_nominal_speed_is_the_nominal_orbit(walker3, frac
     sample of the steady range has no steady state once the cutting planes are in, so the root
     lies between the range's end and the first sample."""
     from thrustwalk_cli.controller.planner import regulator
-    from thrustwalk_cli.studies.control import speed_references
+    from thrustwalk_cli.controller.references import speed_references
 
     zd = walker3.zd
     lc0 = _nominal(zd)

@@ -18,9 +18,10 @@ from thrustwalk_cli.design.problem import FAMILIES, Problem, cell_minima, defaul
 from thrustwalk_cli.design.solver import solve_design
 from thrustwalk_cli.design.spec import DesignSpec
 from thrustwalk_cli.errors import ComputationError
-from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
 from thrustwalk_cli.simulation.closed_loop import SimConfig, ThrustModel
 from thrustwalk_cli.simulation.full_order import Start, simulate
+from thrustwalk_cli.thrust.schedule import Schedule
 from thrustwalk_cli.walker import load_walker
 
 REPO = Path(__file__).resolve().parents[1]

@@ -13,8 +13,7 @@ from thrustwalk_cli.contact import evaluate as CE
 from thrustwalk_cli.contact import region as CR
 from thrustwalk_cli.contact import terms as CT
 from thrustwalk_cli.hzd.constraints import bezier
-from thrustwalk_cli.hzd.schedule import schedule_from_gait
-from thrustwalk_cli.hzd.zero_dynamics import Schedule
+from thrustwalk_cli.thrust.schedule import Schedule
 
 RTOL = 1e-8
 
@@ -278,23 +277,23 @@ def test_feasible_region_matches_case_evaluation(walk3):
 
 
 def test_schedule_file_section_pads_and_validates(walk3):
-    from thrustwalk_cli.description.gait import ThrustSchedule
     from thrustwalk_cli.errors import InputError
+    from thrustwalk_cli.thrust.schedule import WrittenSchedule
 
     model, gait, zd = walk3
-    spec = ThrustSchedule((0.25, 0.75), (("hip_x", (-5.0,)),), "force", True)
-    s = schedule_from_gait(zd, spec, "schedule", pad=True)[0]
+    spec = WrittenSchedule((0.25, 0.75), (("hip_x", (-5.0,)),), "force", True)
+    s = spec.resolve(zd, zd.model.robot, "schedule", pad=True)[0]
     assert len(s.knots) == 4 and s.knots[0] == zd.alpha_i and s.knots[-1] == zd.alpha_f
     assert s.force[0, :, 0].tolist() == [0.0, -5.0, 0.0]
-    bad = ThrustSchedule((0.0, 1.0), (("nozzle", (1.0,)),), "force", True)
+    bad = WrittenSchedule((0.0, 1.0), (("nozzle", (1.0,)),), "force", True)
     with pytest.raises(InputError, match="unknown thruster"):
-        schedule_from_gait(zd, bad, "schedule", pad=True)
+        bad.resolve(zd, zd.model.robot, "schedule", pad=True)
     with pytest.raises(InputError, match="expected 1 values"):
-        schedule_from_gait(zd, ThrustSchedule((0.0, 1.0), (("hip_x", (1.0, 2.0)),)), "schedule",
-                           pad=True)
+        WrittenSchedule((0.0, 1.0), (("hip_x", (1.0, 2.0)),)).resolve(zd, zd.model.robot,
+                                                                      "schedule", pad=True)
     with pytest.raises(InputError, match="increase strictly"):
-        schedule_from_gait(zd, ThrustSchedule((0.5, 0.2), (("hip_x", (1.0,)),)), "schedule",
-                           pad=True)
+        WrittenSchedule((0.5, 0.2), (("hip_x", (1.0,)),)).resolve(zd, zd.model.robot,
+                                                                  "schedule", pad=True)
 
 
 # ------------------------------------------------------------------------------------ CLI

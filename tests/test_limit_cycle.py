@@ -17,7 +17,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from thrustwalk_cli.hzd.constraints import apply_invariance, gait_maps
-from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
+from thrustwalk_cli.thrust.schedule import Schedule
 from thrustwalk_cli.walker import load_walker
 
 REPO = Path(__file__).resolve().parents[1]

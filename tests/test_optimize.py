@@ -11,10 +11,10 @@ import pytest
 from scipy.optimize import linprog
 
 from thrustwalk_cli.contact.terms import impact_data
-from thrustwalk_cli.hzd.schedule import schedule_from_gait
-from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
+from thrustwalk_cli.optimize import min_effort as opt
 from thrustwalk_cli.optimize import qp
-from thrustwalk_cli.optimize import schedule as opt
+from thrustwalk_cli.thrust.schedule import Schedule
 from thrustwalk_cli.walker import load_walker
 
 FRACTIONS = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
@@ -225,7 +225,7 @@ def test_cli_optimize_writes_outputs_and_the_gait_loads_back(setup, tmp_path, cl
         assert (out / name).stat().st_size > 0, name
     g2 = load_walker(None, str(out / "three_link_walk_optimal.yaml")).gait
     assert np.allclose(np.array(g2.A), np.array(gait.A), rtol=0, atol=0)
-    sched = schedule_from_gait(zd, g2.thrust, "schedule", pad=True)[0]
+    sched = g2.thrust.resolve(zd, zd.model.robot, "schedule", pad=True)[0]
     lc = limit_cycles(zd, sched)[0]
     assert lc.zeta_star == pytest.approx(target, rel=1e-9)
 

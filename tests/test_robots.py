@@ -10,10 +10,11 @@ import pytest
 
 from thrustwalk_cli.errors import InputError
 from thrustwalk_cli.files.robot_file import load_robot
-from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
 from thrustwalk_cli.model import compiler as model_mod
 from thrustwalk_cli.model import derive
 from thrustwalk_cli.model.compiler import load_model
+from thrustwalk_cli.thrust.schedule import Schedule
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -28,7 +28,7 @@ import pytest
 from scipy.integrate import quad
 from scipy.optimize import brentq, minimize_scalar
 
-from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
 from thrustwalk_cli.resilience.basin import reduced_basin
 from thrustwalk_cli.resilience.maps import single_outcome, summary_impulse, survivable
 from thrustwalk_cli.resilience.push import push_point, rate_jump, stance_impulse
@@ -38,6 +38,7 @@ from thrustwalk_cli.resilience.uncertainty import controlled_sample, fixed_sampl
 from thrustwalk_cli.simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel
 from thrustwalk_cli.simulation.full_order import Start, initial_state, simulate
 from thrustwalk_cli.studies.robustness import plan_robustness, robustness, run_robustness
+from thrustwalk_cli.thrust.schedule import Schedule
 
 MU = 0.7
 STRATEGIES = (Strategy("none"), Strategy("constant", thrust=-20.0), Strategy("control"))

@@ -19,17 +19,16 @@ import numpy as np
 import pytest
 from scipy.integrate import quad, solve_ivp
 
-from thrustwalk_cli.description.gait import ThrustSchedule
 from thrustwalk_cli.errors import InputError
-from thrustwalk_cli.hzd import schedule as SC
 from thrustwalk_cli.hzd import shaping as S
 from thrustwalk_cli.hzd.zero_dynamics import (
-    Schedule,
     fixed_point_shift,
     limit_cycles,
     paper_one_step_shift,
 )
 from thrustwalk_cli.studies.shape import pattern_values
+from thrustwalk_cli.thrust import schedule as SC
+from thrustwalk_cli.thrust.schedule import Schedule, WrittenSchedule
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -124,7 +123,7 @@ def test_shift_formulas_two_ways(walk3):
     model, _, zd = walk3
     kn = fractions_knots(zd, [0, 0.25, 0.6, 1])
     rng = np.random.default_rng(4)
-    sched = SC.make_schedule(zd, kn, rng.normal(0, 20, (3, 3)), "generalized")
+    sched = Schedule.piecewise(kn, rng.normal(0, 20, (3, 3)), "generalized", zd.model.n_thrusters)
     F = np.zeros((3, 3, model.n_thrusters))
     F[:] = rng.normal(0, 10, F.shape)
     sched = Schedule(kn, F, sched.generalized)
@@ -143,7 +142,7 @@ def test_shaped_fixed_point_equals_iterated_poincare_map(walk3):
     _, _, zd = walk3
     kn = fractions_knots(zd, [0, 0.3, 0.7, 1])
     T = np.array([-30.0, 10.0, 25.0])
-    sched = SC.make_schedule(zd, kn, T[None, :], "generalized")
+    sched = Schedule.piecewise(kn, T[None, :], "generalized", zd.model.n_thrusters)
     z0_pred = S.nominal_zeta_star(zd)
     shift = float(S.true_shift(zd, sched)[0])
     one_step = float(S.one_step_change(zd, sched)[0])
@@ -198,8 +197,8 @@ def test_paper_example_knots_shape_only(walk3):
     assert b1 == pytest.approx(b3, rel=1e-10)
     assert b2 == pytest.approx(b1, rel=1e-10)  # equal spacing in b_F: the closest solution
     assert sol.residual < 1e-12
-    sched = SC.make_schedule(zd, a, P, "generalized")
-    nominal = limit_cycles(zd, SC.nominal_schedule(a, zd.model.n_thrusters))[0]
+    sched = Schedule.piecewise(a, P, "generalized", zd.model.n_thrusters)
+    nominal = limit_cycles(zd, Schedule.zero(a, zd.model.n_thrusters))[0]
     cycles = limit_cycles(zd, sched)
     for k, lc in zip(ks, cycles):
         assert lc.exists, (k, lc.reason)
@@ -267,7 +266,8 @@ def test_min_norm_hits_target_and_equals_lstsq(walk3, mode):
     sol = S.solve_target_zeta(zd, kn, target, mode, 0 if mode == "force" else None)
     assert sol.success, sol.reason
     assert sol.zeta_star == pytest.approx(target, rel=1e-12)
-    lc = limit_cycles(zd, SC.make_schedule(zd, kn, sol.values[None], mode, 0))[0]
+    m = zd.model.n_thrusters
+    lc = limit_cycles(zd, Schedule.piecewise(kn, sol.values[None], mode, m, 0))[0]
     assert lc.zeta_star == pytest.approx(target, rel=1e-12)
     # (1 - delta^2) zeta* = V_0(alpha_f) + a . x with a and V_0 by quadrature
     if mode == "generalized":
@@ -308,7 +308,8 @@ def test_force_mode_converges_to_generalized_mode(walk3):
     fr = np.array([0.0, 1 / 3, 2 / 3, 1.0])
     kn = fractions_knots(zd, fr)
     T = np.array([20.0, -10.0, 15.0])
-    z_gen = limit_cycles(zd, SC.make_schedule(zd, kn, T[None], "generalized"))[0].zeta_star
+    nt = zd.model.n_thrusters
+    z_gen = limit_cycles(zd, Schedule.piecewise(kn, T[None], "generalized", nt))[0].zeta_star
     errs = []
     for m in (2, 4, 8, 16, 32):
         fine = np.concatenate([np.linspace(fr[j], fr[j + 1], m + 1)[:-1] for j in range(3)]
@@ -317,7 +318,7 @@ def test_force_mode_converges_to_generalized_mode(walk3):
         mid = 0.5 * (kf[:-1] + kf[1:])
         beta = zd.terms(mid)["beta"][:, 0]
         Tj = np.repeat(T, m)
-        z_f = limit_cycles(zd, SC.make_schedule(zd, kf, (Tj / beta)[None], "force", 0))[0]
+        z_f = limit_cycles(zd, Schedule.piecewise(kf, (Tj / beta)[None], "force", nt, 0))[0]
         errs.append(abs(z_f.zeta_star - z_gen))
     errs = np.array(errs)
     ratios = errs[:-1] / errs[1:]
@@ -334,7 +335,7 @@ def test_vector_field_matches_flow(walk3):
     _, _, zd = walk3
     kn = fractions_knots(zd, [0, 0.5, 1])
     T = np.array([-40.0, 30.0])
-    sched = SC.make_schedule(zd, kn, T[None], "generalized")
+    sched = Schedule.piecewise(kn, T[None], "generalized", zd.model.n_thrusters)
     vf = S.vector_field(zd, sched, "alpha_dot", (0.5, 1.5), n_alpha=6, n_y=3)
     vs = S.vector_field(zd, sched, "sigma", (-40.0, -20.0), n_alpha=6, n_y=3)
     h = 1e-3
@@ -372,23 +373,23 @@ def test_gait_thrust_section_to_schedule(walk3):
     built directly; problems are collected with their key paths."""
     model, _, zd = walk3
     kn = [zd.alpha_i, 0.0, zd.alpha_f]
-    ts = ThrustSchedule(tuple(kn), (("hip_x", (-10.0, -20.0)), ("torso_back", (0.0, 5.0))),
+    ts = WrittenSchedule(tuple(kn), (("hip_x", (-10.0, -20.0)), ("torso_back", (0.0, 5.0))),
                         "force", fractions=False)
-    sched, fr = SC.schedule_from_gait(zd, ts, "gait thrust")
+    sched, fr = ts.resolve(zd, zd.model.robot, "gait thrust")
     assert fr[1] == pytest.approx(-zd.alpha_i / (zd.alpha_f - zd.alpha_i), abs=1e-12)
     np.testing.assert_array_equal(sched.force[0], [[-10.0, 0.0], [-20.0, 5.0]])
     G = [[gamma_quad(zd, kn[j], kn[j + 1], m) for m in range(2)] for j in range(2)]
     assert S.one_step_change(zd, sched)[0] == pytest.approx(
         np.sum(np.array(G) * sched.force[0]), rel=1e-9)
-    bad = ThrustSchedule((0.0, 0.7, 0.4, 1.0), (("hip_x", (1.0,)), ("nozzle", (1, 2, 3))),
+    bad = WrittenSchedule((0.0, 0.7, 0.4, 1.0), (("hip_x", (1.0,)), ("nozzle", (1, 2, 3))),
                          "force")
     with pytest.raises(InputError) as ei:
-        SC.schedule_from_gait(zd, bad, "gait thrust")
+        bad.resolve(zd, zd.model.robot, "gait thrust")
     text = str(ei.value)
     assert "increase strictly" in text and "expected 3 values" in text and "nozzle" in text
-    gen = ThrustSchedule((0.0, 1.0), (("hip_x", (1.0,)),), "generalized")
+    gen = WrittenSchedule((0.0, 1.0), (("hip_x", (1.0,)),), "generalized")
     with pytest.raises(InputError, match="only key is T"):
-        SC.schedule_from_gait(zd, gen, "gait thrust")
+        gen.resolve(zd, zd.model.robot, "gait thrust")
 
 
 def test_pattern_language_is_safe_and_checked(walk3):

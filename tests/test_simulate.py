@@ -19,16 +19,11 @@ import pytest
 from scipy.integrate import simpson
 from scipy.linalg import expm
 
-from thrustwalk_cli.description.gait import ThrustSchedule
-from thrustwalk_cli.hzd.schedule import schedule_from_gait as _from_gait
-from thrustwalk_cli.hzd.zero_dynamics import (
-    Schedule,
-    limit_cycles,
-    paper_one_step_shift,
-)
+from thrustwalk_cli.hzd.zero_dynamics import limit_cycles, paper_one_step_shift
 from thrustwalk_cli.simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel, zeta_star_at
 from thrustwalk_cli.simulation.full_order import Start, initial_state, simulate
 from thrustwalk_cli.simulation.reduced import ReducedModel, simulate_reduced
+from thrustwalk_cli.thrust.schedule import Schedule, WrittenSchedule
 
 TIGHT = SimConfig(steps=3, rtol=1e-10, atol=1e-10)
 DATA = Path(__file__).resolve().parent / "data"
@@ -36,7 +31,7 @@ DATA = Path(__file__).resolve().parent / "data"
 
 def schedule_from_gait(zd, ts):
     """A gait-format thrust section as a schedule (padded), problems reported at "thrust"."""
-    return _from_gait(zd, ts, "thrust", pad=True)[0]
+    return ts.resolve(zd, zd.model.robot, "thrust", pad=True)[0]
 
 
 def const(model, **thrust) -> ThrustModel:
@@ -124,7 +119,7 @@ def test_outputs_decay_as_the_closed_loop_linear_system(walk3):
 
 def test_scalar_rhs_equals_vectorised_details(walk3):
     model, gait, zd = walk3
-    sched = ThrustSchedule((0.0, 0.4, 1.0), (("T", (1.5, -2.0)),), "generalized", True)
+    sched = WrittenSchedule((0.0, 0.4, 1.0), (("T", (1.5, -2.0)),), "generalized", True)
     zd_g = replace(zd, gait=replace(gait, thrust=sched))
     th = ThrustModel("piecewise", np.zeros(2), schedule=schedule_from_gait(zd_g, sched))
     rng = np.random.default_rng(7)
@@ -267,7 +262,7 @@ def test_reduced_terms_equal_zero_dynamics_terms(walk3):
 def test_piecewise_schedule_fixed_point(walk3, mode):
     model, gait, zd = walk3
     vals = (("torso_back", (0.0, -3.0, 2.0)),) if mode == "force" else (("T", (-2.0, 0.0, 3.0)),)
-    sched = ThrustSchedule((0.0, 0.3, 0.7, 1.0), vals, mode, True)
+    sched = WrittenSchedule((0.0, 0.3, 0.7, 1.0), vals, mode, True)
     zd_s = replace(zd, gait=replace(gait, thrust=sched))
     S = schedule_from_gait(zd_s, sched)
     th = ThrustModel("piecewise", np.zeros(2), schedule=S)

@@ -17,10 +17,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from thrustwalk_cli.description.gait import ThrustSchedule
-from thrustwalk_cli.hzd.schedule import schedule_from_gait
 from thrustwalk_cli.simulation.closed_loop import SimConfig, ThrustModel
 from thrustwalk_cli.simulation.full_order import Start, initial_state, simulate
+from thrustwalk_cli.thrust.schedule import WrittenSchedule
 
 REL = 1e-9  # zeta^- agreement between the methods (the issue's requirement)
 
@@ -30,9 +29,9 @@ def _piecewise(walker, mode: str):
     zd, gait = walker.zd, walker.gait
     name = walker.robot.thruster_names[0]
     vals = ((name, (0.0, -3.0, 2.0)),) if mode == "force" else (("T", (-2.0, 0.0, 3.0)),)
-    sched = ThrustSchedule((0.0, 0.3, 0.7, 1.0), vals, mode, True)
+    sched = WrittenSchedule((0.0, 0.3, 0.7, 1.0), vals, mode, True)
     zd_s = replace(zd, gait=replace(gait, thrust=sched))
-    S = schedule_from_gait(zd_s, sched, "thrust", pad=True)[0]
+    S = sched.resolve(zd_s, zd_s.model.robot, "thrust", pad=True)[0]
     return zd_s, ThrustModel("piecewise", np.zeros(walker.model.n_thrusters), schedule=S)
 
 
@@ -199,14 +198,14 @@ def test_second_process_loads_the_compiled_kernel_from_the_cache(_cache_dir, wal
     """The kernel compiled by this session (cached in the thrustwalk cache folder, the same
     for every robot) is loaded, not recompiled, by a new process that simulates a robot:
     numba reports only cache hits."""
-    from thrustwalk_cli.simulation.compiled import kernel
+    from thrustwalk_cli.simulation.stepper import kernel
 
     kernel()  # compiled (or loaded) here
     code = ("import numpy as np\n"
             "from thrustwalk_cli.walker import load_walker\n"
             "from thrustwalk_cli.simulation.closed_loop import SimConfig, ThrustModel\n"
             "from thrustwalk_cli.simulation.full_order import simulate\n"
-            "from thrustwalk_cli.simulation.compiled import kernel\n"
+            "from thrustwalk_cli.simulation.stepper import kernel\n"
             "w = load_walker('rabbit', 'rabbit_walk')\n"
             "th = ThrustModel('constant', np.zeros(w.model.n_thrusters))\n"
             "res = simulate(w.zd, th, SimConfig(steps=1))\n"

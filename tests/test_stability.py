@@ -20,8 +20,9 @@ from scipy.linalg import expm
 import thrustwalk_cli as tw
 from thrustwalk_cli.floquet.poincare import Setting
 from thrustwalk_cli.floquet.variational import closed_loop, rhs_jacobian
-from thrustwalk_cli.hzd.zero_dynamics import Schedule, limit_cycles
+from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
 from thrustwalk_cli.simulation.closed_loop import ThrustModel
+from thrustwalk_cli.thrust.schedule import Schedule
 
 DATA = Path(__file__).resolve().parent / "data"
 
@@ -432,7 +433,7 @@ def test_bad_options_are_one_line_errors_exit_2_nothing_written(cli, tmp_path, a
 
 @pytest.mark.slow
 def test_command_writes_the_result_folder(cli, tmp_path):
-    from thrustwalk_cli.studies.records import UNITS
+    from thrustwalk_cli.studies.documents import UNITS
 
     res = cli("stability", "three_link", "three_link_walk", "--thrust-model", "constant",
               "--thrust", "-10", "--vary", "kp=100:1600:log3", "--out", tmp_path)

@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 
 from thrustwalk_cli.errors import InputError
-from thrustwalk_cli.studies.records import col
+from thrustwalk_cli.studies.documents import col
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLES = sorted((REPO / "sweeps").glob("*.yaml"))
@@ -579,7 +579,7 @@ def test_a_compiled_simulate_sweep_reuses_the_cached_kernel(tmp_path, _cache_dir
     """Preparing a sweep makes sure the kernel is compiled once; it must load the cached
     kernel, not rebuild it (the entry's file and numba's machine code stay untouched)."""
     import thrustwalk_cli as tw
-    from thrustwalk_cli.simulation.compiled import kernel, kernel_status
+    from thrustwalk_cli.simulation.stepper import kernel, kernel_status
 
     kernel()  # compiled (or loaded) before the sweep
     entry = Path(kernel_status()["entry"])

@@ -89,7 +89,7 @@ def test_D_h_batch_equals_the_numpy_path(model):
 def test_scalar_interpreter_of_the_kernel_equals_the_batch_interpreter(model):
     """``tape_run`` (one state, inside the compiled simulation) and ``tape_batch`` execute
     the same instructions: equal to the last bit."""
-    from thrustwalk_cli.simulation.compiled import kernel
+    from thrustwalk_cli.simulation.stepper import kernel
 
     run = kernel().module.tape_run
     tape = model.tape

@@ -297,7 +297,7 @@ UNIT_WORDS = {"N", "m", "s", "rad", "kg", "J", "1"}
 
 @pytest.mark.slow
 def test_every_json_has_units_and_a_schema_version(outputs):
-    from thrustwalk_cli.studies.records import UNITS
+    from thrustwalk_cli.studies.documents import UNITS
 
     canonical = set(UNITS.values())
     docs = sorted(outputs.rglob("*.json"))
@@ -350,7 +350,7 @@ def test_tables_never_split_a_number(tmp_path, cli, monkeypatch):
     res = cli("limit-cycle", "--thrust", "0,-12.345678,40", "--out", tmp_path)
     assert res.exit_code == 0
     doc = json.loads((tmp_path / "limit_cycles.json").read_text())
-    from thrustwalk_cli.studies.records import fmt
+    from thrustwalk_cli.studies.documents import fmt
 
     for c in doc["cycles"]:
         for key in ("thrust", "zeta_star", "step_time", "speed"):
@@ -511,7 +511,7 @@ def test_a_first_simulation_says_it_compiles_the_kernel(tmp_path, cli, monkeypat
     """Issue 24 item 7: the first simulate on a machine was silent for 1.5-2 minutes (the
     one-time kernel compile). A command that needs the kernel says so before it starts and
     shows the time passing; with the kernel cached it says nothing."""
-    import thrustwalk_cli.simulation.compiled as compiled
+    import thrustwalk_cli.simulation.stepper as stepper
     import thrustwalk_cli.studies.compile as study
 
     state = {"cached": False, "compiled": 0}
@@ -523,7 +523,7 @@ def test_a_first_simulation_says_it_compiles_the_kernel(tmp_path, cli, monkeypat
         state["cached"] = True
         return {**rec, "cache_hit": False, "seconds": 31.5}
 
-    monkeypatch.setattr(compiled, "kernel_status",
+    monkeypatch.setattr(stepper, "kernel_status",
                         lambda: {"cached": state["cached"], "compile_seconds": None,
                                  "entry": ""})
     monkeypatch.setattr(study, "compile_kernel", fake_compile)

@@ -391,7 +391,7 @@ def ensure_kernel(quiet: bool) -> dict | None:
     elapsed-time bar against the expected time (silent with ``--quiet``), so that the first
     run is not a minute of silence. Returns :func:`compile_kernel`'s record when it compiled,
     None when the kernel was cached."""
-    from ..simulation.compiled import kernel_status
+    from ..simulation.stepper import kernel_status
     from ..studies.compile import compile_kernel
 
     if kernel_status()["cached"]:

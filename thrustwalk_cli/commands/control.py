@@ -166,7 +166,7 @@ def run_control(robot: str | None, gait: str | None, *, reference: str, profile:
 
 
 def _table(doc: dict) -> None:
-    from ..studies.records import fmt
+    from ..studies.documents import fmt
 
     s = doc["summary"]
     un = doc["uncontrolled"]
@@ -210,8 +210,9 @@ def register(app: typer.Typer) -> None:
                             "thruster with dynamics).")] = "0,0.5,1",
         steps: Annotated[int, typer.Option("--steps", help="Steps to walk.")] = 40,
         thrust_model: Annotated[str, typer.Option(
-            "--thrust-model", help="ideal (the thrust is the command), first-order (--tau "
-                                   "[s]) or second-order (--wn [rad/s], --xi).")] = "ideal",
+            "--thrust-model", help="ideal (the thrust is the command; `constant` is its "
+                                   "deprecated name), first-order (--tau [s]) or "
+                                   "second-order (--wn [rad/s], --xi).")] = "ideal",
         wn: Annotated[float, typer.Option(
             "--wn", help="Second-order thruster natural frequency [rad/s].")] = 20.0,
         xi: Annotated[float, typer.Option(

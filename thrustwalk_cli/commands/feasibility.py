@@ -81,8 +81,8 @@ def run_feasibility(robot: str | None, gait: str | None, *, thrust: list[float] 
 
 
 def _table(doc: dict) -> None:
+    from ..studies.documents import fmt
     from ..studies.feasibility import thrust_text
-    from ..studies.records import fmt
 
     rows = [[thrust_text(c["thrust"]), "feasible" if c["feasible"] else "INFEASIBLE",
              fmt(c["min_vertical_force"]), fmt(c["max_friction_ratio"]),

@@ -82,7 +82,7 @@ def run_limit_cycle(robot: str | None, gait: str | None, thrust: list[float] | N
 def _table(doc: dict) -> None:
     import re
 
-    from ..studies.records import fmt
+    from ..studies.documents import fmt
 
     zd = doc["zero_dynamics"]
     rows = [["gait" if c["thrust"] is None else fmt(c["thrust"]), fmt(c["zeta_star"]),

@@ -150,7 +150,7 @@ def run_mujoco_command(robot: str, gait: str | None, *, steps: int, thrust_model
 
 
 def _table(doc: dict) -> None:
-    from ..studies.records import fmt
+    from ..studies.documents import fmt
 
     last: dict[int, dict] = {}
     for e in doc["steps"]:
@@ -183,8 +183,9 @@ def register(app: typer.Typer) -> None:
         steps: Annotated[int, typer.Option("--steps", help="Steps per run.")] = 20,
         thrust_model: Annotated[str | None, typer.Option(
             "--thrust-model",
-            help="constant | first-order | second-order | piecewise (default: piecewise for "
-                 "a gait with a thrust: section and no --thrust, else constant).")] = None,
+            help="ideal | first-order | second-order | piecewise (`constant`: the deprecated "
+                 "name of ideal; default: piecewise for a gait with a thrust: section and no "
+                 "--thrust, else ideal).")] = None,
         thrust: Annotated[str | None, typer.Option(
             "--thrust", help="Steady thrust F_ss [N], one run per value: start:stop:step or a "
                              "comma list (default 0).")] = None,

@@ -191,7 +191,7 @@ def run_robustness_command(
 
 
 def _table(doc: dict) -> None:
-    from ..studies.records import fmt
+    from ..studies.documents import fmt
 
     rows = []
     for s in doc["strategies"]:

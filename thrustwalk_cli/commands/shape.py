@@ -108,7 +108,7 @@ def _values_text(s: dict) -> str:
 
 
 def _table(doc: dict) -> None:
-    from ..studies.records import fmt
+    from ..studies.documents import fmt
 
     c = console()
     kn = doc["knots"]

@@ -39,12 +39,13 @@ Controller: input-output linearisation y'' = -Kp y - Kd y' (gains from the gait 
 cancels the thrust on the joints. Guard: swing-foot height crossing 0 downward after mid-step;
 impact map and leg relabelling; thruster states carry across impacts. One run per steady thrust
 value F_ss [N] (--thrust); each is compared step by step with the zero-dynamics prediction and
-the reduced cascade (the zero dynamics in time). Thrust models: constant; first-order lag (tau
-[s]); second-order F'' + 2 xi wn F' + wn^2 F = wn^2 F_ss (wn [rad/s], the paper's slow
-thruster); piecewise in alpha (the gait's thrust: section; the default for a gait that has one
-when no --thrust is given). The start is just after an impact on the predicted orbit (zeta^- =
-zeta* of the thrust at t = 0, or of zero thrust with --start nominal), scaled by 1 + --perturb,
-or --zeta0 [kg^2 m^4/s^2], or an explicit state --q0/--dq0.
+the reduced cascade (the zero dynamics in time). Thrust models: ideal (the thrust is the
+command; `constant` is its deprecated name); first-order lag (tau [s]); second-order F'' + 2 xi
+wn F' + wn^2 F = wn^2 F_ss (wn [rad/s], the paper's slow thruster); piecewise in alpha (the
+gait's thrust: section; the default for a gait that has one when no --thrust is given). The
+start is just after an impact on the predicted orbit (zeta^- = zeta* of the thrust at t = 0, or
+of zero thrust with --start nominal), scaled by 1 + --perturb, or --zeta0 [kg^2 m^4/s^2], or
+an explicit state --q0/--dq0.
 
 A walker that falls (stance leg past horizontal, alpha reversing, negative vertical ground
 force), scuffs (a strike before s = --min-impact-s, 0.75, counts as a scuff) or has an
@@ -123,7 +124,7 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
 
 
 def _table(doc: dict) -> None:
-    from ..studies.records import fmt
+    from ..studies.documents import fmt
 
     def status(r: dict) -> str:
         if r["status"] == "ok":
@@ -152,7 +153,8 @@ def register(app: typer.Typer) -> None:
         steps: Annotated[int, typer.Option("--steps", help="Steps per run.")] = 30,
         thrust_model: Annotated[str | None, typer.Option(
             "--thrust-model",
-            help="constant | first-order | second-order | piecewise (default: piecewise for "
+            help="ideal | first-order | second-order | piecewise (`constant`: the deprecated "
+                 "name of ideal; default: piecewise for "
                  "a gait with a thrust: section, else second-order).")] = None,
         thrust: Annotated[str | None, typer.Option(
             "--thrust", help="Steady thrust F_ss [N], one run per value: start:stop:step or "

@@ -150,7 +150,7 @@ def run_stability(robot: str | None, gait: str | None, *, thrust_model: str | No
 
 
 def _table(doc: dict) -> None:
-    from ..studies.records import fmt
+    from ..studies.documents import fmt
 
     vary = doc["settings"]["vary"]
     rows = []
@@ -185,7 +185,8 @@ def register(app: typer.Typer) -> None:
         gait: GaitArg = None,
         thrust_model: Annotated[str | None, typer.Option(
             "--thrust-model",
-            help="constant | first-order | second-order | piecewise (default: piecewise for "
+            help="ideal | first-order | second-order | piecewise (`constant`: the deprecated "
+                 "name of ideal; default: piecewise for "
                  "a gait with a thrust: section and no --thrust, else second-order).")] = None,
         thrust: Annotated[str | None, typer.Option(
             "--thrust", help="Steady thrust F_ss [N], one value (default 0; sweep it with "

@@ -18,8 +18,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..hzd.extrema import golden_min_smooth, neighbours
-from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, ZetaAt, limit_cycles
+from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, ZetaAt, limit_cycles
 from ..model.compiled import CompiledModel
+from ..thrust.schedule import Schedule
 from .terms import (
     Fits,
     ImpactData,
@@ -133,7 +134,7 @@ def _max_abs_torque(model: CompiledModel, zd: ZeroDynamics, sched: Schedule,
         return A.max(axis=1, initial=0.0).reshape(k, nb)
     rows, joint = np.repeat(np.arange(k), nb), np.tile(np.arange(nb), k)
     e = np.arange(rows.size)
-    rep = Schedule(sched.knots, sched.force[rows], sched.generalized[rows])
+    rep = sched.take(rows)
     zeta_at, zp = ZetaAt(zd, rep), zeta_plus[rows]
     j = np.argmax(A, axis=1)
     F, T = rep.force[e, idx[j], :], rep.generalized[e, idx[j]]

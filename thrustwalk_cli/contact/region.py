@@ -11,8 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..hzd.zero_dynamics import Schedule, ZeroDynamics
+from ..hzd.zero_dynamics import ZeroDynamics
 from ..model.compiled import CompiledModel
+from ..thrust.schedule import Schedule
 from .evaluate import friction_ratio, step_grid
 from .terms import impact_data, stance_terms
 
@@ -67,7 +68,7 @@ def feasible_region(model: CompiledModel, zd: ZeroDynamics, unit: Schedule,
     zs = np.zeros(scale.shape)
     fp_feas = np.zeros(scale.shape, bool)
     if 0 < d2 < 1 and zd.valid:
-        zs = Vf / (1 - d2)
+        zs = zd.fixed_point_of(Vf)
         zfp = d2 * zs[:, None] + V0 + scale[:, None] * W
         valid = (zs > 0) & (zfp.min(axis=-1) > 0)
         F1fp = scale[:, None, None] * per_s + t.L1 * zfp[..., None] + t.L0

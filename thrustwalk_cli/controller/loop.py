@@ -3,8 +3,8 @@
 
 At every impact the controller measures ``x_k`` (zeta^- of the plant, with a seeded uniform
 relative error ``e_k in [-noise, noise]``: ``x_meas = x_k (1 + e_k)``), solves the SPEC 11 QP
-(:class:`~thrustwalk_cli.control.planner.Planner`) and sets the thrust values of the next step
-on the plant (:class:`thrustwalk_cli.simulation.compiled.Stepper`, ``set_thrust`` between
+(:class:`~thrustwalk_cli.controller.planner.Planner`) and sets the thrust values of the next step
+on the plant (:class:`thrustwalk_cli.simulation.stepper.Stepper`, ``set_thrust`` between
 steps). The plant may differ from the controller's model (its own robot parameters, the same
 virtual constraints) and may be pushed (impulse at a phase of a step, SPEC 12).
 
@@ -32,13 +32,15 @@ import numpy as np
 
 from ..contact.evaluate import friction_ratio
 from ..hzd.extrema import golden_min, grid_miss, neighbours, peaks
-from ..hzd.zero_dynamics import Schedule, ZeroDynamics
+from ..hzd.zero_dynamics import ZeroDynamics
 from ..simulation.batch import push_row
 from ..simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel
-from ..simulation.compiled import Stepper, failure_text, step_record
 from ..simulation.full_order import Start, initial_state
+from ..simulation.stepper import Stepper, failure_text, step_record
+from ..thrust.dynamics import ThrusterDynamics
+from ..thrust.schedule import Schedule
 from .planner import Plan, Planner, predicted_margins
-from .step_model import ThrusterDynamics, interval_of
+from .step_model import interval_of
 
 SAMPLES = 81  # samples per step for the certificate and the figures
 REL_TOL = 1e-6  # numerical tolerance of the comparison, relative to the weight and to |F_1|
@@ -119,11 +121,10 @@ def run_loop(plant: ZeroDynamics, planner: Planner | None, *, label: str, steps:
     knots = np.asarray(knots, float)
     n_int = len(knots) - 1
     if dynamics is None:
-        sched = Schedule(knots, np.zeros((1, n_int, m)), np.zeros((1, n_int)))
+        sched = Schedule.zero(knots, m)
         th = ThrustModel("piecewise", np.zeros(m), schedule=sched)
     else:
-        th = ThrustModel(dynamics.kind, np.zeros(m), wn=dynamics.wn, xi=dynamics.xi,
-                         tau=dynamics.tau, initial=np.full(m, f0))
+        th = ThrustModel(dynamics.kind, np.zeros(m), initial=np.full(m, f0), dynamics=dynamics)
     cfg = SimConfig(steps=1, rtol=config.rtol, atol=config.atol, scuff_tol=config.scuff_tol,
                     min_impact_s=config.min_impact_s, torque_limit=config.torque_limit)
     cl = ClosedLoop(plant, th, cfg)

@@ -27,6 +27,10 @@ not certified. Impact admissibility does not depend on the thrust (SPEC 11): che
 
 Every QP is solved exactly by :class:`thrustwalk_cli.optimize.qp.ConvexQP` (NNLS
 least-distance with generated rows). Units SI.
+
+One idea in one file (above 600 lines): the per-step QP with its rows, its exact
+polishing between grid points and its cutting planes, which together make one certified
+plan.
 """
 
 from __future__ import annotations
@@ -40,7 +44,7 @@ from scipy.optimize import linprog
 from ..contact.terms import impact_data
 from ..errors import InputError
 from ..hzd.extrema import golden_min, grid_miss, neighbours, peaks
-from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
+from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics
 from ..optimize.qp import ConvexQP, normalise_rows
 from .step_model import (
     IdealThrust,
@@ -644,7 +648,7 @@ class Planner:
         thrusters)."""
         if self.thrust.dynamic:
             th = self.thrust
-            th.start(z if z is not None else np.zeros(th.m * th.dyn.n_states))
+            th.start(z if z is not None else np.zeros(th.dyn.n_states))
         (u, status, target, act, viol, rw, margins, cut_a, iterations, rounds, step_time,
          t_qp, t_pol) = self._run(x_meas, x_ref, u_prev, steady=False)
         lo, hi = self.x_band(x_meas)
@@ -698,7 +702,7 @@ def regulator(zd: ZeroDynamics, knots: np.ndarray, driven: list[int], *, mu: flo
     if not zd.valid:
         raise InputError.param("gait", f"the gait has no walking orbit to control: "
                                        f"{zd.invalid_reason}")
-    lc0 = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, model.n_thrusters))))[0]
+    lc0 = zd.nominal_cycle()
     if not lc0.exists:
         raise InputError.param("gait", f"no zero-thrust periodic orbit to start from or "
                                        f"regulate to: {lc0.reason}")

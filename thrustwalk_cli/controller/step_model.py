@@ -12,12 +12,13 @@ step k stacked in ``u_k`` (one per interval and driven thruster, interval-major:
 
 ``I_0 = int beta f_0 / kappa_1`` and ``I_u = int beta S / kappa_1`` from ``alpha_i``. For ideal
 thrusters (the thrust is the command): ``f_0 = 0``, ``S`` the indicator of the point's knot
-interval, so ``I_u`` holds the SPEC 11 ``Gamma_j(alpha)`` (:class:`IdealThrust`). For a thruster
-with its own linear dynamics ``z' = A z + B F_ss``, ``F = C z`` (SPEC 7) and one setpoint per
-step, the delivered thrust is the linear response ``F(t) = C e^{A t} z_k + C int_0^t e^{A s} ds
-B u_k``: affine in the command and the thruster state at impact; the time ``t(alpha) = int
-dalpha / alpha'`` comes from the zero dynamics of the same step (:class:`ResponseThrust`). So
-``F_1 = P_0 + P_x x_k + P_u u_k`` exactly in both cases (:class:`Rows`).
+interval, so ``I_u`` holds the SPEC 11 ``Gamma_j(alpha)`` (:class:`IdealThrust`). For a
+thruster with its own linear dynamics ``z' = A z + B F_ss``, ``F = C z`` (SPEC 7,
+:mod:`thrustwalk_cli.thrust.dynamics`) and one setpoint per step, the delivered thrust is the
+linear response ``F(t) = C e^{A t} z_k + C int_0^t e^{A s} ds B u_k``: affine in the command
+and the thruster state at impact; the time ``t(alpha) = int dalpha / alpha'`` comes from the
+zero dynamics of the same step (:class:`ResponseThrust`). So ``F_1 = P_0 + P_x x_k + P_u u_k``
+exactly in both cases (:class:`Rows`).
 
 Units: zeta [kg^2 m^4/s^2], thrust [N], F_1 [N], alpha [rad], t [s].
 """
@@ -33,6 +34,7 @@ from ..errors import ComputationError
 from ..hzd.quadrature import ChebSeries, lobatto
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..model.compiled import CompiledModel
+from ..thrust.dynamics import ThrusterDynamics
 
 
 @dataclass(frozen=True)
@@ -159,57 +161,6 @@ class IdealThrust:
         return np.zeros((g, self.m)), S, np.zeros(g), Iu
 
 
-@dataclass(frozen=True)
-class ThrusterDynamics:
-    """Linear thruster dynamics of one thruster (SPEC 7): ``z' = A z + B F_ss``, ``F = C z``.
-    ``first-order``: ``tau F' = F_ss - F`` (z = F); ``second-order``: ``F'' + 2 xi wn F' +
-    wn^2 F = wn^2 F_ss`` (z = (F, F')). wn [rad/s], tau [s]."""
-
-    kind: str
-    wn: float = 2.0
-    xi: float = 1.0
-    tau: float = 0.5
-
-    @property
-    def matrices(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        if self.kind == "first-order":
-            return (np.array([[-1.0 / self.tau]]), np.array([1.0 / self.tau]),
-                    np.array([1.0]))
-        w2, d = self.wn**2, 2.0 * self.xi * self.wn
-        return np.array([[0.0, 1.0], [-w2, -d]]), np.array([0.0, w2]), np.array([1.0, 0.0])
-
-    @property
-    def n_states(self) -> int:
-        return 1 if self.kind == "first-order" else 2
-
-    def response(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(Phi, Psi)`` at times ``t`` (g,) [s]: ``F(t) = Phi(t) z_0 + Psi(t) F_ss``, with
-        ``Phi = C e^{A t}`` (g, n_z) and ``Psi = C int_0^t e^{A s} ds B`` (g,), in closed form:
-        first order ``e^{-t/tau}`` and ``1 - e^{-t/tau}``; second order the free response
-        ``h(t; F_0, F'_0)`` of ``F'' + 2 xi wn F' + wn^2 F = 0`` (under-, critically or
-        over-damped) with ``Phi = [h(t; 1, 0), h(t; 0, 1)]`` and ``Psi = 1 - h(t; 1, 0)``."""
-        t = np.asarray(t, float)
-        if self.kind == "first-order":
-            e = np.exp(-t / self.tau)
-            return e[:, None], 1.0 - e
-        w, xi = self.wn, self.xi
-        if abs(xi - 1.0) < 1e-9:
-            e = np.exp(-w * t)
-            h10, h01 = e * (1.0 + w * t), e * t
-        elif xi < 1.0:
-            wd = w * np.sqrt(1.0 - xi * xi)
-            e = np.exp(-xi * w * t)
-            c, sn = np.cos(wd * t), np.sin(wd * t)
-            h10, h01 = e * (c + xi * w / wd * sn), e * sn / wd
-        else:
-            r = w * np.sqrt(xi * xi - 1.0)
-            r1, r2 = -xi * w + r, -xi * w - r
-            e1, e2 = np.exp(r1 * t), np.exp(r2 * t)
-            h10 = (-r2 * e1 + r1 * e2) / (r1 - r2)
-            h01 = (e1 - e2) / (r1 - r2)
-        return np.stack([h10, h01], axis=-1), 1.0 - h10
-
-
 class StepStops(ComputationError):
     """A slow thruster's predicted step has no time map: zeta reaches 0 along it (the walker
     would stop and fall back) or the time ``t(alpha)`` it gives is not resolved (not
@@ -234,6 +185,7 @@ class ResponseThrust:
 
     def __init__(self, zd: ZeroDynamics, dyn: ThrusterDynamics, driven: list[int],
                  nodes: int = 129):
+        """``dyn``: the dynamics of every thruster of the robot (thrust/dynamics.py)."""
         self.zd, self.dyn, self.driven = zd, dyn, list(driven)
         self.m = zd.model.n_thrusters
         self.knots = np.array([zd.alpha_i, zd.alpha_f])
@@ -245,17 +197,21 @@ class ResponseThrust:
         self.bk = tm["beta"] * tm["eDPhi"][:, None]  # beta / kappa_1, (n, m)
         self.sgn = zd.sigma_sign
         self.V0n = zd.V0(self.nodes)
-        self.z = np.zeros(self.m * dyn.n_states)
+        self.z = np.zeros(dyn.n_states)
         self.t_series: ChebSeries | None = None
 
     def start(self, z: np.ndarray) -> None:
-        """The thruster states at the impact that starts the step (F then F' per thruster, as
-        the simulation's state vector holds them)."""
+        """The thruster states at the impact that starts the step (stacked as the
+        simulation's state vector holds them: ``ThrusterDynamics.layout``)."""
         self.z = np.asarray(z, float)
 
     def _state(self, t: int) -> np.ndarray:
-        k = self.dyn.n_states
-        return np.array([self.z[i * self.m + t] for i in range(k)])
+        return np.array([self.z[j] for j in self.dyn.layout[t]])
+
+    def _response(self, t: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """``(Phi, Psi)`` of every thruster at times ``t`` (:meth:`~thrustwalk_cli.thrust.
+        dynamics.Servo.response`)."""
+        return [s.response(t) for s in self.dyn.servos]
 
     def update(self, zeta_nodes: np.ndarray) -> float:
         """Rebuild ``t(alpha)``, ``F`` and the integrals from zeta on the nodes; returns the
@@ -275,11 +231,11 @@ class ResponseThrust:
         self.t_series = t_series
         f0 = np.zeros((t.size, self.m))
         S = np.zeros((t.size, self.m, self.nu))
-        Phi, Psi = self.dyn.response(t)
+        resp = self._response(t)
         for t_ in range(self.m):  # thrusters not driven relax towards F_ss = 0
-            f0[:, t_] = Phi @ self._state(t_)
+            f0[:, t_] = resp[t_][0] @ self._state(t_)
         for c, t_ in enumerate(self.driven):
-            S[:, t_, c] = Psi
+            S[:, t_, c] = resp[t_][1]
         I0 = np.einsum("nm,nm->n", self.bk, f0)
         Iu = np.einsum("nm,nmv->nv", self.bk, S)
         self.I0 = ChebSeries.from_values(self.a, self.b, I0).cumulative()
@@ -296,13 +252,13 @@ class ResponseThrust:
         alpha = np.clip(np.atleast_1d(np.asarray(alpha, float)), min(self.a, self.b),
                         max(self.a, self.b))
         t = self.t_series(alpha)
-        Phi, Psi = self.dyn.response(t)
+        resp = self._response(t)
         f0 = np.zeros((alpha.size, self.m))
         S = np.zeros((alpha.size, self.m, self.nu))
         for t_ in range(self.m):
-            f0[:, t_] = Phi @ self._state(t_)
+            f0[:, t_] = resp[t_][0] @ self._state(t_)
         for c, t_ in enumerate(self.driven):
-            S[:, t_, c] = Psi
+            S[:, t_, c] = resp[t_][1]
         return f0, S, self.I0(alpha), self.Iu(alpha)
 
 

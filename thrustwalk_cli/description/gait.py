@@ -15,22 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-
-@dataclass(frozen=True)
-class ThrustSchedule:
-    """Piecewise-constant thrust on knots (SPEC 4).
-
-    knots: alpha values ``alpha_1 < ... < alpha_n`` in the direction of the step, or fractions
-    of the step when ``fractions`` is true [rad or 1].
-    values: ``(thruster name, one value per interval)`` pairs: thrust [N] (mode ``"force"``)
-    or, in mode ``"generalized"``, a single pair ``("T", ...)`` of generalised forces ``T_j``
-    on q_N [N m].
-    """
-
-    knots: tuple[float, ...]
-    values: tuple[tuple[str, tuple[float, ...]], ...]
-    mode: str = "force"
-    fractions: bool = True
+from ..thrust.schedule import WrittenSchedule
 
 
 @dataclass(frozen=True)
@@ -46,7 +31,7 @@ class Gait:
     kp: float = 400.0
     kd: float = 40.0
     mu: float = 0.7
-    thrust: ThrustSchedule | None = None
+    thrust: WrittenSchedule | None = None  # the gait file's thrust: section as written
     source_file: str = "<memory>"
     source_sha256: str = ""
     given_A: tuple[tuple[float | None, ...], ...] = field(default=(), compare=False, repr=False)

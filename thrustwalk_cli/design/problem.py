@@ -54,6 +54,9 @@ The swing-foot height is constrained on a dense uniform grid through :func:`cell
 :meth:`Problem.evaluate_many` evaluates many points in one vectorised pass (a leading batch
 axis through every step; the forward-difference Jacobian's points), each row equal bit for bit
 to :meth:`Problem.evaluate` of that point alone.
+
+One idea in one file (above 600 lines): the gait-design problem, its decision vector,
+constraints and their vectorised evaluation, which share one layout of the variables.
 """
 
 from __future__ import annotations
@@ -65,11 +68,12 @@ import numpy as np
 from scipy.optimize import minimize
 
 from ..contact.terms import stance_terms
-from ..description.gait import Gait, ThrustSchedule
+from ..description.gait import Gait
 from ..hzd.constraints import apply_invariance, bezier, gait_maps
 from ..hzd.quadrature import ChebSeries, integrate, lobatto
 from ..hzd.zero_dynamics import zero_dynamics_terms
 from ..model.compiled import CompiledModel
+from ..thrust.schedule import WrittenSchedule
 from .spec import STABILITY_MARGIN, VELOCITY_MARGIN, DesignSpec
 
 FAMILIES = ("orbit", "stability", "speed", "step_length", "foot_placement", "clearance",
@@ -268,12 +272,12 @@ class Problem:
                  thrust=self.thrust_schedule(F))
         return apply_invariance(self.model, g)
 
-    def thrust_schedule(self, F: np.ndarray) -> ThrustSchedule | None:
+    def thrust_schedule(self, F: np.ndarray) -> WrittenSchedule | None:
         """The constant thrust of the gait file (designed, or fixed by ``spec.thrust``)."""
         if not self.m and self.spec.thrust is None:
             return None
         names = self.model.robot.thruster_names
-        return ThrustSchedule((0.0, 1.0), tuple((nm, (float(f),)) for nm, f in zip(names, F)))
+        return WrittenSchedule((0.0, 1.0), tuple((nm, (float(f),)) for nm, f in zip(names, F)))
 
     def range_cases(self, F: np.ndarray) -> list[np.ndarray]:
         """Thrust vectors [N] at the two ends of ``spec.thrust_range`` (the other thrusters at

@@ -11,8 +11,9 @@ from ..contact.evaluate import evaluate
 from ..contact.terms import impact_data, stance_terms, swing_clearance
 from ..description.gait import Gait
 from ..hzd.quadrature import integrate, lobatto
-from ..hzd.zero_dynamics import Schedule, limit_cycles, zero_dynamics
+from ..hzd.zero_dynamics import limit_cycles, zero_dynamics
 from ..model.compiled import CompiledModel
+from ..thrust.schedule import Schedule
 from .spec import DesignSpec
 
 

@@ -15,9 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..description.gait import Gait, ThrustSchedule
+from ..description.gait import Gait
 from ..description.robot import Robot
 from ..errors import InputError, Problem, Where
+from ..thrust.schedule import WrittenSchedule
 from .bundled import resolve
 from .schema import (
     boolean,
@@ -146,7 +147,7 @@ def parse_gait(doc, path: Path, parameters: Mapping[str, float] | None = None
     if d["thrust"] is not None:
         t = d["thrust"]
         vals = t["values"]
-        sched = ThrustSchedule(tuple(t["knots"]), tuple((k, tuple(v)) for k, v in vals.items()),
+        sched = WrittenSchedule(tuple(t["knots"]), tuple((k, tuple(v)) for k, v in vals.items()),
                                t["mode"], t["fractions"])
     rows = d["bezier"]["coefficients"]
     gait = Gait(

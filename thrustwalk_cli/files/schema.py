@@ -14,7 +14,7 @@ Declare a schema with the factory functions (``number``, ``vector``, ``mapping``
     result.raise_if_problems()
 
 A ``number`` is a YAML int/float or a string holding an arithmetic expression (see
-:mod:`thrustwalk_cli.expr`) of the document's ``parameters``. Expression columns in
+:mod:`thrustwalk_cli.files.expr`) of the document's ``parameters``. Expression columns in
 messages are 1-based.
 """
 

@@ -21,6 +21,7 @@ import numpy as np
 
 from ..description.sweep import DISTRIBUTIONS, Axis, SweepSpec, range_count
 from ..errors import InputError, Problem, param_problem
+from ..thrust.dynamics import ALIASES, model_names
 from .bundled import EXPLICITLY, resolve, resolve_inside
 from .schema import (
     Kind,
@@ -111,19 +112,19 @@ STUDY_PARAMETERS: dict[str, Kind] = {
     "simulate": mapping(
         _THRUSTER,
         field("thrust", number("N"), "steady thrust F_ss", default=0.0),
-        field("thrust_model", choice("constant", "first-order", "second-order", "piecewise"),
-              "thruster model (piecewise: the `schedule`, else the gait's thrust: section)",
-              default="constant"),
+        field("thrust_model", choice(*model_names(), "piecewise", *ALIASES),
+              "thruster model (piecewise: the `schedule`, else the gait's thrust: section; "
+              "constant: the deprecated name of ideal)", default="ideal"),
         _SCHEDULE,
         field("steps", integer("1", ge=1, le=10_000), "steps of the full-order run",
               default=10),
         field("wn", number("rad/s", gt=0, le=1000), "natural frequency of the second-order "
-              "thruster (a faster one is the constant model, and makes the equations stiff)",
+              "thruster (a faster one is the ideal model, and makes the equations stiff)",
               default=2.0),
         field("xi", number("1", gt=0), "damping ratio of the second-order thruster",
               default=1.0),
         field("tau", number("s", ge=0.001), "lag of the first-order thruster (a shorter one is "
-              "the constant model, and makes the equations stiff)", default=0.5),
+              "the ideal model, and makes the equations stiff)", default=0.5),
         field("f0", number("N"), "thrust at t = 0 of the dynamic thruster models",
               default=0.0),
         field("perturb", number("1", gt=-1), "start on the predicted orbit with zeta^- scaled "

@@ -47,27 +47,18 @@ class Setting:
 
 
 def state_names(zd: ZeroDynamics, thrust: ThrustModel) -> list[str]:
-    """Names of the components of ``x = (q, q', z)``: coordinates, their rates (``q1'``), the
-    thrust and, for the second-order model, its rate (``F_hip_x'``)."""
+    """Names of the components of ``x = (q, q', z)``: coordinates, their rates (``q1'``) and
+    the thruster states as the thrust model names them (the first-order thrust ``F_hip_x``;
+    the second-order thrust and its rate ``F_hip_x'``)."""
     r = zd.model.robot
     q = list(r.coordinate_names)
-    names = q + [f"{c}'" for c in q]
-    thr = [f"F_{t}" for t in r.thruster_names][: thrust.m]
-    if thrust.kind == "first-order":
-        names += thr
-    elif thrust.kind == "second-order":
-        names += thr + [f"{t}'" for t in thr]
-    return names
+    return (q + [f"{c}'" for c in q]
+            + thrust.dynamics.state_names(r.thruster_names[: thrust.m]))
 
 
 def thruster_equilibrium(thrust: ThrustModel) -> np.ndarray:
     """Thruster states at rest at ``F_ss``: ``F = F_ss`` (and ``F' = 0``)."""
-    F = np.asarray(thrust.target, float)
-    if thrust.kind == "first-order":
-        return F.copy()
-    if thrust.kind == "second-order":
-        return np.concatenate([F, np.zeros_like(F)])
-    return np.zeros(0)
+    return thrust.dynamics.rest(np.asarray(thrust.target, float))
 
 
 def predicted_state(zd: ZeroDynamics, thrust: ThrustModel) -> tuple[np.ndarray | None, object]:

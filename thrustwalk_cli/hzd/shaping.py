@@ -23,7 +23,7 @@ knots making a thrust pattern shape-only (``sum_j b_F T_j = 0`` for every swept 
 zeta^- and zeta^+ are unchanged while the orbit between the knots changes.
 
 Knot validation and schedule building (a gait file's ``thrust:`` section included) live in
-:mod:`thrustwalk_cli.hzd.schedule`.
+:mod:`thrustwalk_cli.thrust.schedule`.
 
 zeta = sigma_N^2 / 2 [kg^2 m^4/s^2]; sigma_N [kg m^2/s]; alpha [rad]; alpha' [rad/s].
 """
@@ -37,9 +37,9 @@ import numpy as np
 from numpy.polynomial import chebyshev as C
 from scipy.optimize import brentq, linprog
 
+from ..thrust.schedule import Schedule, knots_alpha
 from .quadrature import ChebSeries
-from .schedule import knots_alpha, make_schedule
-from .zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
+from .zero_dynamics import LimitCycle, ZeroDynamics, limit_cycles
 
 DEFAULT_PATTERN = "k*(j-2)"  # the paper's example: T = (-k, 0, k) on n = 4 knots
 
@@ -97,12 +97,13 @@ def one_step_change(zd: ZeroDynamics, schedule: Schedule) -> np.ndarray:
 def true_shift(zd: ZeroDynamics, schedule: Schedule) -> np.ndarray:
     """``Delta zeta* = (sum_j b_F T_j + sum_j Gamma_j . F_j) / (1 - delta_zero^2)``
     [kg^2 m^4/s^2] (SPEC 4): the shift of the Poincare fixed point."""
-    return one_step_change(zd, schedule) / (1.0 - zd.delta_zero_sq)
+    return zd.fixed_point_of(one_step_change(zd, schedule))
 
 
 def nominal_zeta_star(zd: ZeroDynamics) -> float:
-    """``zeta_0* = V_0(alpha_f) / (1 - delta_zero^2)`` [kg^2 m^4/s^2] (SPEC 3)."""
-    return float(zd.V0(np.array(zd.alpha_f))) / (1.0 - zd.delta_zero_sq)
+    """``zeta_0* = V_0(alpha_f) / (1 - delta_zero^2)`` [kg^2 m^4/s^2] (SPEC 3):
+    :meth:`ZeroDynamics.fixed_point` of zero thrust."""
+    return zd.fixed_point()
 
 
 def _coefficients(zd: ZeroDynamics, knots: np.ndarray, mode: str, thruster: int | None
@@ -162,7 +163,8 @@ def solve_target_zeta(zd: ZeroDynamics, knots: np.ndarray, zeta_target: float, m
     if why:
         return TargetSolution(False, why, "zeta", zeta_target)
     x = min_norm_values(zd, knots, zeta_target, mode, thruster)
-    lc = limit_cycles(zd, make_schedule(zd, knots, x[None, :], mode, thruster))[0]
+    m = zd.model.n_thrusters
+    lc = limit_cycles(zd, Schedule.piecewise(knots, x[None, :], mode, m, thruster))[0]
     if not lc.exists:
         return TargetSolution(False, f"the minimum-norm thrust reaches zeta* = {zeta_target:.6g} "
                               f"but there is no periodic orbit: {lc.reason}", "zeta",
@@ -191,7 +193,8 @@ def solve_target_speed(zd: ZeroDynamics, knots: np.ndarray, speed: float, mode: 
         nonlocal count
         count += 1
         x = min_norm_values(zd, knots, z, mode, thruster)
-        return limit_cycles(zd, make_schedule(zd, knots, x[None, :], mode, thruster))[0]
+        sched = Schedule.piecewise(knots, x[None, :], mode, zd.model.n_thrusters, thruster)
+        return limit_cycles(zd, sched)[0]
 
     z0 = nominal_zeta_star(zd)
     if not z0 > 0:
@@ -248,17 +251,18 @@ def solve_target_speed(zd: ZeroDynamics, knots: np.ndarray, speed: float, mode: 
         hi, lc_hi = lo, lc_lo
         lo, lc_lo = cand, lc_c
 
-    def f(z: float) -> float:
+    def speed_of(z: float) -> float:
         lc = cycle(z)
         if not lc.exists:
             raise _NoOrbit(lc.reason)
-        return lc.speed - speed
+        return lc.speed
 
     if lc_lo.speed == speed:
         z = lo
     else:
         try:
-            z = brentq(f, lo, hi, xtol=xtol * hi, rtol=4 * np.finfo(float).eps, maxiter=200)
+            z = zd.zeta_for_speed(speed, speed_of, lo, hi, xtol=xtol * hi,
+                                  rtol=4 * np.finfo(float).eps, maxiter=200)
         except _NoOrbit as e:
             return TargetSolution(False, f"the orbit vanished inside the bracket [{lo:.6g}, "
                                   f"{hi:.6g}]: {e}", "speed", speed, evaluations=count)

@@ -23,12 +23,16 @@ nested error estimate is below ``rtol`` relative, and the estimate is reported. 
 the orbit (minimum and maximum ``|alpha'|``, minimum ``zeta``) are located on a grid and polished
 by Newton iterations on their stationarity conditions (:func:`_orbit_extrema`), so they are exact
 to about 1e-12, not grid-limited.
+
+One idea in one file (above 600 lines): the zero dynamics and their Poincare map, from the
+thrust-independent integrals to the map's fixed points and orbits for a batch of schedules
+(:func:`limit_cycles`, which reads the same series through :class:`_OrbitBasis`).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -36,6 +40,7 @@ import numpy as np
 from ..description.gait import Gait
 from ..errors import InputError, check_count, check_instance
 from ..model.compiled import CompiledModel
+from ..thrust.schedule import Schedule
 from .constraints import GaitMaps, gait_maps
 from .extrema import neighbours
 from .quadrature import ChebSeries, cumulative_with_error, integrate, lobatto
@@ -47,35 +52,6 @@ GRAZING_VELOCITY = 0.01  # [m/s] a touchdown slower than this is reported as gra
 
 MAX_NODES = 4097
 INVARIANCE_TOL = 1e-8  # [rad], [1]: impact residuals above this: the gait is not invariant
-
-
-@dataclass(frozen=True)
-class Schedule:
-    """Thrust piecewise constant in alpha, batched: ``k`` schedules sharing the knots.
-
-    knots: ``alpha_1 = alpha_i, ..., alpha_n = alpha_f`` [rad].
-    force: (k, n-1, m) physical thrust per interval and thruster [N].
-    generalized: (k, n-1) generalised force ``T_j`` on q_N per interval [N m] (SPEC 4).
-    """
-
-    knots: np.ndarray
-    force: np.ndarray
-    generalized: np.ndarray
-
-    @property
-    def size(self) -> int:
-        return self.force.shape[0]
-
-    @staticmethod
-    def constant(zd: ZeroDynamics, thrust: np.ndarray) -> Schedule:
-        """Constant thrust; ``thrust`` has shape (k, m)."""
-        thrust = np.atleast_2d(np.asarray(thrust, float))
-        k = thrust.shape[0]
-        return Schedule(
-            knots=np.array([zd.alpha_i, zd.alpha_f]),
-            force=thrust[:, None, :],
-            generalized=np.zeros((k, 1)),
-        )
 
 
 @dataclass(frozen=True)
@@ -248,6 +224,53 @@ class ZeroDynamics:
             per = float(self.model.E_swing(self.maps.q_minus)[1] @ phi)
             self.__dict__["_touchdown_per_alpha_dot"] = per
         return per * float(alpha_dot_minus)
+
+    # -- the fixed point, the nominal orbit and the speed (SPEC 3, 4) ------------------------
+    def fixed_point_of(self, V_f):
+        """``zeta* = V_f / (1 - delta_zero^2)`` [kg^2 m^4/s^2] for ``V_f = V_Z(alpha_f)`` (a
+        float or an array), the Poincare map's fixed point (SPEC 3, 4); for a change of
+        ``V_Z(alpha_f)`` the shift of the fixed point (the SPEC 4 erratum: not the change
+        itself). Arrays give inf or NaN (no warning) where ``delta_zero^2 = 1``."""
+        if isinstance(V_f, np.ndarray):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                return V_f / (1.0 - self.delta_zero_sq)
+        return V_f / (1.0 - self.delta_zero_sq)
+
+    def fixed_point(self, schedule: Schedule | None = None):
+        """``zeta* = V_Z(alpha_f) / (1 - delta_zero^2)`` [kg^2 m^4/s^2] (SPEC 3, 4): of each
+        schedule of a batch (shape (k,)), or without one of zero thrust (``zeta_0* =
+        V_0(alpha_f) / (1 - delta_zero^2)``, a float). No existence check: see
+        :func:`limit_cycles` (zeta* <= 0: no orbit)."""
+        af = np.array(self.alpha_f)
+        if schedule is None:
+            return self.fixed_point_of(float(self.V0(af)))
+        return self.fixed_point_of(self.V_Z(af, schedule))
+
+    def nominal_cycle(self, knots: np.ndarray | None = None) -> LimitCycle:
+        """The periodic orbit without thrust (SPEC 3), :func:`limit_cycles` of the zero
+        schedule on ``knots`` [rad] (default: alpha_i, alpha_f)."""
+        m = self.model.n_thrusters
+        sched = (Schedule.constant(self, np.zeros((1, m))) if knots is None else
+                 Schedule.zero(knots, m))
+        return limit_cycles(self, sched)[0]
+
+    def zeta_for_speed(self, speed: float, speed_of: Callable[[float], float], lo: float,
+                       hi: float, *, xtol: float, rtol: float, maxiter: int = 100) -> float:
+        """The fixed point ``zeta*`` [kg^2 m^4/s^2] at which a family of thrust schedules
+        walks at ``speed`` [m/s] (SPEC 3: step length over the step time of the periodic
+        orbit): the root of ``speed_of(zeta*) - speed`` in ``[lo, hi]`` (a sign change),
+        by Brent's method (``scipy.optimize.brentq`` with ``xtol``, ``rtol``, ``maxiter``).
+
+        ``speed_of(zeta*)`` is the family's speed at that fixed point (it raises where the
+        family has no orbit). The three searches of the package are this one with their own
+        family and bracket: the minimum-norm thrust of shaping
+        (:func:`~thrustwalk_cli.hzd.shaping.solve_target_speed`), the minimum-effort QP
+        (:func:`~thrustwalk_cli.optimize.min_effort.optimize`) and the controller's steady
+        state (:func:`~thrustwalk_cli.controller.references.speed_references`)."""
+        from scipy.optimize import brentq
+
+        return brentq(lambda z: speed_of(z) - speed, lo, hi, xtol=xtol, rtol=rtol,
+                      maxiter=maxiter)
 
     def poincare(self, zeta_minus: np.ndarray, schedule: Schedule) -> np.ndarray:
         """``rho(zeta^-) = delta_zero^2 zeta^- + V_Z(alpha_f)`` (SPEC 3); NaN-free, unchecked
@@ -542,8 +565,7 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> Li
     Vf = (basis.V0f[0] + np.einsum("jm,kjm->k", basis.dGf, schedule.force)
           + np.einsum("j,kj->k", basis.dBf, schedule.generalized))  # (k,)
     VZ = basis.combine(basis.V0g, basis.dGg, basis.dBg, schedule)  # (k, g)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        zstar = Vf / (1.0 - d2)
+    zstar = zd.fixed_point_of(Vf)
     zp = d2 * zstar
     zeta = zp[:, None] + VZ
     jmin = np.argmin(zeta, axis=1)
@@ -554,9 +576,9 @@ def limit_cycles(zd: ZeroDynamics, schedule: Schedule, samples: int = 201) -> Li
     T_err = np.full(len(Vf), np.nan)
     T_ok = np.zeros(len(Vf), bool)
     if live.size:
-        sub = Schedule(kn, schedule.force[live], schedule.generalized[live])
+        sub = schedule.take(live)
         T[live], T_err[live], T_ok[live] = _step_times(zd, sub, zp[live], basis)
-    ext = _orbit_extrema(zd, Schedule(kn, schedule.force[live], schedule.generalized[live]),
+    ext = _orbit_extrema(zd, schedule.take(live),
                          zp[live], grid, k1, zeta[live], basis) if live.size else {}
     return LimitCycles(zd, grid, k1, Vf, zstar, zp, zeta, zmin, jmin, T, T_err, T_ok, live,
                        ext)
@@ -745,11 +767,10 @@ def grazing_warning(lc: LimitCycle) -> str | None:
 def paper_one_step_shift(zd: ZeroDynamics, schedule: Schedule) -> np.ndarray:
     """The paper's ``sum_j b_F T_j`` (+ force terms): the change of zeta^- in ONE step for a
     fixed zeta^+, not the fixed-point shift (SPEC 4 erratum)."""
-    nominal = Schedule(schedule.knots, np.zeros_like(schedule.force),
-                       np.zeros_like(schedule.generalized))
+    nominal = schedule.without_thrust()
     return (zd.V_Z(np.array(zd.alpha_f), schedule) - zd.V_Z(np.array(zd.alpha_f), nominal))
 
 
 def fixed_point_shift(zd: ZeroDynamics, schedule: Schedule) -> np.ndarray:
     """True shift ``Delta zeta* = sum_j b_F T_j / (1 - delta_zero^2)`` (SPEC 4)."""
-    return paper_one_step_shift(zd, schedule) / (1.0 - zd.delta_zero_sq)
+    return zd.fixed_point_of(paper_one_step_shift(zd, schedule))

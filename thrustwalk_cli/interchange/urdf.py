@@ -28,6 +28,10 @@ plane, thrustwalk's links as links (a lamina: ``iyy = I``, ``ixx = izz = I/2``),
 revolute joint about ``0 -1 0`` (so the URDF angle is thrustwalk's relative angle) at the
 URDF zero pose ``q = 0``; what URDF cannot carry (feet, thrusters, rotors, relabelling,
 gravity, the unactuated coordinate) goes into the side file.
+
+One idea in one file (above 600 lines): the mapping between a URDF and a planar robot,
+import and export, whose conventions (planes, signs, re-rooting, merged bodies) must be read
+together.
 """
 
 from __future__ import annotations

@@ -1,17 +1,17 @@
 """Robot-independent numba modules, compiled once per machine and cached (PERF_NOTES).
 
-A *jit module* is one generated Python file in the thrustwalk cache folder: numba-ready
-source (the tape interpreter of :mod:`thrustwalk_cli.model.tape`, and for the simulation the
-kernel of :mod:`thrustwalk_cli.simulation.kernel`) followed by a footer that wraps the listed
-functions, callees first, in ``numba.njit(signature, cache=True)``: explicit signatures
-compile each function once, when the module is first imported on this machine. numba keeps
-the machine code in ``__pycache__`` beside that file, so every later process loads it
-instead of compiling (the file name carries a hash of everything that went into it; numba
-checks its own version and the CPU). Robots are data (tapes) passed to these functions, so a
-new robot never triggers a compile. A JSON sidecar records how long the one-time compile
-took, so ``thrustwalk compile`` can report it without importing numba. The functions a module
-names as allocation-free are compiled without numba's reference counting (``_nrt=False``):
-there an array argument or a view costs nothing, elsewhere two atomic updates.
+A *jit module* is one generated Python file in the thrustwalk cache folder: numba-ready source
+(the tape interpreter of :mod:`thrustwalk_cli.model.tape`, and for the simulation the kernel
+assembled by :mod:`thrustwalk_cli.simulation.stepper`) followed by a footer that wraps the
+listed functions, callees first, in ``numba.njit(signature, cache=True)``: explicit signatures
+compile each function once, when the module is first imported on this machine. numba keeps the
+machine code in ``__pycache__`` beside that file, so every later process loads it instead of
+compiling (the file name carries a hash of everything that went into it; numba checks its own
+version and the CPU). Robots are data (tapes) passed to these functions, so a new robot never
+triggers a compile. A JSON sidecar records how long the one-time compile took, so ``thrustwalk
+compile`` can report it without importing numba. The functions a module names as
+allocation-free are compiled without numba's reference counting (``_nrt=False``): there an
+array argument or a view costs nothing, elsewhere two atomic updates.
 
 When the cache folder cannot be used (no home directory, read-only, full), the module is
 compiled into a private temporary folder for this process and :attr:`JitModule.note` says

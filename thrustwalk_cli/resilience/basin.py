@@ -44,8 +44,9 @@ from ..contact.evaluate import step_grid
 from ..contact.terms import impact_data, stance_terms
 from ..controller.planner import Planner
 from ..hzd.extrema import polish_min
-from ..hzd.zero_dynamics import Schedule, ZeroDynamics, limit_cycles
+from ..hzd.zero_dynamics import ZeroDynamics, limit_cycles
 from ..optimize.qp import normalise_rows
+from ..thrust.schedule import Schedule
 
 FAMILIES = ("stop", "vertical_force", "friction")
 VERIFY_STARTS = 41  # starts across a controlled basin, iterated by the controlled map

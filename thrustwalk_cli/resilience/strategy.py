@@ -21,11 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..controller.planner import Planner, regulator
-from ..description.gait import ThrustSchedule
 from ..errors import InputError
-from ..hzd.schedule import check_limits, knots_alpha, make_schedule, schedule_from_gait
-from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
+from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, limit_cycles
 from ..simulation.closed_loop import ThrustModel
+from ..thrust.schedule import Schedule, WrittenSchedule, knots_alpha
 from .basin import ReducedBasin, controlled_basin, reduced_basin
 
 KINDS = ("none", "constant", "schedule", "control")
@@ -85,7 +84,7 @@ def from_parameters(p: dict) -> Strategy:
                     p.get("strategy_label") or "")
 
 
-def schedule_of_file(thrust: ThrustSchedule, zd: ZeroDynamics) -> tuple[tuple, tuple, str, str]:
+def schedule_of_file(thrust: WrittenSchedule, zd: ZeroDynamics) -> tuple[tuple, tuple, str, str]:
     """A gait file's ``thrust:`` section as a strategy schedule: ``(knots as fractions,
     values, mode, thruster)``; one thruster in force mode (or ``T`` in generalized mode)."""
     if len(thrust.values) != 1:
@@ -93,7 +92,7 @@ def schedule_of_file(thrust: ThrustSchedule, zd: ZeroDynamics) -> tuple[tuple, t
         raise InputError.param("strategy", f"a schedule drives one thruster; this one has "
                                            f"{len(thrust.values)} ({names})")
     name, values = thrust.values[0]
-    sched, fractions = schedule_from_gait(zd, thrust, "strategy")
+    sched, fractions = thrust.resolve(zd, zd.model.robot, "strategy")
     if len(fractions) != len(thrust.knots):  # padded: the knots did not span the step
         raise InputError.param("strategy", "a schedule's knots must run from the start of the "
                                            "step to its end")
@@ -158,7 +157,7 @@ def realize(zd: ZeroDynamics, s: Strategy, *, mu: float, eps: float = 0.0,
         mz = zd if model_zd is None else model_zd
         planner, lc0 = regulator(mz, knots_alpha(mz, fr), driven, mu=mu, eps=eps,
                                  max_thrust=s.max_thrust, points=points)
-        sched = Schedule(kn, np.zeros((1, len(kn) - 1, m)), np.zeros((1, len(kn) - 1)))
+        sched = Schedule.zero(kn, m)
         thrust = ThrustModel("piecewise", np.zeros(m), schedule=sched)
         zs = float(lc0.zeta_star)
         return Realized(s, sched, thrust, lc0, zs, controlled_basin(planner, zs), planner,
@@ -166,7 +165,7 @@ def realize(zd: ZeroDynamics, s: Strategy, *, mu: float, eps: float = 0.0,
     driven = []
     if s.kind == "none":
         sched = Schedule.constant(zd, np.zeros((1, m)))
-        thrust = ThrustModel("constant", np.zeros(m))
+        thrust = ThrustModel("ideal", np.zeros(m))
     elif s.kind == "constant" and s.thrust is not None:
         j = robot.driven_thruster(s.thruster)
         if j is None:
@@ -176,8 +175,8 @@ def realize(zd: ZeroDynamics, s: Strategy, *, mu: float, eps: float = 0.0,
             F[j] = s.thrust
             driven = [j]
         sched = Schedule.constant(zd, F[None, :])
-        check_limits(zd, sched, "strategy")
-        thrust = ThrustModel("constant", F)
+        sched.check_limits(zd.model.robot, "strategy")
+        thrust = ThrustModel("ideal", F)
     elif s.kind == "constant":
         g = zd.gait.thrust
         if g is None:
@@ -185,10 +184,10 @@ def realize(zd: ZeroDynamics, s: Strategy, *, mu: float, eps: float = 0.0,
                          "`constant` without a value is 0 N (the same as none); give one, e.g. "
                          "constant:-20")
             sched = Schedule.constant(zd, np.zeros((1, m)))
-            thrust = ThrustModel("constant", np.zeros(m))
+            thrust = ThrustModel("ideal", np.zeros(m))
         else:
-            sched, _ = schedule_from_gait(zd, g, "strategy", pad=True)
-            check_limits(zd, sched, "strategy")
+            sched, _ = g.resolve(zd, zd.model.robot, "strategy", pad=True)
+            sched.check_limits(zd.model.robot, "strategy")
             thrust = ThrustModel("piecewise", np.zeros(m), schedule=sched)
     else:  # schedule
         fr, values, mode = s.schedule
@@ -205,9 +204,9 @@ def realize(zd: ZeroDynamics, s: Strategy, *, mu: float, eps: float = 0.0,
         if mode == "force":
             j = robot.thruster_index(s.thruster, "strategy")
             driven = [j]
-        sched = make_schedule(zd, knots_alpha(zd, fr_a), np.asarray(values, float)[None, :],
-                              mode, j)
-        check_limits(zd, sched, "strategy")
+        sched = Schedule.piecewise(knots_alpha(zd, fr_a), np.asarray(values, float)[None, :],
+                                    mode, m, j)
+        sched.check_limits(zd.model.robot, "strategy")
         thrust = ThrustModel("piecewise", np.zeros(m), schedule=sched)
     cycle = limit_cycles(zd, sched)[0]
     basin = reduced_basin(zd, sched, mu=mu, eps=eps, points=points)

@@ -10,7 +10,7 @@ A trial starts just after an impact on the orbit of its strategy
   one output changed by ``rate`` [rad/s] along the direction that leaves ``sigma_N`` unchanged
   (``[J_y; e_N^T D] dq' = [rate e_j; 0]``, ``J_y = H_0 - h_d'(alpha) c``);
 
-then the compiled closed loop (:class:`~thrustwalk_cli.simulation.compiled.Stepper`) walks
+then the compiled closed loop (:class:`~thrustwalk_cli.simulation.stepper.Stepper`) walks
 ``steps`` steps in all (the pushed step is step 1), with the strategy's thrust (``control``:
 the SPEC 11 QP at every impact, on the measured zeta^-).
 
@@ -21,7 +21,7 @@ force, failure, impact), with the step, the time and the phase s of the step in 
   friction cone (SPEC 12, :func:`.push.check_push` on the simulated state at the push, so a
   push the walker never lives to feel is not judged); the stance force first drops to
   ``F^v <= eps`` (or negative: the run stops) / first has ``|F^h|/F^v > mu`` (the time is
-  located on the dense output, ``simulation.compiled.first_times``), or the impact impulse
+  located on the dense output, ``simulation.stepper.first_times``), or the impact impulse
   leaves the cone; an impact whose vertical impulse is not positive is ``lifted``;
 * ``stopped``: alpha reverses (the walker stops and falls back);
 * ``fell``: the stance leg passes the horizontal, or the swing foot misses the ground;
@@ -50,9 +50,9 @@ from ..hzd.zero_dynamics import ZeroDynamics
 from ..simulation import kernel as K
 from ..simulation.batch import FIELDS, push_row
 from ..simulation.closed_loop import ClosedLoop, SimConfig
-from ..simulation.compiled import Stepper, failure_text, first_times, push_state, step_record
 from ..simulation.full_order import Start, initial_state
 from ..simulation.records import EVENT_REASONS
+from ..simulation.stepper import Stepper, failure_text, first_times, push_state, step_record
 from .push import PushPoint, check_push, stance_impulse
 from .strategy import Realized
 

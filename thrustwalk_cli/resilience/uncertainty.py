@@ -28,8 +28,8 @@ import numpy as np
 from ..contact.terms import impact_data, scuff_reason, swing_clearance
 from ..controller.planner import Planner
 from ..controller.step_model import IdealThrust, Terms, rows, step_grid
-from ..hzd.schedule import knots_alpha
-from ..hzd.zero_dynamics import Schedule, ZeroDynamics, limit_cycles
+from ..hzd.zero_dynamics import ZeroDynamics, limit_cycles
+from ..thrust.schedule import Schedule, knots_alpha
 from .basin import ReducedBasin
 from .strategy import Strategy, realize
 

@@ -4,7 +4,7 @@ of runs that differ in their start, thrust values, controller gains and pushes, 
 This is the entry point for studies that need thousands of closed-loop runs: push-recovery
 maps (a push per run), Floquet multipliers by finite differences (perturbed starts, one step
 each, pre-impact states in the records), Monte-Carlo starts, thrust sweeps. A controller that
-changes the thrust between steps uses :class:`thrustwalk_cli.simulation.compiled.Stepper`
+changes the thrust between steps uses :class:`thrustwalk_cli.simulation.stepper.Stepper`
 (one step per call) instead.
 
 Runs are split into chunks that threads hand to the kernel, which releases the GIL (numba
@@ -23,8 +23,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..hzd.zero_dynamics import ZeroDynamics
-from . import compiled as C
 from . import kernel as K
+from . import stepper as C
 from .closed_loop import ClosedLoop, SimConfig, ThrustModel, predicted_cycle
 from .full_order import Start, initial_state
 from .records import StepRecord

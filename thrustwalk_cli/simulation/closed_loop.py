@@ -17,9 +17,11 @@ Optional torque limits clip ``u`` (then ``q'' = D^-1 (-h + B_tau u + B_F F_T)``)
 reaction on the stance foot (SPEC 5): ``F_1 = rows N+1..N+2 of
 (D_u [q''; 0] + h_u(q, [q'; 0]) - B_Fu F_T)`` [N].
 
-Thrust models (:class:`ThrustModel`): constant; first-order lag ``tau F' = F_ss - F``;
-second-order ``F'' + 2 xi w F' + w^2 F = w^2 F_ss`` (the paper's slow thruster); piecewise
-constant in alpha (a :class:`Schedule`, force [N] or generalised [N m] mode). SI units.
+Thrust models (:class:`ThrustModel`): a command, constant ``F_ss`` or piecewise constant in
+alpha (a :class:`~thrustwalk_cli.thrust.schedule.Schedule`, force [N] or generalised [N m]
+mode), through the thrusters' linear dynamics (:mod:`thrustwalk_cli.thrust.dynamics`: ideal,
+first-order lag ``tau F' = F_ss - F``, second-order ``F'' + 2 xi w F' + w^2 F = w^2 F_ss``,
+the paper's slow thruster, or any model of that family). SI units.
 """
 
 from __future__ import annotations
@@ -33,9 +35,22 @@ import numpy as np
 
 from ..errors import InputError, param_problem
 from ..hzd.constraints import bezier
-from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
+from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, limit_cycles
+from ..thrust import dynamics as thruster_models
+from ..thrust.dynamics import ThrusterDynamics
+from ..thrust.schedule import Schedule
 
-THRUST_MODELS = ("constant", "first-order", "second-order", "piecewise")
+PIECEWISE = "piecewise"  # ideal thrusters commanded by a schedule piecewise in alpha
+
+
+def thrust_model_names() -> tuple[str, ...]:
+    """The values of ``thrust_model``: the models of :data:`thrustwalk_cli.thrust.dynamics.
+    MODELS` (ideal, first-order, second-order, ...) and ``piecewise``; the deprecated alias
+    ``constant`` (= ideal) is accepted too."""
+    return (*thruster_models.model_names(), PIECEWISE)
+
+
+THRUST_MODELS = thrust_model_names()  # as when this module loaded (see thrust_model_names)
 SIMULATORS = ("compiled", "scipy")  # the compiled kernel (default) or solve_ivp (reference)
 METHODS = ("DOP853", "RK45", "Radau", "LSODA", "BDF")  # solve_ivp integrators
 MAX_STEPS = 10_000  # steps per run
@@ -44,41 +59,55 @@ MAX_TOTAL_STEPS = 20_000  # runs x steps in one call (about 70 ms per step with 
 MAX_THRUSTER_RATE = 1000.0  # [1/s] the fastest pole of a thruster model (thruster_rate)
 
 
-def thruster_rate(kind: str, wn: float, xi: float, tau: float) -> float:
+def thruster_rate(kind: str, wn: float, xi: float, tau: float, m: int = 1) -> float:
     """The fastest pole [1/s] of a thruster model: ``1/tau`` (first order), ``wn (xi +
-    sqrt(xi^2 - 1))`` when overdamped, else ``wn`` (second order); 0 for the others."""
+    sqrt(xi^2 - 1))`` when overdamped, else ``wn`` (second order); 0 for ideal thrusters and
+    piecewise commands; for any other model of :data:`thrustwalk_cli.thrust.dynamics.MODELS`
+    the largest ``|eig(A)|`` of its dynamics for ``m`` thrusters (:meth:`~thrustwalk_cli.
+    thrust.dynamics.ThrusterDynamics.matrices`; a model may give each thruster its own)."""
+    kind = thruster_models.canonical(kind)
     if kind == "first-order":
         return 1.0 / tau
     if kind == "second-order":
         return wn * (xi + np.sqrt(xi * xi - 1.0)) if xi > 1.0 else wn
-    return 0.0
+    if kind == PIECEWISE or kind not in thruster_models.MODELS:
+        return 0.0
+    A = thruster_models.make(kind, m, wn=wn, xi=xi, tau=tau).matrices()[0]
+    return float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
 
 
-def check_thruster_rate(kind: str, wn: float, xi: float, tau: float) -> None:
+def check_thruster_rate(kind: str, wn: float, xi: float, tau: float, m: int = 1) -> None:
     """A thruster model's fastest pole at most :data:`MAX_THRUSTER_RATE` (a time constant of
     1 ms): a faster thruster follows its command within a thousandth of a walking step, is
-    the ``constant`` model in effect, and makes the equations stiff (the explicit integrator
-    would take millions of steps). :class:`InputError` on ``tau`` or ``wn``/``xi``."""
-    rate = thruster_rate(kind, wn, xi, tau)
+    the ``ideal`` model in effect, and makes the equations stiff (the explicit integrator
+    would take millions of steps). :class:`InputError` on the model's parameters (``tau``;
+    ``wn``, ``xi``). ``m``: the robot's thrusters (:func:`thruster_rate`)."""
+    rate = thruster_rate(kind, wn, xi, tau, m)
     if rate > MAX_THRUSTER_RATE:
-        names = "tau" if kind == "first-order" else ("wn", "xi")
+        params = thruster_models.MODELS[thruster_models.canonical(kind)].params
+        names = params[0] if len(params) == 1 else (tuple(params) or "thrust_model")
         raise InputError.param(names, f"a thruster with a {1e3 / rate:.3g} ms time constant "
                                       f"(poles up to {rate:.3g} 1/s) is faster than "
                                       f"{1e3 / MAX_THRUSTER_RATE:g} ms: on a step's time scale it "
-                                      "is the constant thrust model (use that), and it makes the "
+                                      "is the ideal thrust model (use that), and it makes the "
                                       "equations stiff")
 
 
 # ----------------------------------------------------------------------------- thrust
 @dataclass(frozen=True)
 class ThrustModel:
-    """How the thrust ``F_T`` [N] (one value per thruster) evolves (SPEC 7).
+    """How the thrust ``F_T`` [N] (one value per thruster) evolves (SPEC 7): a command through
+    the thrusters' dynamics (:mod:`thrustwalk_cli.thrust.dynamics`).
 
-    kind: ``constant`` (``F = F_ss``), ``first-order`` (``tau F' = F_ss - F``),
-    ``second-order`` (``F'' + 2 xi w F' + w^2 F = w^2 F_ss``, states ``(F, F')``) or
-    ``piecewise`` (``schedule``, constant on alpha intervals; force [N] or generalised [N m]).
+    kind: a model of :data:`thrustwalk_cli.thrust.dynamics.MODELS` commanded by the constant
+    ``target`` (``ideal``: ``F = F_ss``, alias ``constant``; ``first-order``: ``tau F' = F_ss
+    - F``; ``second-order``: ``F'' + 2 xi w F' + w^2 F = w^2 F_ss``, states ``(F, F')``), or
+    ``piecewise``: ideal thrusters commanded by ``schedule`` (constant on alpha intervals;
+    force [N] or generalised [N m]).
     target: ``F_ss`` per thruster [N]. initial: thrust at t = 0 for the dynamic models [N]
-    (``F'(0) = 0``). wn [rad/s], xi [1], tau [s].
+    (the thruster at rest there: ``F'(0) = 0``). wn [rad/s], xi [1], tau [s]: the parameters
+    the model takes. dynamics: the thrusters' dynamics (default: built from ``kind`` and the
+    parameters).
     """
 
     kind: str
@@ -88,46 +117,49 @@ class ThrustModel:
     tau: float = 0.5
     initial: np.ndarray | None = None
     schedule: Schedule | None = None
+    dynamics: ThrusterDynamics | None = None
 
     @property
     def m(self) -> int:
         return int(np.asarray(self.target).size)
 
     @property
+    def piecewise(self) -> bool:
+        """The command is a schedule piecewise constant in alpha."""
+        return self.kind == PIECEWISE
+
+    @property
     def n_states(self) -> int:
-        return {"first-order": self.m, "second-order": 2 * self.m}.get(self.kind, 0)
+        return self.dynamics.n_states
 
     @property
     def time_dependent(self) -> bool:
-        return self.kind in ("first-order", "second-order")
+        """The thrust has states of its own (it depends on time, not on alpha alone)."""
+        return self.dynamics.n_states > 0
 
     def initial_states(self) -> list[float]:
         f0 = np.zeros(self.m) if self.initial is None else np.asarray(self.initial, float)
-        if self.kind == "first-order":
-            return f0.tolist()
-        if self.kind == "second-order":
-            return f0.tolist() + [0.0] * self.m
-        return []
+        return self.dynamics.rest(f0).tolist()
 
     def derivatives(self, z) -> list[float]:
-        """``z'`` of the thruster states (empty for the static models)."""
-        m, Fss = self.m, self._target
-        if self.kind == "first-order":
-            return [(Fss[k] - z[k]) / self.tau for k in range(m)]
-        if self.kind == "second-order":
-            w2, d = self.wn * self.wn, 2.0 * self.xi * self.wn
-            return list(z[m:2 * m]) + [w2 * (Fss[k] - z[k]) - d * z[m + k] for k in range(m)]
-        return []
+        """``z'`` of the thruster states under the constant command ``F_ss`` (empty for ideal
+        thrusters)."""
+        return self.dynamics.rates(z, self._target)
 
     def force(self, z) -> list[float]:
-        """Thrust per thruster [N] of the constant and dynamic models, from the states ``z``
+        """Thrust per thruster [N] under the constant command, from the states ``z``
         (piecewise thrust depends on the alpha interval: see :meth:`ClosedLoop.force`)."""
-        if self.kind in ("constant", "piecewise"):
+        if self.piecewise:
             return self._target
-        return [float(v) for v in z[: self.m]]
+        return self.dynamics.thrust(z, self._target)
 
     def __post_init__(self):
         object.__setattr__(self, "_target", [float(v) for v in np.asarray(self.target, float)])
+        if self.dynamics is None:
+            dyn = (thruster_models.ideal(self.m) if self.piecewise else
+                   thruster_models.make(self.kind, self.m, wn=self.wn, xi=self.xi,
+                                        tau=self.tau))
+            object.__setattr__(self, "dynamics", dyn)
 
 
 def alpha_pieces(zd: ZeroDynamics, thrust: ThrustModel, extra: tuple[float, ...] = ()
@@ -139,7 +171,7 @@ def alpha_pieces(zd: ZeroDynamics, thrust: ThrustModel, extra: tuple[float, ...]
     m = zd.model.n_thrusters
     bps = set(extra)
     knots_s: list[float] = []
-    if thrust.kind == "piecewise":
+    if thrust.piecewise:
         knots_s = list((np.asarray(thrust.schedule.knots) - zd.alpha_i) / zd.maps.span)
         bps |= {k for k in knots_s if 1e-12 < k < 1 - 1e-12}
     breaks = sorted(bps)
@@ -148,7 +180,7 @@ def alpha_pieces(zd: ZeroDynamics, thrust: ThrustModel, extra: tuple[float, ...]
     for lo, hi in zip(edges[:-1], edges[1:]):
         mid = 0.5 * (max(lo, 0.0) + min(hi, 1.0))
         F, T = [0.0] * m, 0.0
-        if thrust.kind == "piecewise":
+        if thrust.piecewise:
             j = int(np.searchsorted(knots_s, mid, side="right")) - 1
             if 0 <= j < len(knots_s) - 1:
                 F = thrust.schedule.force[0, j].tolist()
@@ -161,7 +193,7 @@ def alpha_pieces(zd: ZeroDynamics, thrust: ThrustModel, extra: tuple[float, ...]
 def predicted_cycle(zd: ZeroDynamics, thrust: ThrustModel) -> LimitCycle:
     """Zero-dynamics limit cycle the run should converge to (SPEC 3, 4): the schedule for
     piecewise thrust, else constant ``F_ss`` (the dynamic models settle at ``F_ss``)."""
-    sched = thrust.schedule if thrust.kind == "piecewise" else Schedule.constant(
+    sched = thrust.schedule if thrust.piecewise else Schedule.constant(
         zd, np.asarray(thrust.target, float)[None, :])
     return limit_cycles(zd, sched)[0]
 
@@ -169,8 +201,7 @@ def predicted_cycle(zd: ZeroDynamics, thrust: ThrustModel) -> LimitCycle:
 def zeta_star_at(zd: ZeroDynamics, F: np.ndarray) -> float:
     """Fixed point for constant thrust ``F``: ``zeta* = V_Z(alpha_f; F) / (1 - delta_zero^2)``
     [kg^2 m^4/s^2] (SPEC 4; may be <= 0 when no orbit exists)."""
-    sched = Schedule.constant(zd, np.asarray(F, float)[None, :])
-    return float(zd.V_Z(np.array(zd.alpha_f), sched)[0] / (1.0 - zd.delta_zero_sq))
+    return float(zd.fixed_point(Schedule.constant(zd, np.asarray(F, float)[None, :]))[0])
 
 
 # ----------------------------------------------------------------------------- config
@@ -326,13 +357,13 @@ class ClosedLoop:
 
     def force(self, z, seg: int) -> list[float]:
         """Thrust per thruster [N] in segment ``seg`` with thruster states ``z``."""
-        if self.thrust.kind == "piecewise":
+        if self.thrust.piecewise:
             return self._piece_force[seg]
         return self.thrust.force(z)
 
     def generalized(self, seg: int) -> float:
         """Generalised force on q_N [N m] (piecewise generalised mode, SPEC 4), else 0."""
-        return self._piece_T[seg] if self.thrust.kind == "piecewise" else 0.0
+        return self._piece_T[seg] if self.thrust.piecewise else 0.0
 
     def segment_of(self, s: float) -> int:
         return int(np.searchsorted(self.breaks, s, side="right"))

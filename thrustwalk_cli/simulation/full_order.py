@@ -142,7 +142,7 @@ def initial_state(zd: ZeroDynamics, thrust: ThrustModel, start: Start) -> np.nda
     if start.orbit not in ("predicted", "nominal"):
         raise InputError.param("start", f"unknown orbit {start.orbit!r} (predicted, nominal)")
     if zm is None and start.orbit == "nominal":
-        zm = zeta_star_at(zd, np.zeros(thrust.m))
+        zm = zd.fixed_point()  # of zero thrust
         if not zm > 0:
             raise InputError(f"cannot start on the nominal orbit: no fixed point without "
                              f"thrust (zeta* = {zm:.6g}); give `zeta0` or `q0`/`dq0`")
@@ -151,7 +151,7 @@ def initial_state(zd: ZeroDynamics, thrust: ThrustModel, start: Start) -> np.nda
             F0 = np.zeros(thrust.m) if thrust.initial is None else thrust.initial
         else:
             F0 = thrust.target
-        if thrust.kind == "piecewise":
+        if thrust.piecewise:
             lc = predicted_cycle(zd, thrust)
             if not lc.exists:
                 raise NoOrbit(f"cannot start on the predicted orbit: {lc.reason}")
@@ -189,7 +189,7 @@ def simulate(zd: ZeroDynamics, thrust: ThrustModel, config: SimConfig = SimConfi
     x = initial_state(zd, thrust, start)
     t_max = config.max_step_time or (10.0 * pred.step_time if pred.exists else 10.0)
     if config.method == "compiled":
-        from .compiled import run_steps
+        from .stepper import run_steps
 
         recs, segs, failure, reason, nfev = run_steps(cl, x, t_max, config.steps, progress)
         traj = _trajectory(cl, segs, config.samples_per_step)

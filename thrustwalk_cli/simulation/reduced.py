@@ -4,7 +4,7 @@ On Z, with sigma_N the angular momentum about the stance foot [kg m^2/s]:
 
     alpha'   = kappa_1(alpha) sigma_N
     sigma_N' = kappa_2(alpha) + beta(alpha) F_T (+ T, generalised thrust [N m], SPEC 4)
-    z'       = thruster dynamics (first- or second-order, :class:`ThrustModel`)
+    z'       = thruster dynamics (:mod:`thrustwalk_cli.thrust.dynamics`, :class:`ThrustModel`)
 
 A step ends when alpha reaches alpha_f; the impact resets ``sigma_N^+ = delta_zero sigma_N^-``
 and ``alpha^+ = alpha_i``; thruster states are continuous (SPEC 3). This is the fast preview
@@ -92,7 +92,7 @@ class _Cascade:
         self.m = rm.m
 
     def force(self, z, seg: int) -> list[float]:
-        return self.forces[seg] if self.thrust.kind == "piecewise" else self.thrust.force(z)
+        return self.forces[seg] if self.thrust.piecewise else self.thrust.force(z)
 
     def rhs(self, t: float, w: np.ndarray, seg: int) -> list[float]:
         self.nfev += 1

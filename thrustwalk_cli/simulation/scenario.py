@@ -22,12 +22,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError, param_problem
-from ..hzd.zero_dynamics import Schedule, ZeroDynamics
+from ..hzd.zero_dynamics import ZeroDynamics
+from ..thrust.dynamics import canonical
+from ..thrust.schedule import Schedule
 from .closed_loop import (
-    THRUST_MODELS,
     ThrustModel,
     check_thruster_rate,
     predicted_cycle,
+    thrust_model_names,
     zeta_star_at,
 )
 from .full_order import NoOrbit, SimConfig, SimResult, Start, initial_state, simulate
@@ -94,9 +96,10 @@ def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
     ``kind == "piecewise"``."""
     robot = zd.model.robot
     problems = []
-    if kind not in THRUST_MODELS:
+    kind = canonical(kind)  # the deprecated `constant` is `ideal`
+    if kind not in thrust_model_names():
         raise InputError.param("thrust_model", f"unknown model {kind!r} (choose from "
-                               f"{', '.join(THRUST_MODELS)})")
+                               f"{', '.join(thrust_model_names())})")
     if kind == "piecewise":
         if values is not None:
             raise InputError.param("thrust", "not used with the piecewise thrust model (the "
@@ -132,7 +135,8 @@ def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
                                                f"(got {kw[key]:g})"))
     if problems:
         raise InputError(sorted(set(problems), key=str))
-    check_thruster_rate(kind, kw.get("wn", 2.0), kw.get("xi", 1.0), kw.get("tau", 0.5))
+    check_thruster_rate(kind, kw.get("wn", 2.0), kw.get("xi", 1.0), kw.get("tau", 0.5),
+                        zd.model.n_thrusters)
     kw["config"].validate()
     return Scenario(kind, tuple(values), idx, schedule=schedule, **kw)
 
@@ -260,6 +264,6 @@ def _steps(steps) -> str:
 
 
 def _V_f(zd: ZeroDynamics, th: ThrustModel) -> float:
-    sched = th.schedule if th.kind == "piecewise" else Schedule.constant(
+    sched = th.schedule if th.piecewise else Schedule.constant(
         zd, np.asarray(th.target, float)[None, :])
     return float(zd.V_Z(np.array(zd.alpha_f), sched)[0])

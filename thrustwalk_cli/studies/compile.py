@@ -30,7 +30,7 @@ def compile_kernel(*, rebuild: bool = False,
     compile took (measured now, or as recorded then); ``note`` says when the cache folder
     was unusable. A warm cache is checked without importing numba. ``on_wait``: told once
     when another process is compiling it (this one waits for it, then loads it)."""
-    from ..simulation.compiled import kernel, kernel_status
+    from ..simulation.stepper import kernel, kernel_status
 
     if not rebuild:
         st = kernel_status()

@@ -19,10 +19,11 @@ from ..design.verify import check_gait
 from ..errors import ComputationError, InputError, check_callable, check_instance
 from ..files.gait_file import bind_gait, load_gait_text, same_robot_file
 from ..hzd.constraints import apply_invariance
-from ..hzd.zero_dynamics import Schedule, limit_cycles, zero_dynamics
+from ..hzd.zero_dynamics import limit_cycles, zero_dynamics
 from ..model.compiled import CompiledModel
+from ..thrust.schedule import Schedule
 from ..walker import Walker, check_walker
-from .records import SCHEMA_VERSION, result_repr, units
+from .documents import SCHEMA_VERSION, result_repr, units
 
 
 # ------------------------------------------------------------------------------ records

@@ -12,11 +12,11 @@ import numpy as np
 from ..description.robot import Robot
 from ..errors import InputError
 from ..files.robot_file import load_robot
-from ..hzd.zero_dynamics import Schedule, limit_cycles
+from ..hzd.zero_dynamics import limit_cycles
 from ..interchange.mjcf import ContactModel, contact_settings, layout, robot_to_mjcf
 from ..interchange.mujoco_run import INSTALL, compile_mjcf, mujoco_version
 from ..walker import Walker, load_walker
-from .records import SCHEMA_VERSION
+from .documents import SCHEMA_VERSION
 
 DEFAULT_MU = 0.7  # [1] without a gait: a gait file's default mu
 
@@ -79,15 +79,13 @@ def export_mjcf(robot: str | Robot | Walker, gait: str | None = None, *,
         notes.append(f"friction mu = {mu:g} ({src})")
     if walker is not None:
         zd = walker.zd
-        m = zd.model.n_thrusters
         if walker.gait.thrust is not None:
-            from ..hzd.schedule import schedule_from_gait
-
-            sched = schedule_from_gait(zd, walker.gait.thrust, walker.where, pad=True)[0]
+            sched = walker.gait.thrust.resolve(zd, zd.model.robot, walker.where, pad=True)[0]
             what = "the gait's thrust schedule"
         else:
-            sched, what = Schedule.constant(zd, np.zeros((1, m))), "zero thrust"
-        lc = limit_cycles(zd, sched)[0] if zd.valid else None
+            sched, what = None, "zero thrust"
+        lc = (None if not zd.valid else zd.nominal_cycle() if sched is None else
+              limit_cycles(zd, sched)[0])
         if lc is not None and lc.exists:
             t = zd.terms(np.array([zd.alpha_f]))
             dq_minus = t["Phi"][0] * t["kappa1"][0] * lc.sigma_minus

@@ -17,7 +17,6 @@ import numpy as np
 from ..contact.evaluate import CaseResult, ContactReport, check_contact_options, evaluate
 from ..contact.region import Region, feasible_region
 from ..contact.terms import SCUFF_TOL, SWING_WINDOW, Fits, ImpactData, fit_terms
-from ..description.gait import ThrustSchedule
 from ..errors import (
     InputError,
     Problem,
@@ -29,10 +28,10 @@ from ..errors import (
     check_text,
 )
 from ..files.gait_file import load_gait
-from ..hzd.schedule import check_limits, schedule_from_gait
-from ..hzd.zero_dynamics import Schedule, grazing_warning
+from ..hzd.zero_dynamics import grazing_warning
+from ..thrust.schedule import Schedule, WrittenSchedule
 from ..walker import Walker, check_walker
-from .records import SCHEMA_VERSION, fmt, result_repr, units
+from .documents import SCHEMA_VERSION, fmt, result_repr, units
 
 UNITS = units("force", "impulse", "torque", "alpha", "thrust", "zeta", "velocity", "height",
               "Lambda_0", "Lambda_1", "Lambda_2", "Lambda_T", "friction_ratio",
@@ -120,7 +119,7 @@ class FeasibilityResult:
     case_points: list
     thrust: list
     thruster: str | None
-    schedule: ThrustSchedule | None = None
+    schedule: WrittenSchedule | None = None
     schedule_source: str | None = None
 
     name = "feasibility"
@@ -247,7 +246,7 @@ def check_options(mu: float, eps: float, degree: int | None, fit_tol: float) -> 
                                           f"{fit_tol:g})")
 
 
-def load_schedule(path: str) -> tuple[ThrustSchedule, Where]:
+def load_schedule(path: str) -> tuple[WrittenSchedule, Where]:
     """The ``thrust:`` section of a gait-format YAML file, and where to report its problems."""
     sg, source = load_gait(path)
     if sg.thrust is None:
@@ -260,21 +259,22 @@ DEFAULT_THRUST = (0.0, -10.0, -20.0, -30.0, -40.0, -50.0)
 
 
 def feasibility(walker: Walker, thrust: Sequence[float] | None = None, *,
-                schedule: str | ThrustSchedule | None = None, schedule_where: Where = "schedule",
+                schedule: str | WrittenSchedule | None = None, schedule_where: Where = "schedule",
                 thruster: str | None = None, mu: float | None = None,
                 min_vertical_force: float = 0.0, degree: int | None = None,
                 fit_tol: float = 1e-3, region_shape: tuple[int, int] = (61, 81)
                 ) -> FeasibilityResult:
     """Contact feasibility (SPEC 5) of ``walker`` for constant ``thrust`` values [N] on
     ``thruster`` (default: the first), or for one piecewise ``schedule`` (a gait-format file
-    path, or a :class:`ThrustSchedule` whose problems are reported at ``schedule_where``);
+    path, or a :class:`~thrustwalk_cli.thrust.schedule.WrittenSchedule` whose problems are
+    reported at ``schedule_where``);
     with neither, the gait's own ``thrust:`` schedule, else 0 to -50 N in steps of 10 (only 0
     for a robot without thrusters, which accepts no other value).
     ``mu`` [-] defaults to the gait's; ``min_vertical_force`` [N] is the least F^v allowed;
     ``degree``/``fit_tol`` set the polynomial fits L_k."""
     check_walker(walker)
     thrust = check_numbers("thrust", thrust, optional=True, min_len=0)
-    if schedule is not None and not isinstance(schedule, ThrustSchedule):
+    if schedule is not None and not isinstance(schedule, WrittenSchedule):
         schedule = check_path("schedule", schedule)
     if not (isinstance(schedule_where, str) or callable(schedule_where) or (
             isinstance(schedule_where, tuple) and all(isinstance(n, str) for n in schedule_where))):
@@ -317,7 +317,7 @@ def feasibility(walker: Walker, thrust: Sequence[float] | None = None, *,
             F[:, j] = values
             e[0, j] = 1.0
         sched = Schedule.constant(zd, F)
-        check_limits(zd, sched, "thrust", ())
+        sched.check_limits(zd.model.robot, "thrust", ())
         unit = Schedule.constant(zd, e)  # no thruster: the region is flat in the thrust axis
         lo, hi = min(min(values), 0.0), max(max(values), 0.0)
         pad = 0.2 * (hi - lo) if hi > lo else 10.0
@@ -326,8 +326,8 @@ def feasibility(walker: Walker, thrust: Sequence[float] | None = None, *,
         thrust_rec: list = values
         thruster_name = names[j] if j is not None else None
     else:
-        sched = schedule_from_gait(zd, schedule, schedule_where, pad=True)[0]
-        check_limits(zd, sched, schedule_where)
+        sched = schedule.resolve(zd, zd.model.robot, schedule_where, pad=True)[0]
+        sched.check_limits(zd.model.robot, schedule_where)
         unit = sched
         lo, hi, pad = 0.0, 1.0, 0.5
         scale_label = "schedule scale factor [-] (1 = the given schedule)"
@@ -350,7 +350,7 @@ def feasibility(walker: Walker, thrust: Sequence[float] | None = None, *,
     if 0 < d2 < 1:
         Vf = zd.V_Z(np.array(zd.alpha_f), unit)[0]
         V0f = zd.V0(np.array(zd.alpha_f))
-        curve = (V0f + scales * (Vf - V0f)) / (1 - d2)
+        curve = zd.fixed_point_of(V0f + scales * (Vf - V0f))
         zmax_guess = max(zmax_guess, float(curve.max()))
     zmax = 1.3 * zmax_guess if zmax_guess > 0 else 1000.0
     zetas = np.linspace(zmax / region_shape[1], zmax, region_shape[1])

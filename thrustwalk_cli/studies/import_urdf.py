@@ -20,7 +20,7 @@ from ..interchange.urdf import (
     ThrusterSpec,
     import_robot,
 )
-from .records import SCHEMA_VERSION
+from .documents import SCHEMA_VERSION
 
 PointArg = str | tuple[str, Sequence[float]]
 MAX_THRUSTER_OPTIONS = 16

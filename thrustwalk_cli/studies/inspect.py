@@ -7,7 +7,7 @@ from collections.abc import Sequence
 
 from ..errors import InputError, check_instance, check_numbers
 from ..model.compiled import CompiledModel
-from .records import SCHEMA_VERSION, units
+from .documents import SCHEMA_VERSION, units
 
 
 def _vector(value: str | Sequence[float], param: str, n: int, names: list[str]) -> list[float]:

@@ -22,25 +22,10 @@ import numpy as np
 from ..contact.evaluate import CaseResult, check_contact_options, evaluate
 from ..contact.terms import scuff_reason
 from ..errors import InputError, check_number, check_numbers, check_text
-from ..hzd.schedule import check_limits, schedule_from_gait
-from ..hzd.zero_dynamics import (
-    LimitCycle,
-    Schedule,
-    ZeroDynamics,
-    grazing_warning,
-    limit_cycles,
-)
+from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, grazing_warning, limit_cycles
+from ..thrust.schedule import Schedule
 from ..walker import Walker, check_walker
-from .records import (
-    SCHEMA_VERSION,
-    Table,
-    col,
-    constant_thrust,
-    gait_record,
-    result_repr,
-    robot_record,
-    units,
-)
+from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 DEFAULT_THRUST = (0.0, -10.0, -20.0, -30.0, -40.0, -50.0)  # [N] the paper's sweep
 ORBIT_SAMPLES = 201  # samples of each orbit in the CSV table
@@ -199,9 +184,8 @@ class LimitCycleResult:
                 "fixed_point_formula": "zeta* = V_Z(alpha_f) / (1 - delta_zero^2)",
                 "Gamma_alpha_f": gamma,
                 "V0_alpha_f": float(zd.V0(af)),
-                "zeta_star_at_zero_thrust": (float(zd.V0(af)) / (1.0 - d2)
-                                             if d2 != 1.0 else None),
-                "zeta_star_per_newton": (gamma / (1.0 - d2)
+                "zeta_star_at_zero_thrust": zd.fixed_point() if d2 != 1.0 else None,
+                "zeta_star_per_newton": (zd.fixed_point_of(gamma)
                                          if d2 != 1.0 and gamma is not None else None),
             },
             "gait_schedule": (None if self.source != "gait" else {
@@ -308,8 +292,8 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
         if thruster is not None:
             raise InputError.param("thruster", "the gait's thrust: section names its "
                                                "thrusters; give `thrust` values to sweep one")
-        sched = schedule_from_gait(zd, gait_thrust, walker.where, pad=True)[0]
-        check_limits(zd, sched, walker.where)
+        sched = gait_thrust.resolve(zd, zd.model.robot, walker.where, pad=True)[0]
+        sched.check_limits(zd.model.robot, walker.where)
         j, value = _constant_part(walker, sched)
         cycles = limit_cycles(zd, sched)
         return LimitCycleResult(walker, (value,), j, tuple(cycles), "gait", sched,
@@ -326,8 +310,8 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
                                              "raise the limit")
     j = walker.robot.driven_thruster(thruster)
     walker.robot.check_no_thrust(values)
-    sched = Schedule.constant(zd, constant_thrust(zd, values, j))
-    check_limits(zd, sched, "thrust", ())
+    sched = Schedule.on_thruster(zd, values, j, zd.model.n_thrusters)
+    sched.check_limits(zd.model.robot, "thrust", ())
     cycles = limit_cycles(zd, sched)
     return LimitCycleResult(walker, values, j, tuple(cycles), "values", sched,
                             _contact(walker, sched, cycles, mu, eps), mu, eps)

@@ -21,8 +21,7 @@ from ..errors import (
     check_text,
     check_texts,
 )
-from ..hzd.schedule import check_limits, schedule_from_gait
-from ..hzd.zero_dynamics import Schedule
+from ..hzd.zero_dynamics import limit_cycles
 from ..interchange.mjcf import ContactModel, contact_settings
 from ..interchange.mujoco_run import (
     MAX_MJ_STEPS,
@@ -34,8 +33,10 @@ from ..interchange.mujoco_run import (
     run_mujoco,
     thrust_runs,
 )
+from ..thrust.dynamics import canonical
+from ..thrust.schedule import Schedule
 from ..walker import Walker, check_walker
-from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 UNITS = units("time", "thrust", "alpha", "alpha_dot", "sigma_N", "zeta", "step_time",
               "step_length", "speed", "length", "height", "friction_ratio", "wn", "tau",
@@ -304,9 +305,10 @@ def mujoco_run(walker: Walker, *, steps: int = 20, thrust_model: str | None = No
     [N] (default 0; on ``thruster``, default the first) and compare each step with the rigid
     model (SPEC 16; :mod:`thrustwalk_cli.interchange.mujoco_run`).
 
-    Thrust models as ``simulate``: ``constant``, ``first-order`` (``tau`` [s]),
-    ``second-order`` (``wn`` [rad/s], ``xi``), ``piecewise`` (the gait's ``thrust:`` schedule:
-    the default for a gait that has one when no ``thrust`` is given; else ``constant``).
+    Thrust models as ``simulate`` (:mod:`thrustwalk_cli.thrust.dynamics`): ``ideal``
+    (``constant`` is its deprecated name), ``first-order`` (``tau`` [s]), ``second-order``
+    (``wn`` [rad/s], ``xi``), ``piecewise`` (the gait's ``thrust:`` schedule: the default for
+    a gait that has one when no ``thrust`` is given; else ``ideal``).
     ``f0`` [N]: the dynamic models' thrust at t = 0. ``push``: ``(step, phase s, P_x, P_y)``
     [N s] at the hip. ``mu``: friction of the feet and floor (default the gait's).
     ``contact``: a preset (``soft``, ``default``, ``stiff``) or a :class:`ContactModel`
@@ -344,7 +346,8 @@ def mujoco_run(walker: Walker, *, steps: int = 20, thrust_model: str | None = No
     values = None if thrust is None else [float(v) for v in thrust]
     if thrust_model is None:
         thrust_model = ("piecewise" if walker.gait.thrust is not None and values is None
-                        else "constant")
+                        else "ideal")
+    thrust_model = canonical(thrust_model)  # the deprecated `constant` is `ideal`
     if values is None and thrust_model != "piecewise":
         values = [0.0]
     schedule = None
@@ -352,8 +355,8 @@ def mujoco_run(walker: Walker, *, steps: int = 20, thrust_model: str | None = No
         if walker.gait.thrust is None:
             raise InputError(walker.where(("thrust",), "the gait has no thrust schedule "
                                                        "(needed by the piecewise thrust model)"))
-        schedule = schedule_from_gait(zd, walker.gait.thrust, walker.where, pad=True)[0]
-        check_limits(zd, schedule, walker.where)
+        schedule = walker.gait.thrust.resolve(zd, zd.model.robot, walker.where, pad=True)[0]
+        schedule.check_limits(zd.model.robot, walker.where)
     runs_in = thrust_runs(zd, thrust_model, values, list(thruster) if thruster else None,
                           schedule=schedule, wn=wn, xi=xi, tau=tau, f0=f0)
     pushes = [Push(int(stp), s, (px, py))
@@ -394,8 +397,6 @@ def _schedule(zd, th) -> Schedule:
 
 
 def _step_time(zd, th) -> float:
-    from ..hzd.zero_dynamics import limit_cycles
-
     lc = limit_cycles(zd, _schedule(zd, th))[0]
     return lc.step_time if lc.exists and lc.step_time else 1.0
 

@@ -1,5 +1,5 @@
 """The ``optimize`` study: the least thrust that reaches a target while staying walkable
-(SPEC 6), around :func:`thrustwalk_cli.optimize.schedule.optimize`: parameter checks, the JSON
+(SPEC 6), around :func:`thrustwalk_cli.optimize.min_effort.optimize`: parameter checks, the JSON
 record, the gait file with the optimal schedule, and the figure."""
 
 from __future__ import annotations
@@ -18,11 +18,11 @@ from ..errors import (
     check_text,
 )
 from ..files.bundled import resolve
-from ..hzd.zero_dynamics import LimitCycle, Schedule, limit_cycles
+from ..hzd.zero_dynamics import LimitCycle
 from ..model.compiled import CompiledModel
-from ..optimize.schedule import OptimalSchedule, describe, optimize
+from ..optimize.min_effort import OptimalSchedule, describe, optimize
 from ..walker import Walker, check_walker
-from .records import SCHEMA_VERSION, result_repr, units
+from .documents import SCHEMA_VERSION, result_repr, units
 
 
 def result_record(res: OptimalSchedule, model: CompiledModel) -> dict:
@@ -279,6 +279,5 @@ def optimize_schedule(walker: Walker, *, knots: list[float] = (0.0, 0.25, 0.5, 0
                    max_thrust=max_thrust, weights=weights)
     nominal = None
     if res.feasible:
-        m = model.n_thrusters
-        nominal = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, m))))[0]
+        nominal = zd.nominal_cycle()
     return OptimizeResult(walker, res, mu, eps, zeta_min, weights, nominal)

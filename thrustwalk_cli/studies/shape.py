@@ -24,16 +24,6 @@ from ..errors import (
     check_text,
 )
 from ..files import expr
-from ..hzd.schedule import (
-    MODES,
-    check_knots,
-    check_limits,
-    knots_alpha,
-    make_schedule,
-    nominal_schedule,
-    schedule_from_gait,
-    uniform_fractions,
-)
 from ..hzd.shaping import (
     DEFAULT_FIELD_K,
     DEFAULT_PATTERN,
@@ -49,9 +39,10 @@ from ..hzd.shaping import (
     true_shift,
     vector_field,
 )
-from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
+from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, limit_cycles
+from ..thrust.schedule import MODES, Schedule, check_knots, knots_alpha, uniform_fractions
 from ..walker import Walker, check_walker
-from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 
 # ---------------------------------------------------------------------------- pattern
@@ -224,7 +215,7 @@ def gait_base(walker: Walker) -> Schedule | None:
     ts = walker.gait.thrust
     if ts is None or len(ts.knots) != 2:
         return None
-    sched = schedule_from_gait(walker.zd, ts, walker.where)[0]
+    sched = ts.resolve(walker.zd, walker.zd.model.robot, walker.where)[0]
     return sched if len(sched.knots) == 2 else None
 
 
@@ -292,8 +283,7 @@ def _cycles(zd: ZeroDynamics, schedule: Schedule,
     out: list[LimitCycle] = []
     for i in range(0, K, step):
         sl = slice(i, min(K, i + step))
-        out += limit_cycles(zd, Schedule(schedule.knots, schedule.force[sl],
-                                         schedule.generalized[sl]))
+        out += limit_cycles(zd, schedule.take(sl))
         if progress is not None:
             progress(sl.stop - sl.start)
     return tuple(out)
@@ -336,8 +326,8 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
     m = zd.model.n_thrusters
     knots_req = req.knots
     if source == "gait":
-        sched, fr = schedule_from_gait(zd, zd.gait.thrust, walker.where)
-        check_limits(zd, sched, walker.where)
+        sched, fr = zd.gait.thrust.resolve(zd, zd.model.robot, walker.where)
+        sched.check_limits(zd.model.robot, walker.where)
         knots = sched.knots
         labels, values, P_field, ksol, target = ("gait thrust",), None, None, None, None
     else:
@@ -356,13 +346,13 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
             ksol = solve_knots(zd, fr, P, mode, th)
             if not ksol.success:
                 knots = knots_alpha(zd, np.array([0.0 if v is None else v for v in fr]))
-                nominal = limit_cycles(zd, nominal_schedule(knots, m))[0]
+                nominal = zd.nominal_cycle(knots)
                 return ShapeStudy(walker, False, ksol.reason, source, mode, th, pattern, nominal,
                                   knot_solution=ksol)
             fr = list(ksol.fractions)
         knots = knots_alpha(zd, np.array(fr, float))
-        sched = _around(make_schedule(zd, knots, P[:-1], mode, th), base)
-        check_limits(zd, sched, ("pattern", "k"), ())
+        sched = _around(Schedule.piecewise(knots, P[:-1], mode, m, th), base)
+        sched.check_limits(zd.model.robot, ("pattern", "k"), ())
         labels, values, P_field, target = tuple(f"k = {k:g}" for k in ks), ks, P[-1:], None
     elif source != "gait":
         pattern = None
@@ -373,24 +363,24 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
             target = solve_target_speed(zd, knots, req.target_speed, mode, th)
         ksol, labels, values, P_field = None, ("minimum-norm",), None, None
         if not target.success:
-            nominal = limit_cycles(zd, nominal_schedule(knots, m))[0]
+            nominal = zd.nominal_cycle(knots)
             return ShapeStudy(walker, False, target.reason, source, mode, th, None, nominal,
                               target=target)
-        sched = make_schedule(zd, knots, target.values[None, :], mode, th)
+        sched = Schedule.piecewise(knots, target.values[None, :], mode, m, th)
         try:
-            check_limits(zd, sched, "the minimum-norm thrust", ())
+            sched.check_limits(zd.model.robot, "the minimum-norm thrust", ())
         except InputError as exc:
-            nominal = limit_cycles(zd, nominal_schedule(knots, m))[0]
+            nominal = zd.nominal_cycle(knots)
             return ShapeStudy(walker, False, f"the target needs more thrust than the thruster "
                               f"gives: {exc}", source, mode, th, None, nominal, target=target)
     else:
         pattern = None
-    nom_sched = _around(nominal_schedule(knots, m), base)
+    nom_sched = _around(Schedule.zero(knots, m), base)
     nominal = limit_cycles(zd, nom_sched)[0]
     cycles = _cycles(zd, sched, progress)
     if P_field is not None:
-        fsched = _around(make_schedule(zd, knots, P_field, mode, th), base)
-        check_limits(zd, fsched, "field_k", ())
+        fsched = _around(Schedule.piecewise(knots, P_field, mode, m, th), base)
+        fsched.check_limits(zd.model.robot, "field_k", ())
         flabel = f"k = {fk:g}"
     else:
         fsched, flabel = sched, labels[0]
@@ -408,7 +398,7 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
         success, reason = True, "a stable shaped limit cycle for every schedule"
     return ShapeStudy(walker, success, reason, source, mode, th, pattern,
                       nominal, labels, values, ksol, target, intervals(zd, knots), sched, cycles,
-                      one_step, one_step / (1.0 - zd.delta_zero_sq), flabel, fsched, fcycle,
+                      one_step, zd.fixed_point_of(one_step), flabel, fsched, fcycle,
                       base)
 
 
@@ -584,7 +574,7 @@ def field_range(orbits: Sequence[LimitCycle], key: str) -> tuple[float, float]:
 def study_fields(zd: ZeroDynamics, study: ShapeStudy) -> dict[str, tuple[VectorField, ...]]:
     """Nominal and shaped vector fields in both planes, sized to hold both limit cycles."""
     out = {}
-    nom_s = _around(nominal_schedule(study.field_schedule.knots, zd.model.n_thrusters),
+    nom_s = _around(Schedule.zero(study.field_schedule.knots, zd.model.n_thrusters),
                     study.base)
     for plane, key in (("alpha_dot", "alpha_dot"), ("sigma", "sigma")):
         rng = field_range([study.nominal, study.field_cycle], key)

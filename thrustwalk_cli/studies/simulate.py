@@ -27,8 +27,7 @@ from ..errors import (
     check_text,
     check_texts,
 )
-from ..hzd.schedule import check_limits, schedule_from_gait
-from ..hzd.zero_dynamics import Schedule, ZeroDynamics, limit_cycles, paper_one_step_shift
+from ..hzd.zero_dynamics import ZeroDynamics, limit_cycles, paper_one_step_shift
 from ..simulation.closed_loop import (
     MAX_SAMPLES,
     MAX_STEPS,
@@ -40,8 +39,9 @@ from ..simulation.closed_loop import (
 )
 from ..simulation.full_order import Start
 from ..simulation.scenario import Outcome, Scenario, deviations, make_scenario, run_scenario
+from ..thrust.schedule import Schedule
 from ..walker import Walker, check_walker
-from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 UNITS = units("time", "thrust", "generalized_thrust", "alpha", "alpha_dot", "sigma_N", "zeta",
               "impulse", "force", "torque", "output_y", "output_rate", "energy", "wn", "tau",
@@ -137,9 +137,9 @@ def run_entries(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
                     flags["torque saturated"].append(st.step)
                     warn.append(f"step {st.step}: joint torques saturated")
         dev = deviations(oc, sc)
-        sched = oc.thrust.schedule if oc.thrust.kind == "piecewise" else Schedule.constant(
+        sched = oc.thrust.schedule if oc.thrust.piecewise else Schedule.constant(
             zd, np.asarray(oc.thrust.target, float)[None, :])
-        zero = Schedule(sched.knots, np.zeros_like(sched.force), np.zeros_like(sched.generalized))
+        zero = sched.without_thrust()
         z0 = _zeta_star(zd, zero)
         if primary is None:
             success, failure, reason = False, "no-orbit", oc.no_orbit
@@ -585,8 +585,8 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
         if walker.gait.thrust is None:
             raise InputError(walker.where(("thrust",), "the gait has no thrust schedule "
                                                        "(needed by the piecewise thrust model)"))
-        schedule = schedule_from_gait(zd, walker.gait.thrust, walker.where, pad=True)[0]
-        check_limits(zd, schedule, walker.where)
+        schedule = walker.gait.thrust.resolve(zd, zd.model.robot, walker.where, pad=True)[0]
+        schedule.check_limits(zd.model.robot, walker.where)
     sc = make_scenario(zd, thrust_model, values, list(thruster) if thruster else None,
                        schedule=schedule, wn=wn, xi=xi, tau=tau, f0=f0, start=st,
                        config=config, reduced_only=reduced, impact_s_tol=impact_s_tol,

@@ -34,7 +34,6 @@ from ..floquet.multipliers import (
     check_agreement_tol,
 )
 from ..floquet.poincare import Setting
-from ..hzd.schedule import check_limits, schedule_from_gait
 from ..simulation.closed_loop import (
     SimConfig,
     ThrustModel,
@@ -42,15 +41,22 @@ from ..simulation.closed_loop import (
 )
 from ..simulation.full_order import Start
 from ..simulation.scenario import make_scenario
+from ..thrust.dynamics import MODELS, canonical
 from ..walker import Walker, check_walker
-from .records import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
 
 UNITS = units("thrust", "time", "q", "q_dot", "wn", "tau", "multiplier", "kp", "kd", "xi",
               "delta_zero_sq", "zeta")
 
-# the parameters --vary sweeps: unit, the thrust model they need (None: any)
-VARY = {"kp": ("1/s^2", None), "kd": ("1/s", None), "wn": ("rad/s", "second-order"),
-        "xi": ("1", "second-order"), "tau": ("s", "first-order"), "thrust": ("N", None)}
+# the parameters `vary` sweeps and their units; wn, xi and tau only with a thrust model that
+# takes them (thrust/dynamics.py: MODELS)
+VARY = {"kp": "1/s^2", "kd": "1/s", "wn": "rad/s", "xi": "1", "tau": "s", "thrust": "N"}
+
+
+def model_params(kind: str) -> tuple[str, ...]:
+    """The thruster parameters (wn, xi, tau) the thrust model ``kind`` takes."""
+    model = MODELS.get(canonical(kind))
+    return () if model is None else model.params
 MAX_CASES = 200  # settings in one sweep (each takes about 1-3 s)
 VERDICTS = ("stable", "unstable", "undetermined", "no orbit")
 
@@ -78,11 +84,11 @@ def case_entry(i: int, case: Case) -> dict:
     f = case.floquet
     s = f.setting
     th = s.thrust
+    takes = model_params(th.kind)
     entry = {
         "case": i, "value": case.value, "thrust": case.thrust, "thruster": case.thruster,
-        "kp": s.kp, "kd": s.kd, "wn": th.wn if th.kind == "second-order" else None,
-        "xi": th.xi if th.kind == "second-order" else None,
-        "tau": th.tau if th.kind == "first-order" else None,
+        "kp": s.kp, "kd": s.kd, "wn": th.wn if "wn" in takes else None,
+        "xi": th.xi if "xi" in takes else None, "tau": th.tau if "tau" in takes else None,
         "exists": f.exists, "verdict": f.verdict, "stable": f.stable, "reason": f.reason,
         "predicted": {"zeta_star": f.predicted_zeta_star,
                       "step_time": f.predicted_step_time},
@@ -239,7 +245,7 @@ class StabilityResult:
     def _label(self, i: int, c: Case) -> str:
         if self.vary is None:
             return "case 0"
-        return f"case {i} ({self.vary[0]} = {c.value:g} {VARY[self.vary[0]][0]})"
+        return f"case {i} ({self.vary[0]} = {c.value:g} {VARY[self.vary[0]]})"
 
     @property
     def warnings(self) -> list[str]:
@@ -271,7 +277,7 @@ class StabilityResult:
                                       "it is one of the full-order multipliers (SPEC 13)"},
             "settings": {**self.settings,
                          "vary": None if self.vary is None else {
-                             "parameter": self.vary[0], "unit": VARY[self.vary[0]][0],
+                             "parameter": self.vary[0], "unit": VARY[self.vary[0]],
                              "values": list(self.vary[1])},
                          "section": "the guard's tangent space at the fixed point: x = x* + "
                                     "B xi, B = diag(B_q, I, I) orthonormal with g_q B_q = 0; "
@@ -290,7 +296,7 @@ class StabilityResult:
 
     def tables(self) -> dict[str, Table]:
         """``multipliers``: one row per multiplier per case."""
-        header = ["case", col("value", VARY[self.vary[0]][0]) if self.vary else "value",
+        header = ["case", col("value", VARY[self.vary[0]]) if self.vary else "value",
                   "verdict", "index", "re", "im", "modulus", "kind", "thruster_share",
                   "fd_re", "fd_im", "dominant", col("spectral_radius", "1")]
         rows = []
@@ -324,7 +330,7 @@ class StabilityResult:
                           "spectral_radius": f.spectral_radius})
         label = None
         if self.vary is not None:
-            name, (unit, _) = self.vary[0], VARY[self.vary[0]]
+            name, unit = self.vary[0], VARY[self.vary[0]]
             label = f"{PARAM_LABEL[name]} [{unit}]"
         return {"cases": cases, "delta_zero_sq": self.walker.zd.delta_zero_sq,
                 "label": label}
@@ -361,8 +367,8 @@ def _check_vary(vary, kind: str, wn: float, xi: float, tau: float
     if name not in VARY:
         raise InputError.param("vary", f"unknown parameter {name!r} (choose from "
                                        f"{', '.join(VARY)})")
-    need = VARY[name][1]
-    if need is not None and kind != need:
+    if name in ("wn", "xi", "tau") and name not in model_params(kind):
+        need = " or ".join(k for k, m in MODELS.items() if name in m.params)
         raise InputError.param("vary", f"{name} is a parameter of the {need} thrust model "
                                        f"(`thrust_model` is {kind})")
     if name == "thrust" and kind == "piecewise":
@@ -426,6 +432,7 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
     if thrust_model is None:
         thrust_model = ("piecewise" if walker.gait.thrust is not None and thrust is None
                         else "second-order")
+    thrust_model = canonical(thrust_model)  # the deprecated `constant` is `ideal`
     vary_t = _check_vary(vary, thrust_model, wn, xi, tau)
     kp = float(walker.gait.kp if kp is None else kp)
     kd = float(walker.gait.kd if kd is None else kd)
@@ -437,8 +444,8 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
         if thrust is not None:
             raise InputError.param("thrust", "not used with the piecewise thrust model (the "
                                              "schedule comes from the gait's thrust: section)")
-        schedule = schedule_from_gait(zd, walker.gait.thrust, walker.where, pad=True)[0]
-        check_limits(zd, schedule, walker.where)
+        schedule = walker.gait.thrust.resolve(zd, zd.model.robot, walker.where, pad=True)[0]
+        schedule.check_limits(zd.model.robot, walker.where)
     base = 0.0 if thrust is None else float(thrust)
     values = [base] + (list(vary_t[1]) if vary_t and vary_t[0] == "thrust" else [])
     config = SimConfig(steps=1, rtol=rtol, atol=atol)
@@ -473,9 +480,9 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
             progress(1)
     settings = {"thrust_model": thrust_model, "thruster": driven,
                 "thrust": None if thrust_model == "piecewise" else base, "kp": kp, "kd": kd,
-                "wn": wn if thrust_model == "second-order" else None,
-                "xi": xi if thrust_model == "second-order" else None,
-                "tau": tau if thrust_model == "first-order" else None,
+                "wn": wn if "wn" in model_params(thrust_model) else None,
+                "xi": xi if "xi" in model_params(thrust_model) else None,
+                "tau": tau if "tau" in model_params(thrust_model) else None,
                 "rtol": rtol, "atol": atol,
                 "agreement_tol": None if agreement_tol is None else float(agreement_tol)}
     return StabilityResult(walker, tuple(cases), thrust_model, vary_t, settings)

@@ -38,7 +38,7 @@ from ..sweep.points import expand, grid_coordinates, neighbours
 from ..sweep.runner import RunCounts, run_tasks
 from ..sweep.tasks import PointTask, canonical, identity, task_key
 from ..walker import assemble_walker, default_gait
-from .records import SCHEMA_VERSION, Table, col, result_repr
+from .documents import SCHEMA_VERSION, Table, col, result_repr
 from .sweep_studies import (
     STUDIES,
     SweepStudy,

@@ -24,7 +24,6 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .._version import __version__
-from ..description.gait import ThrustSchedule
 from ..description.robot import Robot
 from ..errors import ComputationError, InputError, param_problem
 from ..files.gait_file import load_gait_text
@@ -34,8 +33,9 @@ from ..model.compiled import CompiledModel
 from ..model.compiler import load_model
 from ..sweep.runner import chunk_size
 from ..sweep.tasks import PointTask, canonical
+from ..thrust.schedule import WrittenSchedule
 from ..walker import Walker, assemble_walker
-from .records import UNITS
+from .documents import UNITS
 
 
 @dataclass(frozen=True)
@@ -72,7 +72,7 @@ class SweepStudy:
 
 
 # ------------------------------------------------------------------------------- helpers
-def _schedule(robot: Robot, p: Mapping) -> ThrustSchedule | None:
+def _schedule(robot: Robot, p: Mapping) -> WrittenSchedule | None:
     """The ``schedule`` setting with the point's ``schedule.j`` values applied."""
     s = p.get("schedule")
     if s is None:
@@ -82,12 +82,12 @@ def _schedule(robot: Robot, p: Mapping) -> ThrustSchedule | None:
         if k.startswith("schedule."):
             values[int(k.split(".")[1]) - 1] = float(v)
     if s["mode"] == "generalized":
-        return ThrustSchedule(tuple(s["knots"]), (("T", tuple(values)),), "generalized", True)
+        return WrittenSchedule(tuple(s["knots"]), (("T", tuple(values)),), "generalized", True)
     j = robot.driven_thruster(p.get("thruster"))
     if j is None:
         raise InputError.param("schedule", f"robot {robot.name} has no thruster: use mode "
                                            "generalized")
-    return ThrustSchedule(tuple(s["knots"]), ((robot.thruster_names[j], tuple(values)),),
+    return WrittenSchedule(tuple(s["knots"]), ((robot.thruster_names[j], tuple(values)),),
                           "force", True)
 
 
@@ -148,16 +148,14 @@ def _schedule_problems(walker: Walker, p: Mapping) -> list[tuple[str, str]]:
     """The point's ``schedule`` (with its ``schedule.j`` values) checked against the walker:
     a thruster for force mode, the knots, one value per interval, the thruster's limits.
     Problems name ``schedule.knots`` / ``schedule.values`` (their keys in the sweep file)."""
-    from ..hzd.schedule import check_limits, schedule_from_gait
-
     def where(key: tuple, message: str):
         return param_problem("schedule." + str(key[1]) if len(key) > 1 else "schedule",
                              message)
     try:
         sched = _schedule(walker.robot, p)
         if sched is not None:
-            s = schedule_from_gait(walker.zd, sched, where, pad=True)[0]
-            check_limits(walker.zd, s, where)
+            s = sched.resolve(walker.zd, walker.robot, where, pad=True)[0]
+            s.check_limits(walker.robot, where)
     except InputError as exc:
         return [(pr.params[0] if pr.params else "schedule", pr.message) for pr in exc.problems]
     return []
@@ -302,7 +300,8 @@ def _simulate_point(walker: Walker, p: dict, start: dict | None) -> PointResult:
 
 
 def _check_simulate(walker: Walker, p: dict) -> list[tuple[str, str]]:
-    from ..simulation.closed_loop import check_thruster_rate
+    from ..simulation.closed_loop import PIECEWISE, check_thruster_rate
+    from ..thrust.dynamics import canonical
 
     out = _check_thrust(walker, p)
     model = p["thrust_model"]
@@ -312,10 +311,11 @@ def _check_simulate(walker: Walker, p: dict) -> list[tuple[str, str]]:
     if p.get("schedule") is not None and model != "piecewise":
         out.append(("schedule", "a schedule needs `thrust_model` piecewise"))
     out += _schedule_problems(walker, p)
-    if model in ("first-order", "second-order"):
+    if canonical(model) not in ("ideal", PIECEWISE):  # a model with thruster states
         out += _check_thrust(walker, {**p, "thrust": p["f0"]}, "f0")
         try:
-            check_thruster_rate(model, float(p["wn"]), float(p["xi"]), float(p["tau"]))
+            check_thruster_rate(model, float(p["wn"]), float(p["xi"]), float(p["tau"]),
+                                walker.model.n_thrusters)
         except InputError as exc:
             out += [(pr.params[0], pr.message) for pr in exc.problems]
     return out

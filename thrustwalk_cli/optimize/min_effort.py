@@ -40,14 +40,15 @@ from dataclasses import dataclass, field, replace
 from itertools import combinations
 
 import numpy as np
-from scipy.optimize import brentq, linprog
+from scipy.optimize import linprog
 
 from ..contact.evaluate import CaseResult, evaluate, step_grid
 from ..contact.terms import fit_terms, impact_data, stance_terms
 from ..errors import ComputationError, InputError
 from ..hzd.quadrature import integrate, lobatto
-from ..hzd.zero_dynamics import LimitCycle, Schedule, ZeroDynamics, limit_cycles
+from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, limit_cycles
 from ..model.compiled import CompiledModel
+from ..thrust.schedule import Schedule
 from .qp import active_set_qp, kkt, ldp_qp, lp_feasible, normalise_rows
 
 FAMILIES = {
@@ -237,8 +238,7 @@ def _cum_at(zd: ZeroDynamics, mode: str, thruster: int, alpha: np.ndarray) -> np
 
 def _interval_times(zd: ZeroDynamics, kn: np.ndarray) -> np.ndarray:
     """Time spent in each knot interval on the zero-thrust orbit [s] (fixed QP weights)."""
-    m = zd.model.n_thrusters
-    lc = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, m))))[0]
+    lc = zd.nominal_cycle()
     if not lc.exists:
         raise InputError.param("weights", "time: the zero-thrust periodic orbit does not exist "
                                f"({lc.reason}); use `weights` alpha")
@@ -486,8 +486,8 @@ def _zeta_for_speed(model, zd, prob, target, fr, target_speed):
             f"[{va:.4g}, {vb:.4g}] m/s of minimum-effort schedules (the {word} has "
             f"zeta* = {(b if end == 'max' else a):.6g}, {bound:.4g} m/s), limited by: {lim}",
             removal=False, zrange=zrange)
-    zs = brentq(lambda z: _speed_at(model, zd, prob, z) - target_speed, a, b,
-                xtol=1e-12 * max(abs(b), 1.0), rtol=1e-12)
+    zs = zd.zeta_for_speed(target_speed, lambda z: _speed_at(model, zd, prob, z), a, b,
+                           xtol=1e-12 * max(abs(b), 1.0), rtol=1e-12)
     return zs, zrange
 
 

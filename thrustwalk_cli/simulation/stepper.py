@@ -1,12 +1,16 @@
-"""The compiled full-order simulation (SPEC 7): the numba kernel of :mod:`.kernel`, its
-parameters, and results in the same form as the SciPy reference path.
+"""The compiled full-order simulation (SPEC 7): the numba kernel, its parameters, and results
+in the same form as the SciPy reference path.
 
-One kernel serves every robot: the kernel source and the tape interpreter, compiled by numba
-once per machine and cached in the thrustwalk cache folder (:mod:`thrustwalk_cli.model.jit`);
-the robot enters as data, its tape (:mod:`thrustwalk_cli.model.tape`) appended to the integer
-settings. It integrates with DOP853 (same tolerance semantics, step-size control and events
-as ``solve_ivp``), so its steps agree with the SciPy path (``method="scipy"``) to the
-integration tolerance. numba is imported only here, when a compiled run is asked for.
+One kernel serves every robot: the sources of the generic integrator (:mod:`.integrator`:
+DOP853, dense output, event location), of the walker's closed loop (:mod:`.kernel`) and step
+(:mod:`.step_stats`, :mod:`.step`) and the tape interpreter, concatenated into one module
+(:func:`kernel_source`), compiled by numba once per machine and cached in the thrustwalk cache
+folder (:mod:`thrustwalk_cli.model.jit`); the robot enters as data, its tape
+(:mod:`thrustwalk_cli.model.tape`) appended to the integer settings. It integrates with DOP853
+(same tolerance semantics, step-size control and events as ``solve_ivp``), so its steps agree
+with the SciPy path (``method="scipy"``) to the integration tolerance. numba is imported only
+here, when a compiled run is asked for. (Named for :class:`Stepper`, which runs the compiled
+closed loop step by step; :mod:`thrustwalk_cli.model.compiled` is the compiled *model*.)
 """
 
 from __future__ import annotations
@@ -22,15 +26,16 @@ import numpy as np
 from ..model import jit
 from ..model.tape import SIGNATURES as TAPE_SIGNATURES
 from ..model.tape import interpreter_source
+from . import integrator as I
 from . import kernel as K
+from . import step as S
+from . import step_stats as SS
 from .records import EVENT_REASONS, Segment, StepRecord
 
 if TYPE_CHECKING:  # the closed loop (and the zero dynamics under it) load when a run needs them
     from .closed_loop import ClosedLoop, SimConfig
 
 TAG = "sim"
-KINDS = {"constant": K.K_CONSTANT, "first-order": K.K_FIRST, "second-order": K.K_SECOND,
-         "piecewise": K.K_PIECEWISE}
 BUF_ROWS = 512  # integrator steps per walking step kept for dense output (grows on demand)
 GRID = 201  # uniform samples of a step for its statistics (as the SciPy path)
 
@@ -48,19 +53,47 @@ def _coefficients() -> str:
     return "\n".join(f"{k} = {arr(v)}" for k, v in parts.items())
 
 
+SOURCES = (I, K, SS, S)  # in this order: each source uses the names of those before it
+PYTHON_ONLY = ("# ---- Python only", "# ---- end Python only")
+
+
+def numba_source(module) -> str:
+    """A kernel module's source without its block marked *Python only* (the imports that give
+    Python the names of the sources before it; in the compiled module they are defined
+    there)."""
+    out, skip = [], False
+    for line in inspect.getsource(module).splitlines(keepends=True):
+        if line.startswith(PYTHON_ONLY[0]):
+            skip = True
+        if not skip:
+            out.append(line)
+        if line.startswith(PYTHON_ONLY[1]):
+            skip = False
+    return "".join(out)
+
+
 @functools.cache
 def kernel_source() -> str:
-    """The kernel's source, the tape interpreter and the DOP853 coefficients (the last two
-    replace its placeholders)."""
-    return (inspect.getsource(K) + "\n\n# ---- the tape interpreter (model/tape.py)\n"
+    """The sources of the integrator, the walker's closed loop and step, the tape interpreter
+    and the DOP853 coefficients (the last two replace the placeholders)."""
+    return ("\n\n".join(numba_source(m) for m in SOURCES)
+            + "\n\n# ---- the tape interpreter (model/tape.py)\n"
             + interpreter_source() + "\n\n# ---- DOP853 tableau (scipy.integrate.DOP853)\n"
             + _coefficients() + "\n")
 
 
 @functools.cache
 def _names() -> dict[str, str]:
-    """Every function to compile with its numba signature, callees first."""
-    return {**TAPE_SIGNATURES, **K.SIGNATURES}
+    """Every function to compile with its numba signature, callees first: the interpreter,
+    the integrator's helpers, the closed loop (the integrator's problem), the integrator, the
+    step's statistics, the step."""
+    return {**TAPE_SIGNATURES, **I.HELPERS, **K.SIGNATURES, **I.SIGNATURES, **SS.SIGNATURES,
+            **S.SIGNATURES}
+
+
+# compiled without reference counting (model/jit.py): the allocation-free functions of every
+# source and of the tape interpreter
+NRT_FREE = I.NRT_FREE | K.NRT_FREE | SS.NRT_FREE | S.NRT_FREE | {"tape_run", "tape_chunks"}
 
 
 @functools.cache
@@ -73,7 +106,8 @@ def _fingerprint() -> str:
 
     here = Path(__file__).parent
     return cache.files_digest(
-        [here / "kernel.py", here / "compiled.py", here.parent / "model" / "tape.py"],
+        [here / f"{m.__name__.rsplit('.', 1)[1]}.py" for m in SOURCES]
+        + [Path(__file__), here.parent / "model" / "tape.py"],
         cache.package_file("scipy", "integrate/_ivp/dop853_coefficients.py"))
 
 
@@ -83,12 +117,12 @@ def kernel(rebuild: bool = False, on_wait: Callable[[str], None] | None = None
     the cache; while another process compiles it, this one waits (``on_wait`` is told, see
     :func:`thrustwalk_cli.model.jit.load`) and then loads it."""
     return jit.load(TAG, kernel_source, _names(), rebuild=rebuild, fingerprint=_fingerprint(),
-                    nrt_free=K.NRT_FREE, what="the simulation kernel", on_wait=on_wait)
+                    nrt_free=NRT_FREE, what="the simulation kernel", on_wait=on_wait)
 
 
 def kernel_status() -> dict:
     """Whether the compiled kernel is cached, without importing numba or SciPy."""
-    return jit.status(TAG, _fingerprint(), _names(), K.NRT_FREE)
+    return jit.status(TAG, _fingerprint(), _names(), NRT_FREE)
 
 
 # ----------------------------------------------------------------------------- parameters
@@ -96,7 +130,7 @@ def kernel_status() -> dict:
 class Packed:
     """The kernel's parameters for one gait, thrust model and configuration: float settings
     ``fs``, sizes and offsets ``ip``, the flat parameter vector ``par`` (gait rows, c,
-    breakpoints, thrust per segment, F_ss, R, b)."""
+    breakpoints, thrust per segment, F_ss, R, b, the thruster dynamics' matrices)."""
 
     fs: np.ndarray
     ip: np.ndarray
@@ -126,7 +160,7 @@ def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
         ip[slot] = K.N_IP + tape.programs[name]
     ip[K.I_NCONST], ip[K.I_C0], ip[K.I_NREG] = tape.consts.size, tape.n_inputs, tape.nreg
     ip = np.concatenate([ip, tape.code])
-    ip[K.I_KIND] = KINDS[th.kind]
+    ip[K.I_CMD] = K.CMD_PIECEWISE if th.piecewise else K.CMD_CONSTANT
     ip[K.I_ROOT_END] = cl.root_end
     ip[K.I_GUARD_IDX] = cl.breaks.index(cl.arm_s)
     ip[K.I_GRID] = grid
@@ -134,11 +168,10 @@ def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
     fs[K.N_FS:] = tape.consts
     fs[K.F_AI], fs[K.F_SPAN], fs[K.F_DIR] = cl.ai, cl.span, cl.direction
     fs[K.F_KP], fs[K.F_KD] = cl.kp, cl.kd
-    fs[K.F_RTOL], fs[K.F_ATOL] = cfg.rtol, cfg.atol
+    fs[I.F_RTOL], fs[I.F_ATOL] = cfg.rtol, cfg.atol
     fs[K.F_TLIM] = np.inf if cfg.torque_limit is None else cfg.torque_limit
     fs[K.F_SCUFF], fs[K.F_MINIMP], fs[K.F_MAXS] = cfg.scuff_tol, cfg.min_impact_s, cfg.max_s
     fs[K.F_GROUND], fs[K.F_TMAX] = cfg.ground_tol, t_max
-    fs[K.F_WN], fs[K.F_XI], fs[K.F_TAU] = th.wn, th.xi, th.tau
     fs[K.F_MU] = np.inf if cfg.cone_mu is None else cfg.cone_mu
     fs[K.F_EPS] = cfg.cone_eps
     par = np.zeros(ip[K.P_SIZE])
@@ -151,6 +184,12 @@ def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
     p.part(K.P_TGT, m)[:] = np.asarray(th.target, float)
     p.part(K.P_R, N * N)[:] = np.asarray(model.R, float).ravel()
     p.part(K.P_B, N)[:] = model.b
+    nz = th.n_states
+    dyn = th.dynamics.kernel_data()  # the servo form (thrust/dynamics.py)
+    for key, slot, size in (("E", K.P_DE, nz), ("P", K.P_DP, nz * nz), ("Q", K.P_DQ, nz * m),
+                            ("K", K.P_DK, m * nz), ("C", K.P_DC, m * nz),
+                            ("D", K.P_DD, m * m)):
+        p.part(slot, size)[:] = dyn[key].ravel()
     return p
 
 

@@ -1,4 +1,6 @@
-"""Pieces shared by every study's records: tables, number formatting, the gait record.
+"""Pieces shared by every study's result documents: units, tables, number formatting, the gait
+and robot records (not to be confused with :mod:`thrustwalk_cli.simulation.records`, the records
+of simulated steps).
 
 A study returns a result object that renders itself (the python-control pattern):
 ``document()`` is the JSON body (SI units, no NaN), ``tables()`` the CSV tables,
@@ -10,8 +12,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from typing import Any
-
-import numpy as np
 
 from ..hzd.zero_dynamics import ZeroDynamics
 
@@ -125,12 +125,3 @@ def robot_record(zd: ZeroDynamics) -> dict:
     r = zd.model.robot
     return {"name": r.name, "file": r.source_file, "coordinates": r.coordinate_names,
             "thrusters": r.thruster_names}
-
-
-def constant_thrust(zd: ZeroDynamics, values, thruster: int | None) -> np.ndarray:
-    """Thrust per thruster (k, m) [N] with ``values`` on thruster index ``thruster`` (None: a
-    robot without thrusters, shape (k, 0))."""
-    F = np.zeros((len(values), zd.model.n_thrusters))
-    if thruster is not None:
-        F[:, thruster] = values
-    return F
