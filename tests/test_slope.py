@@ -210,3 +210,89 @@ def test_cli_slope(command, cli, tmp_path, monkeypatch):
         assert r.exit_code == 2
         assert "--slope" in r.output and len(r.output.strip().splitlines()) == 1
         assert not bad_out.exists()
+
+
+# ------------------------------------------------------------------------- the slope map
+@pytest.mark.parametrize("name", ["three_link", "walker5"])
+def test_map_cells_equal_single_limit_cycle_calls(name, walker3, walker5):
+    """Every sampled cell of the map (explicit in cos/sin of the slope, affine in thrust)
+    equals a limit_cycle(slope=...) call of its own: the verdict, zeta*, step time and speed
+    to 1e-12, the least vertical force and largest friction ratio where the orbit completes
+    the step (polished near the limits: 1e-9; else on the grid: 1e-3 relative)."""
+    from thrustwalk_cli.studies.slope import FAILURES, slope_map
+
+    walker = {"three_link": walker3, "walker5": walker5}[name]
+    slopes = np.linspace(-0.2, 0.2, 9)
+    thrust = np.linspace(0.0, -50.0, 6)
+    r = slope_map(walker, slopes, thrust)
+    first = r.cells["first"]
+    kinds = set()
+    for i in range(0, 9, 2):
+        for k in range(0, 6, 1):
+            lc = limit_cycle(walker, [float(thrust[k])], slope=float(slopes[i]))
+            c, walkable = lc.cycles[0], lc.walkable[0]
+            kinds.add(FAILURES[first[i, k]])
+            assert walkable == (first[i, k] == 0), (slopes[i], thrust[k], lc.verdicts[0],
+                                                    FAILURES[first[i, k]])
+            assert c.exists == bool(r.cells["completes"][i, k])
+            if not c.exists:
+                continue
+            for key in ("zeta_star", "step_time", "speed"):
+                assert r.cells[key][i, k] == pytest.approx(getattr(c, key), rel=1e-12), key
+            assert r.cells["climb_rate"][i, k] == pytest.approx(c.speed * math.sin(slopes[i]),
+                                                                rel=1e-12)
+            f = lc.contact[0]
+            tol = 1e-9 if r.cells["polished"][i, k] else 1e-3  # polished: exact; else grid
+            if f.min_vertical_force is not None:
+                assert r.cells["min_vertical_force"][i, k] == pytest.approx(
+                    f.min_vertical_force, rel=tol, abs=1e-9)
+            if f.max_friction_ratio is not None and np.isfinite(f.max_friction_ratio):
+                assert r.cells["max_friction_ratio"][i, k] == pytest.approx(
+                    f.max_friction_ratio, rel=tol)
+    assert "" in kinds and len(kinds) >= 2  # walkable cells and at least one failure
+
+
+def test_map_headline_and_steepest(walker5):
+    """The headline names the walkable range at 0 N and at the largest thrust, as the
+    cells say."""
+    from thrustwalk_cli.studies.slope import slope_map
+
+    r = slope_map(walker5, np.linspace(-0.2, 0.2, 21), [0.0, -25.0, -50.0])
+    w0 = r.slopes[r.walkable[:, 0]]
+    w50 = r.slopes[r.walkable[:, 2]]
+    assert r.headline.startswith(f"without thrust this gait walks slopes from {w0.min():.4g} "
+                                 f"to {w0.max():.4g} rad; with -50 N from {w50.min():.4g} up "
+                                 f"to {w50.max():.4g} rad")
+    assert w50.max() > w0.max()  # the thrust buys uphill slope
+    assert r.steepest()["uphill"] == pytest.approx(r.slopes[r.walkable.any(axis=1)].max())
+
+
+def test_cli_slope_map(cli, tmp_path, monkeypatch):
+    """`thrustwalk slope` from another folder: JSON, one CSV row per pair, both figures."""
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "map"
+    r = cli("slope", ROBOT5, GAIT5, "--slope", "-0.1:0.1:0.05", "--thrust", "0,-20,-40",
+            "--mu", "0.7", "--out", out, "--formats", "csv,png", "--quiet")
+    assert r.exit_code == 0, r.output
+    doc = json.loads((out / "slope.json").read_text())
+    assert doc["pairs"] == 15 and doc["headline"].startswith("without thrust")
+    assert doc["slopes"]["count"] == 5 and doc["thrusts"]["count"] == 3
+    rows = [ln for ln in (out / "slope.csv").read_text().splitlines()
+            if ln and not ln.startswith("#")]
+    assert len(rows) == 1 + 15
+    assert (out / "slope_map.png").is_file() and (out / "steepest_slope.png").is_file()
+    assert sum(doc["first_failure_counts"].values()) == 15
+
+
+@pytest.mark.parametrize("args", [["--slope", "-1.6:0:0.1"], ["--slope", "0,1.5708"],
+                                  ["--slope", "nan"], ["--slope", "0:1:-0.1"],
+                                  ["--thrust", "0:-50:5"], ["--mu", "0"]])
+def test_cli_slope_map_bad_input(args, cli, tmp_path, monkeypatch):
+    """Bad input: one line naming the option, exit 2, nothing written."""
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "map"
+    r = cli("slope", ROBOT5, GAIT5, *args, "--out", out)
+    assert r.exit_code == 2, r.output
+    lines = r.output.strip().splitlines()
+    assert len(lines) == 1 and f"option {args[0]}" in lines[0], lines
+    assert not out.exists()

@@ -158,10 +158,21 @@ def slope_model(model: CompiledModel, gamma: float, parts: SlopeParts | None = N
     when ``gamma == 0`` (level ground, bit for bit)."""
     gamma = check_slope(gamma)
     if gamma == 0.0:
-        return model
+        return getattr(model, "flat", model)
     flat = getattr(model, "flat", model)
+    return gravity_frame_model(flat, math.cos(gamma), math.sin(gamma), parts, gamma)
+
+
+def gravity_frame_model(flat: CompiledModel, c: float, s: float,
+                        parts: SlopeParts | None = None, gamma: float | None = None
+                        ) -> SlopeModel:
+    """``flat`` with gravity ``g (-s, -c)`` and world thrusters turned by ``(c, s)`` (module
+    docstring with ``c = cos(gamma)``, ``s = sin(gamma)``); ``c = 0, s = 1`` is the part of
+    every quantity that multiplies ``sin(gamma)`` (gravity along the ground only), which the
+    slope map (``studies/slope.py``) combines with the level-ground part."""
     parts = parts or SlopeParts(flat)
-    c, s = math.cos(gamma), math.sin(gamma)
+    if gamma is None:
+        gamma = math.atan2(s, c)
     cw = np.where(parts.world, c, 1.0)  # per thruster: world ones turn, link ones do not
     n = flat.n
     sm = SlopeModel.__new__(SlopeModel)
