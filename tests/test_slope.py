@@ -257,7 +257,7 @@ def test_map_headline_and_steepest(walker5):
     cells say."""
     from thrustwalk_cli.studies.slope import slope_map
 
-    r = slope_map(walker5, np.linspace(-0.2, 0.2, 21), [0.0, -25.0, -50.0])
+    r = slope_map(walker5, np.linspace(-0.3, 0.35, 27), [0.0, -25.0, -50.0])
     w0 = r.slopes[r.walkable[:, 0]]
     w50 = r.slopes[r.walkable[:, 2]]
     assert r.headline.startswith(f"without thrust this gait walks slopes from {w0.min():.4g} "
@@ -265,6 +265,10 @@ def test_map_headline_and_steepest(walker5):
                                  f"to {w50.max():.4g} rad")
     assert w50.max() > w0.max()  # the thrust buys uphill slope
     assert r.steepest()["uphill"] == pytest.approx(r.slopes[r.walkable.any(axis=1)].max())
+    assert "edge" not in r.headline
+    edge = slope_map(walker5, [-0.1, 0.0, 0.1], [0.0])  # walks -0.1 and 0: -0.1 is the edge
+    assert edge.headline.startswith("without thrust this gait walks slopes from -0.1 (the "
+                                    "map's edge) to 0 rad")
 
 
 def test_cli_slope_map(cli, tmp_path, monkeypatch):

@@ -401,7 +401,8 @@ for _cmd, _opt, _v, _msg in (
         ("slope", "--mu", "inf", ""), ("slope", "--min-vertical-force", "nan", ""),
         ("slope", "--slope", "0,nan", ""), ("slope", "--slope", "0:1:5e-324", ""),
         ("slope", "--slope", "-1.6:0:0.1", "a slope is an angle"),
-        ("slope", "--thrust", "0,1e308", ""), ("slope", "--thrust", "0:-500:-100", "-200 N is outside")):
+        ("slope", "--thrust", "0,1e308", ""),
+        ("slope", "--thrust", "0:-500:-100", "-200 N is outside")):
     cli_case(f"slope-{_cmd}{_opt}={_v}", [_cmd, *COMMANDS[_cmd], _opt, _v, "--out", "{out}"],
              _opt, _msg)
 # item 5: the executor options of the commands that write a folder incrementally are checked

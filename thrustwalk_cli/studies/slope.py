@@ -128,26 +128,35 @@ class SlopeMapResult:
 
     @property
     def headline(self) -> str:
-        """"without thrust this gait walks slopes from X to Y rad; with F N up to Z"."""
+        """"without thrust this gait walks slopes from X to Y rad; with F N from X' up to Z
+        rad" (F the thrust of the map farthest from 0), and the steepest walkable slopes of
+        the whole map; an end of a range at the map's edge says so (steeper slopes may
+        walk too)."""
         th = self.thrust
+        lo, hi = float(self.slopes.min()), float(self.slopes.max())
+
+        def rad(x: float) -> str:
+            edge = " (the map's edge)" if x in (lo, hi) and self.slopes.size > 1 else ""
+            return f"{0.0 if abs(x) < 1e-12 else x:.4g}{edge}"
+
         parts = []
         zero = np.flatnonzero(th == 0.0)
         if zero.size:
             r = self.walkable_range(int(zero[0]))
             parts.append("without thrust this gait walks no slope of the map" if r is None else
-                         f"without thrust this gait walks slopes from {r[0]:.4g} to "
-                         f"{r[1]:.4g} rad")
+                         f"without thrust this gait walks slopes from {rad(r[0])} to "
+                         f"{rad(r[1])} rad")
         else:
             parts.append("thrust 0 is not in the map")
         far = int(np.argmax(np.abs(th)))
         if th[far] != 0.0:
             r = self.walkable_range(far)
             parts.append(f"with {th[far]:g} N none" if r is None else
-                         f"with {th[far]:g} N from {r[0]:.4g} up to {r[1]:.4g} rad")
+                         f"with {th[far]:g} N from {rad(r[0])} up to {rad(r[1])} rad")
         up = self.steepest()
         if up["uphill"] is not None:
-            parts.append(f"steepest walkable uphill {up['uphill']:.4g} rad at "
-                         f"{up['uphill_thrust']:g} N, downhill {up['downhill']:.4g} rad at "
+            parts.append(f"steepest walkable uphill {rad(up['uphill'])} rad at "
+                         f"{up['uphill_thrust']:g} N, downhill {rad(up['downhill'])} rad at "
                          f"{up['downhill_thrust']:g} N")
         return "; ".join(parts)
 
