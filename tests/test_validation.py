@@ -40,6 +40,12 @@ CALLBACK = [5, "print"]
 WALKER = ["walker5", 5, None]
 
 
+def _slope_map():
+    from thrustwalk_cli.studies.slope import slope_map
+
+    return slope_map
+
+
 def _cases(table: dict[str, list]) -> list[tuple[str, object]]:
     return [(name, v) for name, values in table.items() for v in values]
 
@@ -49,7 +55,7 @@ def _cases(table: dict[str, list]) -> list[tuple[str, object]]:
 STUDIES = {
     "limit_cycle": (lambda w, **kw: tw.limit_cycle(**{"walker": w, **kw}), {
         "walker": WALKER, "thrust": NUMBERS, "thruster": TEXT, "max_output": POSITIVE,
-        "mu": POSITIVE, "min_vertical_force": NONNEG}, {}),
+        "mu": POSITIVE, "min_vertical_force": NONNEG, "slope": NUMBER + [1.6, -2.0]}, {}),
     "ShapeRequest": (lambda w, **kw: tw.ShapeRequest(**kw), {
         "knots": NUMBERS, "alpha_knots": FLAG, "n_knots": POS_COUNT + [1, 10**6],
         "pattern": [5, ["k"]], "ks": NUMBERS, "field_k": NUMBER, "mode": CHOICE,
@@ -61,7 +67,11 @@ STUDIES = {
         "walker": WALKER, "thrust": NUMBERS, "schedule": [5, [1.0]], "thruster": TEXT,
         "mu": POSITIVE, "min_vertical_force": NONNEG, "degree": POS_COUNT + [31],
         "fit_tol": POSITIVE + [1.0, 2.0],
-        "region_shape": ["11", (11,), (0, 11), (NAN, 11), (2.5, 11), (11, 10**9)]}, {}),
+        "region_shape": ["11", (11,), (0, 11), (NAN, 11), (2.5, 11), (11, 10**9)],
+        "slope": NUMBER + [math.pi / 2]}, {}),
+    "slope_map": (lambda w, **kw: _slope_map()(**{"walker": w, **kw}), {
+        "walker": WALKER, "slopes": NUMBERS + [[0.0, 1.6], []], "thrust": NUMBERS + [[500.0]],
+        "thruster": TEXT, "mu": POSITIVE, "min_vertical_force": NONNEG}, {}),
     "optimize_schedule": (lambda w, **kw: tw.optimize_schedule(**{"walker": w, **kw}), {
         "walker": WALKER, "knots": NUMBERS, "target_speed": POSITIVE, "max_thrust":
         NUMBER + [-1.0, 1e6], "mu": POSITIVE, "min_vertical_force": NONNEG,
@@ -379,6 +389,22 @@ cli_case("control-seed-negative", ["control", *COMMANDS["control"], "--seed", "-
                                    "{out}"], "--seed", "must be >= 0")
 cli_case("control-push-nan-step", ["control", *COMMANDS["control"], "--push", "nan:0.5:10",
                                    "--out", "{out}"], "--push")
+# the slopes (SPEC 14), after the rotation above so that the other options keep their values
+COMMANDS["slope"] = [W5, W5T]
+FLOATS["limit-cycle"].append("--slope")
+FLOATS["feasibility"].append("--slope")
+FLOATS["slope"] = ["--mu", "--min-vertical-force"]
+for _cmd, _opt, _v, _msg in (
+        ("limit-cycle", "--slope", "nan", ""), ("feasibility", "--slope", "-inf", ""),
+        ("limit-cycle", "--slope", "1.6", "a slope is an angle in radians with |slope| < pi/2"),
+        ("feasibility", "--slope", "-1.5708", "a slope is an angle"),
+        ("slope", "--mu", "inf", ""), ("slope", "--min-vertical-force", "nan", ""),
+        ("slope", "--slope", "0,nan", ""), ("slope", "--slope", "0:1:5e-324", ""),
+        ("slope", "--slope", "-1.6:0:0.1", "a slope is an angle"),
+        ("slope", "--thrust", "0,1e308", ""),
+        ("slope", "--thrust", "0:-500:-100", "-200 N is outside")):
+    cli_case(f"slope-{_cmd}{_opt}={_v}", [_cmd, *COMMANDS[_cmd], _opt, _v, "--out", "{out}"],
+             _opt, _msg)
 # item 5: the executor options of the commands that write a folder incrementally are checked
 # before the folder exists (robustness and sweep)
 for _args, _opt, _msg in ((["--workers", "0"], "--workers", "must be 1..1024"),

@@ -29,13 +29,14 @@ from .commands import (
     robustness,
     shape,
     simulate,
+    slope,
     stability,
     sweep,
 )
 
 # Help lists the commands in this order.
 COMMANDS = (compile, import_urdf, export_mjcf, inspect, limit_cycle, shape, feasibility,
-            optimize, simulate, mujoco, control, stability, robustness, design_gait, sweep,
+            slope, optimize, simulate, mujoco, control, stability, robustness, design_gait, sweep,
             report)
 
 class _OneLineErrors(TyperGroup):

@@ -61,6 +61,21 @@ class Walker:
         """``robot / gait``, for titles and tables."""
         return f"{self.robot.name} / {self.gait.name}"
 
+    @property
+    def slope(self) -> float:
+        """The ground angle [rad, positive uphill] the walker stands on (SPEC 14); 0 on level
+        ground."""
+        return self.zd.slope
+
+    def on_slope(self, gamma: float) -> Walker:
+        """The same robot and gait on the slope ``gamma`` [rad, positive uphill] (SPEC 14):
+        the slope-frame model and zero dynamics (:meth:`ZeroDynamics.on_slope`); ``self``
+        when the slope is the walker's own (level ground: bit for bit). |gamma| < pi/2."""
+        zd = self.zd.on_slope(gamma)
+        if zd is self.zd:
+            return self
+        return Walker(self.robot, self.gait, zd.model, zd, self.where)
+
     @cached_property
     def swing(self) -> dict:
         """Swing-foot height along the step [m] (minimum, deepest dip, ``scuffs``)."""

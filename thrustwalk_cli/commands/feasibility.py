@@ -28,6 +28,7 @@ from .options import (
     OutOpt,
     QuietOpt,
     RobotArg,
+    SlopeOpt,
     ThrusterOpt,
     ThrustOpt,
     TitlesOpt,
@@ -46,7 +47,9 @@ the trailing foot lifts off, the swing foot stays above the ground and moves dow
 (a strike, not a grazing contact). For a robot without thrusters the only thrust is 0 (the
 default). Polynomial fits L_0, L_1, L_2 of the Lambdas give a second verdict
 beside the exact one. An infeasible gait is a valid answer (exit 0); bad input exits 2, a tool
-failure 1.
+failure 1. With --slope GAMMA [rad, positive uphill] the walker is on a slope (SPEC 14):
+F^h and F^v are tangential and normal to the slope, the friction cone is the slope's, and
+the cases give the climb rate speed*sin(GAMMA) beside the speed along the ground.
 
 Writes DIR/feasibility.json, DIR/feasibility.md, DIR/grf.png/.pdf and
 DIR/feasible_region.png/.pdf.
@@ -60,7 +63,7 @@ def run_feasibility(robot: str | None, gait: str | None, *, thrust: list[float] 
                     schedule: str | None, mu: float | None, min_vertical_force: float,
                     thruster: str | None, degree: int | None, fit_tol: float, out: Path,
                     quiet: bool, json: str | None = None, formats: set[str] | None = None,
-                    titles: bool = False) -> dict:
+                    titles: bool = False, slope: float = 0.0) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files.output import provenance
     from ..studies.feasibility import feasibility
@@ -68,7 +71,8 @@ def run_feasibility(robot: str | None, gait: str | None, *, thrust: list[float] 
     check_out(out, json=json)
     walker = load_walker(robot, gait)
     result = feasibility(walker, thrust, schedule=schedule, thruster=thruster, mu=mu,
-                         min_vertical_force=min_vertical_force, degree=degree, fit_tol=fit_tol)
+                         min_vertical_force=min_vertical_force, degree=degree, fit_tol=fit_tol,
+                         slope=slope)
     if thrust is None and schedule is None and result.schedule is not None and not quiet:
         warn(["no --thrust or --schedule given: the gait's own thrust: schedule is evaluated"])
     doc = write_result(result, out, provenance(walker.robot, walker.gait, schedule=schedule),
@@ -87,8 +91,9 @@ def _table(doc: dict) -> None:
     rows = [[thrust_text(c["thrust"]), "feasible" if c["feasible"] else "INFEASIBLE",
              fmt(c["min_vertical_force"]), fmt(c["max_friction_ratio"]),
              fmt(c["liftoff_velocity"]), fmt(c["touchdown_velocity"])] for c in doc["cases"]]
+    on = f", on the slope {doc['slope']['angle']:.4g} rad" if doc.get("slope") else ""
     show_table(f"feasibility: {doc['robot']['name']} / {doc['gait']['name']} "
-               f"(mu = {doc['mu']:g}, verdict: {doc['verdict']})",
+               f"(mu = {doc['mu']:g}{on}, verdict: {doc['verdict']})",
                [("thrust [N]", False), ("verdict", False), ("min F^v\n[N]", True),
                 ("max |F^h|/F^v\n[-]", True), ("lift-off\n[m/s]", True),
                 ("touchdown\n[m/s]", True)], rows)
@@ -112,6 +117,7 @@ def register(app: typer.Typer) -> None:
         mu: MuOpt = None,
         min_vertical_force: MinVerticalForceOpt = 0.0,
         thruster: ThrusterOpt = None,
+        slope: SlopeOpt = 0.0,
         degree: Annotated[int | None, typer.Option(
             "--degree", help="Degree of the polynomial fits L_k (default: from --fit-tol).")
         ] = None,
@@ -129,4 +135,4 @@ def register(app: typer.Typer) -> None:
                             min_vertical_force=min_vertical_force, thruster=thruster,
                             degree=degree, fit_tol=fit_tol, out=out, quiet=quiet, json=json,
                             formats=parse_formats(formats, ("png", "pdf", "md")),
-                            titles=titles)
+                            titles=titles, slope=slope)

@@ -28,6 +28,7 @@ from .options import (
     OutOpt,
     QuietOpt,
     RobotArg,
+    SlopeOpt,
     ThrusterOpt,
     ThrustOpt,
     TitlesOpt,
@@ -45,7 +46,10 @@ the minimum, |F_1^h| <= mu F_1^v along the step, the impact impulse in the cone,
 trailing foot lifting off; `thrustwalk feasibility` shows the forces). Thrust is in newtons; with
 the bundled robots negative thrust pushes forward (the paper's convention). Without --thrust,
 a gait with a thrust: section is analysed with its own schedule; for a robot without
-thrusters the only thrust is 0 (the default).
+thrusters the only thrust is 0 (the default). With --slope GAMMA [rad, positive uphill] the
+walker is on a slope (SPEC 14): gravity and world-frame thrusters turn into the slope frame,
+speed is along the ground, the climb rate speed*sin(GAMMA) is reported beside it and the
+ground forces are tangential and normal to the slope.
 
 Writes DIR/limit_cycles.json, DIR/limit_cycles.csv, DIR/limit_cycles.png and .pdf, and
 DIR/fixed_point_shift.png and .pdf (zeta* and speed versus thrust, with the affine law).
@@ -59,7 +63,7 @@ def run_limit_cycle(robot: str | None, gait: str | None, thrust: list[float] | N
                     thruster: str | None, out: Path, quiet: bool, *, json: str | None = None,
                     formats: set[str] | None = None, titles: bool = False,
                     max_output: float = 100.0, mu: float | None = None,
-                    min_vertical_force: float = 0.0) -> dict:
+                    min_vertical_force: float = 0.0, slope: float = 0.0) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files.output import provenance
     from ..studies.limit_cycle import limit_cycle
@@ -67,7 +71,7 @@ def run_limit_cycle(robot: str | None, gait: str | None, thrust: list[float] | N
     check_out(out, json=json)
     walker = load_walker(robot, gait)
     result = limit_cycle(walker, thrust, thruster, max_output=max_output * 1e6, mu=mu,
-                         min_vertical_force=min_vertical_force)
+                         min_vertical_force=min_vertical_force, slope=slope)
     if result.source == "gait" and not quiet:
         warn(["no --thrust given: the gait's own thrust: schedule is analysed"])
     doc = write_result(result, out, provenance(walker.robot, walker.gait), json=json,
@@ -85,14 +89,19 @@ def _table(doc: dict) -> None:
     from ..studies.documents import fmt
 
     zd = doc["zero_dynamics"]
+    slope = doc.get("slope")
     rows = [["gait" if c["thrust"] is None else fmt(c["thrust"]), fmt(c["zeta_star"]),
-             fmt(c["step_time"]), fmt(c["speed"]), fmt(c["min_abs_alpha_dot"]),
-             fmt(c["touchdown_velocity"]), _word(c, doc)] for c in doc["cycles"]]
+             fmt(c["step_time"]), fmt(c["speed"])]
+            + ([fmt(c["climb_rate"])] if slope else [])
+            + [fmt(c["min_abs_alpha_dot"]), fmt(c["touchdown_velocity"]), _word(c, doc)]
+            for c in doc["cycles"]]
+    on = f", on the slope {slope['angle']:.4g} rad" if slope else ""
     show_table(f"limit cycles: {doc['robot']['name']} / {doc['gait']['name']} "
-               f"(delta_zero^2 = {zd['delta_zero_sq']:.4f})",
+               f"(delta_zero^2 = {zd['delta_zero_sq']:.4f}{on})",
                [("thrust\n[N]", True), ("zeta*\n[kg^2 m^4/s^2]", True), ("T\n[s]", True),
-                ("speed\n[m/s]", True), ("min|α'|\n[rad/s]", True),
-                ("touchdown\n[m/s]", True), ("verdict", False)], rows)
+                ("speed\n[m/s]", True)] + ([("climb\n[m/s]", True)] if slope else [])
+               + [("min|α'|\n[rad/s]", True),
+                  ("touchdown\n[m/s]", True), ("verdict", False)], rows)
     con = console()
     groups: dict[str, list[dict]] = {}
     for c in doc["cycles"]:
@@ -145,6 +154,7 @@ def register(app: typer.Typer) -> None:
         max_output: MaxOutputOpt = 100.0,
         mu: MuOpt = None,
         min_vertical_force: MinVerticalForceOpt = 0.0,
+        slope: SlopeOpt = 0.0,
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
@@ -152,4 +162,4 @@ def register(app: typer.Typer) -> None:
             run_limit_cycle(robot, gait, values, thruster, out, quiet, json=json,
                             formats=parse_formats(formats), titles=titles,
                             max_output=max_output, mu=mu,
-                            min_vertical_force=min_vertical_force)
+                            min_vertical_force=min_vertical_force, slope=slope)

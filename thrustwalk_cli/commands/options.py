@@ -51,6 +51,10 @@ MuOpt = Annotated[
     float | None, typer.Option("--mu", help="Friction coefficient [-] (default: the gait's "
                                             "`mu`).")
 ]
+SlopeOpt = Annotated[
+    float, typer.Option("--slope", help="Ground angle [rad], positive uphill, |slope| < pi/2 "
+                                        "(SPEC 14); speed is along the ground.")
+]
 MinVerticalForceOpt = Annotated[
     float, typer.Option("--min-vertical-force", help="Minimum vertical ground force F^v along "
                                                      "the step [N].")

@@ -110,6 +110,7 @@ class ZeroDynamics:
     kappa1_ok: bool
     kappa1_reason: str
     E: ChebSeries | None = None  # e_N^T D Phi = 1/kappa_1 interpolated on the nodes [kg m^2]
+    slope: float = 0.0  # [rad] ground angle, positive uphill (SPEC 14); 0: level ground
 
     def __repr__(self) -> str:
         return (f"ZeroDynamics(gait={self.gait.name!r}, alpha_i={self.alpha_i:.6g}, "
@@ -155,6 +156,88 @@ class ZeroDynamics:
     def direction(self) -> float:
         """+1 if alpha increases over the step, -1 if it decreases."""
         return float(np.sign(self.alpha_f - self.alpha_i))
+
+    def on_slope(self, gamma: float) -> ZeroDynamics:
+        """The zero dynamics of the same gait on the slope ``gamma`` [rad, positive uphill]
+        (SPEC 14): ``self`` for ``gamma == 0``. In the slope frame only gravity and the
+        world-frame thrusters turn, so the integrals are explicit in ``(cos gamma, sin
+        gamma)``:
+
+            V_0(gamma)   = cos(gamma) V_0 + sin(gamma) V_x,   V_x = int kappa_2x / kappa_1
+            Gamma(gamma) = c_k Gamma + sin(gamma) Gamma_perp  (c_k = cos(gamma) for a world
+                                                               thruster, 1 for a link one)
+
+        with ``kappa_2x = -dV_x/dq_N`` (``V_x = M g x_com``) and ``Gamma_perp = int
+        beta_perp / kappa_1`` (``beta_perp`` the last row of ``J_k^T d_k^perp``). ``V_x`` and
+        ``Gamma_perp`` are computed once per gait (:meth:`slope_series`); each slope then
+        costs a few array operations. ``b_F``, ``kappa_1``, ``delta_zero`` (the impact) and
+        the guard do not depend on the slope. The returned object's ``model`` is the
+        slope-frame model (:func:`~thrustwalk_cli.model.slope.slope_model`), so the contact
+        terms computed from it are normal and tangential to the slope."""
+        from ..model.slope import check_slope, slope_model
+
+        gamma = check_slope(gamma)
+        if gamma == self.slope:
+            return self
+        flat = self.flat
+        if gamma == 0.0:
+            return flat
+        Vx, Gp, err_x = flat.slope_series()
+        c, s = math.cos(gamma), math.sin(gamma)
+        world = flat.__dict__["_slope_parts"].world
+        cw = np.where(world, c, 1.0)
+        rows = max(flat.V0.coef.shape[0], Vx.coef.shape[0])
+
+        def pad(coef: np.ndarray) -> np.ndarray:
+            out = np.zeros((rows,) + coef.shape[1:])
+            out[:coef.shape[0]] = coef
+            return out
+
+        a, b = flat.alpha_i, flat.alpha_f
+        V0 = ChebSeries(a, b, c * pad(flat.V0.coef) + s * pad(Vx.coef))
+        Gamma = ChebSeries(a, b, pad(flat.Gamma.coef) * cw + s * pad(Gp.coef))
+        model = slope_model(flat.model, gamma, flat.__dict__["_slope_parts"])
+        zd = ZeroDynamics(model, flat.gait, flat.maps, flat.nodes, V0, Gamma, flat.B,
+                          abs(c) * flat.integral_error + abs(s) * err_x, flat.integral_scale,
+                          flat.delta_zero, flat.kappa1_ok, flat.kappa1_reason, flat.E,
+                          slope=gamma)
+        zd.__dict__["_flat"] = flat
+        return zd
+
+    @property
+    def flat(self) -> ZeroDynamics:
+        """The level-ground zero dynamics this one was turned from (``self`` on level
+        ground)."""
+        return self.__dict__.get("_flat", self)
+
+    def slope_series(self, rtol: float = RTOL) -> tuple[ChebSeries, ChebSeries, float]:
+        """``(V_x, Gamma_perp, error estimate)``: the parts of the zero-dynamics integrals
+        that multiply ``sin(gamma)`` on a slope (:meth:`on_slope`), on level ground's
+        Lobatto nodes (doubled until the nested error estimate is below ``rtol`` relative);
+        computed once and kept."""
+        cached = self.__dict__.get("_slope_series")
+        if cached is not None:
+            return cached
+        from ..model.slope import SlopeParts
+
+        parts = self.__dict__.get("_slope_parts") or SlopeParts(self.model)
+        self.__dict__["_slope_parts"] = parts
+        a, b, n, N = self.alpha_i, self.alpha_f, self.nodes, self.model.n
+        while True:
+            alpha = lobatto(a, b, n)
+            q = self.maps.q_Z(alpha)
+            inv = self.terms(alpha)["eDPhi"]
+            vals = np.column_stack([-parts.G_x(q)[:, N - 1] * inv,
+                                    parts.B_perp(q)[:, N - 1, :] * inv[:, None]])
+            series, err = cumulative_with_error(a, b, vals)
+            scale = float(np.max(np.abs(series(alpha)), axis=0).max()) or 1.0
+            if err <= rtol * scale or n >= MAX_NODES:
+                break
+            n = 2 * n - 1
+        Vx = ChebSeries(a, b, series.coef[:, 0])
+        Gp = ChebSeries(a, b, series.coef[:, 1:])
+        self.__dict__["_slope_series"] = out = (Vx, Gp, float(err))
+        return out
 
     def terms(self, alpha: np.ndarray) -> dict[str, np.ndarray]:
         """Direct model evaluation on Z: q_Z, Phi, kappa_1, kappa_2, beta (SPEC 3)."""

@@ -10,6 +10,7 @@ YAML, NPZ) made from the written document. Commands only add provenance and writ
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -125,3 +126,19 @@ def robot_record(zd: ZeroDynamics) -> dict:
     r = zd.model.robot
     return {"name": r.name, "file": r.source_file, "coordinates": r.coordinate_names,
             "thrusters": r.thruster_names}
+
+
+def slope_record(gamma: float) -> dict:
+    """What a result on a slope says about it (SPEC 14): the angle [rad, positive uphill],
+    the frame of its numbers."""
+    return {"angle": gamma, "degrees": math.degrees(gamma),
+            "frame": "slope frame: x along the ground (uphill for a positive angle), y normal "
+                     "to it; speed and step length are along the ground, climb_rate = "
+                     "speed sin(slope) the vertical rate, ground forces are tangential "
+                     "(F^h) and normal (F^v) to the slope"}
+
+
+def climb_rate(speed: float | None, gamma: float) -> float | None:
+    """``speed sin(gamma)`` [m/s]: the rate of climb of a walker at ``speed`` along a slope
+    ``gamma`` [rad] (SPEC 14); None without a speed."""
+    return None if speed is None else speed * math.sin(gamma)

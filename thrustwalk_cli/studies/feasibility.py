@@ -31,7 +31,7 @@ from ..files.gait_file import load_gait
 from ..hzd.zero_dynamics import grazing_warning
 from ..thrust.schedule import Schedule, WrittenSchedule
 from ..walker import Walker, check_walker
-from .documents import SCHEMA_VERSION, fmt, result_repr, units
+from .documents import SCHEMA_VERSION, climb_rate, fmt, result_repr, slope_record, units
 
 UNITS = units("force", "impulse", "torque", "alpha", "thrust", "zeta", "velocity", "height",
               "Lambda_0", "Lambda_1", "Lambda_2", "Lambda_T", "friction_ratio",
@@ -159,6 +159,8 @@ class FeasibilityResult:
         cases = []
         for c in rep.cases:
             r = case_record(c)
+            if zd.slope != 0.0:
+                r["climb_rate"] = climb_rate(c.cycle.speed, zd.slope)
             r["min_swing_foot_height"] = sw["min_height"]
             r["fit_errors"] = {**fit_err, **(r["fit_errors"] or {})}
             cases.append(r)
@@ -172,7 +174,9 @@ class FeasibilityResult:
                       "total_mass": rob.total_mass, "gravity": rob.gravity},
             "gait": {"name": g.name, "file": g.source_file, "alpha_i": zd.alpha_i,
                      "alpha_f": zd.alpha_f, "delta_zero_sq": zd.delta_zero_sq},
-            "units": UNITS,
+            "units": ({**UNITS, "slope": "rad", "climb_rate": "m/s"} if zd.slope != 0.0
+                      else UNITS),
+            **({"slope": slope_record(zd.slope)} if zd.slope != 0.0 else {}),
             "thruster": self.thruster,
             "mode": "constant" if self.schedule is None else "schedule",
             "schedule_source": self.schedule_source,
@@ -262,8 +266,8 @@ def feasibility(walker: Walker, thrust: Sequence[float] | None = None, *,
                 schedule: str | WrittenSchedule | None = None, schedule_where: Where = "schedule",
                 thruster: str | None = None, mu: float | None = None,
                 min_vertical_force: float = 0.0, degree: int | None = None,
-                fit_tol: float = 1e-3, region_shape: tuple[int, int] = (61, 81)
-                ) -> FeasibilityResult:
+                fit_tol: float = 1e-3, region_shape: tuple[int, int] = (61, 81),
+                slope: float = 0.0) -> FeasibilityResult:
     """Contact feasibility (SPEC 5) of ``walker`` for constant ``thrust`` values [N] on
     ``thruster`` (default: the first), or for one piecewise ``schedule`` (a gait-format file
     path, or a :class:`~thrustwalk_cli.thrust.schedule.WrittenSchedule` whose problems are
@@ -271,8 +275,12 @@ def feasibility(walker: Walker, thrust: Sequence[float] | None = None, *,
     with neither, the gait's own ``thrust:`` schedule, else 0 to -50 N in steps of 10 (only 0
     for a robot without thrusters, which accepts no other value).
     ``mu`` [-] defaults to the gait's; ``min_vertical_force`` [N] is the least F^v allowed;
-    ``degree``/``fit_tol`` set the polynomial fits L_k."""
+    ``degree``/``fit_tol`` set the polynomial fits L_k.
+    ``slope`` [rad, positive uphill, |slope| < pi/2]: the ground angle (SPEC 14,
+    :meth:`Walker.on_slope`): the forces are tangential (F^h) and normal (F^v) to the slope,
+    the friction cone is the slope's; 0: level ground, bit for bit as without it."""
     check_walker(walker)
+    walker = walker.on_slope(slope)
     thrust = check_numbers("thrust", thrust, optional=True, min_len=0)
     if schedule is not None and not isinstance(schedule, WrittenSchedule):
         schedule = check_path("schedule", schedule)

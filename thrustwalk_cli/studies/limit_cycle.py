@@ -25,7 +25,17 @@ from ..errors import InputError, check_number, check_numbers, check_text
 from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, grazing_warning, limit_cycles
 from ..thrust.schedule import Schedule
 from ..walker import Walker, check_walker
-from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import (
+    SCHEMA_VERSION,
+    Table,
+    climb_rate,
+    col,
+    gait_record,
+    result_repr,
+    robot_record,
+    slope_record,
+    units,
+)
 
 DEFAULT_THRUST = (0.0, -10.0, -20.0, -30.0, -40.0, -50.0)  # [N] the paper's sweep
 ORBIT_SAMPLES = 201  # samples of each orbit in the CSV table
@@ -47,7 +57,16 @@ def contact_record(c: CaseResult) -> dict:
 
 def cycle_record(lc: LimitCycle, thrust: float | None, zd: ZeroDynamics, verdict: str,
                  walkable: bool, contact: CaseResult) -> dict:
-    """One JSON entry per case (keys fixed by the limit-cycle issue; SI units)."""
+    """One JSON entry per case (keys fixed by the limit-cycle issue; SI units); on a slope
+    (SPEC 14) with the climb rate beside the speed."""
+    rec = _cycle_record(lc, thrust, zd, verdict, walkable, contact)
+    if zd.slope != 0.0:
+        rec["climb_rate"] = climb_rate(lc.speed, zd.slope)
+    return rec
+
+
+def _cycle_record(lc: LimitCycle, thrust: float | None, zd: ZeroDynamics, verdict: str,
+                  walkable: bool, contact: CaseResult) -> dict:
     return {
         "thrust": thrust,
         "delta_zero_sq": lc.delta_zero_sq,
@@ -157,13 +176,15 @@ class LimitCycleResult:
         j = self.thruster
         sw = {k: v for k, v in self.walker.swing.items() if k not in ("alpha", "height")}
         gamma = None if j is None else float(zd.Gamma(af)[j])
+        on_slope = ({"climb_rate": "m/s", "slope": "rad"} if zd.slope != 0.0 else {})
         return {
             "schema_version": SCHEMA_VERSION,
             "units": units("thrust", "zeta", "sigma_N", "alpha", "alpha_dot", "step_time",
                            "step_length", "speed", "height", "delta_zero_sq",
-                           "invariance_residual"),
+                           "invariance_residual", **on_slope),
             "robot": robot_record(zd),
             "gait": gait_record(zd),
+            **({"slope": slope_record(zd.slope)} if zd.slope != 0.0 else {}),
             "source": self.source,
             "thruster": self.thruster_name,
             "success": self.success,
@@ -225,11 +246,14 @@ class LimitCycleResult:
                          lc.zeta_star, ""])
             rows.append([v, "true", "impact", zd.alpha_i, lc.alpha_dot_plus, lc.sigma_plus,
                          lc.zeta_plus, ""])
-        return {"limit_cycles": Table(header, rows, [
+        notes = [
             "one row per orbit sample; segment 'impact' rows: the pre-impact state, then the "
             "post-impact state (the jump)",
             "thrust_N empty: the gait's piecewise schedule (gait_schedule in the JSON)",
-        ])}
+        ]
+        if zd.slope != 0.0:
+            notes.append(f"on the slope {zd.slope:.17g} rad (positive uphill; SPEC 14)")
+        return {"limit_cycles": Table(header, rows, notes)}
 
     def figures(self, titles: bool = False) -> dict:
         """``limit_cycles`` (the phase portrait, black lines at round thrust values of a fine
@@ -267,8 +291,8 @@ class LimitCycleResult:
 
 def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
                 thruster: str | None = None, max_output: float = MAX_OUTPUT, *,
-                mu: float | None = None, min_vertical_force: float = 0.0
-                ) -> LimitCycleResult:
+                mu: float | None = None, min_vertical_force: float = 0.0,
+                slope: float = 0.0) -> LimitCycleResult:
     """Limit cycles for constant thrust values ``thrust`` [N] on ``thruster`` (default: the
     first) (SPEC 3, 4), in one vectorised evaluation, each with its contact verdict (SPEC 5)
     at friction coefficient ``mu`` [1] (default: the gait's) and least vertical ground force
@@ -276,8 +300,14 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
     has one, else the paper's sweep 0 to -50 N.
 
     ``max_output`` [bytes]: a sweep whose CSV table would be larger is refused before any work.
+
+    ``slope`` [rad, positive uphill, |slope| < pi/2]: the ground angle (SPEC 14; gravity and
+    world-frame thrusters turned into the slope frame, :meth:`Walker.on_slope`); the speed
+    is along the ground and the document gives the climb rate ``speed sin(slope)`` beside
+    it. 0: level ground, bit for bit as without it.
     """
     check_walker(walker)
+    walker = walker.on_slope(slope)
     thrust = check_numbers("thrust", thrust, optional=True, min_len=0)
     check_text("thruster", thruster, optional=True)
     max_output = check_number("max_output", max_output, gt=0, largest=1e15)
