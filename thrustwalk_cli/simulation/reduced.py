@@ -10,6 +10,12 @@ A step ends when alpha reaches alpha_f; the impact resets ``sigma_N^+ = delta_ze
 and ``alpha^+ = alpha_i``; thruster states are continuous (SPEC 3). This is the fast preview
 of a full-order scenario and the reference it is compared with. kappa_1, kappa_2 and beta are
 evaluated directly from the model at every alpha.
+
+When the thrust has no state of its own (ideal thrusters under a constant command, or a
+piecewise schedule in alpha) and no time history is asked for, the steps are the closed form
+of SPEC 3-4 (:func:`closed_form_steps`) instead of the integration: ``zeta`` along a step is
+``zeta_start + V_Z(alpha) - V_Z(alpha_start)``, the impact maps ``zeta^-`` to
+``delta_zero^2 zeta^-`` and the step time is the quadrature ``int dalpha / (kappa_1 sigma_N)``.
 """
 
 from __future__ import annotations
@@ -22,7 +28,9 @@ from operator import mul
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from ..hzd.zero_dynamics import ZeroDynamics
+from ..hzd.quadrature import integrate, lobatto
+from ..hzd.zero_dynamics import MAX_NODES, ZeroDynamics
+from ..thrust.schedule import Schedule
 from .closed_loop import ScalarGait, ThrustModel, alpha_pieces
 
 
@@ -108,14 +116,29 @@ def simulate_reduced(zd: ZeroDynamics, thrust: ThrustModel, steps: int, alpha0: 
                      method: str = "DOP853", samples_per_step: int = 80,
                      max_step_time: float = 10.0,
                      progress: Callable[[int], None] | None = None,
-                     model: ReducedModel | None = None) -> ReducedResult:
+                     model: ReducedModel | None = None,
+                     trajectory: bool = True) -> ReducedResult:
     """Integrate the cascade for ``steps`` steps from ``(alpha0, sigma0, z0)`` (SPEC 3).
 
     Never raises on a physical failure: alpha reversing (the walker cannot pass the
     potential-energy barrier) or no impact within ``max_step_time`` [s] end the run with a
     reason. ``max_step_time`` applies per step.
+
+    ``trajectory=False``: no time history is wanted (the result's ``trajectory`` is empty);
+    then thrust without states of its own takes the closed form (:func:`closed_form_steps`,
+    ``nfev`` 0), falling back to the integration for any run it does not cover (a fall, no
+    impact in time, a start off the step).
     """
     t_wall = time.perf_counter()
+    if not trajectory and not thrust.time_dependent:
+        steps_cf = closed_form_steps(zd, thrust, steps, alpha0, sigma0,
+                                     max_step_time=max_step_time)
+        if steps_cf is not None:
+            if progress is not None:
+                for _ in steps_cf:
+                    progress(1)
+            return ReducedResult(True, f"completed {len(steps_cf)} steps", "",
+                                 tuple(steps_cf), {}, 0, time.perf_counter() - t_wall)
     rm = model or ReducedModel(zd)
     cas = _Cascade(rm, thrust)
     d = zd.direction
@@ -185,6 +208,129 @@ def simulate_reduced(zd: ZeroDynamics, thrust: ThrustModel, steps: int, alpha0: 
     return ReducedResult(ok, reason if failure else f"completed {len(out)} steps", failure,
                          tuple(out), {key: np.concatenate(v) for key, v in traj.items()},
                          cas.nfev, time.perf_counter() - t_wall)
+
+
+STEP_TIME_RTOL = 1e-13  # relative error estimate the closed-form step time is integrated to
+ZETA_MARGIN = 1e-3  # closed form only where zeta stays above this fraction of its largest value
+
+
+def closed_form_steps(zd: ZeroDynamics, thrust: ThrustModel, steps: int, alpha0: float,
+                      sigma0: float, *, max_step_time: float = 10.0
+                      ) -> list[ReducedStep] | None:
+    """The cascade's steps for thrust without states (ideal or piecewise in alpha) in closed
+    form (SPEC 3, 4), or None where it does not apply (then integrate).
+
+    Along a step started at ``(alpha_s, sigma_s)``, ``zeta(alpha) = sigma_s^2/2 + V_Z(alpha) -
+    V_Z(alpha_s)`` [kg^2 m^4/s^2] (``V_Z`` the spectral integral of ``(kappa_2 + beta F_T +
+    T) / kappa_1`` of :class:`ZeroDynamics`); ``zeta^- = zeta(alpha_f)``, ``sigma^- = sgn
+    sqrt(2 zeta^-)``, ``sigma^+ = delta_zero sigma^-`` (the impact, SPEC 3) and the next step
+    starts at ``alpha_i``. The step time ``T = int dalpha / (kappa_1 sigma_N)`` [s] is
+    Clenshaw-Curtis quadrature per knot interval, ``kappa_1`` evaluated directly from the
+    model at the nodes, the nodes doubled until the nested estimate is below
+    ``STEP_TIME_RTOL`` relative; all steps that start at ``alpha_i`` share one vectorised
+    quadrature.
+
+    None (not a failure: the integration decides) when ``alpha0`` is outside the step
+    ``[alpha_i, alpha_f)``, ``sigma0`` does not move alpha forward, ``zeta`` comes within
+    ``ZETA_MARGIN`` of 0 on a quadrature node (a fall, or too close to one for the quadrature),
+    the quadrature does not converge, or a step takes longer than ``max_step_time`` [s].
+    """
+    if thrust.time_dependent or steps < 1:
+        return None
+    d = zd.direction
+    a_i, a_f = zd.alpha_i, zd.alpha_f
+    sgn = zd.sigma_sign
+    if not (d * (alpha0 - a_i) >= 0.0 and d * (a_f - alpha0) > 0.0) or not sgn * sigma0 > 0:
+        return None
+    if thrust.piecewise:
+        sched = thrust.schedule
+        force_f = tuple(float(v) for v in alpha_pieces(zd, thrust)[1][-1])
+    else:
+        sched = Schedule.constant(zd, np.asarray(thrust.target, float)[None, :])
+        force_f = tuple(float(v) for v in thrust.force([]))
+    kn = np.asarray(sched.knots, float)
+    if sched.size != 1 or kn[0] != a_i or kn[-1] != a_f:
+        return None
+
+    def V(alpha: np.ndarray) -> np.ndarray:
+        return zd.V_Z(np.asarray(alpha, float), sched)[0]
+
+    V_s, V_f = (float(v) for v in V(np.array([alpha0, a_f])))
+    # the recurrence of SPEC 3: zeta_start -> zeta^- -> zeta^+ (sigma keeps its sign)
+    d0 = zd.delta_zero
+    sig_start = [float(sigma0)]
+    zeta_minus = []
+    for k in range(steps):
+        z_m = 0.5 * sig_start[k] ** 2 + V_f - (V_s if k == 0 else 0.0)
+        if not z_m > 0:
+            return None
+        zeta_minus.append(z_m)
+        sig_start.append(d0 * sgn * np.sqrt(2.0 * z_m))
+    # zeta(alpha) = c + V_Z(alpha), c per step
+    c = np.array([0.5 * s**2 for s in sig_start[:steps]])
+    c[0] -= V_s
+    T = np.empty(steps)
+    first = 0 if alpha0 == a_i else 1
+    if first:
+        t1 = _step_times(zd, sched, alpha0, c[:1], sgn)
+        if t1 is None:
+            return None
+        T[0] = t1[0]
+    if first < steps:
+        tr = _step_times(zd, sched, a_i, c[first:], sgn)
+        if tr is None:
+            return None
+        T[first:] = tr
+    if not np.all(T <= max_step_time):
+        return None
+    out, t = [], 0.0
+    for k in range(steps):
+        s0, z_m = sig_start[k], zeta_minus[k]
+        s_m = sgn * float(np.sqrt(2.0 * z_m))
+        s_p = d0 * s_m
+        t1 = t + float(T[k])
+        out.append(ReducedStep(k + 1, t, t1, t1 - t, s0, 0.5 * s0 * s0, s_m, 0.5 * s_m**2,
+                               s_p, 0.5 * s_p**2, force_f))
+        t = t1
+    return out
+
+
+def _step_times(zd: ZeroDynamics, sched: Schedule, a_start: float, c: np.ndarray,
+                sgn: float) -> np.ndarray | None:
+    """``int_{a_start}^{alpha_f} dalpha / (kappa_1 sgn sqrt(2 (c + V_Z(alpha))))`` [s] for each
+    ``c`` (k,), per knot interval of ``sched`` (from ``a_start``), Lobatto nodes doubled until
+    the nested estimate is below ``STEP_TIME_RTOL`` relative (SPEC 3); None when zeta comes
+    within ``ZETA_MARGIN`` of 0 on a node or the quadrature does not converge."""
+    d = zd.direction
+    kn = np.asarray(sched.knots, float)
+    edges = [a_start] + [float(x) for x in kn[1:] if d * (x - a_start) > 0]
+    cache = zd.__dict__.setdefault("_reduced_nodes", {})
+    total = np.zeros(c.size)
+    for a, b in zip(edges[:-1], edges[1:]):
+        n = 33
+        while True:
+            key = (a, b, n)
+            hit = cache.get(key)
+            if hit is None:
+                if len(cache) > 256:
+                    cache.clear()
+                p = lobatto(a, b, n)
+                hit = cache[key] = (p, zd.terms(p)["kappa1"])
+            p, k1p = hit
+            vz = zd.V_Z(p, sched)[0]
+            zeta = c[:, None] + vz[None, :]  # (k, n)
+            zmax = np.max(zeta, axis=1)
+            if np.any(np.min(zeta, axis=1) <= ZETA_MARGIN * zmax):
+                return None
+            f = 1.0 / (k1p * sgn * np.sqrt(2.0 * zeta))
+            val, err = integrate(a, b, f)
+            if np.all(err <= STEP_TIME_RTOL * np.abs(val)):
+                break
+            if n >= MAX_NODES:
+                return None
+            n = 2 * n - 1
+        total += val
+    return total
 
 
 def _sample(traj: dict, pieces: list, k: int, cas: _Cascade, n: int) -> None:
