@@ -513,8 +513,12 @@ class ClosedLoop:
         seg = np.broadcast_to(np.asarray(seg, int), X.shape[:1])
         N, nb, m, mod = self.N, self.nb, self.m, self.model
         q, dq, z = X[:, :N], X[:, N:2 * N], X[:, 2 * N:]
-        F = np.array([self.force(zz, j) for zz, j in zip(z, seg)], float).reshape(len(X), m)
-        T = np.array([self.generalized(j) for j in seg], float)
+        if self.thrust.piecewise:  # per segment, as :meth:`force` and :meth:`generalized`
+            F = np.asarray(self._piece_force, float).reshape(len(self._piece_force), m)[seg]
+            T = np.asarray(self._piece_T, float)[seg]
+        else:
+            F = self.thrust.dynamics.thrust_rows(z, self.thrust._target)
+            T = np.zeros(len(X))
         D = mod.D(q)
         rhs = -mod.h(q, dq)
         if m:

@@ -410,27 +410,33 @@ def _first_exits(cl: ClosedLoop, segs, ts, F1):
 
 
 def _trajectory(cl: ClosedLoop, segments: list[Segment], per_step: int) -> dict:
-    """Uniform samples of every step (end points included) with the stance-foot position."""
+    """Uniform samples of every step (end points included) with the stance-foot position.
+
+    The states of all steps are gathered first and evaluated by one :meth:`ClosedLoop.details`
+    call (row by row the same arithmetic as one call per step)."""
     if not segments:
         return {}
-    out: dict[str, list] = {}
-    foot = 0.0
     steps = sorted({s.step for s in segments})
+    X, iv, T, K = [], [], [], []
     for k in steps:
         segs = [s for s in segments if s.step == k]
         times = np.linspace(segs[0].t0, segs[-1].t1, per_step)
-        X, iv = [], []
         for j, s in enumerate(segs):
             last = j == len(segs) - 1
             sel = (times >= s.t0) & ((times <= s.t1) if last else (times < s.t1))
             if sel.any():
                 X.append(s.sol(times[sel]).T)
                 iv.append(np.full(int(sel.sum()), s.interval))
-        d = cl.details(np.vstack(X), np.concatenate(iv))
-        d["t"] = times
-        d["step"] = np.full(times.size, k)
-        d["foot_x"] = np.full(times.size, foot)
-        for key, v in d.items():
-            out.setdefault(key, []).append(v)
-        foot += float(cl.model.p_swing(d["q"][-1])[0])
-    return {key: np.concatenate(v) for key, v in out.items()}
+        T.append(times)
+        K.append(np.full(times.size, k))
+    out = cl.details(np.vstack(X), np.concatenate(iv))
+    out["t"] = np.concatenate(T)
+    out["step"] = np.concatenate(K)
+    # the stance foot moves to the swing foot's position at the end of every step
+    ends = np.cumsum([t.size for t in T]) - 1
+    feet, foot = [], 0.0
+    for e, times in zip(ends, T):
+        feet.append(np.full(times.size, foot))
+        foot += float(cl.model.p_swing(out["q"][e])[0])
+    out["foot_x"] = np.concatenate(feet)
+    return out
