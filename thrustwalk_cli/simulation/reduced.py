@@ -127,8 +127,9 @@ def simulate_reduced(zd: ZeroDynamics, thrust: ThrustModel, steps: int, alpha0: 
     ``trajectory=False``: no time history is wanted (the result's ``trajectory`` is empty);
     then thrust without states of its own takes the closed form (:func:`closed_form_steps`,
     ``nfev`` 0), falling back to the integration for any run it does not cover (a fall, no
-    impact in time, a start off the step).
-    """
+    impact in time, a start off the step), and the integration of thrust with states keeps
+    no dense output (the same steps and events: SciPy locates events on its step
+    interpolants either way)."""
     t_wall = time.perf_counter()
     if not trajectory and not thrust.time_dependent:
         steps_cf = closed_form_steps(zd, thrust, steps, alpha0, sigma0,
@@ -173,7 +174,7 @@ def simulate_reduced(zd: ZeroDynamics, thrust: ThrustModel, steps: int, alpha0: 
                 ev_break.terminal, ev_break.direction = True, 1
                 events.append(ev_break)
             sol = solve_ivp(cas.rhs, (t, t0 + max_step_time), w, method=method, rtol=rtol,
-                            atol=atol, events=events, dense_output=True, args=(seg,))
+                            atol=atol, events=events, dense_output=trajectory, args=(seg,))
             if sol.status == -1:
                 failure, reason = "integrator", f"step {k}: integrator {method} failed: " \
                                                 f"{sol.message}"
@@ -192,7 +193,8 @@ def simulate_reduced(zd: ZeroDynamics, thrust: ThrustModel, steps: int, alpha0: 
             if len(sol.t_events[0]):
                 break
             seg += 1
-        _sample(traj, pieces, k, cas, samples_per_step)
+        if trajectory:
+            _sample(traj, pieces, k, cas, samples_per_step)
         if failure:
             break
         s_minus = float(w[1])
@@ -359,5 +361,5 @@ def predict_step(zd: ZeroDynamics, thrust: ThrustModel, alpha: float, sigma: flo
     """``zeta^-`` that the cascade predicts for one step started at ``(alpha, sigma, z)``
     (SPEC 3), or None if the cascade does not reach alpha_f."""
     r = simulate_reduced(zd, thrust, 1, alpha, sigma, z, rtol=rtol, atol=atol,
-                         samples_per_step=2, model=model)
+                         samples_per_step=2, model=model, trajectory=False)
     return r.steps[0].zeta_minus if r.success else None
