@@ -172,3 +172,30 @@ def test_thrust_rows_equal_thrust_bit_for_bit(kind):
     rows = dyn.thrust_rows(Z, u)
     for z, r in zip(Z, rows):
         assert r.tolist() == dyn.thrust(z.tolist(), u)
+
+
+def test_dense_rows_equal_each_solution_bit_for_bit(walker_rabbit):
+    """The trajectory's batched evaluation of the kernel's dense output is the per-piece
+    evaluation, number for number (pieces of several steps, nodes and ends included)."""
+    from thrustwalk_cli.simulation.full_order import dense_rows, simulate
+    from thrustwalk_cli.simulation.stepper import DenseSolution
+
+    zd = walker_rabbit.zd
+    res = simulate(zd, ThrustModel("ideal", np.zeros(zd.model.n_thrusters)), SimConfig(steps=2))
+    parts = []
+    for s in res.segments:
+        assert isinstance(s.sol, DenseSolution)
+        parts.append((s.sol, np.r_[s.t0, np.linspace(s.t0, s.t1, 9), s.sol.t_new, s.t1]))
+    got = dense_rows(parts)
+    want = np.vstack([sol(tt).T for sol, tt in parts])
+    assert got.shape == want.shape and np.array_equal(got, want)
+
+
+def test_predicted_cycle_is_kept_per_schedule(walker3):
+    from thrustwalk_cli.simulation.closed_loop import predicted_cycle
+
+    zd = walker3.zd
+    a = predicted_cycle(zd, ThrustModel("ideal", np.array([-5.0, 0.0])))
+    b = predicted_cycle(zd, ThrustModel("first-order", np.array([-5.0, 0.0])))
+    c = predicted_cycle(zd, ThrustModel("ideal", np.array([-6.0, 0.0])))
+    assert a is b and c is not a and c.zeta_star != a.zeta_star

@@ -195,7 +195,16 @@ def predicted_cycle(zd: ZeroDynamics, thrust: ThrustModel) -> LimitCycle:
     piecewise thrust, else constant ``F_ss`` (the dynamic models settle at ``F_ss``)."""
     sched = thrust.schedule if thrust.piecewise else Schedule.constant(
         zd, np.asarray(thrust.target, float)[None, :])
-    return limit_cycles(zd, sched)[0]
+    # kept on the zero dynamics per schedule (a simulation asks for it several times per run)
+    key = tuple(np.asarray(a, float).tobytes() for a in (sched.knots, sched.force,
+                                                          sched.generalized))
+    cache = zd.__dict__.setdefault("_predicted_cycles", {})
+    lc = cache.get(key)
+    if lc is None:
+        if len(cache) > 256:
+            cache.clear()
+        lc = cache[key] = limit_cycles(zd, sched)[0]
+    return lc
 
 
 def zeta_star_at(zd: ZeroDynamics, F: np.ndarray) -> float:
