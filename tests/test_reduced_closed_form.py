@@ -1,4 +1,5 @@
-"""The reduced cascade's closed form for thrust without states (SPEC 3, 4; issue 26).
+"""The reduced cascade's closed form for thrust without states (SPEC 3, 4; issue 26), and
+its spectral solution in alpha for thrusters with linear dynamics.
 
 For ideal thrusters and piecewise schedules the steps of the zero-dynamics cascade are
 ``zeta^- = zeta_start + V_Z(alpha_f) - V_Z(alpha_start)``, ``sigma^+ = delta_zero sigma^-``
@@ -23,6 +24,7 @@ from thrustwalk_cli.simulation.reduced import (
     ReducedModel,
     closed_form_steps,
     simulate_reduced,
+    spectral_steps,
 )
 from thrustwalk_cli.simulation.scenario import Scenario, run_scenario
 from thrustwalk_cli.thrust.schedule import WrittenSchedule
@@ -199,3 +201,70 @@ def test_predicted_cycle_is_kept_per_schedule(walker3):
     b = predicted_cycle(zd, ThrustModel("first-order", np.array([-5.0, 0.0])))
     c = predicted_cycle(zd, ThrustModel("ideal", np.array([-6.0, 0.0])))
     assert a is b and c is not a and c.zeta_star != a.zeta_star
+
+
+def _independent_dynamic_step(zd, th, alpha0, sigma0, z0):
+    """One step of the cascade with thruster states, integrated in alpha (zeta, t, z):
+    ``dz/dalpha = z' / alpha'``, from the model's terms and the thrusters' rates only."""
+    rm = ReducedModel(zd)
+    sgn = np.sign(sigma0)
+
+    def f(alpha, y):
+        k = rm.terms(float(alpha))
+        z = y[2:].tolist()
+        F = th.force(z)
+        sigma = sgn * np.sqrt(2.0 * y[0])
+        adot = k[0] * sigma
+        dzeta = sigma * (k[1] + sum(b * ff for b, ff in zip(k[2:], F))) / adot
+        return [dzeta, 1.0 / adot] + [r / adot for r in th.derivatives(z)]
+
+    y0 = [0.5 * sigma0**2, 0.0] + list(z0)
+    y = solve_ivp(f, (alpha0, zd.alpha_f), y0, method="DOP853", rtol=1e-13,
+                  atol=1e-13).y[:, -1]
+    return float(y[0]), float(y[1]), th.force(y[2:].tolist())
+
+
+DYNAMIC = [("walker3", "first-order", {"tau": 0.4}), ("walker3", "second-order", {}),
+           ("walker5", "second-order", {"wn": 3.0, "xi": 0.6}),
+           ("walker_rabbit", "first-order", {"tau": 0.2})]
+
+
+@pytest.mark.parametrize("name, kind, params", DYNAMIC)
+def test_spectral_steps_equal_tight_integration_and_independent_step(request, name, kind,
+                                                                      params):
+    w = request.getfixturevalue(name)
+    zd, m = w.zd, w.model.n_thrusters
+    F = np.zeros(m)
+    F[-1] = -15.0
+    th = ThrustModel(kind, F, **params)
+    a0, s0 = _start(zd, th, Start(perturb=0.05))
+    z0 = th.initial_states()
+    steps = 3
+    sp = spectral_steps(zd, th, steps, a0, s0, z0)
+    ref = simulate_reduced(zd, th, steps, a0, s0, z0, rtol=1e-12, atol=1e-14)
+    assert sp is not None and ref.success
+    for a, b in zip(sp, ref.steps):
+        for key in ("zeta_minus", "sigma_plus", "step_time", "t_impact"):
+            assert getattr(a, key) == pytest.approx(getattr(b, key), rel=1e-10), (a.step, key)
+        np.testing.assert_allclose(a.thrust_at_impact, b.thrust_at_impact, rtol=1e-9,
+                                   atol=1e-9)
+    z_ind, t_ind, F_ind = _independent_dynamic_step(zd, th, a0, s0, z0)
+    assert sp[0].zeta_minus == pytest.approx(z_ind, rel=1e-10)
+    assert sp[0].step_time == pytest.approx(t_ind, rel=1e-10)
+    np.testing.assert_allclose(sp[0].thrust_at_impact, F_ind, rtol=1e-9, atol=1e-9)
+
+
+def test_step_prediction_of_dynamic_thrust_starts_off_alpha_i(walker3):
+    """The per-step prediction starts from the simulated post-impact state, a little off
+    alpha_i: the spectral steps take it (and agree with the time integration)."""
+    zd = walker3.zd
+    th = ThrustModel("second-order", np.array([-8.0, 0.0]))
+    a0, s0 = _start(zd, th)
+    z0 = th.initial_states()
+    for da in (-1e-3, 2e-3):
+        a = a0 + da * zd.maps.span
+        sp = spectral_steps(zd, th, 1, a, s0, z0)
+        ref = simulate_reduced(zd, th, 1, a, s0, z0, rtol=1e-12, atol=1e-14)
+        assert sp is not None
+        assert sp[0].zeta_minus == pytest.approx(ref.steps[0].zeta_minus, rel=1e-10)
+        assert sp[0].step_time == pytest.approx(ref.steps[0].step_time, rel=1e-10)
