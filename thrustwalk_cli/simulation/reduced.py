@@ -251,7 +251,7 @@ def closed_form_steps(zd: ZeroDynamics, thrust: ThrustModel, steps: int, alpha0:
         return None
     d = zd.direction
     a_i, a_f = zd.alpha_i, zd.alpha_f
-    sgn = zd.sigma_sign
+    sgn = _sigma_sign(zd)
     if not (d * (alpha0 - a_i) >= -1e-12 * abs(a_f - a_i) and d * (a_f - alpha0) > 0.0) \
             or not sgn * sigma0 > 0:
         return None
@@ -308,6 +308,14 @@ def closed_form_steps(zd: ZeroDynamics, thrust: ThrustModel, steps: int, alpha0:
     return out
 
 
+def _sigma_sign(zd: ZeroDynamics) -> float:
+    """:attr:`ZeroDynamics.sigma_sign`, kept on the zero dynamics (a model evaluation)."""
+    sgn = zd.__dict__.get("_reduced_sigma_sign")
+    if sgn is None:
+        sgn = zd.__dict__["_reduced_sigma_sign"] = zd.sigma_sign
+    return sgn
+
+
 def _step_times(zd: ZeroDynamics, sched: Schedule, a_start: float, c: np.ndarray,
                 sgn: float) -> np.ndarray | None:
     """``int_{a_start}^{alpha_f} dalpha / (kappa_1 sgn sqrt(2 (c + V_Z(alpha))))`` [s] for each
@@ -316,6 +324,7 @@ def _step_times(zd: ZeroDynamics, sched: Schedule, a_start: float, c: np.ndarray
     within ``ZETA_MARGIN`` of 0 on a node or the quadrature does not converge."""
     d = zd.direction
     kn = np.asarray(sched.knots, float)
+    skey = tuple(np.asarray(x, float).tobytes() for x in (kn, sched.force, sched.generalized))
     edges = [a_start] + [float(x) for x in kn[1:] if d * (x - a_start) > 0]
     cache = zd.__dict__.setdefault("_reduced_nodes", {})
     total = np.zeros(c.size)
@@ -330,7 +339,13 @@ def _step_times(zd: ZeroDynamics, sched: Schedule, a_start: float, c: np.ndarray
                 p = lobatto(a, b, n)
                 hit = cache[key] = (p, zd.terms(p)["kappa1"])
             p, k1p = hit
-            vz = zd.V_Z(p, sched)[0]
+            vkey = (a, b, n, skey)
+            vz = cache.get(vkey)
+            if vz is None:
+                if len(cache) > 256:
+                    cache.clear()
+                    cache[key] = hit
+                vz = cache[vkey] = zd.V_Z(p, sched)[0]
             zeta = c[:, None] + vz[None, :]  # (k, n)
             zmax = np.max(zeta, axis=1)
             if np.any(np.min(zeta, axis=1) <= ZETA_MARGIN * zmax):
@@ -385,7 +400,7 @@ def spectral_steps(zd: ZeroDynamics, thrust: ThrustModel, steps: int, alpha0: fl
         return None
     d = zd.direction
     a_i, a_f = zd.alpha_i, zd.alpha_f
-    sgn = zd.sigma_sign
+    sgn = _sigma_sign(zd)
     span = abs(a_f - a_i)
     if not (d * (alpha0 - a_i) >= -START_MARGIN * span and d * (a_f - alpha0) > 0.0) \
             or not sgn * sigma0 > 0:
