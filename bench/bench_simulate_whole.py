@@ -6,8 +6,8 @@ Baseline measured in the same run: the same call with ``method="scipy"`` (the re
 ``solve_ivp`` over the full-order model). Times are CPU times of this process (the machine is
 shared), medians of pairs measured side by side. Targets: compiled >= 30x the SciPy method
 with ideal thrust on both bundled robots, and the 20 steps x 2 runs of RABBIT <= 60 ms. The
-dynamic thrust models are printed for information (their reduced cascade is still a SciPy
-integration, one per run and one per step for the step-by-step prediction).
+second-order thruster is printed for information (its cascade and per-step predictions are
+the spectral solution in alpha, ``simulation/reduced.spectral_steps``).
 """
 
 from __future__ import annotations
