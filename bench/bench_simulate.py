@@ -11,12 +11,20 @@ Baselines measured in the same run (medians):
   each loading the compiled kernel from the cache;
 * the fixed point: the zero-dynamics route (the formula and one whole limit cycle, the
   gait's precomputation excluded and included) vs the SciPy reference simulation until
-  ``zeta^-`` is within 1e-6 of ``zeta*``.
+  ``zeta^-`` is within 1e-6 of ``zeta*``;
+* simulate as a whole (issue 26; first, alone with ``python bench/bench_simulate.py
+  --whole``): ``tw.simulate(walker, steps=20, thrust_model=..., thrust=[0, -10],
+  start="nominal")`` (two runs of 20 steps, each with its zero-dynamics prediction and the
+  reduced cascade beside it), warm, against the same call with ``method="scipy"``: CPU times
+  of this process (the machine is shared), medians of pairs measured side by side. Targets:
+  compiled >= 30x the SciPy method with ideal thrust on both bundled robots, and RABBIT's 20
+  steps x 2 runs <= 60 ms; the second-order thruster for information.
 """
 
 from __future__ import annotations
 
 import os
+import statistics
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
@@ -27,6 +35,8 @@ from timing import median_time, report
 
 REPO = Path(__file__).resolve().parents[1]
 STEPS = 10
+WHOLE_STEPS = 20
+WHOLE_THRUST = [0.0, -10.0]
 
 
 def _gaits() -> list[str]:
@@ -69,7 +79,45 @@ def _batch_part(args):
     return int(res.success.sum())
 
 
+def _cpu(fn, repeat: int) -> float:
+    """Median CPU time of ``fn`` [s]."""
+    runs = []
+    for _ in range(repeat):
+        t0 = time.process_time()
+        fn()
+        runs.append(time.process_time() - t0)
+    return statistics.median(runs)
+
+
+def whole() -> None:
+    """simulate as a whole (issue 26; see the module docstring), both bundled robots."""
+    import thrustwalk_cli as tw
+
+    for robot in ("three_link", "rabbit"):
+        walker = tw.load_walker(None, f"{robot}_walk")
+        for model in ("ideal", "second-order"):
+            kw = dict(steps=WHOLE_STEPS, thrust_model=model, thrust=WHOLE_THRUST, start="nominal")
+            tw.simulate(walker, **kw)  # warm: the kernel, the walker's caches
+            tw.simulate(walker, method="scipy", **dict(kw, steps=1))
+            pairs = []
+            for _ in range(3 if model == "ideal" else 1):
+                ref = _cpu(lambda: tw.simulate(walker, method="scipy", **kw), 1)
+                cmp = _cpu(lambda: tw.simulate(walker, **kw), 7 if model == "ideal" else 3)
+                pairs.append((ref, cmp))
+            ref = statistics.median(p[0] for p in pairs)
+            cmp = statistics.median(p[1] for p in pairs)
+            ratio = statistics.median(p[0] / p[1] for p in pairs)
+            tag = f"{robot} {model}: simulate {WHOLE_STEPS} steps x 2 runs"
+            print(f"{tag + ', SciPy method (baseline)':<64s} {ref * 1e3:10.1f} ms", flush=True)
+            target = ""
+            if model == "ideal":
+                target = "; target >= 30 x" + (", <= 60 ms" if robot == "rabbit" else "")
+            print(f"{tag + ', compiled':<64s} {cmp * 1e3:10.1f} ms  {ratio:6.1f} x"
+                  f"{target}", flush=True)
+
+
 def main() -> None:
+    whole()
     import numba
 
     from thrustwalk_cli.hzd.zero_dynamics import limit_cycles, zero_dynamics
@@ -215,4 +263,4 @@ if __name__ == "__main__":
     import sys
 
     sys.path.insert(0, os.path.dirname(__file__))
-    main()
+    whole() if "--whole" in sys.argv[1:] else main()

@@ -195,7 +195,16 @@ def predicted_cycle(zd: ZeroDynamics, thrust: ThrustModel) -> LimitCycle:
     piecewise thrust, else constant ``F_ss`` (the dynamic models settle at ``F_ss``)."""
     sched = thrust.schedule if thrust.piecewise else Schedule.constant(
         zd, np.asarray(thrust.target, float)[None, :])
-    return limit_cycles(zd, sched)[0]
+    # kept on the zero dynamics per schedule (a simulation asks for it several times per run)
+    key = tuple(np.asarray(a, float).tobytes() for a in (sched.knots, sched.force,
+                                                          sched.generalized))
+    cache = zd.__dict__.setdefault("_predicted_cycles", {})
+    lc = cache.get(key)
+    if lc is None:
+        if len(cache) > 256:
+            cache.clear()
+        lc = cache[key] = limit_cycles(zd, sched)[0]
+    return lc
 
 
 def zeta_star_at(zd: ZeroDynamics, F: np.ndarray) -> float:
@@ -513,8 +522,12 @@ class ClosedLoop:
         seg = np.broadcast_to(np.asarray(seg, int), X.shape[:1])
         N, nb, m, mod = self.N, self.nb, self.m, self.model
         q, dq, z = X[:, :N], X[:, N:2 * N], X[:, 2 * N:]
-        F = np.array([self.force(zz, j) for zz, j in zip(z, seg)], float).reshape(len(X), m)
-        T = np.array([self.generalized(j) for j in seg], float)
+        if self.thrust.piecewise:  # per segment, as :meth:`force` and :meth:`generalized`
+            F = np.asarray(self._piece_force, float).reshape(len(self._piece_force), m)[seg]
+            T = np.asarray(self._piece_T, float)[seg]
+        else:
+            F = self.thrust.dynamics.thrust_rows(z, self.thrust._target)
+            T = np.zeros(len(X))
         D = mod.D(q)
         rhs = -mod.h(q, dq)
         if m:

@@ -410,27 +410,72 @@ def _first_exits(cl: ClosedLoop, segs, ts, F1):
 
 
 def _trajectory(cl: ClosedLoop, segments: list[Segment], per_step: int) -> dict:
-    """Uniform samples of every step (end points included) with the stance-foot position."""
+    """Uniform samples of every step (end points included) with the stance-foot position.
+
+    The states of all steps are gathered first and evaluated by one :meth:`ClosedLoop.details`
+    call (row by row the same arithmetic as one call per step)."""
     if not segments:
         return {}
-    out: dict[str, list] = {}
-    foot = 0.0
+    from .stepper import DenseSolution
+
     steps = sorted({s.step for s in segments})
+    parts, iv, T, K = [], [], [], []
     for k in steps:
         segs = [s for s in segments if s.step == k]
         times = np.linspace(segs[0].t0, segs[-1].t1, per_step)
-        X, iv = [], []
         for j, s in enumerate(segs):
             last = j == len(segs) - 1
             sel = (times >= s.t0) & ((times <= s.t1) if last else (times < s.t1))
             if sel.any():
-                X.append(s.sol(times[sel]).T)
+                parts.append((s.sol, times[sel]))
                 iv.append(np.full(int(sel.sum()), s.interval))
-        d = cl.details(np.vstack(X), np.concatenate(iv))
-        d["t"] = times
-        d["step"] = np.full(times.size, k)
-        d["foot_x"] = np.full(times.size, foot)
-        for key, v in d.items():
-            out.setdefault(key, []).append(v)
-        foot += float(cl.model.p_swing(d["q"][-1])[0])
-    return {key: np.concatenate(v) for key, v in out.items()}
+        T.append(times)
+        K.append(np.full(times.size, k))
+    if all(isinstance(sol, DenseSolution) for sol, _ in parts):  # the compiled kernel's
+        X = dense_rows(parts)
+    else:
+        X = np.vstack([sol(tt).T for sol, tt in parts])
+    out = cl.details(X, np.concatenate(iv))
+    out["t"] = np.concatenate(T)
+    out["step"] = np.concatenate(K)
+    # the stance foot moves to the swing foot's position at the end of every step
+    ends = np.cumsum([t.size for t in T]) - 1
+    feet, foot = [], 0.0
+    for e, times in zip(ends, T):
+        feet.append(np.full(times.size, foot))
+        foot += float(cl.model.p_swing(out["q"][e])[0])
+    out["foot_x"] = np.concatenate(feet)
+    return out
+
+
+def dense_rows(parts: list[tuple]) -> np.ndarray:
+    """The states (K, n) of several dense solutions of the compiled kernel
+    (:class:`~thrustwalk_cli.simulation.stepper.DenseSolution`) at their times: ``parts`` is a
+    list of ``(solution, times)``; the rows follow in order. The same operations as
+    ``DenseSolution.__call__`` (so equal to it bit for bit), done once for all pieces. (Kept
+    out of ``stepper.py``: that file is part of the kernel's fingerprint.)"""
+    if not parts:
+        return np.zeros((0, 0))
+    n = parts[0][0].n
+    rows, ks, ts = [], [], []
+    off = 0
+    for sol, tt in parts:
+        tt = np.atleast_1d(np.asarray(tt, float))
+        k = np.searchsorted(sol.ts, tt, side="left") - 1
+        ks.append(np.clip(k, 0, sol.t_old.size - 1) + off)
+        rows.append(sol.rows)
+        ts.append(tt)
+        off += sol.rows.shape[0]
+    R = np.concatenate(rows) if len(rows) > 1 else rows[0]
+    k = np.concatenate(ks)
+    tt = np.concatenate(ts)
+    t_old, t_new = R[:, 0], R[:, 1]
+    F = R[:, 2 + n:].reshape(-1, 7, n)
+    h = t_new[k] - t_old[k]
+    x = ((tt - t_old[k]) / h)[:, None]
+    y = np.zeros((tt.size, n))
+    for i, j in enumerate(range(6, -1, -1)):
+        y += F[k, j]
+        y *= x if i % 2 == 0 else 1.0 - x
+    y += R[k, 2:2 + n]
+    return y

@@ -184,7 +184,8 @@ def run_scenario(zd: ZeroDynamics, sc: Scenario,
         red = simulate_reduced(zd, th, cfg.steps, a0, s0, x0[2 * N:].tolist(), rtol=cfg.rtol,
                                atol=cfg.atol, method=cfg.integrator,
                                samples_per_step=cfg.samples_per_step, max_step_time=t_max,
-                               progress=progress if sc.reduced_only else None, model=rm)
+                               progress=progress if sc.reduced_only else None, model=rm,
+                               trajectory=sc.reduced_only)
         comp = tuple(compare_steps(zd, th, full, red, rm)) if full is not None else ()
         out.append(Outcome(value, th, full, red, comp))
     return out

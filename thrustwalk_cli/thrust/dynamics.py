@@ -273,6 +273,18 @@ class ThrusterDynamics:
             out.append(acc + d * u[t])
         return out
 
+    def thrust_rows(self, Z: np.ndarray, u: Sequence[float]) -> np.ndarray:
+        """:meth:`thrust` of every row of ``Z`` (K, nz): ``F`` (K, m) [N], with the same
+        operations in the same order as :meth:`thrust` (so equal to it bit for bit)."""
+        Z = np.asarray(Z, float)
+        out = np.empty((Z.shape[0], self.m))
+        for t, pos, _, _, _, _, c, d in self._lists:
+            acc = np.zeros(Z.shape[0])
+            for cc, j in zip(c, pos):
+                acc = acc + cc * Z[:, j]
+            out[:, t] = acc + d * u[t]
+        return out
+
     def matrices(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The stacked standard form ``(A, B, C, D)``: ``z' = A z + B u``, ``F = C z + D u``,
         shapes (nz, nz), (nz, m), (m, nz), (m, m)."""
