@@ -47,7 +47,7 @@ the trailing foot lifts off, the swing foot stays above the ground and moves dow
 (a strike, not a grazing contact). For a robot without thrusters the only thrust is 0 (the
 default). Polynomial fits L_0, L_1, L_2 of the Lambdas give a second verdict
 beside the exact one. An infeasible gait is a valid answer (exit 0); bad input exits 2, a tool
-failure 1. With --slope GAMMA [rad, positive uphill] the walker is on a slope (SPEC 14):
+failure 1. With --slope GAMMA [rad, positive uphill] the walker is on a slope:
 F^h and F^v are tangential and normal to the slope, the friction cone is the slope's, and
 the cases give the climb rate speed*sin(GAMMA) beside the speed along the ground.
 

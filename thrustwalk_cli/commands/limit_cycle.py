@@ -47,7 +47,7 @@ trailing foot lifting off; `thrustwalk feasibility` shows the forces). Thrust is
 the bundled robots negative thrust pushes forward (the paper's convention). Without --thrust,
 a gait with a thrust: section is analysed with its own schedule; for a robot without
 thrusters the only thrust is 0 (the default). With --slope GAMMA [rad, positive uphill] the
-walker is on a slope (SPEC 14): gravity and world-frame thrusters turn into the slope frame,
+walker is on a slope: gravity and world-frame thrusters turn into the slope frame,
 speed is along the ground, the climb rate speed*sin(GAMMA) is reported beside it and the
 ground forces are tangential and normal to the slope.
 

@@ -52,8 +52,8 @@ MuOpt = Annotated[
                                             "`mu`).")
 ]
 SlopeOpt = Annotated[
-    float, typer.Option("--slope", help="Ground angle [rad], positive uphill, |slope| < pi/2 "
-                                        "(SPEC 14); speed is along the ground.")
+    float, typer.Option("--slope", help="Ground angle [rad], positive uphill, |slope| < pi/2"
+                                        "; speed is along the ground.")
 ]
 MinVerticalForceOpt = Annotated[
     float, typer.Option("--min-vertical-force", help="Minimum vertical ground force F^v along "

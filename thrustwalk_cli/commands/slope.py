@@ -32,7 +32,7 @@ from .options import (
     TitlesOpt,
 )
 
-HELP = """Walkability map of a gait over slope x constant thrust (SPEC 14).
+HELP = """Walkability map of a gait over slope x constant thrust (docs/commands.md, `slope`).
 
 For every pair (slope [rad, positive uphill], constant thrust [N] on one thruster): whether the
 zero-dynamics orbit exists (zeta* > 0), is stable (delta_zero^2 < 1), completes the step
