@@ -16,9 +16,10 @@ the knots), so each interval is integrated on its own Chebyshev-Lobatto nodes (n
 until the nested error estimate of the smooth integrals is below ``RTOL`` relative).
 ``max(0, .)`` and ``|.|`` (positive and absolute work, clipped electrical power) are integrated
 piecewise between the kinks: the roots of the integrand's Chebyshev interpolant on the interval
-(sign changes on a fine grid, polished by Newton's method) split the interval, and the
-interpolant's antiderivative is evaluated at the roots. Two roots closer than the fine grid's
-spacing (about ``1/(8 n)`` of the interval) are not separated; their piece is of that size.
+(sign changes on a grid 4 times finer than the nodes, polished by Newton's method) split the
+interval, and the interpolant's antiderivative is evaluated at the roots. Two roots closer
+than the fine grid's spacing (about ``1/(4 n)`` of the interval) are not separated; their
+piece is of that size.
 
 Joint electrical power with a motor: ``P_m / eta_g`` (or ``P_m eta_g`` when negative) plus
 ``R (u / (G k_t))^2`` (:mod:`.power`); negative electrical power is not recovered (clipped at
@@ -34,18 +35,20 @@ thrust. A part whose model is missing is None with a reason, never 0.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
+from numpy.polynomial import chebyshev as C
 
 from ..contact.terms import stance_terms
-from ..hzd.quadrature import _cc_weights, coefficients, lobatto
+from ..hzd.quadrature import _cc_weights, _dct_matrix, lobatto
 from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics
 from ..thrust.schedule import Schedule
 from .power import input_power, joint_electrical_power, joule_power
 
 RTOL = 1e-10
 MAX_NODES = 1025
-FINE = 8  # fine-grid points per node for locating kinks
+FINE = 4  # fine-grid points per node for locating kinks
 
 
 @dataclass(frozen=True)
@@ -171,53 +174,54 @@ class OrbitEnergy:
         }
 
 
-def _cheb_eval(coef: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Rows of Chebyshev series ``coef`` (P, n) at points ``x`` (P, r) in [-1, 1]: (P, r)."""
-    th = np.arccos(np.clip(x, -1.0, 1.0))
-    k = np.arange(coef.shape[1])
-    return np.einsum("prk,pk->pr", np.cos(th[..., None] * k), coef)
+@lru_cache(maxsize=16)
+def _fine_matrix(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The fine grid ``x`` (``FINE (n - 1) + 1`` Lobatto points of [-1, 1]) and ``T_k(x)``
+    for ``k < n``."""
+    M = FINE * (n - 1) + 1
+    x = -np.cos(np.pi * np.arange(M) / (M - 1))
+    return x, np.cos(np.arccos(x)[:, None] * np.arange(n))
 
 
 def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.ndarray]:
     """``int |f|`` and ``int max(0, f)`` over an interval of half-length ``half`` for rows of
     samples ``values`` (P, n) at ascending Lobatto nodes, piecewise between the roots of each
-    row's Chebyshev interpolant (module docstring)."""
+    row's Chebyshev interpolant (module docstring): with ``F`` its antiderivative (``F(-1) =
+    0``), ``s_0`` its sign at the start and ``r_1 < ... < r_p`` its roots,
+    ``int |f| = s_0 (sum_i 2 (-1)^(i-1) F(r_i) + (-1)^p F(1))``."""
     P, n = values.shape
     if P == 0:
         return np.zeros(0), np.zeros(0)
-    coef = coefficients(values.T).T  # (P, n)
-    anti = np.polynomial.chebyshev.chebint(coef, axis=1, lbnd=-1.0)  # (P, n+1), F(-1) = 0
-    der = np.polynomial.chebyshev.chebder(coef, axis=1)
-    M = FINE * (n - 1) + 1
-    xg = -np.cos(np.pi * np.arange(M) / (M - 1))
-    fg = np.cos(np.arccos(xg)[:, None] * np.arange(n)) @ coef.T  # (M, P)
-    pos = fg.T >= 0.0  # (P, M)
+    coef = values @ _dct_matrix(n).T  # (P, n) Chebyshev coefficients
+    anti = C.chebint(coef, axis=1, lbnd=-1.0)  # (P, n+1)
+    der = C.chebder(coef, axis=1)  # (P, n-1)
+    xg, Tg = _fine_matrix(n)
+    fg = coef @ Tg.T  # (P, M)
+    pos = fg >= 0.0
+    F1 = anti.sum(axis=1)  # F(1): T_k(1) = 1
+    s0 = np.where(pos[:, 0], 1.0, -1.0)
+    total_abs = s0 * F1  # no root
     rows, seg = np.nonzero(pos[:, 1:] != pos[:, :-1])
-    F1 = _cheb_eval(anti, np.ones((P, 1)))[:, 0]
-    total_abs = np.where(pos[:, 0], 1.0, -1.0) * F1  # no root: sign(f) (F(1) - F(-1))
     if rows.size:
         a, b = xg[seg], xg[seg + 1]
-        fa, fb = fg[seg, rows], fg[seg + 1, rows]
-        x = a - fa * (b - a) / (fb - fa)  # secant start
-        for _ in range(6):
-            f = np.einsum("rk,rk->r", np.cos(np.arccos(np.clip(x, -1, 1))[:, None]
-                                             * np.arange(n)), coef[rows])
-            d = np.einsum("rk,rk->r", np.cos(np.arccos(np.clip(x, -1, 1))[:, None]
-                                             * np.arange(n - 1)), der[rows])
+        fa, fb = fg[rows, seg], fg[rows, seg + 1]
+        x = a - fa * (b - a) / (fb - fa)  # secant start between the fine points
+        cr, dr = coef[rows], der[rows]
+        for _ in range(3):
+            K = np.cos(np.arccos(np.clip(x, -1.0, 1.0))[:, None] * np.arange(n))
+            f = np.einsum("rk,rk->r", K, cr)
+            d = np.einsum("rk,rk->r", K[:, :n - 1], dr)
             with np.errstate(divide="ignore", invalid="ignore"):
                 step = np.where(d != 0, f / d, 0.0)
             x = np.clip(x - np.nan_to_num(step), a, b)
-        Fr = np.einsum("rk,rk->r", np.cos(np.arccos(np.clip(x, -1, 1))[:, None]
-                                          * np.arange(n + 1)), anti[rows])
-        first = np.searchsorted(rows, rows, side="left")
-        rank = np.arange(rows.size) - first
+        K = np.cos(np.arccos(np.clip(x, -1.0, 1.0))[:, None] * np.arange(n + 1))
+        Fr = np.einsum("rk,rk->r", K, anti[rows])
+        rank = np.arange(rows.size) - np.searchsorted(rows, rows, side="left")
         count = np.bincount(rows, minlength=P)
-        s0 = np.where(pos[:, 0], 1.0, -1.0)
         inner = np.zeros(P)
         np.add.at(inner, rows, 2.0 * np.where(rank % 2 == 0, 1.0, -1.0) * Fr)
         total_abs = s0 * (inner + np.where(count % 2 == 0, 1.0, -1.0) * F1)
-    net = F1
-    return total_abs * half, 0.5 * (total_abs + net) * half
+    return total_abs * half, 0.5 * (total_abs + F1) * half
 
 
 def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bool = False
