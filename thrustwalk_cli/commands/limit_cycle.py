@@ -93,7 +93,8 @@ def _table(doc: dict) -> None:
     rows = [["gait" if c["thrust"] is None else fmt(c["thrust"]), fmt(c["zeta_star"]),
              fmt(c["step_time"]), fmt(c["speed"])]
             + ([fmt(c["climb_rate"])] if slope else [])
-            + [fmt(c["min_abs_alpha_dot"]), fmt(c["touchdown_velocity"]), _word(c, doc)]
+            + [fmt(c["min_abs_alpha_dot"]), fmt(c["touchdown_velocity"]),
+               _cot(c, "mechanical"), _cot(c, "total"), _word(c, doc)]
             for c in doc["cycles"]]
     on = f", on the slope {slope['angle']:.4g} rad" if slope else ""
     show_table(f"limit cycles: {doc['robot']['name']} / {doc['gait']['name']} "
@@ -101,7 +102,8 @@ def _table(doc: dict) -> None:
                [("thrust\n[N]", True), ("zeta*\n[kg^2 m^4/s^2]", True), ("T\n[s]", True),
                 ("speed\n[m/s]", True)] + ([("climb\n[m/s]", True)] if slope else [])
                + [("min|α'|\n[rad/s]", True),
-                  ("touchdown\n[m/s]", True), ("verdict", False)], rows)
+                  ("touchdown\n[m/s]", True), ("CoT\nmech", True), ("CoT\ntotal", True),
+                  ("verdict", False)], rows)
     con = console()
     groups: dict[str, list[dict]] = {}
     for c in doc["cycles"]:
@@ -122,6 +124,16 @@ def _table(doc: dict) -> None:
         con.print(f"contact checked on each orbit at mu = {ct['mu']:g}, F^v >= "
                   f"{ct['min_vertical_force']:g} N; `thrustwalk feasibility` with the same "
                   "options shows the ground forces", markup=False)
+
+
+def _cot(c: dict, key: str) -> str:
+    """A case's cost of transport (SPEC 15) for the table: '-' without an orbit, 'n/a' where
+    a power model is missing (the JSON's energy.missing says which)."""
+    e = c.get("energy") or {}
+    if not e.get("exists"):
+        return "-"
+    v = e["cot"][key]
+    return "n/a" if v is None else f"{v:.3g}"
 
 
 def _word(c: dict, doc: dict) -> str:

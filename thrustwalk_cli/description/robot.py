@@ -55,11 +55,50 @@ class PointRef:
 
 
 @dataclass(frozen=True)
+class Motor:
+    """A joint's electric motor (SPEC 15): torque constant ``k_t`` [N m/A], winding
+    resistance ``R`` [ohm], gear ratio ``G`` [1] (joint torque ``u = G k_t i``) and gearbox
+    efficiency ``efficiency`` in (0, 1] (1: lossless). Used for energy only; the dynamics'
+    reflected rotor inertia is the link's ``rotor:``."""
+
+    k_t: float
+    R: float
+    G: float
+    efficiency: float = 1.0
+
+
+@dataclass(frozen=True)
+class ThrusterPower:
+    """A thruster's input-power model (SPEC 15), one of ``kind``:
+
+    * ``momentum``: actuator disk of area ``area`` [m^2], air density ``rho`` [kg/m^3],
+      figure of merit ``figure_of_merit`` and motor efficiency ``efficiency`` (each in (0, 1]);
+    * ``linear``: ``watts_per_newton`` [W/N] times ``|T|``;
+    * ``table``: measured ``thrust`` [N] (strictly increasing) -> electrical ``power`` [W],
+      interpolated linearly, refused outside its range;
+    * ``fuel``: thrust-specific fuel consumption ``tsfc`` [kg/(N s)]; with ``heating_value``
+      [J/kg] the fuel's energy is the input energy, without it only the fuel mass is known.
+    """
+
+    kind: str
+    area: float | None = None
+    rho: float = 1.225
+    figure_of_merit: float = 1.0
+    efficiency: float = 1.0
+    watts_per_newton: float | None = None
+    thrust: tuple[float, ...] = ()
+    power: tuple[float, ...] = ()
+    tsfc: float | None = None
+    heating_value: float | None = None
+
+
+@dataclass(frozen=True)
 class Thruster:
     """A thruster at ``point`` on ``link`` pushing along unit ``direction``.
 
     frame: ``"world"`` (direction fixed in the world) or ``"link"`` (rotates with the link).
     limits: (min, max) magnitude [N]; the signed magnitude ``F`` multiplies ``direction``.
+    power: its input-power model (:class:`ThrusterPower`, SPEC 15) or None.
     """
 
     name: str
@@ -68,6 +107,7 @@ class Thruster:
     direction: Vec2
     frame: str = "world"
     limits: Vec2 = (-np.inf, np.inf)
+    power: ThrusterPower | None = None  # input-power model (SPEC 15); None: not given
 
 
 @dataclass(frozen=True)
@@ -77,6 +117,7 @@ class Coordinate:
     Actuated: relative angle of joint ``link`` (``theta_link - theta_parent``) [rad].
     Unactuated: absolute angle of ``link`` (counter-clockwise from the world frame) [rad].
     range: allowed (min, max) angle [rad]; torque_limit: max |u| [N m] (actuated only).
+    motor: the joint's :class:`Motor` (SPEC 15; actuated only) or None.
     Limits constrain gait design and are reported by checks; they do not enter the dynamics.
     """
 
@@ -85,6 +126,7 @@ class Coordinate:
     actuated: bool
     range: tuple[float, float] = (-np.inf, np.inf)
     torque_limit: float = np.inf
+    motor: Motor | None = None  # the joint's motor (SPEC 15, energy only); None: not given
 
 
 @dataclass(frozen=True)

@@ -14,9 +14,11 @@ import numpy as np
 from ..description.robot import (
     Coordinate,
     Link,
+    Motor,
     PointRef,
     Robot,
     Thruster,
+    ThrusterPower,
     coordinate_map,
     symmetry_relabel,
 )
@@ -75,6 +77,16 @@ _POINT = mapping(
 )
 
 
+_MOTOR = mapping(
+    field("torque_constant", number("N m/A", gt=0), "motor torque constant k_t"),
+    field("resistance", number("ohm", ge=0), "winding resistance R (Joule loss R i^2)"),
+    field("gear_ratio", number("1", gt=0), "gear ratio G: joint torque u = G k_t i",
+          default=1.0),
+    field("gearbox_efficiency", number("1", gt=0, le=1), "gearbox efficiency (1: lossless)",
+          default=1.0),
+)
+
+
 _COORD_ACT = mapping(
     field("name", string(), "coordinate name"),
     field("joint", string(), "child link of the joint: angle = theta_child - theta_parent"),
@@ -82,6 +94,8 @@ _COORD_ACT = mapping(
           "and checks; e.g. knees that must not hyperextend)", default=None),
     field("torque_limit", null_or(number("N m", gt=0)), "maximum |torque| of the joint motor",
           default=None),
+    field("motor", null_or(_MOTOR), "the joint's electric motor, for energy (SPEC 15); "
+          "without it the joint's electrical energy is not computed", default=None),
 )
 
 
@@ -89,6 +103,41 @@ _COORD_UNACT = mapping(
     field("name", string(), "coordinate name"),
     field("link", string(), "link whose absolute angle (counter-clockwise from the world "
           "frame) is q_N"),
+)
+
+
+POWER_KINDS = {  # kind -> (its required keys, its optional keys)
+    "momentum": (("area|diameter",), ("air_density", "figure_of_merit", "motor_efficiency")),
+    "linear": (("watts_per_newton",), ()),
+    "table": (("table",), ()),
+    "fuel": (("tsfc",), ("heating_value",)),
+}
+
+_POWER = mapping(
+    field("kind", choice(*POWER_KINDS), "momentum (actuator disk: hover power |T|^1.5 / "
+          "sqrt(2 rho A) / (FM eta), with axial inflow), linear (watts per newton), table "
+          "(measured thrust -> electrical power) or fuel (thrust-specific fuel consumption)"),
+    field("area", null_or(number("m^2", gt=0)), "momentum: disk area A (or `diameter`)",
+          default=None),
+    field("diameter", null_or(number("m", gt=0)), "momentum: rotor diameter (A = pi d^2/4)",
+          default=None),
+    field("air_density", number("kg/m^3", gt=0), "momentum: air density rho", default=1.225),
+    field("figure_of_merit", number("1", gt=0, le=1), "momentum: rotor figure of merit FM",
+          default=1.0),
+    field("motor_efficiency", number("1", gt=0, le=1), "momentum: motor and drive efficiency "
+          "eta", default=1.0),
+    field("watts_per_newton", null_or(number("W/N", ge=0)), "linear: input power per newton "
+          "of |thrust|", default=None),
+    field("table", null_or(mapping(
+        field("thrust", vector(unit="N", min_len=2), "thrust values, strictly increasing"),
+        field("power", vector(unit="W", ge=0), "electrical power at each thrust"),
+    )), "table: measured thrust -> electrical power, interpolated linearly, refused outside "
+        "its range", default=None),
+    field("tsfc", null_or(number("kg/(N s)", gt=0)), "fuel: thrust-specific fuel "
+          "consumption (fuel mass rate = tsfc |T|)", default=None),
+    field("heating_value", null_or(number("J/kg", gt=0)), "fuel: the fuel's heating value "
+          "(input power = heating_value tsfc |T|); without it only the fuel mass is reported",
+          default=None),
 )
 
 
@@ -100,6 +149,8 @@ _THRUSTER = mapping(
     field("frame", choice("world", "link"), "direction fixed in the world or in the link",
           default="world"),
     field("limits", vector(2, "N"), "minimum and maximum thrust", default=[-1e3, 1e3]),
+    field("power", null_or(_POWER), "input-power model, for energy (SPEC 15); without it "
+          "the thruster's input energy is not computed", default=None),
 )
 
 
@@ -245,7 +296,10 @@ def parse_robot(doc: Document, path: Path, parameters: Mapping[str, float] | Non
             problems.append(res.problem(("coordinates", "actuated", i, "range"),
                                         "minimum must be below maximum"))
         tl = c["torque_limit"] if c["torque_limit"] is not None else np.inf
-        coords.append(Coordinate(c["name"], c["joint"], True, rng, tl))
+        mo = c["motor"]
+        motor = None if mo is None else Motor(mo["torque_constant"], mo["resistance"],
+                                              mo["gear_ratio"], mo["gearbox_efficiency"])
+        coords.append(Coordinate(c["name"], c["joint"], True, rng, tl, motor))
     need_link(co["unactuated"]["link"], ("coordinates", "unactuated", "link"))
     coords.append(Coordinate(co["unactuated"]["name"], co["unactuated"]["link"], False))
     cnames = [c.name for c in coords]
@@ -263,6 +317,8 @@ def parse_robot(doc: Document, path: Path, parameters: Mapping[str, float] | Non
             problems.append(res.problem(("thrusters", i, "direction"), "direction is zero"))
         if t["limits"][0] > t["limits"][1]:
             problems.append(res.problem(("thrusters", i, "limits"), "minimum > maximum"))
+        if t["power"] is not None:
+            _check_power(res, doc, ("thrusters", i, "power"), t["power"], problems)
     if problems:
         raise InputError(problems)
     links_t = tuple(links)
@@ -308,7 +364,7 @@ def parse_robot(doc: Document, path: Path, parameters: Mapping[str, float] | Non
         dvec = dvec / np.hypot(*dvec)
         thrusters.append(Thruster(t["name"], t["link"], tuple(t["point"]),
                                   (float(dvec[0]), float(dvec[1])), t["frame"],
-                                  tuple(t["limits"])))
+                                  tuple(t["limits"]), _power_model(t["power"])))
     lines = tuple((p, ln) for p, ln in _key_lines(doc))
     return Robot(
         name=d["name"], links=links_t, coordinates=coords_t,
@@ -319,6 +375,59 @@ def parse_robot(doc: Document, path: Path, parameters: Mapping[str, float] | Non
         source_file=str(path), source_sha256=doc.sha256,
         parameters=tuple(sorted(res.params.items())), key_lines=lines,
     )
+
+
+def _check_power(res, doc: Document, path: tuple, p: dict, problems: list[Problem]) -> None:
+    """The keys a thruster's ``power:`` model needs for its ``kind`` (and no key of another
+    kind); a table's thrust strictly increasing, as long as its power list."""
+    kind = p["kind"]
+    required, optional = POWER_KINDS[kind]
+    written = set(_raw(doc, path))
+    for key in required:
+        names = key.split("|")
+        given = [n for n in names if p[n] is not None]
+        if not given:
+            what = " or ".join(f"`{n}`" for n in names)
+            problems.append(res.problem(path + (names[0],), f"a {kind} model needs {what}"))
+        elif len(given) > 1:
+            problems.append(res.problem(path + (given[1],), f"give one of "
+                                        f"{' or '.join(f'`{n}`' for n in names)}, not both"))
+    own = {n for key in required for n in key.split("|")} | set(optional) | {"kind"}
+    for key in sorted(written - own):
+        problems.append(res.problem(path + (key,), f"`{key}` is not a key of a {kind} model "
+                                    f"(its keys: {', '.join(sorted(own - {'kind'}))})"))
+    tab = p["table"]
+    if kind == "table" and tab is not None and tab["thrust"] is not None \
+            and tab["power"] is not None:
+        T = np.asarray(tab["thrust"], float)
+        if len(tab["power"]) != len(T):
+            problems.append(res.problem(path + ("table", "power"), f"{len(tab['power'])} "
+                                        f"values for {len(T)} thrust values"))
+        if np.any(np.diff(T) <= 0):
+            k = int(np.argmax(np.diff(T) <= 0)) + 1
+            problems.append(res.problem(path + ("table", "thrust", k), f"thrust must be "
+                                        f"strictly increasing ({T[k]:g} N after {T[k - 1]:g} N)"))
+
+
+def _raw(doc: Document, path: tuple):
+    """The mapping at ``path`` of the document as written (its keys)."""
+    node = doc.data
+    for key in path:
+        node = node[key]
+    return node if isinstance(node, dict) else {}
+
+
+def _power_model(p: dict | None) -> ThrusterPower | None:
+    """The :class:`ThrusterPower` of a checked ``power:`` mapping (None: not given)."""
+    if p is None:
+        return None
+    area = p["area"] if p["area"] is not None else (
+        np.pi * p["diameter"] ** 2 / 4.0 if p["diameter"] is not None else None)
+    tab = p["table"] or {"thrust": (), "power": ()}
+    return ThrusterPower(p["kind"], area, p["air_density"], p["figure_of_merit"],
+                         p["motor_efficiency"], p["watts_per_newton"],
+                         tuple(tab["thrust"]), tuple(tab["power"]), p["tsfc"],
+                         p["heating_value"])
 
 
 def _scaled(doc, scale: dict[str, float]):

@@ -21,6 +21,7 @@ import numpy as np
 
 from ..contact.evaluate import CaseResult, check_contact_options, evaluate
 from ..contact.terms import scuff_reason
+from ..energy.orbit import OrbitEnergy, orbit_energy
 from ..errors import InputError, check_number, check_numbers, check_text
 from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, grazing_warning, limit_cycles
 from ..thrust.schedule import Schedule
@@ -56,12 +57,15 @@ def contact_record(c: CaseResult) -> dict:
 
 
 def cycle_record(lc: LimitCycle, thrust: float | None, zd: ZeroDynamics, verdict: str,
-                 walkable: bool, contact: CaseResult) -> dict:
+                 walkable: bool, contact: CaseResult, energy: OrbitEnergy | None = None
+                 ) -> dict:
     """One JSON entry per case (keys fixed by the limit-cycle issue; SI units); on a slope
-    (SPEC 14) with the climb rate beside the speed."""
+    (SPEC 14) with the climb rate beside the speed; with ``energy`` its block (SPEC 15)."""
     rec = _cycle_record(lc, thrust, zd, verdict, walkable, contact)
     if zd.slope != 0.0:
         rec["climb_rate"] = climb_rate(lc.speed, zd.slope)
+    if energy is not None:
+        rec["energy"] = energy.record()
     return rec
 
 
@@ -122,6 +126,7 @@ class LimitCycleResult:
     contact: tuple[CaseResult, ...] = field(default=(), repr=False)
     mu: float = 0.7
     eps: float = 0.0
+    energy: tuple[OrbitEnergy, ...] = field(default=(), repr=False)
 
     name = "limit_cycles"
 
@@ -214,9 +219,17 @@ class LimitCycleResult:
                 "force": {n: self.schedule.force[0, :, t].tolist()
                           for t, n in enumerate(self.walker.robot.thruster_names)},
                 "generalized": self.schedule.generalized[0].tolist()}),
-            "cycles": [cycle_record(lc, v, zd, verdict, ok, f) for lc, v, verdict, ok, f in
-                       zip(self.cycles, self.thrust, self.verdicts, self.walkable,
-                           self.contact)],
+            "energy": {
+                "method": "on each orbit by quadrature in alpha (SPEC 15, exact: no "
+                          "simulation); kinks of max(0, .) and |.| located",
+                "cot": "E / (m g d), d the step length; mechanical: joints' positive work + "
+                       "thrusters' positive work on the walker; total: joints' electrical "
+                       "energy (motor models) + thrusters' input energy (power models)",
+                "weight": self.walker.robot.weight,
+            },
+            "cycles": [cycle_record(lc, v, zd, verdict, ok, f, e) for lc, v, verdict, ok, f, e
+                       in zip(self.cycles, self.thrust, self.verdicts, self.walkable,
+                              self.contact, self.energy or (None,) * len(self.cycles))],
         }
 
     def warnings(self) -> list[str]:
@@ -233,23 +246,29 @@ class LimitCycleResult:
         zd = self.walker.zd
         header = [col("thrust", "N"), "exists", "segment", col("alpha", "rad"),
                   col("alpha_dot", "rad/s"), col("sigma", "kg m^2/s"),
-                  col("zeta", "kg^2 m^4/s^2"), "reason"]
+                  col("zeta", "kg^2 m^4/s^2"), "reason", "cot_mechanical", "cot_total"]
         rows: list[list] = []
-        for lc, v in zip(self.cycles, self.thrust):
+        energies = self.energy or (None,) * len(self.cycles)
+        for lc, v, en in zip(self.cycles, self.thrust, energies):
             if not lc.exists:
-                rows.append([v, "false", "none", None, None, None, None, lc.reason])
+                rows.append([v, "false", "none", None, None, None, None, lc.reason, None, None])
                 continue
+            cot = en.cot() if en is not None and en.exists else {}
+            c2 = [cot.get("mechanical"), cot.get("total")]
             o = lc.orbit
             for a, ad, s, z in zip(o["alpha"], o["alpha_dot"], o["sigma"], o["zeta"]):
-                rows.append([v, "true", "stance", float(a), float(ad), float(s), float(z), ""])
+                rows.append([v, "true", "stance", float(a), float(ad), float(s), float(z), ""]
+                            + c2)
             rows.append([v, "true", "impact", zd.alpha_f, lc.alpha_dot_minus, lc.sigma_minus,
-                         lc.zeta_star, ""])
+                         lc.zeta_star, ""] + c2)
             rows.append([v, "true", "impact", zd.alpha_i, lc.alpha_dot_plus, lc.sigma_plus,
-                         lc.zeta_plus, ""])
+                         lc.zeta_plus, ""] + c2)
         notes = [
             "one row per orbit sample; segment 'impact' rows: the pre-impact state, then the "
             "post-impact state (the jump)",
             "thrust_N empty: the gait's piecewise schedule (gait_schedule in the JSON)",
+            "cot_mechanical, cot_total: the case's costs of transport (SPEC 15; the JSON's "
+            "energy block), empty where a model is missing (energy.missing in the JSON)",
         ]
         if zd.slope != 0.0:
             notes.append(f"on the slope {zd.slope:.17g} rad (positive uphill; SPEC 14)")
@@ -327,7 +346,8 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
         j, value = _constant_part(walker, sched)
         cycles = limit_cycles(zd, sched)
         return LimitCycleResult(walker, (value,), j, tuple(cycles), "gait", sched,
-                                _contact(walker, sched, cycles, mu, eps), mu, eps)
+                                _contact(walker, sched, cycles, mu, eps), mu, eps,
+                                tuple(orbit_energy(zd, sched, cycles)))
     default = DEFAULT_THRUST if walker.robot.thrusters else (0.0,)
     values = tuple(float(v) for v in (default if thrust is None else thrust))
     if not values:
@@ -344,7 +364,8 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
     sched.check_limits(zd.model.robot, "thrust", ())
     cycles = limit_cycles(zd, sched)
     return LimitCycleResult(walker, values, j, tuple(cycles), "values", sched,
-                            _contact(walker, sched, cycles, mu, eps), mu, eps)
+                            _contact(walker, sched, cycles, mu, eps), mu, eps,
+                            tuple(orbit_energy(zd, sched, cycles)))
 
 
 def _contact(walker: Walker, sched: Schedule, cycles: list[LimitCycle], mu: float,

@@ -1,0 +1,243 @@
+"""Energy and cost of transport (SPEC 15): the power models, the power models in the robot
+file, and the energies of the zero-dynamics orbit against independent computations (the
+work-energy identity from the model's D(q) and V(q), the impact's kinetic-energy loss from the
+impact map, the joints' work from the pinned dynamics on a dense grid)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from thrustwalk_cli.description.robot import Motor, ThrusterPower
+from thrustwalk_cli.energy.power import (
+    fuel_rate,
+    hover_power,
+    input_power,
+    joint_electrical_power,
+    linear_power,
+    momentum_power,
+    table_power,
+)
+
+DATA = Path(__file__).resolve().parent / "data"
+
+MOTORS = ("motor: {torque_constant: 0.05, resistance: 'R0*2', gear_ratio: 100, "
+          "gearbox_efficiency: 1}")
+POWER = "power: {kind: momentum, diameter: 'lT/2', figure_of_merit: 0.7, motor_efficiency: 0.9}"
+
+
+def _robot_text(motors: bool = True, power: str = POWER) -> str:
+    """walker5 with a motor on every joint (resistance an expression of a new parameter) and a
+    power model on its thruster."""
+    text = (DATA / "walker5.yaml").read_text().replace("  ls: 0.45\n", "  ls: 0.45\n  R0: 0.3\n")
+    if motors:
+        for name in ("q_sk", "q_sh", "q_wh", "q_wk"):
+            line = next(ln for ln in text.splitlines() if f"{{name: {name}," in ln)
+            text = text.replace(line, line[:-1] + ", " + MOTORS + "}")
+    return text.replace("limits: [-100, 100]}", f"limits: [-100, 100], {power}}}")
+
+
+# ------------------------------------------------------------------------ the power models
+def test_hover_power_of_a_10N_rotor():
+    # by hand: 10^1.5 / sqrt(2 * 1.225 * pi * 0.05^2) = 31.6228 / 0.138716 = 227.97 W
+    area = math.pi * 0.1**2 / 4
+    assert hover_power(10.0, area, 1.225) == pytest.approx(227.97, abs=0.005)
+    assert momentum_power(10.0, area, 1.225, 1.0, 1.0, 0.0) == pytest.approx(227.97, abs=0.005)
+    assert momentum_power(-10.0, area) == pytest.approx(227.97, abs=0.005)  # |T|
+    # figure of merit and efficiency divide
+    assert momentum_power(10.0, area, 1.225, 0.5, 0.8) == pytest.approx(227.97 / 0.4, abs=0.02)
+
+
+def test_inflow_power_reduces_to_hover_and_is_continuous():
+    area = math.pi * 0.1**2 / 4
+    T = 10.0
+    assert momentum_power(T, area, V=0.0) == hover_power(T, area)
+    V = np.linspace(-30.0, 30.0, 600001)  # steps of 1e-4 m/s through V = 0
+    P = momentum_power(T, area, V=V)
+    assert np.all(np.isfinite(P)) and np.all(P > 0)
+    assert np.max(np.abs(np.diff(P))) < 1e-3 * 1e-4 * 1e4  # |dP/dV| < 10 W/(m/s): no jump
+    # climbing: the momentum equation T = 2 rho A (V + v_i) v_i holds, P = T (V + v_i)
+    for v in (-5.0, 3.0, 20.0):
+        p = float(momentum_power(T, area, V=v))
+        vi = p / T - v
+        assert 2 * 1.225 * area * (v + vi) * vi == pytest.approx(T, rel=1e-12)
+    # far above the induced velocity the power tends to the useful power T V
+    assert momentum_power(T, area, V=1e4) == pytest.approx(T * 1e4, rel=1e-4)
+
+
+def test_linear_table_fuel_and_motor_power():
+    assert linear_power(-4.0, 12.5) == 50.0
+    assert table_power(5.0, [0.0, 10.0], [0.0, 80.0]) == 40.0
+    with pytest.raises(ValueError, match="outside the power table's range"):
+        table_power(11.0, [0.0, 10.0], [0.0, 80.0])
+    assert fuel_rate(-20.0, 1e-4) == pytest.approx(2e-3)
+    assert input_power(ThrusterPower("fuel", tsfc=1e-4), 20.0) is None  # no heating value
+    assert input_power(ThrusterPower("fuel", tsfc=1e-4, heating_value=4e7), 20.0) == \
+        pytest.approx(8e4)
+    m = Motor(k_t=0.1, R=2.0, G=10.0, efficiency=0.8)
+    # u = 5 N m: i = 5 A, Joule 50 W; motoring 5 * 2 = 10 W / 0.8; generating -10 W * 0.8
+    assert joint_electrical_power(5.0, 2.0, m) == pytest.approx(10 / 0.8 + 50)
+    assert joint_electrical_power(5.0, -2.0, m) == pytest.approx(-10 * 0.8 + 50)
+
+
+# ---------------------------------------------------------------------- the robot file
+def test_robot_file_reads_motors_and_power_models(tmp_path):
+    from thrustwalk_cli.files.robot_file import load_robot_text
+
+    r = load_robot_text(_robot_text(), str(tmp_path / "w.yaml"))
+    acts = [c for c in r.coordinates if c.actuated]
+    assert all(c.motor == Motor(0.05, 0.6, 100.0, 1.0) for c in acts)  # R = R0 * 2
+    p = r.thrusters[0].power
+    assert p.kind == "momentum" and p.area == pytest.approx(math.pi * 0.35**2 / 4)
+    assert (p.figure_of_merit, p.efficiency, p.rho) == (0.7, 0.9, 1.225)
+    plain = load_robot_text((DATA / "walker5.yaml").read_text(), str(tmp_path / "p.yaml"))
+    assert plain.thrusters[0].power is None and all(c.motor is None for c in plain.coordinates)
+    assert r.structure() == plain.structure()  # energy data never touches the model
+
+
+@pytest.mark.parametrize("edit, key, message", [
+    (lambda t: t.replace("resistance: 'R0*2'", "resistance: -0.5", 1),
+     "coordinates.actuated[0].motor.resistance", "must be >= 0"),
+    (lambda t: t.replace(POWER, "power: {kind: table, table: {thrust: [0, 10, 5], "
+                                "power: [0, 40, 90]}}"),
+     "thrusters[0].power.table.thrust[2]", "strictly increasing"),
+    (lambda t: t.replace(POWER, "power: {kind: fuel}"), "thrusters[0].power.tsfc",
+     "a fuel model needs `tsfc`"),
+    (lambda t: t.replace(POWER, "power: {kind: jet, tsfc: 1e-4}"), "thrusters[0].power.kind",
+     "must be one of: momentum, linear, table, fuel"),
+    (lambda t: t.replace(POWER, "power: {kind: linear, watts_per_newton: 3, tsfc: 1e-4}"),
+     "thrusters[0].power.tsfc", "not a key of a linear model"),
+])
+def test_bad_power_models_are_one_line_errors(cli, tmp_path, monkeypatch, edit, key, message):
+    robot = tmp_path / "robots" / "w.yaml"
+    robot.parent.mkdir()
+    text = edit(_robot_text())
+    robot.write_text(text)
+    monkeypatch.chdir(tmp_path)
+    r = cli("limit-cycle", "robots/w.yaml", str(DATA / "walker5_walk.yaml"), "--out", "o")
+    assert r.exit_code == 2
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1, r.stderr
+    mark = "name: q_sk" if key.startswith("coordinates") else "name: back"
+    line_no = next(i + 1 for i, ln in enumerate(text.splitlines()) if mark in ln)
+    assert lines[0].startswith(f"error: robots/w.yaml:{line_no}: {key}: ")
+    assert message in lines[0]
+    assert not (tmp_path / "o").exists()
+
+
+# ------------------------------------------------------------------------ the orbit
+@pytest.fixture(scope="module")
+def orbit5(tmp_path_factory, _cache_dir):
+    """walker5 with motors and a momentum rotor, its thrust gait, three constant thrusts
+    (0, -20, -40 N on `back`): the orbits and their energies."""
+    from thrustwalk_cli.energy.orbit import orbit_energy
+    from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
+    from thrustwalk_cli.thrust.schedule import Schedule
+    from thrustwalk_cli.walker import load_walker
+
+    d = tmp_path_factory.mktemp("w5")
+    (d / "w.yaml").write_text(_robot_text())
+    w = load_walker(str(d / "w.yaml"), str(DATA / "walker5_thrust.yaml"))
+    sched = Schedule.on_thruster(w.zd, [0.0, -20.0, -40.0], 0, 1)
+    cycles = limit_cycles(w.zd, sched)
+    assert all(c.exists for c in cycles)
+    return w, sched, cycles, orbit_energy(w.zd, sched, cycles)
+
+
+def test_orbit_work_energy_identity_and_impact_loss(orbit5):
+    w, sched, cycles, energies = orbit5
+    model, maps = w.model, w.zd.maps
+    for lc, e in zip(cycles, energies):
+        # independent: mechanical energy of the model at the two ends of the stance phase
+        dq_plus = maps.Phi(np.array(w.zd.alpha_i)) * lc.alpha_dot_plus
+        dq_minus = maps.Phi(np.array(w.zd.alpha_f)) * lc.alpha_dot_minus
+        E_start = float(model.energy(maps.q_plus, dq_plus))
+        E_end = float(model.energy(maps.q_minus, dq_minus))
+        work = sum(e.joint_work) + sum(e.thrust_work) + e.generalized_work
+        assert work == pytest.approx(E_end - E_start, rel=1e-8, abs=1e-8 * abs(E_end))
+        # impact: K^- - K^+ through the model's impact map, >= 0
+        imp = model.impact(maps.q_minus, dq_minus)
+        K = 0.5 * dq_minus @ model.D(maps.q_minus) @ dq_minus
+        Kp = 0.5 * imp.dq_plus @ model.D(imp.q_plus) @ imp.dq_plus
+        assert e.impact_loss >= 0
+        assert e.impact_loss == pytest.approx(K - Kp, rel=1e-9)
+        assert e.step_time == pytest.approx(lc.step_time, rel=1e-9)
+
+
+def test_orbit_joint_work_against_the_pinned_dynamics(orbit5):
+    """Positive and absolute joint work against a dense trapezoid of the torques from the
+    pinned dynamics ``u = (D q'' + h - B_F F)_b`` with ``q'' = Phi alpha'' + dPhi alpha'^2``,
+    ``alpha''`` differentiated numerically from ``alpha'^2 / 2`` (no stance terms)."""
+    w, sched, cycles, energies = orbit5
+    model, maps, zd = w.model, w.zd.maps, w.zd
+    N = model.n
+    a = np.linspace(zd.alpha_i, zd.alpha_f, 20001)
+    for r, (lc, e) in enumerate(zip(cycles, energies)):
+        F = sched.force[r, 0]
+        zeta = lc.zeta_plus + zd.V_Z(a, sched.take([r]))[0]
+        k1 = zd.terms(a)["kappa1"]
+        ad2 = 2 * k1**2 * zeta  # alpha'^2
+        add = np.gradient(ad2 / 2, a, edge_order=2)
+        q, phi, dphi = maps.q_Z(a), maps.Phi(a), maps.dPhi(a)
+        dq = phi * np.sign(lc.alpha_dot_plus) * np.sqrt(ad2)[:, None]
+        ddq = phi * add[:, None] + dphi * ad2[:, None]
+        u = (np.einsum("gij,gj->gi", model.D(q), ddq) + model.h(q, dq)
+             - model.B_F(q) @ F)[:, :N - 1]
+        p = u * dq[:, :N - 1] / (np.sign(lc.alpha_dot_plus) * np.sqrt(ad2))[:, None]
+        p = p * np.sign(zd.alpha_f - zd.alpha_i)  # power per |d alpha|
+        da = abs(a[1] - a[0])
+        trap = lambda f, da=da: (f[1:] + f[:-1]).sum(axis=0) * da / 2  # noqa: E731
+        assert np.allclose(e.joint_work, trap(p), rtol=1e-5, atol=1e-5)
+        assert np.allclose(e.joint_positive_work, trap(np.maximum(p, 0)), rtol=1e-5,
+                           atol=1e-5)
+        assert np.allclose(e.joint_absolute_work, trap(np.abs(p)), rtol=1e-5, atol=1e-5)
+        # thrust: work F d.p' and the rotor's input power at the axial speed V = sign(F) d.p'
+        dp = np.einsum("gn,gnm->gm", dq, model.B_F(q))[:, 0]  # d . p' [m/s]
+        adot = np.sqrt(ad2)
+        th = w.robot.thrusters[0].power
+        P_in = momentum_power(F[0], th.area, th.rho, th.figure_of_merit, th.efficiency,
+                              np.sign(F[0]) * dp)
+        assert e.thrust_work[0] == pytest.approx(float(trap(F[0] * dp / adot)), rel=1e-6,
+                                                 abs=1e-9)
+        assert e.thruster_input[0] == pytest.approx(float(trap(P_in / adot)), rel=1e-6,
+                                                    abs=1e-9)
+
+
+def test_orbit_electrical_and_thrust_energy(orbit5):
+    w, sched, cycles, energies = orbit5
+    p = w.robot.thrusters[0].power
+    for r, (lc, e) in enumerate(zip(cycles, energies)):
+        F = float(sched.force[r, 0, 0])
+        # the Joule loss only adds: clipped electrical energy >= positive mechanical work
+        assert all(el >= pw - 1e-12 for el, pw in zip(e.joint_electrical,
+                                                       e.joint_positive_work))
+        # the rotor moves along its thrust (walking forward, thrust forward): above hover
+        hover = float(hover_power(F, p.area, p.rho, p.figure_of_merit, p.efficiency))
+        assert hover * lc.step_time <= e.thruster_input[0] <= 1.2 * hover * lc.step_time
+        cot = e.cot()
+        assert cot["total"] == pytest.approx(cot["total_legs"] + cot["total_thrust"])
+        assert cot["mechanical"] == pytest.approx(
+            (sum(e.joint_positive_work) + sum(e.thrust_positive_work))
+            / (w.robot.weight * lc.step_length))
+        assert e.missing == ()
+    assert energies[0].thruster_input[0] == 0.0 and energies[0].thrust_work[0] == 0.0
+
+
+def test_missing_models_are_said_not_zero(tmp_path, _cache_dir):
+    from thrustwalk_cli.energy.orbit import orbit_energy
+    from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
+    from thrustwalk_cli.thrust.schedule import Schedule
+    from thrustwalk_cli.walker import load_walker
+
+    w = load_walker(str(DATA / "walker5.yaml"), str(DATA / "walker5_thrust.yaml"))
+    sched = Schedule.on_thruster(w.zd, [-20.0], 0, 1)
+    (e,) = orbit_energy(w.zd, sched, limit_cycles(w.zd, sched))
+    rec = e.record()
+    assert rec["cot"]["total"] is None and rec["cot"]["mechanical"] > 0
+    assert rec["per_step"]["joint_electrical"] == [None] * 4
+    assert rec["per_step"]["thruster_input"] == [None]
+    assert any("no motor data" in m and "not computed" in m for m in rec["missing"])
+    assert any("no power model for thruster back" in m for m in rec["missing"])

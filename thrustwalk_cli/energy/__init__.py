@@ -1,0 +1,1 @@
+"""Energy and cost of transport (SPEC 15)."""
