@@ -245,9 +245,13 @@ class ZeroDynamics:
 
     @property
     def sigma_sign(self) -> float:
-        """Sign of sigma_N on the orbit: alpha' = kappa_1 sigma_N moves alpha forward."""
-        k1 = self.terms(np.array([self.alpha_i]))["kappa1"][0]
-        return self.direction * float(np.sign(k1))
+        """Sign of sigma_N on the orbit: alpha' = kappa_1 sigma_N moves alpha forward
+        (kappa_1 at alpha_i: kinematics only, the same on every slope; computed once)."""
+        v = self.__dict__.get("_sigma_sign")
+        if v is None:
+            k1 = self.terms(np.array([self.alpha_i]))["kappa1"][0]
+            v = self.__dict__["_sigma_sign"] = self.direction * float(np.sign(k1))
+        return v
 
     def V_Z(self, alpha: np.ndarray, schedule: Schedule) -> np.ndarray:
         """``V_Z(alpha)`` for each schedule in the batch; shape (k,) + alpha.shape."""

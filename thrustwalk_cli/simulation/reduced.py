@@ -251,7 +251,7 @@ def closed_form_steps(zd: ZeroDynamics, thrust: ThrustModel, steps: int, alpha0:
         return None
     d = zd.direction
     a_i, a_f = zd.alpha_i, zd.alpha_f
-    sgn = _sigma_sign(zd)
+    sgn = zd.sigma_sign
     if not (d * (alpha0 - a_i) >= -1e-12 * abs(a_f - a_i) and d * (a_f - alpha0) > 0.0) \
             or not sgn * sigma0 > 0:
         return None
@@ -306,14 +306,6 @@ def closed_form_steps(zd: ZeroDynamics, thrust: ThrustModel, steps: int, alpha0:
                                s_p, 0.5 * s_p**2, force_f))
         t = t1
     return out
-
-
-def _sigma_sign(zd: ZeroDynamics) -> float:
-    """:attr:`ZeroDynamics.sigma_sign`, kept on the zero dynamics (a model evaluation)."""
-    sgn = zd.__dict__.get("_reduced_sigma_sign")
-    if sgn is None:
-        sgn = zd.__dict__["_reduced_sigma_sign"] = zd.sigma_sign
-    return sgn
 
 
 def _step_times(zd: ZeroDynamics, sched: Schedule, a_start: float, c: np.ndarray,
@@ -400,7 +392,7 @@ def spectral_steps(zd: ZeroDynamics, thrust: ThrustModel, steps: int, alpha0: fl
         return None
     d = zd.direction
     a_i, a_f = zd.alpha_i, zd.alpha_f
-    sgn = _sigma_sign(zd)
+    sgn = zd.sigma_sign
     span = abs(a_f - a_i)
     if not (d * (alpha0 - a_i) >= -START_MARGIN * span and d * (a_f - alpha0) > 0.0) \
             or not sgn * sigma0 > 0:
