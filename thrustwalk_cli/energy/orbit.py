@@ -299,7 +299,8 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
                 smooth.append(quad(inv[..., None]))
             e = np.zeros(k)
             for _, er in smooth:
-                e = np.maximum(e, er.reshape(k, -1).max(axis=1))
+                if er.size:  # a robot without thrusters has no thrust terms
+                    e = np.maximum(e, er.reshape(k, -1).max(axis=1))
             scale = max(float(np.max(np.abs(smooth[0][0]))), 1e-300)
             if np.all(e <= RTOL * scale) or n >= MAX_NODES:
                 break
