@@ -58,6 +58,22 @@ def test_servo_form_is_the_classic_equations_bit_for_bit():
         assert D.ideal(3).thrust([], u) == u
 
 
+def test_rows_are_the_single_state_arithmetic_bit_for_bit():
+    """``rates_rows`` / ``thrust_rows`` (the vectorised paths of the Floquet analysis and the
+    sampling) equal ``rates`` / ``thrust`` row by row to the last bit, for a mixed stack of
+    servos (ideal, first-, second-order, a general state-space one), and ``rates`` equals the
+    standard form ``A z + B u`` to rounding."""
+    rng = np.random.default_rng(5)
+    dyn = D.ThrusterDynamics("mixed", (D.ideal_servo(), *SERVOS))
+    A, B, _, _ = dyn.matrices()
+    Z = rng.normal(0, 30, (25, dyn.n_states))
+    u = rng.normal(0, 30, dyn.m).tolist()
+    rows = dyn.rates_rows(Z, u)
+    assert rows.tolist() == [dyn.rates(z, u) for z in Z.tolist()]
+    assert dyn.thrust_rows(Z, u).tolist() == [dyn.thrust(z, u) for z in Z.tolist()]
+    np.testing.assert_allclose(rows, Z @ A.T + np.asarray(u) @ B.T, rtol=1e-12, atol=1e-9)
+
+
 def test_stacked_standard_form_of_the_second_order_thruster():
     """z = (F_1, F_2, F_1', F_2'): A = [[0, I], [-wn^2 I, -2 xi wn I]], B = [0; wn^2 I]."""
     wn, xi = 2.0, 0.7

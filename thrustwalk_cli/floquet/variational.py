@@ -63,7 +63,7 @@ def rhs(cl: ClosedLoop, X: np.ndarray, seg: int) -> np.ndarray:
     N = cl.N
     ddq = cl.details(X, np.full(len(X), seg))["ddq"]
     if cl.thrust.n_states:
-        dz = np.array([cl.thrust.derivatives(row) for row in X[:, 2 * N:].tolist()], float)
+        dz = cl.thrust.derivatives_rows(X[:, 2 * N:])
     else:
         dz = np.zeros((len(X), 0))
     return np.concatenate([X[:, N:2 * N], ddq, dz], axis=1)

@@ -146,6 +146,10 @@ class ThrustModel:
         thrusters)."""
         return self.dynamics.rates(z, self._target)
 
+    def derivatives_rows(self, Z: np.ndarray) -> np.ndarray:
+        """:meth:`derivatives` of every row of ``Z`` (K, nz), bit for bit."""
+        return self.dynamics.rates_rows(Z, self._target)
+
     def force(self, z) -> list[float]:
         """Thrust per thruster [N] under the constant command, from the states ``z``
         (piecewise thrust depends on the alpha interval: see :meth:`ClosedLoop.force`)."""

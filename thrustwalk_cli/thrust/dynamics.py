@@ -263,6 +263,26 @@ class ThrusterDynamics:
                 out[j] = acc / E[i]
         return out
 
+    def rates_rows(self, Z: np.ndarray, u: Sequence[float]) -> np.ndarray:
+        """:meth:`rates` of every row of ``Z`` (K, nz): ``z'`` (K, nz), with the same
+        operations in the same order as :meth:`rates` (so equal to it bit for bit)."""
+        Z = np.asarray(Z, float)
+        out = np.zeros((Z.shape[0], self.n_states))
+        for t, pos, k, P, q, E, _, _ in self._lists:
+            if not pos:
+                continue
+            zs = [Z[:, j] for j in pos]
+            acc = np.zeros(Z.shape[0])
+            for kk, zz in zip(k, zs):
+                acc = acc + kk * zz
+            e = u[t] - acc
+            for i, j in enumerate(pos):
+                acc = 0.0 + q[i] * e
+                for pij, zz in zip(P[i], zs):
+                    acc = acc + pij * zz
+                out[:, j] = acc / E[i]
+        return out
+
     def thrust(self, z: Sequence[float], u: Sequence[float]) -> list[float]:
         """The delivered thrust ``F = c.z + d u`` [N] per thruster."""
         out = []
