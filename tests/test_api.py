@@ -54,7 +54,7 @@ def _without_provenance(doc: dict) -> dict:
     (["feasibility", "--thrust", "0,-25"],
      lambda w: tw.feasibility(w, thrust=[0.0, -25.0]), "feasibility.json"),
     (["shape", "--k", "0,20"],
-     lambda w: tw.shape(w, tw.ShapeRequest(ks=(0.0, 20.0))), "shape.json"),
+     lambda w: tw.shape(w, k=[0.0, 20.0]), "shape.json"),
 ])
 @pytest.mark.slow
 def test_python_result_is_the_document_the_command_writes(walker3, tmp_path, cli, command,
@@ -76,7 +76,11 @@ def test_every_public_name_loads_from_its_home_and_is_documented():
         obj = getattr(tw, name)
         assert obj.__module__.startswith("thrustwalk_cli."), name
         assert re.search(rf"^\s+{name}\s+\S", doc, re.M), f"{name} missing from the docstring"
-    assert 25 <= len(tw.__all__) <= 45
+    # the cap counts public names only (deprecated aliases are not in __all__); it rose from 45
+    # to 50 with the config objects made public (SimConfig, Start, ThrusterDynamics and its
+    # constructor) and InspectResult
+    assert 25 <= len(tw.__all__) <= 50
+    assert not set(tw._DEPRECATED) & set(tw.__all__) and not set(tw._DEPRECATED) & set(dir(tw))
     with pytest.raises(AttributeError):
         tw.no_such_name  # noqa: B018
 
@@ -128,3 +132,97 @@ def test_parameter_errors_name_the_parameter_in_python_and_the_flag_on_the_comma
     res = cli("simulate", "--steps", "1", "--q0", "0,0,0", "--out", tmp_path / "y", "-q")
     assert res.exit_code == 2
     assert res.output.strip() == "error: options --q0/--dq0: give both or neither"
+
+
+# -- one consistent API (issue 25): renames with deprecated aliases, keywords, result objects --
+DATA = Path(__file__).parent / "data"
+
+
+@pytest.fixture(scope="module")
+def walker5(_cache_dir):
+    return tw.load_walker(str(DATA / "walker5.yaml"), str(DATA / "walker5_thrust.yaml"))
+
+
+@pytest.mark.parametrize("old, new", [("ShapeStudy", "ShapeResult"),
+                                      ("limit_cycles", "zd_limit_cycles")])
+def test_a_renamed_name_still_loads_with_a_deprecation_warning_naming_the_new_one(old, new):
+    with pytest.warns(DeprecationWarning, match=rf"{old} is deprecated .*tw\.{new}"):
+        value = getattr(tw, old)
+    assert value is getattr(tw, new)
+    assert old not in tw.__all__ and old not in dir(tw)
+
+
+def test_every_study_result_is_named_result():
+    studies = [n for n in tw.__all__ if n[0].isupper() and hasattr(getattr(tw, n), "document")
+               and hasattr(getattr(tw, n), "figures")]
+    assert studies and all(n.endswith("Result") for n in studies), studies
+
+
+def test_shape_takes_keywords_and_a_request_object_still_works_with_a_warning(walker5):
+    new = tw.shape(walker5, pattern="k*(j-2)", k=[0.0, 10.0])
+    assert isinstance(new, tw.ShapeResult) and new.values == (0.0, 10.0)
+    with pytest.warns(DeprecationWarning, match="ShapeRequest"):
+        request = tw.ShapeRequest(pattern="k*(j-2)", ks=(0.0, 10.0))
+    for call in (lambda: tw.shape(walker5, request), lambda: tw.shape(walker5, req=request)):
+        with pytest.warns(DeprecationWarning, match="pass its fields as keywords"):
+            old = call()
+        assert old.document() == new.document()
+    with pytest.raises(tw.InputError, match="^req: give either"), \
+            pytest.warns(DeprecationWarning):
+        tw.shape(walker5, req=request, pattern="k")
+
+
+def test_inspect_state_is_a_result_with_attributes_items_and_a_document(walker5):
+    q = [0.1, 0.2, 0.3, -0.2, 0.1]
+    res = tw.inspect_state(walker5.model, q, dq=[0.5, -0.2, 0.1, 0.3, -0.4])
+    assert isinstance(res, tw.InspectResult) and res.success
+    assert res.D is res["D"] and res.impact is res["impact"] and "G" in res
+    assert res.document() == dict(res) and {**res}["q"] == q
+    assert res.tables() == {} and res.figures() == {}
+    import numpy as np
+
+    D = np.array(res.D)  # a mass matrix: symmetric, positive definite
+    assert np.allclose(D, D.T, rtol=0, atol=1e-12) and np.linalg.eigvalsh(D).min() > 0
+    # kinetic energy is 1/2 dq' D dq
+    dq = np.array([0.5, -0.2, 0.1, 0.3, -0.4])
+    assert res.kinetic_energy == pytest.approx(0.5 * dq @ D @ dq, rel=1e-12)
+    for given in (walker5, walker5.robot):  # a walker or a robot: the same model
+        assert dict(tw.inspect_state(given, q)) == dict(tw.inspect_state(walker5.model, q))
+    with pytest.raises(AttributeError):
+        res.no_such_key  # noqa: B018
+
+
+@pytest.mark.parametrize("which", ["robot", "model", "walker"])
+def test_design_gait_takes_a_robot_a_model_or_a_walker(walker5, which):
+    given = {"robot": walker5.robot, "model": walker5.model, "walker": walker5}[which]
+    with pytest.raises(tw.InputError) as exc:  # the robot accepted: the spec is refused
+        tw.design_gait(given, "x")
+    assert [p for pr in exc.value.problems for p in pr.params] == ["spec"]
+
+
+def test_thruster_dynamics_builds_the_models_of_the_simulation():
+    import numpy as np
+    from scipy.linalg import expm
+
+    dyn = tw.thruster_dynamics("second-order", 2, wn=3.0, xi=0.5)
+    assert isinstance(dyn, tw.ThrusterDynamics) and dyn.m == 2
+    A = dyn.matrices()[0]
+    # each thruster F'' + 2 xi wn F' + wn^2 F = wn^2 u: eigenvalues -xi wn +- i wn sqrt(1-xi^2)
+    lam = np.sort_complex(np.linalg.eigvals(A))
+    wd = 3.0 * np.sqrt(1 - 0.25)
+    assert np.allclose(lam, np.sort_complex([-1.5 - 1j * wd] * 2 + [-1.5 + 1j * wd] * 2))
+    lag = tw.thruster_dynamics("first-order", 1, tau=0.25)
+    assert np.allclose(expm(lag.matrices()[0] * 0.5), np.exp(-0.5 / 0.25))
+    assert tw.thruster_dynamics("ideal", 1).matrices()[0].shape == (0, 0)
+
+
+def test_simulate_reuses_a_sim_config_and_a_start(walker5):
+    config, start = tw.SimConfig(steps=2), tw.Start(perturb=0.01)
+    reused = tw.simulate(walker5, thrust=[-10.0], reduced=True, config=config, start=start)
+    plain = tw.simulate(walker5, thrust=[-10.0], reduced=True, steps=2, perturb=0.01)
+    strip = lambda d: {k: v for k, v in d.items() if k != "wall_time"}  # noqa: E731
+    assert strip(reused.document()) == strip(plain.document())
+    with pytest.raises(tw.InputError, match="^config: .*`steps`"):
+        tw.simulate(walker5, steps=3, config=config, check_only=True)
+    with pytest.raises(tw.InputError, match="^start: "):
+        tw.simulate(walker5, zeta0=1.0, start=start, check_only=True)

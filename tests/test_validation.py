@@ -56,12 +56,11 @@ STUDIES = {
     "limit_cycle": (lambda w, **kw: tw.limit_cycle(**{"walker": w, **kw}), {
         "walker": WALKER, "thrust": NUMBERS, "thruster": TEXT, "max_output": POSITIVE,
         "mu": POSITIVE, "min_vertical_force": NONNEG, "slope": NUMBER + [1.6, -2.0]}, {}),
-    "ShapeRequest": (lambda w, **kw: tw.ShapeRequest(**kw), {
-        "knots": NUMBERS, "alpha_knots": FLAG, "n_knots": POS_COUNT + [1, 10**6],
-        "pattern": [5, ["k"]], "ks": NUMBERS, "field_k": NUMBER, "mode": CHOICE,
-        "thruster": TEXT, "target_zeta": NUMBER, "target_speed": NUMBER}, {}),
     "shape": (lambda w, **kw: tw.shape(**{"walker": w, **kw}), {
-        "walker": WALKER, "req": ["k=1", 5], "progress": CALLBACK, "max_output": POSITIVE},
+        "walker": WALKER, "knots": NUMBERS, "alpha_knots": FLAG,
+        "n_knots": POS_COUNT + [1, 10**6], "pattern": [5, ["k"]], "k": NUMBERS,
+        "field_k": NUMBER, "mode": CHOICE, "thruster": TEXT, "target_zeta": NUMBER,
+        "target_speed": NUMBER, "progress": CALLBACK, "max_output": POSITIVE, "bogus": [1.0]},
         {}),
     "feasibility": (lambda w, **kw: tw.feasibility(**{"walker": w, **kw}), {
         "walker": WALKER, "thrust": NUMBERS, "schedule": [5, [1.0]], "thruster": TEXT,
@@ -85,7 +84,7 @@ STUDIES = {
         "rtol": POSITIVE + [0.5], "atol": POSITIVE, "method": CHOICE, "integrator": TEXT,
         "samples": POS_COUNT + [1], "scuff_tol": NONNEG, "min_impact_s": NUMBER,
         "impact_s_tol": POSITIVE, "zeta_tol": POSITIVE, "reduced": FLAG, "mu": POSITIVE,
-        "progress": CALLBACK}, {"steps": 2, "thrust": [-10.0]}),
+        "progress": CALLBACK, "config": [5, "steps=2"]}, {"steps": 2, "thrust": [-10.0]}),
     "control": (lambda w, **kw: tw.control(**{"walker": w, **kw}), {
         "walker": WALKER, "reference": CHOICE,
         "profile": ["0:0.8", 5, [(0, NAN)], [(0,)], [("a", 1)]], "ramp": FLAG,
@@ -131,7 +130,7 @@ STUDIES = {
         "thrust": NUMBERS, "alpha_c": NUMBERS, "starts": POS_COUNT, "seed": COUNT,
         "max_iter": POS_COUNT, "nodes": POS_COUNT, "name": TEXT}, {"speed": 0.6}),
     "inspect_state": (lambda w, model, **kw: tw.inspect_state(**{"model": model, **kw}), {
-        "model": ["walker5", 5], "q": ["a,b", 5, [NAN, 0, 0, 0, 0], [1.0]],
+        "model": ["walker5", 5, None], "q": ["a,b", 5, [NAN, 0, 0, 0, 0], [1.0]],
         "dq": ["a", 5, [INF, 0, 0, 0, 0]], "thrust": ["x", 5, [NAN]]},
         {"q": [0.1, 0.2, 0.3, -0.2, 0.1]}),
     "load_walker": (lambda w, **kw: tw.load_walker(**kw), {
@@ -145,7 +144,10 @@ STUDIES = {
         "robot": ["walker5", 5], "rebuild": ["yes", 1]}, {"robot": "ROBOT"}),
     "compile_robot": (lambda w, **kw: tw.compile_robot(**kw), {
         "robot": [5, None, ""], "rebuild": ["yes", 1]}, {"robot": str(DATA / "walker5.yaml")}),
-    "limit_cycles": (lambda w, **kw: tw.limit_cycles(**kw), {
+    "thruster_dynamics": (lambda w, **kw: tw.thruster_dynamics(**kw), {
+        "kind": CHOICE, "m": COUNT + [10**6], "tau": POSITIVE + [1e300], "bogus": [1.0]},
+        {"kind": "first-order", "m": 1, "tau": 0.5}),
+    "zd_limit_cycles": (lambda w, **kw: tw.zd_limit_cycles(**kw), {
         "zd": ["walker5", 5], "schedule": ["x", "NAN_SCHEDULE"],
         "samples": POS_COUNT + [2]}, {"zd": "ZD", "schedule": "SCHEDULE"}),
     "load_sweep": (lambda w, **kw: tw.load_sweep(**kw), {"path": [5, None, ""]}, {}),
@@ -177,8 +179,8 @@ STUDIES = {
         "notes": [5, [5]]}, {"robot": "ROBOT"}),
 }
 # the parameter a problem names when it is not the keyword's own name
-NAMED = {("ShapeRequest", "ks"): "k", ("DesignSpec", "speed"): "speed",
-         ("robustness", "bogus"): "bogus"}
+NAMED = {("DesignSpec", "speed"): "speed", ("robustness", "bogus"): "bogus",
+         ("thruster_dynamics", "kind"): "thrust_model"}
 
 CASES = [(study, name, value) for study, (_, table, _) in STUDIES.items()
          for name, value in _cases(table)]

@@ -18,26 +18,35 @@ Loading
     Robot               an immutable robot description (links, coordinates, thrusters)
     Gait                an immutable gait description (Bezier virtual constraints)
     ThrustSchedule      a piecewise-constant thrust schedule as written in a gait file
+    ThrusterDynamics    the linear dynamics of a robot's thrusters, (A, B, C, D) per thruster
+                        (SPEC 7, 13; ``.matrices()``, ``.layout``)
+    thruster_dynamics   build one: ``tw.thruster_dynamics("second-order", m, wn=2.0, xi=1.0)``,
+                        ``"first-order"`` with ``tau``, ``"ideal"``
     CompiledModel       the numeric dynamics D, C q' + G, B_F, impact map (SPEC 1)
 
 Zero dynamics (SPEC 3, 4)
     ZeroDynamics        the thrust-independent integrals of one gait (``walker.zd``)
     Schedule            thrust per knot interval, batched (``Schedule.constant(zd, F)``)
-    limit_cycles        fixed points and orbits of the zero dynamics for a batch of schedules
+    zd_limit_cycles     the core: fixed points and orbits of the zero dynamics for a batch of
+                        schedules (one :class:`LimitCycle` each); ``limit_cycle`` is the study
     LimitCycle          one periodic orbit: exists, stable, reason, zeta*, speed, ...
 
 Studies (one per command)
     limit_cycle         limit cycles over a constant-thrust sweep -> :class:`LimitCycleResult`
     LimitCycleResult    the sweep's cycles, document, CSV table and figures
-    shape               center-manifold shaping with piecewise thrust -> :class:`ShapeStudy`
-    ShapeRequest        what to shape: pattern and knots, a target, or the gait's schedule
-    ShapeStudy          nominal and shaped cycles, shifts (true and the paper's), figures
+    shape               center-manifold shaping with piecewise thrust: keywords for a pattern
+                        and knots, a target, or the gait's schedule -> :class:`ShapeResult`
+    ShapeResult         nominal and shaped cycles, shifts (true and the paper's), figures
     feasibility         ground-contact feasibility per thrust case -> :class:`FeasibilityResult`
     FeasibilityResult   verdicts, worst points, margins, feasible region, figures
     optimize_schedule   minimum-effort thrust schedule, an exact QP -> :class:`OptimizeResult`
     OptimizeResult      the optimal schedule (or why none exists), gait file, figure
     simulate            full-order closed-loop simulation -> :class:`SimulationResult`
     SimulationResult    runs, per-step records, comparison with the zero dynamics, figures
+    SimConfig           a run's numerical settings (steps, tolerances, method, guard, cone);
+                        ``simulate(walker, config=...)`` reuses one
+    Start               a run's initial condition (on the orbit, perturbed, or an explicit
+                        state); ``simulate(walker, start=...)`` reuses one
     mujoco_run          the gait's controller on MuJoCo's soft contact, each step beside the
                         rigid model (SPEC 16; needs ``pip install 'thrustwalk[mujoco]'``)
     control             step-to-step thrust control, certified contact -> :class:`ControlResult`
@@ -47,16 +56,23 @@ Studies (one per command)
     robustness          push maps, survivable pushes, basins, uncertainty per thrust strategy
                         (SPEC 12; trials on the sweep engine) -> :class:`RobustnessResult`
     RobustnessResult    outcomes per trial, survivable impulses, basins, samples, figures
-    design_gait         design a stable, walkable gait -> :class:`DesignGaitResult`
+    design_gait         design a stable, walkable gait for a robot (a Robot, its model or a
+                        Walker) -> :class:`DesignGaitResult`
     DesignSpec          what a gait design asks for (speed, step length, margins, ...)
-    DesignGaitResult    the designed gait, its re-check and report
-    inspect_state       the dynamics at one state (D, C q', G, B_F, impact map)
+    DesignGaitResult    the designed gait, its re-check, report, starts table and figure
+    inspect_state       the dynamics at one state -> :class:`InspectResult`
+    InspectResult       D, C q', G, B_F, impact map as attributes, items and a document
 
 Sweeps (one study at many points; resumable; local processes or a Dask cluster)
     load_sweep          a sweep file, checked before any work -> :class:`Sweep`
     Sweep               the study, axes and one content-keyed task per point
     run_sweep           run the points not yet finished -> :class:`SweepResult`
     SweepResult         every point's record; results table, sweep document, heat maps
+
+Renamed (the old names work for one release, with a DeprecationWarning)
+    ``ShapeStudy`` -> ``ShapeResult``; ``limit_cycles`` -> ``zd_limit_cycles``;
+    ``ShapeRequest`` and ``shape(walker, req)`` -> ``shape(walker, pattern=..., k=...)``
+    (``ks`` is ``k``).
 
 Errors
     InputError          bad input: every problem as ``file:line: key.path: message`` or
@@ -66,7 +82,8 @@ Errors
 
 from ._version import __version__
 
-# public name -> module that defines it (imported on first use)
+# public name -> module that defines it, or "module:name" when it is defined under another
+# name (imported on first use)
 _HOMES = {
     "load_walker": "walker", "Walker": "walker",
     "load_robot": "files.robot_file", "load_model": "model.compiler",
@@ -76,12 +93,15 @@ _HOMES = {
     "Robot": "description.robot", "Gait": "description.gait",
     "ThrustSchedule": "thrust.schedule", "CompiledModel": "model.compiled",
     "ZeroDynamics": "hzd.zero_dynamics", "Schedule": "thrust.schedule",
-    "limit_cycles": "hzd.zero_dynamics", "LimitCycle": "hzd.zero_dynamics",
+    "zd_limit_cycles": "hzd.zero_dynamics:limit_cycles", "LimitCycle": "hzd.zero_dynamics",
+    "ThrusterDynamics": "thrust.dynamics", "thruster_dynamics": "thrust.dynamics",
     "limit_cycle": "studies.limit_cycle", "LimitCycleResult": "studies.limit_cycle",
-    "shape": "studies.shape", "ShapeRequest": "studies.shape", "ShapeStudy": "studies.shape",
+    "shape": "studies.shape", "ShapeResult": "studies.shape",
     "feasibility": "studies.feasibility", "FeasibilityResult": "studies.feasibility",
     "optimize_schedule": "studies.optimize", "OptimizeResult": "studies.optimize",
     "simulate": "studies.simulate", "SimulationResult": "studies.simulate",
+    "SimConfig": "simulation.closed_loop", "Start": "simulation.full_order",
+    "InspectResult": "studies.inspect",
     "control": "studies.control", "ControlResult": "studies.control",
     "stability": "studies.stability", "StabilityResult": "studies.stability",
     "robustness": "studies.robustness", "RobustnessResult": "studies.robustness",
@@ -92,19 +112,41 @@ _HOMES = {
     "InputError": "errors", "ComputationError": "errors",
 }
 
+# deprecated name -> (where it lives, what to use instead); not public names: not in __all__,
+# not in dir(), a DeprecationWarning on every use; kept for one release
+_DEPRECATED = {
+    "ShapeStudy": ("studies.shape:ShapeResult", "tw.ShapeResult"),
+    "ShapeRequest": ("studies.shape:ShapeRequest",
+                     "the keywords of tw.shape(walker, pattern=..., k=[...], ...)"),
+    "limit_cycles": ("hzd.zero_dynamics:limit_cycles", "tw.zd_limit_cycles"),
+}
+
 __all__ = ["__version__", *_HOMES]
 
 
-def __getattr__(name: str):
-    """Load a public name from its home module on first use (PEP 562)."""
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+def _load(home: str, name: str):
     from importlib import import_module
 
-    value = getattr(import_module(f"{__name__}.{home}"), name)
-    globals()[name] = value
-    return value
+    module, _, attr = home.partition(":")
+    return getattr(import_module(f"{__name__}.{module}"), attr or name)
+
+
+def __getattr__(name: str):
+    """Load a public name from its home module on first use (PEP 562); a deprecated name
+    loads with a DeprecationWarning naming its replacement."""
+    home = _HOMES.get(name)
+    if home is not None:
+        value = _load(home, name)
+        globals()[name] = value
+        return value
+    if name in _DEPRECATED:
+        import warnings
+
+        home, instead = _DEPRECATED[name]
+        warnings.warn(f"thrustwalk_cli.{name} is deprecated (kept for one release): use "
+                      f"{instead}", DeprecationWarning, stacklevel=2)
+        return _load(home, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def __dir__() -> list[str]:

@@ -100,6 +100,18 @@ def check_walker(value: object, name: str = "walker") -> Walker:
     return check_instance(name, value, Walker, "a Walker (tw.load_walker(robot, gait))")
 
 
+def as_model(value: object, name: str = "robot") -> CompiledModel:
+    """The compiled model (SPEC 1) of a :class:`CompiledModel` (itself), a :class:`Robot`
+    (:func:`load_model`: cached by structure) or a :class:`Walker` (its model);
+    :class:`InputError` naming ``name`` otherwise."""
+    if isinstance(value, Walker):
+        return value.model
+    if isinstance(value, Robot):
+        return load_model(value)
+    return check_instance(name, value, CompiledModel, "a Robot, a CompiledModel or a Walker "
+                          "(tw.load_robot, tw.load_model, tw.load_walker)")
+
+
 def walker_from(model: CompiledModel, gait: Gait, where: Where = "gait") -> Walker:
     """A walker from a compiled model and a complete gait already in memory (``A`` with
     invariance applied), e.g. a gait just designed or edited in a script."""

@@ -85,7 +85,8 @@ def run_shape(robot: str | None, gait: str | None, request: ShapeRequest, out: P
     check_out(out, json=json)
     walker = load_walker(robot, gait)
     with progress("shaped limit cycles", schedule_count(walker, request), quiet) as advance:
-        result = shape(walker, request, progress=advance, max_output=max_output * 1e6)
+        result = shape(walker, **request.keywords(), progress=advance,
+                       max_output=max_output * 1e6)
     if result.base is not None and not quiet:
         warn(["the gait has a constant thrust: the patterns are shaped around it and the "
               "nominal orbit is the gait's own"])

@@ -5,8 +5,8 @@ ratio and vertical force against time, predicted and realised, with the cone).""
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from .style import COLUMN, corner_note, style
 
@@ -23,7 +23,8 @@ def speed_tracking(d: dict, title: str = ""):
     the controlled walker, the uncontrolled one and, for slow thrusters, the controller that
     ignores the lag; pushes dotted red, saturated steps marked."""
     with style():
-        fig, ax = plt.subplots(figsize=(COLUMN, 2.5))
+        fig = Figure(figsize=(COLUMN, 2.5))
+        ax = fig.subplots()
         c = d["controlled"]
         if d["reference_speed"] is not None:
             k = np.arange(1, len(d["reference_speed"]) + 1)
@@ -59,7 +60,8 @@ def thrust_schedule(d: dict, title: str = ""):
     thruster with dynamics, the commanded setpoint (dashed) and the delivered thrust of the
     controller that ignores the lag (dotted); the uncontrolled walker's thrust in grey."""
     with style():
-        fig, ax = plt.subplots(figsize=(COLUMN, 2.5))
+        fig = Figure(figsize=(COLUMN, 2.5))
+        ax = fig.subplots()
         names = d["thruster_names"]
         dyn = d["thrust_model"] != "ideal"
         for i, t_ in enumerate(d["driven"]):
@@ -92,7 +94,8 @@ def contact_margin(d: dict, title: str = ""):
     ``F^v`` [N] with its minimum against time: realised (solid), predicted by the QP's model
     (dashed), the uncontrolled walker (grey)."""
     with style():
-        fig, (a1, a2) = plt.subplots(2, 1, figsize=(COLUMN, 3.6), sharex=True)
+        fig = Figure(figsize=(COLUMN, 3.6))
+        (a1, a2) = fig.subplots(2, 1, sharex=True)
         for run, color, lab, pred in ((d["uncontrolled"], FREE, "uncontrolled", False),
                                       (d["controlled"], CTRL, "realised", True)):
             if run is None or not run["t"]:

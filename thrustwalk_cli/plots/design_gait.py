@@ -3,8 +3,9 @@ step. Plain data in (:func:`thrustwalk_cli.studies.design_gait.stick_frames`).""
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib import colormaps
+from matplotlib.figure import Figure
 
 from .style import COLUMN, style
 
@@ -28,11 +29,12 @@ def stick_figure(frames: dict, *, title: str = ""):
     feet = np.asarray(frames["swing_foot"], float)
     roles = frames.get("roles") or ["body"] * links.shape[1]
     with style():
-        fig, ax = plt.subplots(figsize=(COLUMN, 2.4))
+        fig = Figure(figsize=(COLUMN, 2.4))
+        ax = fig.subplots()
         shade = 0.35 + 0.6 * s  # later instants darker
         for k in range(s.size):
             for j, role in enumerate(roles):
-                colour = plt.get_cmap(ROLE_MAPS.get(role, "Greys"))(shade[k])
+                colour = colormaps[ROLE_MAPS.get(role, "Greys")](shade[k])
                 seg = links[k, j]
                 ax.plot(seg[:, 0], seg[:, 1], color=colour, lw=1.1, solid_capstyle="round",
                         zorder=3)
@@ -51,7 +53,7 @@ def stick_figure(frames: dict, *, title: str = ""):
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
         for role in dict.fromkeys(roles):  # one entry per role: light early, dark late
-            cmap = plt.get_cmap(ROLE_MAPS.get(role, "Greys"))
+            cmap = colormaps[ROLE_MAPS.get(role, "Greys")]
             ax.plot([], [], color=cmap(0.95), lw=1.1, label=ROLE_LABELS.get(role, role))
         ax.plot([], [], " ", label="light: s = 0 (after impact)\ndark: s = 1 (before impact)")
         ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=6, borderaxespad=0)

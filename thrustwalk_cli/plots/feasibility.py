@@ -7,9 +7,9 @@ from collections.abc import Sequence
 
 import contourpy  # matplotlib's own contouring library (a dependency of matplotlib >= 3.6)
 import matplotlib
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib import patheffects
+from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from .style import COLUMN, PAGE, corner_note, missing_note, style
@@ -43,7 +43,8 @@ def grf_figure(profiles: Sequence[dict | None], values: Sequence[float] | None, 
     None}``.
     """
     with style():
-        fig, axs = plt.subplots(3, 2, figsize=(PAGE, 6.2), layout="constrained")
+        fig = Figure(figsize=(PAGE, 6.2), layout="constrained")
+        axs = fig.subplots(3, 2)
         (a_f, a_r), (a_u, a_h), (a_i, a_k) = axs
         idx = [i for i in _pick(len(profiles)) if profiles[i] is not None]
         sweep = values is not None and len(values) > 1
@@ -227,7 +228,8 @@ def region_figure(region, *, scale_label: str, mu: float, eps: float,
     ``impact_ok``.
     """
     with style():
-        fig, ax = plt.subplots(figsize=(COLUMN, 3.6))
+        fig = Figure(figsize=(COLUMN, 3.6))
+        ax = fig.subplots()
         x, y = np.asarray(region.scale, float), np.asarray(region.zeta, float)
         S, Z = np.meshgrid(x, y, indexing="ij")
         minz = (region.min_zeta if region.min_zeta is not None

@@ -6,8 +6,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import matplotlib
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from .style import COLUMN, corner_note, is_multiple, missing_note, style
 
@@ -40,7 +40,8 @@ def phase_portrait(
     ylabel = {"alpha_dot": r"$\dot\alpha$ [rad/s]",
               "sigma": r"$\sigma_N$ [kg m$^2$/s]"}[y]
     with style():
-        fig, ax = plt.subplots(figsize=(COLUMN, 2.7))
+        fig = Figure(figsize=(COLUMN, 2.7))
+        ax = fig.subplots()
         vals = np.asarray(values, float)
         lo, hi = (vals.min(), vals.max()) if vals.size else (0.0, 1.0)
         norm = matplotlib.colors.Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1)
@@ -98,7 +99,8 @@ def fixed_point_shift(values: Sequence[float], zeta_star: Sequence[float | None]
     vals = np.asarray(values, float)
     ok = np.array([z is not None for z in zeta_star])
     with style():
-        fig, ax = plt.subplots(figsize=(COLUMN, 2.6))
+        fig = Figure(figsize=(COLUMN, 2.6))
+        ax = fig.subplots()
         if zeta0 is not None:
             grid = np.linspace(vals.min(), vals.max(), 200)
             ax.plot(grid, zeta0 + slope * grid, color="0.6", lw=0.8,

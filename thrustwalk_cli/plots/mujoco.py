@@ -7,8 +7,8 @@ import io
 from collections.abc import Sequence
 
 import matplotlib
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from .style import PAGE, style
 
@@ -20,7 +20,8 @@ def phase_portraits(data: dict, *, title: str = "", settled: int = 3):
     runs = data["runs"]
     cmap = matplotlib.colormaps["viridis"]
     with style():
-        fig, axes = plt.subplots(1, 2, figsize=(PAGE, 2.9), sharex=True, sharey=True)
+        fig = Figure(figsize=(PAGE, 2.9))
+        axes = fig.subplots(1, 2, sharex=True, sharey=True)
         for i, r in enumerate(runs):
             col = cmap(0.5 if len(runs) == 1 else i / (len(runs) - 1) * 0.9)
             label = "schedule" if r["value"] is None else f"{r['value']:g} N"

@@ -3,8 +3,8 @@ contact margins. Plain data in."""
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from .style import style
 
@@ -16,7 +16,8 @@ def optimal_figure(nominal: dict | None, optimal: dict, knots: np.ndarray, value
     ``nominal``/``optimal``: dicts with ``alpha`` [rad] and ``alpha_dot`` [rad/s] (plus the impact
     jump ``jump`` = (alpha_f, alpha'^-, alpha_i, alpha'^+)); ``profile``: contact profile."""
     with style():
-        fig, (a1, a2, a3) = plt.subplots(1, 3, figsize=(7.0, 2.5))
+        fig = Figure(figsize=(7.0, 2.5))
+        (a1, a2, a3) = fig.subplots(1, 3)
         for orb, lab, col in ((nominal, "nominal (no thrust)", "0.5"),
                               (optimal, "optimal schedule", "C0")):
             if orb is None:

@@ -6,9 +6,10 @@ under parameter uncertainty. Colours that encode a category come with a legend."
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.colors import ListedColormap
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from .style import COLUMN, PAGE, corner_note, style
@@ -55,8 +56,8 @@ def push_map(d: dict, title: str = ""):
     names = list(d["outcomes"]) + ["not run"]
     n = len(d["labels"])
     with style():
-        fig, axes = plt.subplots(1, n, figsize=(COLUMN if n == 1 else PAGE, 2.7),
-                                 sharey=True, squeeze=False)
+        fig = Figure(figsize=(COLUMN if n == 1 else PAGE, 2.7))
+        axes = fig.subplots(1, n, sharey=True, squeeze=False)
         present: set[str] = set()
         for k, ax in enumerate(axes[0]):
             present |= _category_mesh(ax, d["phases"], d["impulses"], d["push_maps"][k], names)
@@ -79,7 +80,8 @@ def survivable_push(d: dict, title: str = ""):
     lower bound (the scan reached the grid's edge), crosses where it stopped at a trial that
     could not be computed or was not run."""
     with style():
-        fig, ax = plt.subplots(figsize=(COLUMN, 2.8))
+        fig = Figure(figsize=(COLUMN, 2.8))
+        ax = fig.subplots()
         ph = np.asarray(d["phases"], float)
         for k, label in enumerate(d["labels"]):
             c = STRATEGY_COLOURS[k % len(STRATEGY_COLOURS)]
@@ -123,7 +125,7 @@ def basin(d: dict, title: str = ""):
     slices = d["slices"]
     n = max(1, len(slices))
     with style():
-        fig = plt.figure(figsize=(COLUMN if n == 1 else PAGE, 2.0 + (2.3 if slices else 0)))
+        fig = Figure(figsize=(COLUMN if n == 1 else PAGE, 2.0 + (2.3 if slices else 0)))
         gs = fig.add_gridspec(2 if slices else 1, n, height_ratios=[1, 1.6] if slices else [1])
         ax = fig.add_subplot(gs[0, :])
         notes = []
@@ -171,7 +173,7 @@ def basin(d: dict, title: str = ""):
         if slices:
             fig.legend(handles=[Patch(facecolor=colours[nm], edgecolor="0.3", lw=0.4,
                                       label=nm) for nm in names[:3]]
-                       + [plt.Line2D([], [], color="k", ls="--", lw=0.7,
+                       + [Line2D([], [], color="k", ls="--", lw=0.7,
                                      label="reduced basin")],
                        loc="lower center", ncol=4, fontsize=6, frameon=False)
         if title:
@@ -185,8 +187,8 @@ def uncertainty(d: dict, title: str = ""):
     robot's under the same strategy [%], per strategy (box: quartiles, whiskers: 5-95 %,
     points: samples). Right: the fraction of samples that walk [1] per strategy."""
     with style():
-        fig, (ax, ax2) = plt.subplots(1, 2, figsize=(PAGE, 2.4),
-                                      gridspec_kw={"width_ratios": [2.2, 1]})
+        fig = Figure(figsize=(PAGE, 2.4))
+        (ax, ax2) = fig.subplots(1, 2, gridspec_kw={"width_ratios": [2.2, 1]})
         rng = np.random.default_rng(0)  # jitter of the sample markers only
         labels = [s["label"] for s in d["uncertainty"]]
         notes = []

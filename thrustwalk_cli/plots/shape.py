@@ -1,6 +1,6 @@
 """Figures of center-manifold shaping (SPEC 4, 8: the paper's figures 4 and 5).
 
-Rendered from :class:`thrustwalk_cli.studies.shape.ShapeStudy` results; shared style from
+Rendered from :class:`thrustwalk_cli.studies.shape.ShapeResult` results; shared style from
 :mod:`thrustwalk_cli.plots` (labels with units, colour bar for a swept value, black every 10).
 """
 
@@ -8,8 +8,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import matplotlib.pyplot as plt
+import matplotlib
 import numpy as np
+from matplotlib.figure import Figure
 
 from .limit_cycle import phase_portrait
 from .style import PAGE, black_step, corner_note, missing_note, style
@@ -60,9 +61,10 @@ def shape_portrait(values: Sequence[float] | None, labels: Sequence[str],
             ax.legend(old[0] + handles, old[1] + lbls, loc="best")
         return fig
     with style():
-        fig, ax = plt.subplots(figsize=(3.5, 2.7))
+        fig = Figure(figsize=(3.5, 2.7))
+        ax = fig.subplots()
         _cycle(ax, nominal[0], nominal[1], y, "k", 1.0, "nominal")
-        colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+        colors = matplotlib.rcParams["axes.prop_cycle"].by_key()["color"]
         missing = []
         for i, (lab, orb, jump) in enumerate(zip(labels, orbits, jumps)):
             if orb is None:
@@ -100,8 +102,8 @@ def vector_field_figure(fields: dict, nominal: dict, shaped: dict, knots: Sequen
     """
     planes = [p for p in ("alpha_dot", "sigma") if p in fields]
     with style():
-        fig, axes = plt.subplots(len(planes), 2, figsize=(PAGE, 2.5 * len(planes) + 0.4),
-                                 squeeze=False, sharex=True)
+        fig = Figure(figsize=(PAGE, 2.5 * len(planes) + 0.4))
+        axes = fig.subplots(len(planes), 2, squeeze=False, sharex=True)
         for r, plane in enumerate(planes):
             vn, vs = fields[plane]
             ax, ad = axes[r, 0], axes[r, 1]

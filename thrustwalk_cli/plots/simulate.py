@@ -6,8 +6,8 @@ from __future__ import annotations
 import io
 
 import matplotlib
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from .style import COLUMN, black_step, is_multiple, style
 
@@ -38,7 +38,8 @@ def thrust_time(data: dict, *, black_every: float | None | str = "auto", title: 
     runs = data["runs"]
     black_every = _black(data, black_every)
     with style():
-        fig, ax = plt.subplots(figsize=(COLUMN, 2.6))
+        fig = Figure(figsize=(COLUMN, 2.6))
+        ax = fig.subplots()
         unit = "N"
         if data["kind"] == "piecewise" and data.get("generalized"):
             r = runs[0]
@@ -88,7 +89,8 @@ def phase_portrait(data: dict, *, black_every: float | None | str = "auto", titl
     runs = data["runs"]
     black_every = _black(data, black_every)
     with style():
-        fig, ax = plt.subplots(figsize=(COLUMN, 2.9))
+        fig = Figure(figsize=(COLUMN, 2.9))
+        ax = fig.subplots()
         norm, cmap, colors = _sweep_colors([r["value"] for r in runs], black_every)
         for r, col in zip(runs, colors):
             steps = r["steps"]
@@ -150,7 +152,8 @@ def animate(frames: dict, fps: float = 20.0, width_px: int = 960) -> bytes:
     half = max(float(np.abs(rel).max()) + 0.3, 0.8)  # half the window width [m]
     dpi = 100
     with style():
-        fig, ax = plt.subplots(figsize=(width_px / dpi, 0.42 * width_px / dpi), dpi=dpi)
+        fig = Figure(figsize=(width_px / dpi, 0.42 * width_px / dpi), dpi=dpi)
+        ax = fig.subplots()
         ax.set_aspect("equal")
         y0, y1 = min(ys.min(), 0.0) - 0.1, ys.max() + 0.15
         ax.set_ylim(y0, y1)
@@ -184,14 +187,11 @@ def animate(frames: dict, fps: float = 20.0, width_px: int = 960) -> bytes:
 
         canvas = FigureCanvasAgg(fig)
         images = []
-        try:
-            for i in range(len(frames["t"])):
-                draw(i)
-                canvas.draw()
-                images.append(Image.frombuffer("RGBA", canvas.get_width_height(),
-                                               canvas.buffer_rgba()).copy())
-        finally:
-            plt.close(fig)
+        for i in range(len(frames["t"])):
+            draw(i)
+            canvas.draw()
+            images.append(Image.frombuffer("RGBA", canvas.get_width_height(),
+                                           canvas.buffer_rgba()).copy())
     buf = io.BytesIO()
     images[0].save(buf, format="GIF", save_all=True, append_images=images[1:],
                    duration=int(1000 / fps), loop=0)

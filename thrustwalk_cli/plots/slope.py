@@ -7,8 +7,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import matplotlib
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from .style import COLUMN, corner_note, style
 
@@ -34,7 +34,8 @@ def walkability_figure(slopes: np.ndarray, thrust: np.ndarray, first: np.ndarray
     walkable), with contours of the speed along the ground [m/s] in the walkable region.
     ``first``: (slopes, thrust) indices into ``failures``; ``speed`` NaN where none."""
     with style():
-        fig, ax = plt.subplots(figsize=(COLUMN, 2.8))
+        fig = Figure(figsize=(COLUMN, 2.8))
+        ax = fig.subplots()
         present = sorted(set(np.asarray(first).ravel().tolist()))
         colours = [FAILURE_COLOURS.get(failures[i], "#ffffff") for i in range(len(failures))]
         cmap = matplotlib.colors.ListedColormap(colours)
@@ -66,7 +67,8 @@ def steepest_figure(thrust: np.ndarray, uphill: Sequence[float | None],
     up = np.array([np.nan if v is None else v for v in uphill], float)
     down = np.array([np.nan if v is None else v for v in downhill], float)
     with style():
-        fig, ax = plt.subplots(figsize=(COLUMN, 2.4))
+        fig = Figure(figsize=(COLUMN, 2.4))
+        ax = fig.subplots()
         ms = 2 if len(thrust) <= 40 else 0  # markers only where they can be told apart
         ax.plot(thrust, up, "-o", ms=ms, lw=0.9, color="C3", label="steepest uphill")
         ax.plot(thrust, down, "-s", ms=ms, lw=0.9, color="C0", label="steepest downhill")

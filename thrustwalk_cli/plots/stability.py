@@ -5,8 +5,8 @@ reference (SPEC 13). Plain data in (see ``StabilityResult.figure_data``)."""
 from __future__ import annotations
 
 import matplotlib
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from .style import COLUMN, corner_note, style
 
@@ -35,7 +35,8 @@ def multiplier_plane(data: dict, *, title: str = ""):
     cases = data["cases"]
     d2 = data["delta_zero_sq"]
     with style():
-        fig, ax = plt.subplots(figsize=(COLUMN, 3.0))
+        fig = Figure(figsize=(COLUMN, 3.0))
+        ax = fig.subplots()
         th = np.linspace(0, 2 * np.pi, 361)
         ax.plot(np.cos(th), np.sin(th), color="0.5", lw=0.7, label="unit circle")
         ax.plot([d2], [0.0], marker="x", ms=6, color="firebrick", ls="none",
@@ -82,7 +83,8 @@ def spectral_radius(data: dict, *, title: str = ""):
     cases = data["cases"]
     d2 = data["delta_zero_sq"]
     with style():
-        fig, ax = plt.subplots(figsize=(COLUMN, 3.1))
+        fig = Figure(figsize=(COLUMN, 3.1))
+        ax = fig.subplots()
         vals = np.array([c["value"] for c in cases], float)
         seen = set()
         for c, v in zip(cases, vals):

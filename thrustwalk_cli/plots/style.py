@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import io
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib.pyplot as plt
+import matplotlib.style
 import numpy as np
 
 STYLE = Path(__file__).with_name("thrustwalk.mplstyle")
@@ -27,13 +28,17 @@ def render(fig, fmt: str, creator: str = "thrustwalk") -> bytes:
 
 
 def close(fig) -> None:
-    """Release a figure once it has been saved."""
-    plt.close(fig)
+    """Release a figure once it has been saved. The figures of this package are plain
+    :class:`matplotlib.figure.Figure` objects that pyplot never holds (freed with their last
+    reference); only a figure made through pyplot elsewhere needs pyplot to let it go."""
+    pyplot = sys.modules.get("matplotlib.pyplot")
+    if pyplot is not None:
+        pyplot.close(fig)
 
 
 def style():
     """Context manager applying the package style."""
-    return plt.style.context(str(STYLE))
+    return matplotlib.style.context(str(STYLE))
 
 
 def corner_note(ax, text: str) -> None:

@@ -6,8 +6,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import matplotlib
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from .style import COLUMN, PAGE, corner_note, style
 
@@ -29,7 +29,8 @@ def heat_map(xs: Sequence[float], ys: Sequence[float], values: Sequence[float | 
     c = np.array([np.nan if v is None else float(v) for v in values], float)
     ok = np.isfinite(c)
     with style():
-        fig, ax = plt.subplots(figsize=(COLUMN, 2.7))
+        fig = Figure(figsize=(COLUMN, 2.7))
+        ax = fig.subplots()
         cmap = matplotlib.colormaps["viridis"]
         lo, hi = (np.nanmin(c), np.nanmax(c)) if ok.any() else (0.0, 1.0)
         norm = matplotlib.colors.Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1.0)
@@ -64,7 +65,8 @@ def atlas(data: dict, title: str = ""):
     series = data["series"]
     keys = sorted(series, key=lambda k: (k is None, k))
     with style():
-        fig, axs = plt.subplots(2, (len(panels) + 1) // 2, figsize=(PAGE, 4.0), sharex=True)
+        fig = Figure(figsize=(PAGE, 4.0))
+        axs = fig.subplots(2, (len(panels) + 1) // 2, sharex=True)
         axs = np.atleast_1d(axs).ravel()
         cmap = matplotlib.colormaps["viridis"]
         for ax, (key, label) in zip(axs, panels):

@@ -22,8 +22,8 @@ from ..hzd.constraints import apply_invariance
 from ..hzd.zero_dynamics import limit_cycles, zero_dynamics
 from ..model.compiled import CompiledModel
 from ..thrust.schedule import Schedule
-from ..walker import Walker, check_walker
-from .documents import SCHEMA_VERSION, result_repr, units
+from ..walker import Walker, as_model, check_walker
+from .documents import SCHEMA_VERSION, Table, col, result_repr, units
 
 
 # ------------------------------------------------------------------------------ records
@@ -254,6 +254,20 @@ class DesignGaitResult:
             head.append(f"Every margin and the fixed point: {report_name}.")
         return gait_yaml(self.design, self.model, robot_ref, head)
 
+    def tables(self) -> dict[str, Table]:
+        """``NAME.starts``: one row per solver start (its status, SLSQP exit code, objective
+        and largest constraint violation in the objective's unit and the constraints' SI
+        units, iterations, evaluations, wall time [s]); the same values as the report's
+        ``starts`` (no number is NaN: a start without a value leaves the cell empty). The
+        command writes the report and the gait, not this table."""
+        head = ["start", "status", "slsqp_code", "objective", "max_violation", "iterations",
+                "evaluations", col("seconds", "s")]
+        rows = [[t.index, t.status, t.code, _num(t.objective), _num(t.max_violation),
+                 t.iterations, t.evaluations, t.seconds] for t in self.design.starts]
+        return {f"{self.design.gait.name}.starts": Table(
+            head, rows, [f"solver starts of the design of {self.design.gait.name} "
+                         f"({self.design.spec.objective} objective)"])}
+
     def stick_frames(self, instants: int = 10, path_points: int = 201) -> dict:
         """:func:`stick_frames` of the designed gait."""
         return stick_frames(self.model, self.design.gait, instants, path_points)
@@ -308,14 +322,18 @@ def stick_frames(model: CompiledModel, gait: Gait, instants: int = 10,
             "link_names": list(model.robot.link_names)}
 
 
-def design_gait(robot: CompiledModel, spec: DesignSpec, *, compare: Walker | None = None,
+def design_gait(robot: Robot | CompiledModel | Walker, spec: DesignSpec, *,
+                compare: Walker | None = None,
                 progress: Callable[[int, int, str], None] | None = None,
                 initial: WarmStart | None = None) -> DesignGaitResult:
-    """Design a gait for the compiled robot ``robot`` (:func:`solve_design`, SPEC 2, 3, 5) and
-    optionally evaluate an existing gait (``compare``) with the same objective and
-    constraints. ``progress(done, total, message)`` after every solver start. ``initial``: a
-    finished neighbouring design to start from (continuation; replaces the default start)."""
-    check_instance("robot", robot, CompiledModel, "a CompiledModel (tw.compile_robot)")
+    """Design a gait for ``robot`` (:func:`solve_design`, SPEC 2, 3, 5) and optionally
+    evaluate an existing gait (``compare``) with the same objective and constraints.
+    ``robot``: a :class:`Robot` (compiled by :func:`load_model`, cached by structure), its
+    :class:`CompiledModel`, or a :class:`Walker` (its robot; its gait is not a start: pass it
+    as ``compare`` to evaluate it). ``progress(done, total, message)`` after every solver
+    start. ``initial``: a finished neighbouring design to start from (continuation; replaces
+    the default start)."""
+    robot = as_model(robot, "robot")
     check_instance("spec", spec, DesignSpec, "a DesignSpec (tw.DesignSpec(speed=...))")
     if compare is not None:
         check_walker(compare, "compare")

@@ -3,11 +3,70 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from typing import Any
 
-from ..errors import InputError, check_instance, check_numbers
+from ..errors import InputError, check_numbers
 from ..model.compiled import CompiledModel
-from .documents import SCHEMA_VERSION, units
+from ..walker import as_model
+from .documents import SCHEMA_VERSION, Table, units
+
+
+class InspectResult(Mapping):
+    """The dynamics at one state (SPEC 1, 5), as the other results: ``document()`` (the JSON
+    body the ``inspect`` command writes), ``tables()`` and ``figures()`` (none: the command
+    writes no CSV table and no figure), ``success``/``reason``; every key of the document is
+    also an attribute (``res.D`` [kg m^2], ``res.C_dq`` [N m], ``res.G`` [N m], ``res.B_F``
+    [m], ``res.swing_foot`` [m], ``res.impact`` with ``dq``, ...) and an item (``res["D"]``:
+    the result is a read-only mapping, as the dict it replaces)."""
+
+    name = "inspect"
+    success = True
+    reason = "the model evaluated at the state"
+
+    def __init__(self, model: CompiledModel, doc: dict) -> None:
+        self.model = model
+        self._doc = doc
+
+    def __getitem__(self, key: str) -> Any:
+        return self._doc[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._doc)
+
+    def __len__(self) -> int:
+        return len(self._doc)
+
+    def __getattr__(self, key: str) -> Any:
+        doc = self.__dict__.get("_doc")
+        if doc is not None and key in doc:
+            return doc[key]
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {key!r}")
+
+    def __dir__(self) -> list[str]:
+        return sorted(set(super().__dir__()) | set(self._doc))
+
+    def __repr__(self) -> str:
+        return (f"InspectResult(robot={self.model.robot.name!r}, q={self._doc['q']!r}, "
+                f"keys={list(self._doc)!r})")
+
+    @property
+    def warnings(self) -> list[str]:
+        """Angles beyond +-pi (likely degrees given for radians)."""
+        return self._doc["warnings"]
+
+    def document(self) -> dict:
+        """The JSON body of the ``inspect`` command's ``--json`` file (a copy; provenance is
+        added by the command)."""
+        return dict(self._doc)
+
+    def tables(self) -> dict[str, Table]:
+        """No CSV table (the command writes the JSON document only)."""
+        return {}
+
+    def figures(self, titles: bool = False) -> dict:
+        """No figure."""
+        return {}
 
 
 def _vector(value: str | Sequence[float], param: str, n: int, names: list[str]) -> list[float]:
@@ -31,11 +90,14 @@ def _vector(value: str | Sequence[float], param: str, n: int, names: list[str]) 
 
 def inspect_state(model: CompiledModel, q: str | Sequence[float],
                   dq: str | Sequence[float] | None = None,
-                  thrust: str | Sequence[float] | None = None) -> dict:
+                  thrust: str | Sequence[float] | None = None) -> InspectResult:
     """D [kg m^2], C q' [N m], G [N m], B_F [m], the swing foot [m] at ``q`` [rad] and, with
     ``dq`` [rad/s], the impact map; with ``thrust`` [N] per thruster, ``B_F F_T`` (keys fixed
-    by the robot-model issue)."""
-    check_instance("model", model, CompiledModel, "a CompiledModel (tw.load_model)")
+    by the robot-model issue), as an :class:`InspectResult`. ``model``: a
+    :class:`CompiledModel`, a :class:`~thrustwalk_cli.description.robot.Robot` (compiled by
+    :func:`~thrustwalk_cli.model.compiler.load_model`) or a walker (its model:
+    :func:`~thrustwalk_cli.walker.as_model`)."""
+    model = as_model(model, "model")
     names = model.robot.coordinate_names
     if thrust is not None and not model.robot.thrusters:
         raise InputError.param("thrust", f"robot {model.robot.name} has no thruster: there is "
@@ -56,4 +118,5 @@ def inspect_state(model: CompiledModel, q: str | Sequence[float],
                                              f"of thruster {t.name}")
     doc.update(model.evaluate_state(
         qv, None if dq is None else _vector(dq, "dq", model.n, names), F))
-    return doc
+    return InspectResult(model, doc)
+

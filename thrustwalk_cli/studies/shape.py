@@ -1,8 +1,9 @@
 """The ``shape`` study: center-manifold shaping with piecewise-constant thrust (SPEC 4).
 
-One request (a pattern sweep, a target, or the gait's schedule) -> nominal and shaped limit
-cycles, the shifts (true and the paper's one-step value, SPEC 4 erratum), vector fields, and
-the records rendered from them. The mathematics lives in :mod:`thrustwalk_cli.hzd.shaping`.
+One family of schedules (a pattern sweep, a target, or the gait's schedule; the keyword
+arguments of :func:`shape`) -> nominal and shaped limit cycles, the shifts (true and the
+paper's one-step value, SPEC 4 erratum), vector fields, and the records rendered from them.
+The mathematics lives in :mod:`thrustwalk_cli.hzd.shaping`.
 """
 
 from __future__ import annotations
@@ -76,7 +77,9 @@ def pattern_values(text: str, intervals: int, ks: Sequence[float],
 
 @dataclass(frozen=True)
 class ShapeRequest:
-    """Options of ``thrustwalk shape`` as plain values (validated by :func:`shape_study`).
+    """Options of ``thrustwalk shape`` as plain values, validated on creation (the keyword
+    arguments of :func:`shape`; ``ks`` is its ``k``). Passing one to :func:`shape` as ``req``
+    is deprecated (one release): give the keywords.
 
     knots: fractions of the step (or alpha [rad] with ``alpha_knots``), ``None`` = free;
     ks: swept pattern values; field_k: pattern value of the vector-field figure;
@@ -114,12 +117,17 @@ class ShapeRequest:
         check_number("target_zeta", self.target_zeta, optional=True)
         check_number("target_speed", self.target_speed, optional=True)
 
+    def keywords(self) -> dict:
+        """The request as the keyword arguments of :func:`shape` (``ks`` is ``k``)."""
+        return {("k" if f == "ks" else f): getattr(self, f)
+                for f in self.__dataclass_fields__}
+
 
 MAX_KNOTS = 256  # knot intervals of a shaped schedule (as in a gait file)
 
 
 @dataclass(frozen=True)
-class ShapeStudy:
+class ShapeResult:
     """Nominal and shaped limit cycles for one family of piecewise schedules (SPEC 4).
 
     source: ``"pattern"`` (T_j or F_j = pattern(j, k) for each k), ``"gait"`` (the gait file's
@@ -296,19 +304,55 @@ def schedule_count(walker: Walker, req: ShapeRequest) -> int:
     return 1
 
 
-def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
-          progress: Callable[[int], None] | None = None, max_output: float = 100e6
-          ) -> ShapeStudy:
+def shape(walker: Walker, *deprecated_req: ShapeRequest,
+          knots: Sequence[float | None] | None = None, alpha_knots: bool = False,
+          n_knots: int = 4, pattern: str | None = None, k: Sequence[float] | None = None,
+          field_k: float | None = None, mode: str | None = None, thruster: str | None = None,
+          target_zeta: float | None = None, target_speed: float | None = None,
+          progress: Callable[[int], None] | None = None, max_output: float = 100e6,
+          **deprecated: ShapeRequest) -> ShapeResult:
     """Shape the limit cycle of ``walker`` (SPEC 4): resolve the schedule family, solve knots or
-    targets, compute nominal and shaped limit cycles and the shifts. ``progress(n)`` is called
-    as schedules finish. Problems in the gait's ``thrust:`` section are located in the gait
-    file. Raises :class:`InputError` for bad parameters; solver failures come back as
-    ``success = False`` with a reason. ``max_output`` [bytes]: a sweep whose CSV table would
-    be larger is refused before any work."""
+    targets, compute nominal and shaped limit cycles and the shifts.
+
+    The family, one of: a ``pattern`` in ``j`` (interval 1..n-1) and ``k`` (default the
+    paper's ``k*(j-2)``), swept over the values ``k`` (default 0, 2, ..., 50), on ``knots``
+    (fractions of the step, or alpha [rad] with ``alpha_knots``; ``None`` = a free knot solved
+    so that the fixed point is unchanged; default ``n_knots`` knots, the interior ones free),
+    ``field_k`` the value of the vector-field figure; the minimum-norm values reaching
+    ``target_zeta`` [kg^2 m^4/s^2] or ``target_speed`` [m/s]; or, with none of these, the gait
+    file's ``thrust:`` section. ``mode``: ``generalized`` (T_j [N m] on q_N) or ``force``
+    (F_j [N] of ``thruster``).
+    ``progress(n)`` is called as schedules finish. Problems in the gait's ``thrust:`` section
+    are located in the gait file. Raises :class:`InputError` for bad parameters; solver
+    failures come back as ``success = False`` with a reason. ``max_output`` [bytes]: a sweep
+    whose CSV table would be larger is refused before any work. ``req`` (a
+    :class:`ShapeRequest`, positional or keyword) is deprecated: give the keywords."""
+    import warnings
+
     from .limit_cycle import ORBIT_SAMPLES, ROW_BYTES
 
     check_walker(walker)
-    check_instance("req", req, ShapeRequest, "a ShapeRequest")
+    unknown = sorted(set(deprecated) - {"req"})
+    if unknown:
+        raise InputError.param(unknown[0], "not a parameter of shape")
+    if len(deprecated_req) + len(deprecated) > 1:
+        raise InputError.param("req", "one ShapeRequest at most (deprecated: give keywords)")
+    req = deprecated.get("req", deprecated_req[0] if deprecated_req else None)
+    given = dict(knots=knots, alpha_knots=alpha_knots, n_knots=n_knots, pattern=pattern,
+                 ks=k, field_k=field_k, mode=mode, thruster=thruster,
+                 target_zeta=target_zeta, target_speed=target_speed)
+    if req is not None:
+        warnings.warn("shape(walker, req=ShapeRequest(...)) is deprecated: pass its fields as "
+                      "keywords, shape(walker, pattern=..., k=[...], ...) (ks is k)",
+                      DeprecationWarning, stacklevel=2)
+        check_instance("req", req, ShapeRequest, "a ShapeRequest")
+        if any(v is not None for f, v in given.items() if f not in ("alpha_knots", "n_knots")
+               ) or alpha_knots is not False or n_knots != 4:
+            raise InputError.param("req", "give either a ShapeRequest or keywords, not both")
+    else:
+        req = ShapeRequest(**{f: tuple(v) if f in ("knots", "ks") and v is not None
+                              and not isinstance(v, (str, bytes)) and hasattr(v, "__iter__")
+                              else v for f, v in given.items()})
     check_callable("progress", progress)
     max_output = check_number("max_output", max_output, gt=0, largest=1e15)
     n = len(req.ks) if req.ks is not None else 1
@@ -347,7 +391,7 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
             if not ksol.success:
                 knots = knots_alpha(zd, np.array([0.0 if v is None else v for v in fr]))
                 nominal = zd.nominal_cycle(knots)
-                return ShapeStudy(walker, False, ksol.reason, source, mode, th, pattern, nominal,
+                return ShapeResult(walker, False, ksol.reason, source, mode, th, pattern, nominal,
                                   knot_solution=ksol)
             fr = list(ksol.fractions)
         knots = knots_alpha(zd, np.array(fr, float))
@@ -364,14 +408,14 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
         ksol, labels, values, P_field = None, ("minimum-norm",), None, None
         if not target.success:
             nominal = zd.nominal_cycle(knots)
-            return ShapeStudy(walker, False, target.reason, source, mode, th, None, nominal,
+            return ShapeResult(walker, False, target.reason, source, mode, th, None, nominal,
                               target=target)
         sched = Schedule.piecewise(knots, target.values[None, :], mode, m, th)
         try:
             sched.check_limits(zd.model.robot, "the minimum-norm thrust", ())
         except InputError as exc:
             nominal = zd.nominal_cycle(knots)
-            return ShapeStudy(walker, False, f"the target needs more thrust than the thruster "
+            return ShapeResult(walker, False, f"the target needs more thrust than the thruster "
                               f"gives: {exc}", source, mode, th, None, nominal, target=target)
     else:
         pattern = None
@@ -396,7 +440,7 @@ def shape(walker: Walker, req: ShapeRequest = ShapeRequest(),
         success, reason = False, f"shaped limit cycles computed, but {walker.warnings[0]}"
     else:
         success, reason = True, "a stable shaped limit cycle for every schedule"
-    return ShapeStudy(walker, success, reason, source, mode, th, pattern,
+    return ShapeResult(walker, success, reason, source, mode, th, pattern,
                       nominal, labels, values, ksol, target, intervals(zd, knots), sched, cycles,
                       one_step, zd.fixed_point_of(one_step), flabel, fsched, fcycle,
                       base)
@@ -442,7 +486,7 @@ def _cycle_summary(lc: LimitCycle) -> dict:
             "min_abs_alpha_dot": lc.min_abs_alpha_dot, "alpha_at_min": lc.alpha_at_min}
 
 
-def _values(zd: ZeroDynamics, study: ShapeStudy, sched: Schedule, i: int) -> dict:
+def _values(zd: ZeroDynamics, study: ShapeResult, sched: Schedule, i: int) -> dict:
     if study.mode == "generalized":
         return {"T_j": sched.generalized[i].tolist()}
     names = zd.model.robot.thruster_names
@@ -452,7 +496,7 @@ def _values(zd: ZeroDynamics, study: ShapeStudy, sched: Schedule, i: int) -> dic
     return {"F_j": {names[t]: sched.force[i, :, t].tolist() for t in used}}
 
 
-def shape_records(zd: ZeroDynamics, study: ShapeStudy) -> tuple[dict, Table]:
+def shape_records(zd: ZeroDynamics, study: ShapeResult) -> tuple[dict, Table]:
     """JSON document body and CSV rows (orbits) of a study (keys fixed by the shaping issue)."""
     r = zd.model.robot
     nom = study.nominal
@@ -571,7 +615,7 @@ def field_range(orbits: Sequence[LimitCycle], key: str) -> tuple[float, float]:
     return (lo, hi) if hi > lo else (lo - 1.0, hi + 1.0)
 
 
-def study_fields(zd: ZeroDynamics, study: ShapeStudy) -> dict[str, tuple[VectorField, ...]]:
+def study_fields(zd: ZeroDynamics, study: ShapeResult) -> dict[str, tuple[VectorField, ...]]:
     """Nominal and shaped vector fields in both planes, sized to hold both limit cycles."""
     out = {}
     nom_s = _around(Schedule.zero(study.field_schedule.knots, zd.model.n_thrusters),

@@ -22,6 +22,7 @@ from ..errors import (
     check_choice,
     check_count,
     check_flag,
+    check_instance,
     check_number,
     check_numbers,
     check_text,
@@ -490,18 +491,24 @@ def default_f_ss(walker: Walker) -> tuple[float, ...]:
     return (0.0, -10.0, -20.0, -30.0, -40.0, -50.0) if walker.robot.thrusters else (0.0,)
 
 
+# the defaults of simulate's settings that a SimConfig replaces
+_SIM_DEFAULTS = dict(steps=30, rtol=1e-9, atol=1e-9, method="compiled", integrator="DOP853",
+                     samples=80, torque_limit=None, scuff_tol=1e-4, min_impact_s=0.75)
+
+
 def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None,
              thrust: Sequence[float] | None = None, wn: float = 2.0, xi: float = 1.0,
              tau: float = 0.5, f0: float = 0.0, thruster: Sequence[str] | None = None,
              perturb: float = 0.0, zeta0: float | None = None,
              q0: Sequence[float] | None = None, dq0: Sequence[float] | None = None,
-             start: str = "predicted", torque_limit: float | None = None, rtol: float = 1e-9,
+             start: str | Start = "predicted", torque_limit: float | None = None,
+             rtol: float = 1e-9,
              atol: float = 1e-9, method: str = "compiled", integrator: str = "DOP853",
              samples: int = 80,
              scuff_tol: float = 1e-4, min_impact_s: float = 0.75, impact_s_tol: float = 1e-3,
              zeta_tol: float = 1e-3, reduced: bool = False, mu: float | None = None,
-             progress: Callable[[int], None] | None = None, check_only: bool = False
-             ) -> SimulationResult | None:
+             progress: Callable[[int], None] | None = None, check_only: bool = False,
+             config: SimConfig | None = None) -> SimulationResult | None:
     """Simulate ``steps`` steps of the full-order closed loop (SPEC 7) for each steady thrust
     ``thrust`` [N] (default 0 to -50 N in steps of 10, only 0 for a robot without thrusters;
     not with ``thrust_model="piecewise"``, which uses the gait's ``thrust:`` section) on
@@ -528,6 +535,11 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
     more than ``zeta_tol`` (relative), gets status ``warning`` with the reason.
     ``check_only``: check every argument, compute nothing and return None (a command checks
     its options before it compiles the simulation kernel).
+    Built once, reused: ``start`` may be a :class:`Start` (``tw.Start``; then ``zeta0``,
+    ``perturb``, ``q0``, ``dq0`` stay unset) and ``config`` a :class:`SimConfig`
+    (``tw.SimConfig``: it replaces ``steps``, ``rtol``, ``atol``, ``method``, ``integrator``,
+    ``samples``, ``torque_limit``, ``scuff_tol``, ``min_impact_s``, which then stay at their
+    defaults).
     """
     check_walker(walker)
     steps = check_count("steps", steps, le=MAX_STEPS)
@@ -541,7 +553,22 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
     zeta0 = check_number("zeta0", zeta0, gt=0, optional=True, unit="kg^2 m^4/s^2")
     q0 = check_numbers("q0", q0, optional=True)
     dq0 = check_numbers("dq0", dq0, optional=True)
-    check_choice("start", start, ("predicted", "nominal"))
+    if not isinstance(start, Start):
+        check_choice("start", start, ("predicted", "nominal"))
+    elif zeta0 is not None or perturb != 0.0 or q0 is not None or dq0 is not None:
+        raise InputError.param("start", "a Start holds the initial condition: leave `zeta0`, "
+                                        "`perturb`, `q0` and `dq0` unset")
+    check_instance("config", config, SimConfig, "a SimConfig (tw.SimConfig(steps=...))",
+                   optional=True)
+    if config is not None:
+        given = dict(steps=steps, rtol=rtol, atol=atol, method=method, integrator=integrator,
+                     samples=samples, torque_limit=torque_limit, scuff_tol=scuff_tol,
+                     min_impact_s=min_impact_s)
+        clash = [k for k, v in given.items() if v != _SIM_DEFAULTS[k]]
+        if clash:
+            raise InputError.param("config", f"a SimConfig holds the run's settings: leave "
+                                             f"{', '.join(f'`{k}`' for k in clash)} unset")
+        steps = check_count("steps", config.steps, le=MAX_STEPS)
     torque_limit = check_number("torque_limit", torque_limit, gt=0, optional=True, unit="N m")
     rtol = check_number("rtol", rtol, gt=0, lt=0.1)
     atol = check_number("atol", atol, gt=0, lt=0.1)
@@ -572,13 +599,16 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
                                f"{runs} runs x {steps} steps = {runs * steps} steps, above the "
                                f"limit of {MAX_TOTAL_STEPS} per command: simulate fewer values "
                                f"or fewer steps")
-    st = Start(zeta_minus=zeta0, perturb=perturb, q=None if q0 is None else list(q0),
-               dq=None if dq0 is None else list(dq0), orbit=start)
+    st = start if isinstance(start, Start) else Start(
+        zeta_minus=zeta0, perturb=perturb, q=None if q0 is None else list(q0),
+        dq=None if dq0 is None else list(dq0), orbit=start)
     if method in METHODS:  # a solve_ivp name: the SciPy reference with that integrator
         method, integrator = "scipy", method
-    config = SimConfig(steps=steps, rtol=rtol, atol=atol, method=method, integrator=integrator,
-                       samples_per_step=samples, torque_limit=torque_limit, scuff_tol=scuff_tol,
-                       min_impact_s=min_impact_s)
+    if config is None:
+        config = SimConfig(steps=steps, rtol=rtol, atol=atol, method=method,
+                           integrator=integrator, samples_per_step=samples,
+                           torque_limit=torque_limit, scuff_tol=scuff_tol,
+                           min_impact_s=min_impact_s)
     zd = walker.zd
     schedule = None
     if thrust_model == "piecewise":

@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError, check_choice
+from ..errors import InputError, check_choice, check_count, check_number
 
 
 @dataclass(frozen=True, eq=False)
@@ -403,3 +403,28 @@ def make(kind: str, m: int, **values: float) -> ThrusterDynamics:
         raise InputError.param("thrust_model", f"unknown model {kind!r} (choose from "
                                                f"{', '.join(MODELS)})")
     return model.build(m, **{p: values[p] for p in model.params if p in values})
+
+
+UNITS = {"tau": "s", "wn": "rad/s", "xi": ""}  # the parameters of the models, > 0 each
+
+
+def thruster_dynamics(kind: str, m: int, **parameters: float) -> ThrusterDynamics:
+    """The public constructor (``tw.thruster_dynamics``): the dynamics of ``m`` thrusters of
+    model ``kind`` (``ideal``; ``first-order`` with ``tau`` [s]; ``second-order`` with ``wn``
+    [rad/s] and ``xi`` [1]; module docstring, SPEC 7, 13), every parameter of the model
+    given and > 0. :class:`InputError` naming ``thrust_model`` (an unknown model), ``m`` or
+    the parameter. ``.matrices()`` is the stacked (A, B, C, D) whose ``eig(expm(A T))`` are
+    the thrusters' Floquet multipliers over a step of duration T."""
+    name = check_model(kind)
+    m = check_count("m", m, ge=0, le=64)
+    model = MODELS[name]
+    for p in parameters:
+        if p not in model.params:
+            raise InputError.param(p, f"not a parameter of the {name} model (it takes "
+                                      f"{', '.join(model.params) or 'none'})")
+    values = {}
+    for p in model.params:
+        if p not in parameters:
+            raise InputError.param(p, f"required by the {name} model")
+        values[p] = check_number(p, parameters[p], gt=0, largest=1e6, unit=UNITS.get(p, ""))
+    return model.build(m, **values)
