@@ -351,3 +351,15 @@ def test_checker_fires_on_each_rule(tmp_path, files, expected):
         assert bad == []
     else:
         assert any(expected in b for b in bad), bad
+
+
+def test_no_study_imports_another_studys_private_names():
+    """Studies share code through public names only (issue 25: a private name imported from
+    another study module is a second core hiding in the study layer)."""
+    found = []
+    for path in sorted((PACKAGE / "studies").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module:
+                found += [f"{path.name}: from .{node.module} import {a.name}"
+                          for a in node.names if a.name.startswith("_")]
+    assert not found, "\n".join(found)

@@ -67,7 +67,7 @@ from ..sweep.runner import RunCounts, run_tasks
 from ..sweep.tasks import PointTask, identity, task_key
 from ..walker import Walker, check_walker
 from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
-from .sweep_studies import STUDIES, _realized, run_point, trial_chunk
+from .sweep_studies import STUDIES, realized_strategy, run_point, trial_chunk
 
 UNITS = units("impulse", "zeta", "speed", "force", "friction_ratio", "sigma_N", "output_rate",
               "output_y", "step_time", "delta_zero_sq", "alpha", phase="1", duration="s")
@@ -284,19 +284,19 @@ def plan_robustness(walker: Walker, *, push_impulse: Sequence[float] | None = No
               "rtol": float(rtol), "atol": float(atol)}
     # the strategies made concrete here: every problem before any trial (and the basins)
     realized, warnings = [], []
-    from .sweep_studies import _check_strategy, _trial_setup
+    from .sweep_studies import check_strategy, trial_setup
 
     try:
-        _trial_setup(walker, {**_defaults("push-trial"), **common})
+        trial_setup(walker, {**_defaults("push-trial"), **common})
     except InputError as exc:
         raise InputError([InputError.param(RENAMED.get(pr.params[0], pr.params[0]),
                                            pr.message).problems[0]
                           for pr in exc.problems]) from None
     for s in strategies:
         p = {**_defaults("push-trial"), **common, **s.parameters()}
-        for name, msg in _check_strategy(walker, p):
+        for name, msg in check_strategy(walker, p):
             raise InputError.param(RENAMED.get(name, name), f"{s.label}: {msg}")
-        real, _ = _realized(walker, p)
+        real, _ = realized_strategy(walker, p)
         realized.append(real)
         warnings += [f"{s.label}: {n}" for n in real.notes]
         if real.zeta_ref is None:

@@ -440,7 +440,7 @@ def _nominal(walker: Walker, p: Mapping) -> Walker:
     return walker if make is None else make()
 
 
-def _realized(walker: Walker, p: Mapping, points: int = 401):
+def realized_strategy(walker: Walker, p: Mapping, points: int = 401):
     """The point's strategy made concrete for its walker (kept per process: the trials of a
     strategy share it)."""
     from ..resilience.strategy import from_parameters, realize
@@ -456,7 +456,7 @@ def _realized(walker: Walker, p: Mapping, points: int = 401):
     return r[2], mu
 
 
-def _trial_setup(walker: Walker, p: Mapping):
+def trial_setup(walker: Walker, p: Mapping):
     """The push point and the index of the transverse output of a push-trial point."""
     from ..resilience.push import push_point
 
@@ -475,11 +475,11 @@ def _trial_runner(walker: Walker, p: Mapping):
     """The trial runner of the point's strategy and settings (kept per process)."""
     from ..resilience.trials import TrialRunner
 
-    real, mu = _realized(walker, p)
+    real, mu = realized_strategy(walker, p)
     key = ("runner", id(walker), canonical({k: p.get(k) for k in _RUNNER_KEYS}))
 
     def make():
-        point, transverse = _trial_setup(walker, p)
+        point, transverse = trial_setup(walker, p)
         run = TrialRunner(walker.zd, real, point, steps=int(p["steps"]), mu=mu,
                           eps=float(p["min_vertical_force"]),
                           recovery_tol=float(p["recovery_tol"]),
@@ -532,13 +532,13 @@ def _push_trial_point(walker: Walker, p: dict, start: dict | None) -> PointResul
 
 
 def _check_push_trial(walker: Walker, p: dict) -> list[tuple[str, str]]:
-    out = _check_strategy(walker, p)
+    out = check_strategy(walker, p)
     try:
         walker.robot.check_push("push_impulse", float(p["push_impulse"]))
     except InputError as exc:
         out.append(("push_impulse", exc.problems[0].message))
     try:
-        _trial_setup(walker, p)
+        trial_setup(walker, p)
     except InputError as exc:
         out += [(pr.params[0], pr.message) for pr in exc.problems]
     if float(p["push_impulse"]) != 0.0 and (float(p["start_sigma"]) != 0.0
@@ -548,7 +548,7 @@ def _check_push_trial(walker: Walker, p: dict) -> list[tuple[str, str]]:
     return out
 
 
-def _check_strategy(walker: Walker, p: dict) -> list[tuple[str, str]]:
+def check_strategy(walker: Walker, p: dict) -> list[tuple[str, str]]:
     """The strategy's own problems (thruster, thrust limits, schedule, knots), found before
     any point runs."""
     try:
@@ -557,7 +557,7 @@ def _check_strategy(walker: Walker, p: dict) -> list[tuple[str, str]]:
             if robot.thrusters:
                 robot.check_thrust_bound("max_thrust", float(p["max_thrust"]),
                                          [robot.thruster_index(p.get("thruster"))])
-        _realized(walker, p)
+        realized_strategy(walker, p)
     except InputError as exc:
         return [(pr.params[0] if pr.params else "strategy", pr.message) for pr in exc.problems]
     return []
@@ -585,7 +585,7 @@ def _reduced_walk_point(walker: Walker, p: dict, start: dict | None) -> PointRes
     eps = float(p["min_vertical_force"])
     if s.kind == "control":
         model = _nominal(walker, p)
-        real, _ = _realized(model, {**p, "_nominal": None}, int(p["points"]))
+        real, _ = realized_strategy(model, {**p, "_nominal": None}, int(p["points"]))
         res = controlled_sample(walker.zd, real.planner, real.zeta_ref, s.knots, real.driven,
                                 mu=mu, eps=eps)
     else:
@@ -613,7 +613,7 @@ STUDIES: dict[str, SweepStudy] = {
     "push-trial": SweepStudy("push-trial", _PT_FIELDS, _push_trial_point,
                              check=_check_push_trial, prepare=_prepare_trials),
     "reduced-walk": SweepStudy("reduced-walk", _RW_FIELDS, _reduced_walk_point,
-                               check=_check_strategy),
+                               check=check_strategy),
     "design-gait": SweepStudy("design-gait", _DG_FIELDS, _design_point, uses_gait=False,
                               check=_check_design, continuation=True),
 }
