@@ -396,9 +396,10 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
             phi = maps.Phi(alpha)  # (g, N)
             # the torques and the joint power per |d alpha|, as (k, joint, g)
             g = len(alpha)
-            u = (st.U0.T[None] + st.U1.T[None] * zeta[:, None, :]
-                 + (F @ st.U2.transpose(2, 1, 0).reshape(m, -1)).reshape(k, N - 1, g)
-                 + st.UT.T[None] * Tg[:, None, None])
+            u = st.U0.T[None] + st.U1.T[None] * zeta[:, None, :]
+            if m:  # + U2 F
+                u = u + (F @ st.U2.transpose(2, 1, 0).reshape(m, -1)).reshape(k, N - 1, g)
+            u = u + st.UT.T[None] * Tg[:, None, None]
             pj = u * (s * phi[:, :N - 1].T)[None]
             # thrust and generalised-mode power: thrust (k, m) times a function of alpha
             bt = s * np.einsum("gnm,gn->mg", model.B_F(maps.q_Z(alpha)), phi)  # (m, g)
