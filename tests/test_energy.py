@@ -347,3 +347,42 @@ def test_limit_cycle_without_energy(walker3):
     for c in d_on["cycles"]:
         del c["energy"]
     assert d_on == d_off
+
+
+def test_electrical_energy_with_a_lossy_gearbox(tmp_path, _cache_dir):
+    """Gearbox efficiency 0.8 (``P_m / eta`` motoring, ``P_m eta`` generating: a kink where
+    ``P_m`` changes sign): the clipped and the regenerated electrical energy against a dense
+    trapezoid of :func:`joint_electrical_power` with the torques of the pinned dynamics."""
+    from thrustwalk_cli.energy.orbit import orbit_energy
+    from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
+    from thrustwalk_cli.thrust.schedule import Schedule
+    from thrustwalk_cli.walker import load_walker
+
+    (tmp_path / "w.yaml").write_text(_robot_text().replace("gearbox_efficiency: 1",
+                                                           "gearbox_efficiency: 0.8"))
+    w = load_walker(str(tmp_path / "w.yaml"), str(DATA / "walker5_thrust.yaml"))
+    model, maps, zd = w.model, w.zd.maps, w.zd
+    N = model.n
+    sched = Schedule.on_thruster(zd, [0.0, -30.0], 0, 1)
+    cycles = limit_cycles(zd, sched)
+    clipped = orbit_energy(zd, sched, cycles)
+    regen = orbit_energy(zd, sched, cycles, regenerate=True)
+    motors = [c.motor for c in w.robot.coordinates if c.actuated]
+    a = np.linspace(zd.alpha_i, zd.alpha_f, 40001)
+    da = abs(a[1] - a[0])
+    for r, lc in enumerate(cycles):
+        F = sched.force[r, 0]
+        zeta = lc.zeta_plus + zd.V_Z(a, sched.take([r]))[0]
+        ad2 = 2 * zd.terms(a)["kappa1"] ** 2 * zeta
+        add = np.gradient(ad2 / 2, a, edge_order=2)
+        q, phi, dphi = maps.q_Z(a), maps.Phi(a), maps.dPhi(a)
+        adot = np.sqrt(ad2)
+        dq = phi * np.sign(lc.alpha_dot_plus) * adot[:, None]
+        ddq = phi * add[:, None] + dphi * ad2[:, None]
+        u = (np.einsum("gij,gj->gi", model.D(q), ddq) + model.h(q, dq)
+             - model.B_F(q) @ F)[:, :N - 1]
+        for j, mo in enumerate(motors):
+            pe = joint_electrical_power(u[:, j], dq[:, j], mo) / adot  # per |d alpha|
+            for f, e in ((np.maximum(pe, 0.0), clipped[r]), (pe, regen[r])):
+                ref = (f[1:] + f[:-1]).sum() * da / 2
+                assert e.joint_electrical[j] == pytest.approx(ref, rel=2e-6, abs=2e-6)

@@ -24,9 +24,16 @@ thrust's power ``F_k (B_F^T Phi)_k`` is the constant thrust times one function o
 knot interval: its kinks are those of that function, found once for the whole batch.
 
 Joint electrical power with a motor: ``P_m / eta_g`` (or ``P_m eta_g`` when negative) plus
-``R (u / (G k_t))^2`` (:mod:`.power`); negative electrical power is not recovered (clipped at
-0 per joint) unless ``regenerate``. Thrust input power from the thruster's model with the axial
-air speed ``V_k = sign(F_k) d_k . p_k'`` through the disk (momentum model).
+the Joule loss ``J = R (u / (G k_t))^2`` (:mod:`.power`); negative electrical power is not
+recovered (clipped at 0 per joint) unless ``regenerate``. The gearbox's factor jumps where
+``P_m`` changes sign (a kink a Chebyshev interpolant cannot follow), so the energy is written
+with smooth integrands only: ``P_el >= 0`` where ``P_m >= 0``, hence
+
+    int max(0, P_el) = (1/eta_g - eta_g) int max(0, P_m) + int max(0, eta_g P_m + J)
+    int P_el         = (1/eta_g - eta_g) int max(0, P_m) + eta_g int P_m + int J.
+
+Thrust input power from the thruster's model with the axial air speed ``V_k = sign(F_k) d_k .
+p_k'`` through the disk (momentum model).
 
 Cost of transport ``CoT = E / (m g d)`` (``d`` the step length along the ground):
 mechanical = (joints' positive work + thrusters' positive work on the walker) / (m g d), total =
@@ -46,7 +53,7 @@ from ..contact.terms import stance_terms
 from ..hzd.quadrature import _cc_weights, _dct_matrix, lobatto
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..thrust.schedule import Schedule
-from .power import input_power, joint_electrical_power, joule_power
+from .power import input_power, joule_power
 
 RTOL = 1e-10
 MAX_NODES = 1025
@@ -434,8 +441,9 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
         acc["tw"] += F * bt_i
         acc["gen"] += Tg * bg_i
         ab, po = _abs_and_positive(pj.reshape(-1, n), half)
+        po = po.reshape(k, N - 1)
         acc["abs"] += ab.reshape(k, N - 1)
-        acc["pos"] += po.reshape(k, N - 1)
+        acc["pos"] += po
         if m:  # int max(0, F b) = F int max(0, b) (F > 0), |F| int max(0, -b) (F < 0)
             b_abs, b_pos = _abs_and_positive(bt, half)
             acc["tpos"] += np.where(F > 0, F * b_pos, aF * (b_abs - b_pos))
@@ -443,19 +451,18 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
             tin_ok[:] = False
             continue
         acc["time"] += time_i
-        qdot = phi[:, :N - 1].T[None] * (s * adot)[:, None, :]  # (k, joint, g)
         el = [jj for jj, mo in enumerate(motors) if mo is not None]
-        pes = []
-        for jj in el:
-            mo = motors[jj]
-            pe = joint_electrical_power(u[:, jj], qdot[:, jj], mo) if mo.efficiency != 1 \
-                else u[:, jj] * qdot[:, jj] + joule_power(u[:, jj], mo)
-            pes.append(pe * inv)  # per |d alpha|
-        if pes:
-            pe = np.stack(pes, axis=1)  # (k, motors, g)
-            acc["el"][:, el] += (quad(pe)[0] if regenerate else
-                                 _abs_and_positive(pe.reshape(-1, n), half)[1]
-                                 .reshape(k, len(el)))
+        if el:  # SPEC 15 with the gearbox's kink at P_m = 0 taken out (module docstring)
+            eta = np.array([motors[jj].efficiency for jj in el])[None, :]
+            joule = np.stack([joule_power(u[:, jj], motors[jj]) for jj in el], axis=1)
+            joule = joule * inv[:, None, :]  # per |d alpha|
+            kink = (1.0 / eta - eta) * po[:, el]
+            if regenerate:
+                acc["el"][:, el] += kink + eta * work[:, el] + quad(joule)[0]
+            else:
+                g2 = eta[..., None] * pj[:, el] + joule
+                acc["el"][:, el] += kink + _abs_and_positive(g2.reshape(-1, n), half)[1] \
+                    .reshape(k, len(el))
         for kk, p in enumerate(powers):
             if p is None:
                 continue
