@@ -386,3 +386,57 @@ def test_electrical_energy_with_a_lossy_gearbox(tmp_path, _cache_dir):
             for f, e in ((np.maximum(pe, 0.0), clipped[r]), (pe, regen[r])):
                 ref = (f[1:] + f[:-1]).sum() * da / 2
                 assert e.joint_electrical[j] == pytest.approx(ref, rel=2e-6, abs=2e-6)
+
+
+@pytest.mark.slow
+def test_orbit_energies_equal_a_steady_full_order_run(tmp_path, _cache_dir):
+    """The zero-dynamics orbit's step energies equal those of a full-order run started on
+    that orbit (SPEC 15: to 1e-6), integrated along the run's dense solution: net joint and
+    thrust work by Gauss-Legendre, the kinked ones (positive, absolute, clipped electrical)
+    by a dense trapezoid, the rotor's input at the axial speed sign(F) d.p'; the impact loss
+    against the run's own energies before and after the impact."""
+    from thrustwalk_cli.energy.orbit import orbit_energy
+    from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
+    from thrustwalk_cli.simulation.closed_loop import SimConfig, ThrustModel
+    from thrustwalk_cli.simulation.full_order import simulate
+    from thrustwalk_cli.thrust.schedule import Schedule
+    from thrustwalk_cli.walker import load_walker
+
+    (tmp_path / "w.yaml").write_text(_robot_text().replace("gearbox_efficiency: 1",
+                                                           "gearbox_efficiency: 0.8"))
+    w = load_walker(str(tmp_path / "w.yaml"), str(DATA / "walker5_thrust.yaml"))
+    zd, model, N = w.zd, w.model, w.model.n
+    F = -20.0
+    sched = Schedule.on_thruster(zd, [F], 0, 1)
+    (e,) = orbit_energy(zd, sched, limit_cycles(zd, sched))
+    run = simulate(zd, ThrustModel("ideal", np.array([F])),
+                   SimConfig(steps=2, rtol=1e-12, atol=1e-12))
+    assert run.success, run.reason
+    segs = [s for s in run.segments if s.step == 2]
+    ta, tb = segs[0].t0, segs[-1].t1
+    assert tb - ta == pytest.approx(e.step_time, rel=1e-9)
+    x, wx = np.polynomial.legendre.leggauss(300)
+    d = run.sample(2, 0.5 * (tb - ta) * x + 0.5 * (ta + tb))
+    wx = 0.5 * (tb - ta) * wx
+    dp = np.einsum("gn,gnm->gm", d["dq"], model.B_F(d["q"]))  # d . p' [m/s]
+    assert np.allclose((d["u"] * d["dq"][:, :N - 1]).T @ wx, e.joint_work, rtol=1e-6,
+                       atol=1e-9)
+    assert np.allclose((d["F"] * dp).T @ wx, e.thrust_work, rtol=1e-6)
+    t = np.linspace(ta, tb, 40001)
+    d = run.sample(2, t)
+
+    def trap(f):
+        return ((f[1:] + f[:-1]) * np.diff(t).reshape((-1,) + (1,) * (f.ndim - 1))).sum(0) / 2
+    P = d["u"] * d["dq"][:, :N - 1]
+    assert np.allclose(trap(np.maximum(P, 0)), e.joint_positive_work, rtol=1e-6)
+    assert np.allclose(trap(np.abs(P)), e.joint_absolute_work, rtol=1e-6)
+    motors = [c.motor for c in w.robot.coordinates if c.actuated]
+    el = [trap(np.maximum(joint_electrical_power(d["u"][:, j], d["dq"][:, j], mo), 0))
+          for j, mo in enumerate(motors)]
+    assert np.allclose(el, e.joint_electrical, rtol=1e-6)
+    p = w.robot.thrusters[0].power
+    dp = np.einsum("gn,gnm->gm", d["dq"], model.B_F(d["q"]))[:, 0]
+    P_in = momentum_power(F, p.area, p.rho, p.figure_of_merit, p.efficiency, np.sign(F) * dp)
+    assert trap(P_in) == pytest.approx(e.thruster_input[0], rel=1e-6)
+    rec = run.steps[1]
+    assert rec.energy_minus - rec.energy_plus == pytest.approx(e.impact_loss, rel=1e-6)
