@@ -1,4 +1,5 @@
-"""Limit-cycle benchmark: 1,000 thrust values vs one (zeta* is affine in thrust).
+"""Limit-cycle benchmark: 1,000 thrust values vs one (zeta* is affine in thrust), and the cost
+of the energy on the orbit (limit-cycle with and without it, SPEC 15).
 
 Two quantities: the fixed point zeta* = V_Z(alpha_f)/(1 - delta_zero^2) (SPEC 4), the
 quantity of the issue's "a 1,000-value thrust sweep" line, and whole limit cycles (fixed
@@ -40,3 +41,18 @@ def main() -> None:
         report(f"{gait}: 1,000 whole limit cycles (ratio)", t_many, t_one)
         report(f"{gait}: precomputation + 1,000 whole cycles vs precomputation + one",
                t_zd + t_many, t_zd + t_one)
+
+    # the energy on the orbit (SPEC 15): limit-cycle with and without it, document included
+    from thrustwalk_cli.studies.limit_cycle import limit_cycle
+
+    walker = load_walker(None, "rabbit_walk")
+    thrust = np.arange(0, -40, -0.04)
+
+    def run(energy: bool) -> None:
+        limit_cycle(walker, thrust=thrust, energy=energy).document()
+    run(True)
+    t_off = median_time(lambda: run(False), repeat=5)
+    t_on = median_time(lambda: run(True), repeat=5)
+    report("rabbit_walk: limit-cycle, 1,000 thrusts, no energy (baseline)", t_off)
+    report("rabbit_walk: limit-cycle, 1,000 thrusts, with energy (ratio; target < 1.1)", t_on,
+           t_off)

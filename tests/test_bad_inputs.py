@@ -111,7 +111,7 @@ robot_case("thruster-frame", sub(ROBOT, "frame: world", "frame: body"), r"thrust
 robot_case("duplicate-link", sub(ROBOT, "name: swing_leg", "name: torso"), r"links\[2\]\.name")
 robot_case("two-roots", sub(ROBOT, "parent: stance_leg", "parent: null"), "links")
 robot_case("unknown-parent", sub(ROBOT, "parent: torso ", "parent: pelvis "), r"links\[2\]\.parent")
-robot_case("unknown-joint", sub(ROBOT, "joint: swing_leg}", "joint: tail}"),
+robot_case("unknown-joint", sub(ROBOT, "joint: swing_leg,", "joint: tail,"),
            r"coordinates\.actuated\[1\]\.joint")
 robot_case("unknown-foot-link", sub(ROBOT, "swing: {link: swing_leg", "swing: {link: tail"),
            r"feet\.swing\.link")

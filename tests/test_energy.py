@@ -241,3 +241,202 @@ def test_missing_models_are_said_not_zero(tmp_path, _cache_dir):
     assert rec["per_step"]["thruster_input"] == [None]
     assert any("no motor data" in m and "not computed" in m for m in rec["missing"])
     assert any("no power model for thruster back" in m for m in rec["missing"])
+
+
+# -------------------------------------------------------- the kinks of max(0, .) and |.|
+def _exact_abs_and_positive(f, F, roots, half):
+    """``int |f|`` and ``int max(0, f)`` over [-1, 1] (times ``half``) from the antiderivative
+    ``F`` and the known sign changes ``roots`` of ``f``."""
+    pts = np.concatenate([[-1.0], np.sort(roots), [1.0]])
+    seg = np.diff(F(pts))
+    return np.abs(seg).sum() * half, np.maximum(seg, 0.0).sum() * half
+
+
+def test_kinks_against_known_roots():
+    """Rows with known roots, against the exact piecewise integrals: two roots 0.01 apart
+    inside one gap of the nodes (about 0.05 wide there), a double root, an oscillating row,
+    a constant and a zero row."""
+    from numpy.polynomial import Polynomial
+
+    from thrustwalk_cli.energy.orbit import _abs_and_positive
+
+    n, half = 65, 0.7
+    x = -np.cos(np.pi * np.arange(n) / (n - 1))
+    cases = []
+    for roots, scale in (([-0.5, 0.30, 0.31], 3.0), ([0.2, 0.2, -0.7], -1.0),
+                         ([-0.93, 0.111, 0.1125, 0.9], 10.0)):
+        p = scale * Polynomial.fromroots(roots)
+        simple = [r for r in roots if roots.count(r) % 2 == 1]
+        cases.append((p(x), _exact_abs_and_positive(p, p.integ(lbnd=-1), simple, half)))
+    # sin(15 x) + 0.2: roots 15 x = -asin(0.2) + 2 pi k and pi + asin(0.2) + 2 pi k
+    a0 = math.asin(0.2)
+    r = [(c + 2 * math.pi * k) / 15 for k in range(-4, 5) for c in (-a0, math.pi + a0)]
+    r = [v for v in r if -1 < v < 1]
+    cases.append((np.sin(15 * x) + 0.2, _exact_abs_and_positive(
+        None, lambda t: -np.cos(15 * t) / 15 + 0.2 * t, r, half)))
+    cases.append((np.full(n, -2.5), (5.0 * half, 0.0)))
+    cases.append((np.zeros(n), (0.0, 0.0)))
+    ab, po = _abs_and_positive(np.array([c[0] for c in cases]), half)
+    for (_, (ea, ep)), a, p in zip(cases, ab, po):
+        assert a == pytest.approx(ea, rel=1e-12, abs=1e-15)
+        assert p == pytest.approx(ep, rel=1e-12, abs=1e-15)
+
+
+def _brute_abs_and_positive(values, half, grid=100001):
+    """``int |p|`` and ``int max(0, p)`` of each row's Chebyshev interpolant, independently:
+    sign changes on a uniform grid of ``grid`` points, bisected to rounding, the
+    antiderivative (numpy's ``chebint``) between them."""
+    from numpy.polynomial import chebyshev as C
+
+    n = values.shape[1]
+    x = -np.cos(np.pi * np.arange(n) / (n - 1))
+    t = np.linspace(-1.0, 1.0, grid)
+    out = []
+    for row in values:
+        c = C.chebfit(x, row, n - 1)
+        f = C.chebval(t, c)
+        i = np.flatnonzero((f[1:] >= 0) != (f[:-1] >= 0))
+        a, b, fa = t[i], t[i + 1], f[i]
+        for _ in range(60):
+            m = 0.5 * (a + b)
+            fm = C.chebval(m, c)
+            left = (fm >= 0) != (fa >= 0)
+            a, b, fa = np.where(left, a, m), np.where(left, m, b), np.where(left, fa, fm)
+        seg = np.diff(C.chebval(np.concatenate([[-1.0], 0.5 * (a + b), [1.0]]),
+                                C.chebint(c, lbnd=-1)))
+        out.append((np.abs(seg).sum() * half, np.maximum(seg, 0.0).sum() * half))
+    return np.array(out).T
+
+
+def test_orbit_kinks_against_brute_force(tmp_path, monkeypatch, _cache_dir):
+    """The joint and electrical powers of walker5's walking orbits (their kinks include root
+    pairs a few thousandths apart): the piecewise integrals against a brute-force search."""
+    import thrustwalk_cli.energy.orbit as orbit
+    from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
+    from thrustwalk_cli.thrust.schedule import Schedule
+    from thrustwalk_cli.walker import load_walker
+
+    (tmp_path / "w.yaml").write_text(_robot_text())
+    w = load_walker(str(tmp_path / "w.yaml"), str(DATA / "walker5_walk.yaml"))
+    sched = Schedule.on_thruster(w.zd, [0.0, -10.0, -20.0], 0, 1)
+    rows = []
+    real = orbit._abs_and_positive
+
+    def spy(values, half):
+        rows.append((values.copy(), half))
+        return real(values, half)
+    monkeypatch.setattr(orbit, "_abs_and_positive", spy)
+    orbit.orbit_energy(w.zd, sched, limit_cycles(w.zd, sched))
+    assert sum(v.shape[0] for v, _ in rows) >= 24  # 3 orbits x 4 joints, power and electrical
+    for values, half in rows:
+        ab, po = real(values, half)
+        eab, epo = _brute_abs_and_positive(values, half)
+        scale = np.maximum(eab, 1e-300)
+        assert np.all(np.abs(ab - eab) <= 1e-12 * scale + 1e-15)
+        assert np.all(np.abs(po - epo) <= 1e-12 * scale + 1e-15)
+
+
+def test_limit_cycle_without_energy(walker3):
+    """``energy=False`` drops the energy blocks and changes nothing else."""
+    import thrustwalk_cli.studies.limit_cycle as lc
+
+    on, off = (lc.limit_cycle(walker3, thrust=[0.0, -10.0], energy=e) for e in (True, False))
+    assert off.energy == () and len(on.energy) == 2
+    d_on, d_off = on.document(), off.document()
+    assert all("energy" not in c for c in d_off["cycles"])
+    for c in d_on["cycles"]:
+        del c["energy"]
+    assert d_on == d_off
+
+
+def test_electrical_energy_with_a_lossy_gearbox(tmp_path, _cache_dir):
+    """Gearbox efficiency 0.8 (``P_m / eta`` motoring, ``P_m eta`` generating: a kink where
+    ``P_m`` changes sign): the clipped and the regenerated electrical energy against a dense
+    trapezoid of :func:`joint_electrical_power` with the torques of the pinned dynamics."""
+    from thrustwalk_cli.energy.orbit import orbit_energy
+    from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
+    from thrustwalk_cli.thrust.schedule import Schedule
+    from thrustwalk_cli.walker import load_walker
+
+    (tmp_path / "w.yaml").write_text(_robot_text().replace("gearbox_efficiency: 1",
+                                                           "gearbox_efficiency: 0.8"))
+    w = load_walker(str(tmp_path / "w.yaml"), str(DATA / "walker5_thrust.yaml"))
+    model, maps, zd = w.model, w.zd.maps, w.zd
+    N = model.n
+    sched = Schedule.on_thruster(zd, [0.0, -30.0], 0, 1)
+    cycles = limit_cycles(zd, sched)
+    clipped = orbit_energy(zd, sched, cycles)
+    regen = orbit_energy(zd, sched, cycles, regenerate=True)
+    motors = [c.motor for c in w.robot.coordinates if c.actuated]
+    a = np.linspace(zd.alpha_i, zd.alpha_f, 40001)
+    da = abs(a[1] - a[0])
+    for r, lc in enumerate(cycles):
+        F = sched.force[r, 0]
+        zeta = lc.zeta_plus + zd.V_Z(a, sched.take([r]))[0]
+        ad2 = 2 * zd.terms(a)["kappa1"] ** 2 * zeta
+        add = np.gradient(ad2 / 2, a, edge_order=2)
+        q, phi, dphi = maps.q_Z(a), maps.Phi(a), maps.dPhi(a)
+        adot = np.sqrt(ad2)
+        dq = phi * np.sign(lc.alpha_dot_plus) * adot[:, None]
+        ddq = phi * add[:, None] + dphi * ad2[:, None]
+        u = (np.einsum("gij,gj->gi", model.D(q), ddq) + model.h(q, dq)
+             - model.B_F(q) @ F)[:, :N - 1]
+        for j, mo in enumerate(motors):
+            pe = joint_electrical_power(u[:, j], dq[:, j], mo) / adot  # per |d alpha|
+            for f, e in ((np.maximum(pe, 0.0), clipped[r]), (pe, regen[r])):
+                ref = (f[1:] + f[:-1]).sum() * da / 2
+                assert e.joint_electrical[j] == pytest.approx(ref, rel=2e-6, abs=2e-6)
+
+
+@pytest.mark.slow
+def test_orbit_energies_equal_a_steady_full_order_run(tmp_path, _cache_dir):
+    """The zero-dynamics orbit's step energies equal those of a full-order run started on
+    that orbit (SPEC 15: to 1e-6), integrated along the run's dense solution: net joint and
+    thrust work by Gauss-Legendre, the kinked ones (positive, absolute, clipped electrical)
+    by a dense trapezoid, the rotor's input at the axial speed sign(F) d.p'; the impact loss
+    against the run's own energies before and after the impact."""
+    from thrustwalk_cli.energy.orbit import orbit_energy
+    from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
+    from thrustwalk_cli.simulation.closed_loop import SimConfig, ThrustModel
+    from thrustwalk_cli.simulation.full_order import simulate
+    from thrustwalk_cli.thrust.schedule import Schedule
+    from thrustwalk_cli.walker import load_walker
+
+    (tmp_path / "w.yaml").write_text(_robot_text().replace("gearbox_efficiency: 1",
+                                                           "gearbox_efficiency: 0.8"))
+    w = load_walker(str(tmp_path / "w.yaml"), str(DATA / "walker5_thrust.yaml"))
+    zd, model, N = w.zd, w.model, w.model.n
+    F = -20.0
+    sched = Schedule.on_thruster(zd, [F], 0, 1)
+    (e,) = orbit_energy(zd, sched, limit_cycles(zd, sched))
+    run = simulate(zd, ThrustModel("ideal", np.array([F])),
+                   SimConfig(steps=2, rtol=1e-12, atol=1e-12))
+    assert run.success, run.reason
+    segs = [s for s in run.segments if s.step == 2]
+    ta, tb = segs[0].t0, segs[-1].t1
+    assert tb - ta == pytest.approx(e.step_time, rel=1e-9)
+    x, wx = np.polynomial.legendre.leggauss(300)
+    d = run.sample(2, 0.5 * (tb - ta) * x + 0.5 * (ta + tb))
+    wx = 0.5 * (tb - ta) * wx
+    dp = np.einsum("gn,gnm->gm", d["dq"], model.B_F(d["q"]))  # d . p' [m/s]
+    assert np.allclose((d["u"] * d["dq"][:, :N - 1]).T @ wx, e.joint_work, rtol=1e-6,
+                       atol=1e-9)
+    assert np.allclose((d["F"] * dp).T @ wx, e.thrust_work, rtol=1e-6)
+    t = np.linspace(ta, tb, 40001)
+    d = run.sample(2, t)
+
+    def trap(f):
+        return ((f[1:] + f[:-1]) * np.diff(t).reshape((-1,) + (1,) * (f.ndim - 1))).sum(0) / 2
+    P = d["u"] * d["dq"][:, :N - 1]
+    assert np.allclose(trap(np.maximum(P, 0)), e.joint_positive_work, rtol=1e-6)
+    assert np.allclose(trap(np.abs(P)), e.joint_absolute_work, rtol=1e-6)
+    motors = [c.motor for c in w.robot.coordinates if c.actuated]
+    el = [trap(np.maximum(joint_electrical_power(d["u"][:, j], d["dq"][:, j], mo), 0))
+          for j, mo in enumerate(motors)]
+    assert np.allclose(el, e.joint_electrical, rtol=1e-6)
+    p = w.robot.thrusters[0].power
+    dp = np.einsum("gn,gnm->gm", d["dq"], model.B_F(d["q"]))[:, 0]
+    P_in = momentum_power(F, p.area, p.rho, p.figure_of_merit, p.efficiency, np.sign(F) * dp)
+    assert trap(P_in) == pytest.approx(e.thruster_input[0], rel=1e-6)
+    rec = run.steps[1]
+    assert rec.energy_minus - rec.energy_plus == pytest.approx(e.impact_loss, rel=1e-6)

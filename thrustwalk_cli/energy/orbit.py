@@ -16,15 +16,24 @@ the knots), so each interval is integrated on its own Chebyshev-Lobatto nodes (n
 until the nested error estimate of the smooth integrals is below ``RTOL`` relative).
 ``max(0, .)`` and ``|.|`` (positive and absolute work, clipped electrical power) are integrated
 piecewise between the kinks: the roots of the integrand's Chebyshev interpolant on the interval
-(sign changes on a grid 4 times finer than the nodes, polished by Newton's method) split the
-interval, and the interpolant's antiderivative is evaluated at the roots. Two roots closer
-than the fine grid's spacing (about ``1/(4 n)`` of the interval) are not separated; their
-piece is of that size.
+split it, and the interpolant's antiderivative is evaluated at the roots. The roots are isolated
+between the nodes with a proof (no root, or exactly one, from a bound of the interpolant's
+second derivative; gaps without a proof are halved up to ``SPLITS`` times) and polished from
+the root of a cubic Hermite interpolant by a Newton step (:func:`_abs_and_positive`). A
+thrust's power ``F_k (B_F^T Phi)_k`` is the constant thrust times one function of alpha on a
+knot interval: its kinks are those of that function, found once for the whole batch.
 
 Joint electrical power with a motor: ``P_m / eta_g`` (or ``P_m eta_g`` when negative) plus
-``R (u / (G k_t))^2`` (:mod:`.power`); negative electrical power is not recovered (clipped at
-0 per joint) unless ``regenerate``. Thrust input power from the thruster's model with the axial
-air speed ``V_k = sign(F_k) d_k . p_k'`` through the disk (momentum model).
+the Joule loss ``J = R (u / (G k_t))^2`` (:mod:`.power`); negative electrical power is not
+recovered (clipped at 0 per joint) unless ``regenerate``. The gearbox's factor jumps where
+``P_m`` changes sign (a kink a Chebyshev interpolant cannot follow), so the energy is written
+with smooth integrands only: ``P_el >= 0`` where ``P_m >= 0``, hence
+
+    int max(0, P_el) = (1/eta_g - eta_g) int max(0, P_m) + int max(0, eta_g P_m + J)
+    int P_el         = (1/eta_g - eta_g) int max(0, P_m) + eta_g int P_m + int J.
+
+Thrust input power from the thruster's model with the axial air speed ``V_k = sign(F_k) d_k .
+p_k'`` through the disk (momentum model).
 
 Cost of transport ``CoT = E / (m g d)`` (``d`` the step length along the ground):
 mechanical = (joints' positive work + thrusters' positive work on the walker) / (m g d), total =
@@ -42,13 +51,13 @@ from numpy.polynomial import chebyshev as C
 
 from ..contact.terms import stance_terms
 from ..hzd.quadrature import _cc_weights, _dct_matrix, lobatto
-from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics
+from ..hzd.zero_dynamics import ZeroDynamics
 from ..thrust.schedule import Schedule
-from .power import input_power, joint_electrical_power, joule_power
+from .power import input_power, joule_power
 
 RTOL = 1e-10
 MAX_NODES = 1025
-FINE = 4  # fine-grid points per node for locating kinks
+SPLITS = 12  # halvings of a gap of the nodes to isolate the roots in it
 
 
 @dataclass(frozen=True)
@@ -175,51 +184,165 @@ class OrbitEnergy:
 
 
 @lru_cache(maxsize=16)
-def _fine_matrix(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """The fine grid ``x`` (``FINE (n - 1) + 1`` Lobatto points of [-1, 1]) and ``T_k(x)``
-    for ``k < n``."""
-    M = FINE * (n - 1) + 1
-    x = -np.cos(np.pi * np.arange(M) / (M - 1))
-    return x, np.cos(np.arccos(x)[:, None] * np.arange(n))
+def _node_tables(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                  np.ndarray]:
+    """For ``n`` ascending Lobatto nodes ``x_i`` of [-1, 1]: the nodes, the gaps ``h_i =
+    x_{i+1} - x_i``, the least ``sin(theta)`` on each gap (``x = cos(theta)``), the columns
+    ``(k^2, k, k^2 (k^2 - 1) / 3)`` (n, 3) of :func:`_second_derivative_bound`, and the matrix
+    (n, 2n) taking node values to the Chebyshev coefficients and the derivatives at the
+    nodes."""
+    x = -np.cos(np.pi * np.arange(n) / (n - 1))
+    k = np.arange(n, dtype=float)
+    sn = np.sqrt(np.maximum(1.0 - x * x, 0.0))
+    s = np.minimum(sn[:-1], sn[1:])
+    K = np.stack([k * k, k, k * k * (k * k - 1.0) / 3.0], axis=1)
+    dct = _dct_matrix(n)
+    dT = C.chebval(x, C.chebder(np.eye(n))).T  # (nodes, k) T_k'(x_i)
+    return x, np.diff(x), s, K, np.concatenate([dct.T, (dT @ dct).T], axis=1)
+
+
+def _second_derivative_bound(abs_coef_sums: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """A bound of ``|p''|`` on each gap of the nodes for ``p = sum_k c_k T_k``, from the rows
+    ``(sum |c_k| k^2, sum |c_k| k, sum |c_k| k^2 (k^2 - 1) / 3)`` (P, 3) and each gap's least
+    ``sin(theta) = s``: with ``x = cos(theta)``, ``T_k'' = (k cos(theta) sin(k theta) - k^2
+    sin(theta) cos(k theta)) / sin(theta)^3``, so ``|T_k''| <= k^2 / s^2 + k / s^3``, and
+    everywhere ``|T_k''| <= T_k''(1) = k^2 (k^2 - 1) / 3``."""
+    A, B, G = (abs_coef_sums[:, i:i + 1] for i in range(3))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        loc = A / (s * s) + B / (s * s * s)
+    return np.where(s > 0, np.minimum(G, loc), G) * (1.0 + 1e-12)  # and its own rounding
+
+
+def _clenshaw(c: np.ndarray, x: np.ndarray, derivative: bool = False):
+    """``sum_k c[k, r] T_k(x_r)`` for coefficient columns ``c`` (n, r, ...) at points ``x``
+    (r, ...) by Clenshaw's recurrence; with ``derivative`` also its derivative in ``x``."""
+    b1 = np.zeros(np.broadcast_shapes(c.shape[1:], x.shape))
+    b2 = np.zeros_like(b1)
+    d1 = np.zeros_like(b1)
+    d2 = np.zeros_like(b1)
+    x2 = 2.0 * x
+    for ck in c[:0:-1]:
+        if derivative:
+            d1, d2 = 2.0 * b1 + x2 * d1 - d2, d1
+        b1, b2 = ck + x2 * b1 - b2, b1
+    val = c[0] + x * b1 - b2
+    return (val, b1 + x * d1 - d2) if derivative else val
+
+
+def _hermite_root(fa: np.ndarray, fb: np.ndarray, da: np.ndarray, db: np.ndarray
+                  ) -> np.ndarray:
+    """A root ``t`` in [0, 1] of each cubic Hermite interpolant ``H`` with end values ``fa``,
+    ``fb`` of opposite signs (``fa >= 0`` and ``fb < 0`` or the reverse) and end slopes
+    ``da``, ``db`` (d/dt): Newton's method kept inside a bracket of ``H``'s sign change,
+    bisecting where a step would leave it, to ``1e-15``."""
+    lo, hi = np.zeros_like(fa), np.ones_like(fa)
+    up = fa < 0.0  # H(lo) < 0 <= H(hi)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.clip(np.nan_to_num(fa / (fa - fb), nan=0.5), 0.0, 1.0)
+    act = np.arange(fa.size)
+    for _ in range(60):
+        tt, a, b, ea, eb = t[act], fa[act], fb[act], da[act], db[act]
+        t2 = tt * tt
+        t3 = t2 * tt
+        H = (2 * t3 - 3 * t2 + 1) * a + (t3 - 2 * t2 + tt) * ea + (3 * t2 - 2 * t3) * b \
+            + (t3 - t2) * eb
+        dH = (6 * t2 - 6 * tt) * (a - b) + (3 * t2 - 4 * tt + 1) * ea + (3 * t2 - 2 * tt) * eb
+        below = (H < 0.0) == up[act]  # the root is above tt
+        lo[act] = np.where(below, tt, lo[act])
+        hi[act] = np.where(below, hi[act], tt)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            new = tt - H / dH
+        mid = 0.5 * (lo[act] + hi[act])
+        new = np.where(np.isfinite(new) & (new >= lo[act]) & (new <= hi[act]), new, mid)
+        new = np.where(H == 0.0, tt, new)
+        t[act] = new
+        done = (np.abs(new - tt) <= 1e-15) | (hi[act] - lo[act] <= 1e-15) | (H == 0.0)
+        act = act[~done]
+        if not act.size:
+            break
+    return t
 
 
 def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.ndarray]:
     """``int |f|`` and ``int max(0, f)`` over an interval of half-length ``half`` for rows of
     samples ``values`` (P, n) at ascending Lobatto nodes, piecewise between the roots of each
-    row's Chebyshev interpolant (module docstring): with ``F`` its antiderivative (``F(-1) =
-    0``), ``s_0`` its sign at the start and ``r_1 < ... < r_p`` its roots,
-    ``int |f| = s_0 (sum_i 2 (-1)^(i-1) F(r_i) + (-1)^p F(1))``."""
+    row's Chebyshev interpolant ``p`` (module docstring): with ``F`` its antiderivative
+    (``F(-1) = 0``), ``s_0`` its sign at the start and ``r_1 < ... < r_p`` its roots,
+    ``int |f| = s_0 (sum_i 2 (-1)^(i-1) F(r_i) + (-1)^p F(1))``.
+
+    Each gap ``[x_i, x_{i+1}]`` of the nodes is shown to hold no root (its end values keep
+    their sign and ``min(|p(x_i)|, |p(x_{i+1})|) > h_i^2 max|p''| / 8``, the linear
+    interpolant's error bound) or exactly one (they change sign and ``p'`` keeps its sign:
+    ``p'(x_i) p'(x_{i+1}) > 0`` and ``|p'(x_i)| + |p'(x_{i+1})| > h_i max|p''|``), with
+    ``max|p''|`` bounded from the coefficients (:func:`_second_derivative_bound`); a gap
+    without such a proof is halved (``p`` and ``p'`` at its middle) and the test repeated on
+    the halves, up to ``SPLITS`` times (a piece where ``|p|`` stays below ``1e-15`` of the
+    row's largest node value is negligible and left unsplit). Each root starts at the root of
+    the cubic Hermite interpolant of its bracket's end values and slopes
+    (:func:`_hermite_root`) and takes one Newton step on ``p``, kept in the bracket (the
+    root's error enters the integrals squared). Only roots closer than the last halving's
+    width (``2^-SPLITS`` of a gap) and double roots are not separated."""
     P, n = values.shape
     if P == 0:
         return np.zeros(0), np.zeros(0)
-    coef = values @ _dct_matrix(n).T  # (P, n) Chebyshev coefficients
+    xn, h, sg, K, to_cd = _node_tables(n)
+    cd = values @ to_cd
+    coef, dv = cd[:, :n], cd[:, n:]  # Chebyshev coefficients, p' at the nodes (P, n)
+    M2 = _second_derivative_bound(np.abs(coef) @ K, sg)  # (P, n-1) on each gap
+    pos = values >= 0.0
+    change = pos[:, 1:] != pos[:, :-1]
+    av = np.abs(values)
+    no_root = (np.minimum(av[:, :-1], av[:, 1:]) > 0.125 * h * h * M2) | (M2 == 0.0)
+    one_root = ((dv[:, :-1] * dv[:, 1:] > 0.0)
+                & (np.abs(dv[:, :-1]) + np.abs(dv[:, 1:]) > h * M2))
+    rows, gap = np.nonzero(change & one_root)
+    brackets = [(rows, xn[gap], h[gap], values[rows, gap], values[rows, gap + 1],
+                 dv[rows, gap], dv[rows, gap + 1])]
+    # the other gaps: halved until each piece provably holds no root or one
+    r, gap = np.nonzero(np.where(change, ~one_root, ~no_root))
+    piece = (r, xn[gap], h[gap], values[r, gap], values[r, gap + 1], dv[r, gap],
+             dv[r, gap + 1], M2[r, gap])
+    tiny = 1e-15 * np.max(av, axis=1)  # a piece below it is negligible in the integrals
+    for level in range(SPLITS + 1):
+        r = piece[0]
+        if not r.size:
+            break
+        if level == SPLITS:  # unresolved (a double root or roots closer than the width)
+            ch = (piece[3] >= 0.0) != (piece[4] >= 0.0)
+            brackets.append(tuple(v[ch] for v in piece[:7]))
+            break
+        r, a, w, fa, fb, ga, gb, m2 = piece
+        w = 0.5 * w
+        pm, dm = _clenshaw(coef[r].T, a + w, derivative=True)
+        r, a, fa, fb, ga, gb, m2 = (np.concatenate(v) for v in (
+            (r, r), (a, a + w), (fa, pm), (pm, fb), (ga, dm), (dm, gb), (m2, m2)))
+        w = np.concatenate([w, w])
+        ch = (fa >= 0.0) != (fb >= 0.0)
+        none = ~ch & ((np.minimum(np.abs(fa), np.abs(fb)) > 0.125 * w * w * m2)
+                      | (np.maximum(np.abs(fa), np.abs(fb)) + 0.125 * w * w * m2 <= tiny[r]))
+        one = ch & (((ga * gb > 0.0) & (np.abs(ga) + np.abs(gb) > w * m2))
+                    | (np.maximum(np.abs(fa), np.abs(fb)) + 0.125 * w * w * m2 <= tiny[r]))
+        brackets.append((r[one], a[one], w[one], fa[one], fb[one], ga[one], gb[one]))
+        keep = ~(none | one)
+        piece = (r[keep], a[keep], w[keep], fa[keep], fb[keep], ga[keep], gb[keep], m2[keep])
+    rows, xa, hb, fa, fb, da, db = (np.concatenate(v) for v in zip(*brackets))
     anti = C.chebint(coef, axis=1, lbnd=-1.0)  # (P, n+1)
-    der = C.chebder(coef, axis=1)  # (P, n-1)
-    xg, Tg = _fine_matrix(n)
-    fg = coef @ Tg.T  # (P, M)
-    pos = fg >= 0.0
     F1 = anti.sum(axis=1)  # F(1): T_k(1) = 1
     s0 = np.where(pos[:, 0], 1.0, -1.0)
     total_abs = s0 * F1  # no root
-    rows, seg = np.nonzero(pos[:, 1:] != pos[:, :-1])
     if rows.size:
-        a, b = xg[seg], xg[seg + 1]
-        fa, fb = fg[rows, seg], fg[rows, seg + 1]
-        x = a - fa * (b - a) / (fb - fa)  # secant start between the fine points
-        cr, dr = coef[rows], der[rows]
-        for _ in range(3):
-            K = np.cos(np.arccos(np.clip(x, -1.0, 1.0))[:, None] * np.arange(n))
-            f = np.einsum("rk,rk->r", K, cr)
-            d = np.einsum("rk,rk->r", K[:, :n - 1], dr)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                step = np.where(d != 0, f / d, 0.0)
-            x = np.clip(x - np.nan_to_num(step), a, b)
-        K = np.cos(np.arccos(np.clip(x, -1.0, 1.0))[:, None] * np.arange(n + 1))
-        Fr = np.einsum("rk,rk->r", K, anti[rows])
+        order = np.lexsort((xa, rows))
+        rows, xa, hb, fa, fb, da, db = (v[order] for v in (rows, xa, hb, fa, fb, da, db))
+        t = _hermite_root(fa, fb, da * hb, db * hb)
+        x = xa + t * hb
+        # one Newton step on p itself
+        f, df = _clenshaw(coef[rows].T, x, derivative=True)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = np.clip(x - np.nan_to_num(np.where(df != 0, f / df, 0.0)), xa, xa + hb)
+        Fr = _clenshaw(anti[rows].T, x)
         rank = np.arange(rows.size) - np.searchsorted(rows, rows, side="left")
         count = np.bincount(rows, minlength=P)
-        inner = np.zeros(P)
-        np.add.at(inner, rows, 2.0 * np.where(rank % 2 == 0, 1.0, -1.0) * Fr)
+        inner = np.bincount(rows, 2.0 * np.where(rank % 2 == 0, 1.0, -1.0) * Fr, minlength=P)
         total_abs = s0 * (inner + np.where(count % 2 == 0, 1.0, -1.0) * F1)
     return total_abs * half, 0.5 * (total_abs + F1) * half
 
@@ -246,9 +369,11 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
         elif p.kind == "fuel" and p.heating_value is None:
             missing.append(f"thruster {t.name}: a fuel model without `heating_value`: fuel "
                            "mass only, input energy not computed")
+    missing_t = tuple(missing)
     live = [i for i, lc in enumerate(cycles) if lc.exists]
-    out: list[OrbitEnergy] = [OrbitEnergy(False, f"no periodic orbit: {lc.reason}")
-                              for lc in cycles]
+    out: list[OrbitEnergy | None] = [
+        None if lc.exists else OrbitEnergy(False, f"no periodic orbit: {lc.reason}")
+        for lc in cycles]
     if not live:
         return out
     sched = schedule.take(np.array(live))
@@ -275,64 +400,73 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
             st = stance_terms(model, maps, alpha)
             zeta = zp[:, None] + zd.V_Z(alpha, sched)  # (k, g)
             zeta = np.maximum(zeta, 0.0)
-            u = (st.U0[None] + st.U1[None] * zeta[..., None]
-                 + np.einsum("gjm,km->kgj", st.U2, F) + st.UT[None] * Tg[:, None, None])
             phi = maps.Phi(alpha)  # (g, N)
-            BFphi = np.einsum("gnm,gn->gm", model.B_F(maps.q_Z(alpha)), phi)  # (g, m)
+            # the torques and the joint power per |d alpha|, as (k, joint, g)
+            g = len(alpha)
+            u = st.U0.T[None] + st.U1.T[None] * zeta[:, None, :]
+            if m:  # + U2 F
+                u = u + (F @ st.U2.transpose(2, 1, 0).reshape(m, -1)).reshape(k, N - 1, g)
+            u = u + st.UT.T[None] * Tg[:, None, None]
+            pj = u * (s * phi[:, :N - 1].T)[None]
+            # thrust and generalised-mode power: thrust (k, m) times a function of alpha
+            bt = s * np.einsum("gnm,gn->mg", model.B_F(maps.q_Z(alpha)), phi)  # (m, g)
+            bg = s * phi[:, N - 1]  # (g,)
             k1 = np.abs(st.AT)  # AT = 1 / (e_N^T D Phi) = kappa_1
             adot = k1[None] * np.sqrt(2.0 * zeta)  # |alpha'| (k, g)
             with np.errstate(divide="ignore"):
                 inv = 1.0 / adot
-            pj = s * u * phi[None, :, :N - 1]  # (k, g, N-1) joint power per |d alpha|
-            pt = s * F[:, None, :] * BFphi[None]  # (k, g, m)
-            pg = s * Tg[:, None] * phi[None, :, N - 1]
             w = _cc_weights(n) * half
             wc = _cc_weights((n - 1) // 2 + 1) * half
 
             def quad(v, w=w, wc=wc):
-                fine = np.einsum("kg...,g->k...", v, w)
-                coarse = np.einsum("kg...,g->k...", v[:, ::2], wc)
-                return fine, np.abs(fine - coarse)
-            smooth = [quad(pj), quad(pt), quad(pg[..., None])]
+                fine = v @ w
+                return fine, np.abs(fine - v[..., ::2] @ wc)
+            work, e_work = quad(pj)  # (k, N-1)
+            bt_i, e_bt = quad(bt)  # (m,)
+            bg_i, e_bg = quad(bg)
+            aF = np.abs(F)
+            e = np.maximum(e_work.max(axis=1), np.abs(Tg) * e_bg)
+            if m:
+                e = np.maximum(e, (aF * e_bt).max(axis=1))
             finite = np.all(np.isfinite(inv))
             if finite:
-                smooth.append(quad(inv[..., None]))
-            e = np.zeros(k)
-            for _, er in smooth:
-                if er.size:  # a robot without thrusters has no thrust terms
-                    e = np.maximum(e, er.reshape(k, -1).max(axis=1))
-            scale = max(float(np.max(np.abs(smooth[0][0]))), 1e-300)
+                time_i, e_time = quad(inv)
+                e = np.maximum(e, e_time)
+            scale = max(float(np.max(np.abs(work))), 1e-300)
             if np.all(e <= RTOL * scale) or n >= MAX_NODES:
                 break
             n = 2 * n - 1
         err += e
-        acc["work"] += smooth[0][0]
-        acc["tw"] += smooth[1][0]
-        acc["gen"] += smooth[2][0][:, 0]
-        ab, po = _abs_and_positive(pj.transpose(0, 2, 1).reshape(-1, n), half)
+        acc["work"] += work
+        acc["tw"] += F * bt_i
+        acc["gen"] += Tg * bg_i
+        ab, po = _abs_and_positive(pj.reshape(-1, n), half)
+        po = po.reshape(k, N - 1)
         acc["abs"] += ab.reshape(k, N - 1)
-        acc["pos"] += po.reshape(k, N - 1)
-        _, po = _abs_and_positive(pt.transpose(0, 2, 1).reshape(-1, n), half)
-        acc["tpos"] += po.reshape(k, m)
+        acc["pos"] += po
+        if m:  # int max(0, F b) = F int max(0, b) (F > 0), |F| int max(0, -b) (F < 0)
+            b_abs, b_pos = _abs_and_positive(bt, half)
+            acc["tpos"] += np.where(F > 0, F * b_pos, aF * (b_abs - b_pos))
         if not finite:
             tin_ok[:] = False
             continue
-        acc["time"] += quad(inv[..., None])[0][:, 0]
-        qdot = phi[None] * (s * adot)[..., None]  # (k, g, N)
-        for jj, mo in enumerate(motors):
-            if mo is None:
-                continue
-            pe = joint_electrical_power(u[..., jj], qdot[..., jj], mo) if mo.efficiency != 1 \
-                else u[..., jj] * qdot[..., jj] + joule_power(u[..., jj], mo)
-            pe = pe * inv  # per |d alpha|
+        acc["time"] += time_i
+        el = [jj for jj, mo in enumerate(motors) if mo is not None]
+        if el:  # SPEC 15 with the gearbox's kink at P_m = 0 taken out (module docstring)
+            eta = np.array([motors[jj].efficiency for jj in el])[None, :]
+            joule = np.stack([joule_power(u[:, jj], motors[jj]) for jj in el], axis=1)
+            joule = joule * inv[:, None, :]  # per |d alpha|
+            kink = (1.0 / eta - eta) * po[:, el]
             if regenerate:
-                acc["el"][:, jj] += quad(pe)[0]
+                acc["el"][:, el] += kink + eta * work[:, el] + quad(joule)[0]
             else:
-                acc["el"][:, jj] += _abs_and_positive(pe, half)[1]
+                g2 = eta[..., None] * pj[:, el] + joule
+                acc["el"][:, el] += kink + _abs_and_positive(g2.reshape(-1, n), half)[1] \
+                    .reshape(k, len(el))
         for kk, p in enumerate(powers):
             if p is None:
                 continue
-            V = np.sign(F[:, kk])[:, None] * BFphi[None, :, kk] * (s * adot)
+            V = np.sign(F[:, kk])[:, None] * bt[kk][None] * adot  # s^2 = 1
             Fk = np.broadcast_to(F[:, kk][:, None], V.shape)
             if p.kind == "fuel":
                 acc["fuel"][:, kk] += quad(p.tsfc * np.abs(Fk) * inv)[0]
@@ -348,34 +482,31 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
     phim, phip = maps.Phi(np.array(zd.alpha_f)), maps.Phi(np.array(zd.alpha_i))
     Vm, Vp = float(model.V(qm)[0]), float(model.V(qp)[0])
     Km_unit, Kp_unit = 0.5 * phim @ Dm @ phim, 0.5 * phip @ Dp @ phip
-    weight = robot.weight
+    weight, distance = robot.weight, zd.step_length
+    ad = np.array([[cycles[i].alpha_dot_plus, cycles[i].alpha_dot_minus] for i in live])
+    K = (ad**2 * np.array([Kp_unit, Km_unit])).tolist()
+    lists = {name: a.tolist() for name, a in acc.items()}
+    el_none = [mo is None for mo in motors]
+    tin_none = [p is None or (p.kind == "fuel" and p.heating_value is None) for p in powers]
+    is_fuel = [p is not None and p.kind == "fuel" for p in powers]
+    ok = tin_ok.tolist()
+    errs = err.tolist()
+    reason = "energies of the periodic orbit's step (exact quadrature on Z)"
     for r, i in enumerate(live):
-        lc: LimitCycle = cycles[i]
-        ins: list[float | None] = []
-        fuel: list[float | None] = []
-        extra = []
-        for kk, p in enumerate(powers):
-            fuel.append(float(acc["fuel"][r, kk]) if p is not None and p.kind == "fuel"
-                        else None)
-            if p is None or (p.kind == "fuel" and p.heating_value is None):
-                ins.append(None)
-            elif not tin_ok[r, kk]:
-                ins.append(None)
-                extra.append(f"thruster {robot.thrusters[kk].name}: thrust outside its power "
-                             "table's range: input energy not computed")
-            else:
-                ins.append(float(acc["tin"][r, kk]))
+        extra = [f"thruster {robot.thrusters[kk].name}: thrust outside its power table's "
+                 "range: input energy not computed"
+                 for kk in range(m) if not tin_none[kk] and not ok[r][kk]]
+        el = lists["el"][r]
+        tin, fl = lists["tin"][r], lists["fuel"][r]
         out[i] = OrbitEnergy(
-            True, "energies of the periodic orbit's step (exact quadrature on Z)",
-            tuple(map(float, acc["work"][r])), tuple(map(float, acc["pos"][r])),
-            tuple(map(float, acc["abs"][r])),
-            tuple(None if mo is None else float(acc["el"][r, jj])
-                  for jj, mo in enumerate(motors)),
-            tuple(map(float, acc["tw"][r])), tuple(map(float, acc["tpos"][r])),
-            float(acc["gen"][r]), tuple(ins), tuple(fuel),
-            kinetic_start=float(Kp_unit * lc.alpha_dot_plus ** 2),
-            kinetic_end=float(Km_unit * lc.alpha_dot_minus ** 2),
-            potential_start=Vp, potential_end=Vm, step_time=float(acc["time"][r]),
-            distance=zd.step_length, weight=weight, error_estimate=float(err[r]),
-            regenerate=regenerate, missing=tuple(missing + extra))
+            True, reason, tuple(lists["work"][r]), tuple(lists["pos"][r]),
+            tuple(lists["abs"][r]),
+            tuple(None if el_none[jj] else el[jj] for jj in range(N - 1)),
+            tuple(lists["tw"][r]), tuple(lists["tpos"][r]), lists["gen"][r],
+            tuple(None if tin_none[kk] or not ok[r][kk] else tin[kk] for kk in range(m)),
+            tuple(fl[kk] if is_fuel[kk] else None for kk in range(m)),
+            kinetic_start=K[r][0], kinetic_end=K[r][1],
+            potential_start=Vp, potential_end=Vm, step_time=lists["time"][r],
+            distance=distance, weight=weight, error_estimate=errs[r],
+            regenerate=regenerate, missing=tuple(missing + extra) if extra else missing_t)
     return out

@@ -22,7 +22,7 @@ import numpy as np
 from ..contact.evaluate import CaseResult, check_contact_options, evaluate
 from ..contact.terms import scuff_reason
 from ..energy.orbit import OrbitEnergy, orbit_energy
-from ..errors import InputError, check_number, check_numbers, check_text
+from ..errors import InputError, check_flag, check_number, check_numbers, check_text
 from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, grazing_warning, limit_cycles
 from ..thrust.schedule import Schedule
 from ..walker import Walker, check_walker
@@ -311,7 +311,7 @@ class LimitCycleResult:
 def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
                 thruster: str | None = None, max_output: float = MAX_OUTPUT, *,
                 mu: float | None = None, min_vertical_force: float = 0.0,
-                slope: float = 0.0) -> LimitCycleResult:
+                slope: float = 0.0, energy: bool = True) -> LimitCycleResult:
     """Limit cycles for constant thrust values ``thrust`` [N] on ``thruster`` (default: the
     first) (SPEC 3, 4), in one vectorised evaluation, each with its contact verdict (SPEC 5)
     at friction coefficient ``mu`` [1] (default: the gait's) and least vertical ground force
@@ -324,6 +324,9 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
     world-frame thrusters turned into the slope frame, :meth:`Walker.on_slope`); the speed
     is along the ground and the document gives the climb rate ``speed sin(slope)`` beside
     it. 0: level ground, bit for bit as without it.
+
+    ``energy``: with False the orbits' energies (SPEC 15) are not computed and the document has
+    no per-case ``energy`` block (the benchmark measures their cost this way).
     """
     check_walker(walker)
     walker = walker.on_slope(slope)
@@ -332,6 +335,7 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
     max_output = check_number("max_output", max_output, gt=0, largest=1e15)
     mu = check_number("mu", mu, optional=True)  # its range: check_contact_options
     min_vertical_force = check_number("min_vertical_force", min_vertical_force)
+    energy = check_flag("energy", energy)
     zd = walker.zd
     mu = walker.gait.mu if mu is None else float(mu)
     eps = float(min_vertical_force)
@@ -347,7 +351,7 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
         cycles = limit_cycles(zd, sched)
         return LimitCycleResult(walker, (value,), j, tuple(cycles), "gait", sched,
                                 _contact(walker, sched, cycles, mu, eps), mu, eps,
-                                tuple(orbit_energy(zd, sched, cycles)))
+                                _energy(zd, sched, cycles, energy))
     default = DEFAULT_THRUST if walker.robot.thrusters else (0.0,)
     values = tuple(float(v) for v in (default if thrust is None else thrust))
     if not values:
@@ -365,7 +369,13 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
     cycles = limit_cycles(zd, sched)
     return LimitCycleResult(walker, values, j, tuple(cycles), "values", sched,
                             _contact(walker, sched, cycles, mu, eps), mu, eps,
-                            tuple(orbit_energy(zd, sched, cycles)))
+                            _energy(zd, sched, cycles, energy))
+
+
+def _energy(zd: ZeroDynamics, sched: Schedule, cycles: list[LimitCycle], on: bool
+            ) -> tuple[OrbitEnergy, ...]:
+    """The energies of every case's orbit (SPEC 15); none when ``on`` is false."""
+    return tuple(orbit_energy(zd, sched, cycles)) if on else ()
 
 
 def _contact(walker: Walker, sched: Schedule, cycles: list[LimitCycle], mu: float,
