@@ -440,3 +440,25 @@ def test_orbit_energies_equal_a_steady_full_order_run(tmp_path, _cache_dir):
     assert trap(P_in) == pytest.approx(e.thruster_input[0], rel=1e-6)
     rec = run.steps[1]
     assert rec.energy_minus - rec.energy_plus == pytest.approx(e.impact_loss, rel=1e-6)
+
+
+def test_an_orbit_that_comes_to_rest_says_so_instead_of_zero_times(orbit5):
+    """Where alpha' = 0 at a quadrature node (zeta^+ lowered until zeta touches 0 inside the
+    step: the walker comes to rest), the step time and the time-based energies are not
+    computed: None with a reason, never 0 or inf; the works, which do not divide by alpha',
+    are still there."""
+    import dataclasses
+
+    from thrustwalk_cli.energy.orbit import orbit_energy
+
+    w, sched, cycles, _ = orbit5
+    zd = w.zd
+    alpha = np.linspace(zd.alpha_i, zd.alpha_f, 2001)
+    vz = zd.V_Z(alpha, sched)[0]
+    resting = dataclasses.replace(cycles[0], zeta_plus=float(-vz.min()) - 1.0)
+    (e,) = orbit_energy(zd, sched.take(np.array([0])), [resting])
+    rec = e.record()
+    assert e.step_time is None and rec["average_power"]["legs_mechanical"] is None
+    assert all(v is None for v in rec["per_step"]["joint_electrical"])
+    assert any("comes to rest" in m for m in rec["missing"])
+    assert all(np.isfinite(v) for v in rec["per_step"]["joint_work"])

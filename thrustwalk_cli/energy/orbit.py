@@ -151,7 +151,7 @@ class OrbitEnergy:
                           self.thrust_input)
 
         def power(e):
-            return None if e is None else e / T
+            return None if e is None or T is None else e / T
 
         fl = [f for f in self.fuel_mass if f is not None]
         return {
@@ -387,6 +387,7 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
         ("time", ()))}
     err = np.zeros(k)
     tin_ok = np.ones((k, m), bool)
+    timed = True  # alpha' > 0 at every node: the time-based integrals exist
     for j in range(len(kn) - 1):
         lo, hi = sorted((kn[j], kn[j + 1]))
         if hi <= lo:
@@ -449,6 +450,7 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
             acc["tpos"] += np.where(F > 0, F * b_pos, aF * (b_abs - b_pos))
         if not finite:
             tin_ok[:] = False
+            timed = False
             continue
         acc["time"] += time_i
         el = [jj for jj, mo in enumerate(motors) if mo is not None]
@@ -495,18 +497,21 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
     for r, i in enumerate(live):
         extra = [f"thruster {robot.thrusters[kk].name}: thrust outside its power table's "
                  "range: input energy not computed"
-                 for kk in range(m) if not tin_none[kk] and not ok[r][kk]]
+                 for kk in range(m) if timed and not tin_none[kk] and not ok[r][kk]]
+        if not timed:
+            extra.append("alpha' = 0 at a quadrature node (the walker comes to rest on the "
+                         "orbit): step time, electrical, thruster input and fuel not computed")
         el = lists["el"][r]
         tin, fl = lists["tin"][r], lists["fuel"][r]
         out[i] = OrbitEnergy(
             True, reason, tuple(lists["work"][r]), tuple(lists["pos"][r]),
             tuple(lists["abs"][r]),
-            tuple(None if el_none[jj] else el[jj] for jj in range(N - 1)),
+            tuple(None if el_none[jj] or not timed else el[jj] for jj in range(N - 1)),
             tuple(lists["tw"][r]), tuple(lists["tpos"][r]), lists["gen"][r],
             tuple(None if tin_none[kk] or not ok[r][kk] else tin[kk] for kk in range(m)),
-            tuple(fl[kk] if is_fuel[kk] else None for kk in range(m)),
+            tuple(fl[kk] if is_fuel[kk] and timed else None for kk in range(m)),
             kinetic_start=K[r][0], kinetic_end=K[r][1],
-            potential_start=Vp, potential_end=Vm, step_time=lists["time"][r],
+            potential_start=Vp, potential_end=Vm, step_time=lists["time"][r] if timed else None,
             distance=distance, weight=weight, error_estimate=errs[r],
             regenerate=regenerate, missing=tuple(missing + extra) if extra else missing_t)
     return out
