@@ -76,6 +76,20 @@ class Walker:
             return self
         return Walker(self.robot, self.gait, zd.model, zd, self.where)
 
+    def gait_schedule(self, what: str = "the piecewise thrust model"):
+        """The gait's ``thrust:`` schedule (SPEC 4) resolved on the walker's zero dynamics
+        (one schedule, padded to every thruster) and checked against the thrusters' limits:
+        a :class:`~thrustwalk_cli.thrust.schedule.Schedule`. :class:`InputError` at the gait
+        file's ``thrust`` key when the gait has none (``what`` needs it) or a value is
+        outside a thruster's limits."""
+        if self.gait.thrust is None:
+            raise InputError(self.where(("thrust",), f"the gait has no thrust schedule "
+                                                     f"(needed by {what})"))
+        zd = self.zd
+        schedule = self.gait.thrust.resolve(zd, zd.model.robot, self.where, pad=True)[0]
+        schedule.check_limits(zd.model.robot, self.where)
+        return schedule
+
     @cached_property
     def swing(self) -> dict:
         """Swing-foot height along the step [m] (minimum, deepest dip, ``scuffs``)."""

@@ -345,8 +345,7 @@ def limit_cycle(walker: Walker, thrust: Sequence[float] | None = None,
         if thruster is not None:
             raise InputError.param("thruster", "the gait's thrust: section names its "
                                                "thrusters; give `thrust` values to sweep one")
-        sched = gait_thrust.resolve(zd, zd.model.robot, walker.where, pad=True)[0]
-        sched.check_limits(zd.model.robot, walker.where)
+        sched = walker.gait_schedule()
         j, value = _constant_part(walker, sched)
         cycles = limit_cycles(zd, sched)
         return LimitCycleResult(walker, (value,), j, tuple(cycles), "gait", sched,

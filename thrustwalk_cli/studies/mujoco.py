@@ -352,11 +352,7 @@ def mujoco_run(walker: Walker, *, steps: int = 20, thrust_model: str | None = No
         values = [0.0]
     schedule = None
     if thrust_model == "piecewise":
-        if walker.gait.thrust is None:
-            raise InputError(walker.where(("thrust",), "the gait has no thrust schedule "
-                                                       "(needed by the piecewise thrust model)"))
-        schedule = walker.gait.thrust.resolve(zd, zd.model.robot, walker.where, pad=True)[0]
-        schedule.check_limits(zd.model.robot, walker.where)
+        schedule = walker.gait_schedule()
     runs_in = thrust_runs(zd, thrust_model, values, list(thruster) if thruster else None,
                           schedule=schedule, wn=wn, xi=xi, tau=tau, f0=f0)
     pushes = [Push(int(stp), s, (px, py))

@@ -612,11 +612,7 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
     zd = walker.zd
     schedule = None
     if thrust_model == "piecewise":
-        if walker.gait.thrust is None:
-            raise InputError(walker.where(("thrust",), "the gait has no thrust schedule "
-                                                       "(needed by the piecewise thrust model)"))
-        schedule = walker.gait.thrust.resolve(zd, zd.model.robot, walker.where, pad=True)[0]
-        schedule.check_limits(zd.model.robot, walker.where)
+        schedule = walker.gait_schedule()
     sc = make_scenario(zd, thrust_model, values, list(thruster) if thruster else None,
                        schedule=schedule, wn=wn, xi=xi, tau=tau, f0=f0, start=st,
                        config=config, reduced_only=reduced, impact_s_tol=impact_s_tol,

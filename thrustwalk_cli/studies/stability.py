@@ -438,14 +438,10 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
     kd = float(walker.gait.kd if kd is None else kd)
     schedule = None
     if thrust_model == "piecewise":
-        if walker.gait.thrust is None:
-            raise InputError(walker.where(("thrust",), "the gait has no thrust schedule "
-                                                       "(needed by the piecewise thrust model)"))
-        if thrust is not None:
+        if walker.gait.thrust is not None and thrust is not None:
             raise InputError.param("thrust", "not used with the piecewise thrust model (the "
                                              "schedule comes from the gait's thrust: section)")
-        schedule = walker.gait.thrust.resolve(zd, zd.model.robot, walker.where, pad=True)[0]
-        schedule.check_limits(zd.model.robot, walker.where)
+        schedule = walker.gait_schedule()
     base = 0.0 if thrust is None else float(thrust)
     values = [base] + (list(vary_t[1]) if vary_t and vary_t[0] == "thrust" else [])
     config = SimConfig(steps=1, rtol=rtol, atol=atol)
