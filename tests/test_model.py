@@ -575,3 +575,28 @@ def test_cached_load_does_not_import_sympy(fresh_cache, three_link):
     out = json.loads(res.stdout)
     assert out["hit"], "the seeded entry was not used"
     assert out["sympy"] == [], f"sympy imported on a cached load: {out['sympy']}"
+
+
+def test_names_from_the_robot_file_never_run_as_code(fresh_cache, tmp_path):
+    """The generated model module quotes the robot's names as a string literal: a name that
+    holds triple quotes and a call (which used to end the module's docstring and run when the
+    cached module was imported) compiles to the same model and runs nothing."""
+    import re
+
+    from thrustwalk_cli.files.robot_file import load_robot_text
+
+    marker = tmp_path / "ran"
+    name = f'x"""+__import__("pathlib").Path({str(marker)!r}).touch()+"""'
+    text = (Path(__file__).parents[1] / "robots" / "three_link.yaml").read_text()
+    text = re.sub(r"^name: .*$", "name: " + json.dumps(name), text, count=1, flags=re.M)
+    robot = load_robot_text(text, str(tmp_path / "evil.yaml"))
+    assert robot.name == name
+    model = load_model(robot)
+    model_mod._LOADED.clear()  # and once more through the file on disk
+    again = load_model(robot)
+    assert again.cache_hit and not marker.exists()
+    q = [0.1, -0.2, 0.3]
+    np.testing.assert_array_equal(again.D(q), load_model(load_robot("three_link")).D(q))
+    import ast
+
+    assert repr(name) in ast.get_docstring(ast.parse(model.cache_path.read_text()))

@@ -216,7 +216,10 @@ def generate_module(header: str, functions: list[str], constants: dict[str, obje
     ``bind_lines`` (the numbers' coefficients, :meth:`Hoist.source`) and returns the
     ``functions`` (defined inside it: closures over those coefficients) by name, with
     ``_consts``, the tape's constants (numbers, and coefficients by name)."""
-    out = [f'"""{header}"""', "import math as _m", "import numpy as _np", ""]
+    # the header holds names from the robot file: written as a string literal by repr, never
+    # spliced into quotes (a name holding triple quotes would otherwise end the docstring and
+    # run as code when the module is imported)
+    out = [repr(header), "import math as _m", "import numpy as _np", ""]
     for k, v in constants.items():
         out.append(f"{k} = {v!r}")
     out.append(f"_EXPORTS = {tuple(exports)!r}")
