@@ -9,7 +9,17 @@ import typer
 
 from .common import cli_errors, console, warn
 from .mujoco import contact_from_options
-from .options import ContactOpt, GaitArg, MuOpt, QuietOpt, RobotArg
+from .options import (
+    ContactOpt,
+    FootRadiusOpt,
+    GaitArg,
+    MuOpt,
+    QuietOpt,
+    RobotArg,
+    SolimpOpt,
+    SolrefOpt,
+    TimestepOpt,
+)
 
 HELP = """Write a MuJoCo model (MJCF) of a planar thrustwalk robot.
 
@@ -40,16 +50,10 @@ def register(app: typer.Typer) -> None:
                                           "(replaced atomically).")] = Path("robot.xml"),
         mu: MuOpt = None,
         contact: ContactOpt = "default",
-        timestep: Annotated[float | None, typer.Option(
-            "--timestep", help="MuJoCo timestep [s] (default: the preset's).")] = None,
-        solref: Annotated[str | None, typer.Option(
-            "--solref", metavar="TIMECONST,DAMPRATIO",
-            help="Contact solref [s, 1] (default: the preset's).")] = None,
-        solimp: Annotated[str | None, typer.Option(
-            "--solimp", metavar="D0,DWIDTH,WIDTH[,MID,POWER]",
-            help="Contact solimp (default: the preset's).")] = None,
-        foot_radius: Annotated[float | None, typer.Option(
-            "--foot-radius", help="Radius of the feet's spheres [m] (default 0.001).")] = None,
+        timestep: TimestepOpt = None,
+        solref: SolrefOpt = None,
+        solimp: SolimpOpt = None,
+        foot_radius: FootRadiusOpt = None,
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):

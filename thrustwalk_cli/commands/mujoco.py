@@ -23,6 +23,7 @@ from .common import (
 )
 from .options import (
     ContactOpt,
+    FootRadiusOpt,
     FormatsOpt,
     GaitArg,
     JsonOpt,
@@ -30,6 +31,9 @@ from .options import (
     OutOpt,
     QuietOpt,
     RobotArg,
+    SolimpOpt,
+    SolrefOpt,
+    TimestepOpt,
     TitlesOpt,
 )
 
@@ -205,16 +209,10 @@ def register(app: typer.Typer) -> None:
             help="Impulse [N s] at the hip at phase s of a step (repeatable).")] = None,
         mu: MuOpt = None,
         contact: ContactOpt = "default",
-        timestep: Annotated[float | None, typer.Option(
-            "--timestep", help="MuJoCo timestep [s] (default: the preset's).")] = None,
-        solref: Annotated[str | None, typer.Option(
-            "--solref", metavar="TIMECONST,DAMPRATIO",
-            help="Contact solref [s, 1] (default: the preset's).")] = None,
-        solimp: Annotated[str | None, typer.Option(
-            "--solimp", metavar="D0,DWIDTH,WIDTH[,MID,POWER]",
-            help="Contact solimp (default: the preset's).")] = None,
-        foot_radius: Annotated[float | None, typer.Option(
-            "--foot-radius", help="Radius of the feet's spheres [m] (default 0.001).")] = None,
+        timestep: TimestepOpt = None,
+        solref: SolrefOpt = None,
+        solimp: SolimpOpt = None,
+        foot_radius: FootRadiusOpt = None,
         integrator: Annotated[str | None, typer.Option(
             "--integrator", help="MuJoCo integrator: implicitfast (default) or Euler.")
                              ] = None,

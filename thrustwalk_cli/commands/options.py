@@ -66,6 +66,22 @@ MaxOutputOpt = Annotated[
     float, typer.Option("--max-output", help="Refuse a sweep whose CSV table would exceed this "
                                              "many megabytes [MB].")
 ]
+TimestepOpt = Annotated[
+    float | None, typer.Option("--timestep", help="MuJoCo timestep [s] (default: the "
+                                                  "preset's).")
+]
+SolrefOpt = Annotated[
+    str | None, typer.Option("--solref", metavar="TIMECONST,DAMPRATIO",
+                             help="Contact solref [s, 1] (default: the preset's).")
+]
+SolimpOpt = Annotated[
+    str | None, typer.Option("--solimp", metavar="D0,DWIDTH,WIDTH[,MID,POWER]",
+                             help="Contact solimp (default: the preset's).")
+]
+FootRadiusOpt = Annotated[
+    float | None, typer.Option("--foot-radius", help="Radius of the feet's spheres [m] "
+                                                     "(default 0.001).")
+]
 ContactOpt = Annotated[
     str, typer.Option("--contact", help="MuJoCo contact preset: soft (MuJoCo's default "
                                         "contact), default, or stiff (with a small timestep; "
