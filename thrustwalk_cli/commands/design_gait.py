@@ -167,7 +167,8 @@ def _keep(result, model, robot: str, out: Path, gait_name: str, formats: set[str
     write them (gait and figures only for a feasible design). ``step[0]`` names the step under
     way (for the message if one fails). Returns the report and the files written."""
     from ..files import output
-    from ..studies.design_gait import reload_check, robot_reference
+    from ..files.gait_file import robot_reference
+    from ..studies.design_gait import reload_check
 
     gait_path = out / f"{gait_name}.yaml"
     report_path = out / f"{gait_name}.report.json"
@@ -286,7 +287,8 @@ def _failed_text(result, robot: str, path: Path, report_name: str, why: str,
                  render: Callable[[str], str]) -> str | None:
     """The gait text of a feasible design kept after a failure (None for an infeasible one)."""
     from ..files import output
-    from ..studies.design_gait import failed_line, gait_yaml, robot_reference
+    from ..files.gait_file import robot_reference
+    from ..studies.design_gait import failed_line, gait_yaml
 
     if not result.success:
         return None

@@ -231,3 +231,98 @@ def bind_gait(gait: Gait, source: GaitSource, robot: Robot) -> Gait:
         raise InputError(problems)
     A = tuple(tuple(0.0 if v is None else float(v) for v in r) for r in rows)
     return replace(gait, c=tuple(c.tolist()), A=A, robot=robot.name)
+
+
+# --- writing -----------------------------------------------------------------------------
+
+def number_text(v: float) -> str:
+    """A number as a gait file writes it: an integer without a decimal point, otherwise the
+    shortest text that reads back as the same float (``repr``)."""
+    v = float(v)
+    return str(int(v)) if v.is_integer() and abs(v) < 1e15 else repr(v)
+
+
+def text_scalar(s: str) -> str:
+    """``s`` as a YAML scalar that reads back as the same string: plain when it does, else
+    double-quoted (JSON's escaping is YAML's)."""
+    import json
+
+    import yaml
+
+    s = str(s)
+    try:
+        if yaml.safe_load(f"k: {s}") == {"k": s} and "\n" not in s:
+            return s
+    except yaml.YAMLError:
+        pass
+    return json.dumps(s)
+
+
+def _seq(values) -> str:
+    return "[" + ", ".join("~" if v is None else number_text(v) for v in values) + "]"
+
+
+def gait_text(gait: Gait, robot: Robot, *, robot_ref: str, description: str,
+              mu: float | None = None, invariance: str = "given",
+              header: list[str] | tuple[str, ...] = (),
+              thrust: tuple[str, list[float], Mapping[str, list[float]], str] | None = None,
+              thrust_comment: str = "") -> str:
+    """``gait`` as a gait file (the schema of :data:`GAIT_SCHEMA`), the one writer of gait
+    files (design-gait, optimize, the gait-library sweep).
+
+    ``robot_ref``: how the file names its robot (:func:`robot_reference`); ``header``: lines
+    written as ``#`` comments; ``invariance``: ``"given"`` writes every Bezier column,
+    ``"auto"`` writes columns 0 and 1 as ``~`` (recomputed for hybrid invariance on loading,
+    SPEC 4); ``mu``: the friction coefficient (default the gait's); ``thrust``: ``(mode,
+    knots as fractions of the step, {key: one value per interval}, unit)`` written as the
+    file's ``thrust:`` section, or None for none. Numbers are written so that they read back
+    bit for bit (:func:`number_text`)."""
+    if invariance not in ("given", "auto"):
+        raise ValueError(f"invariance is 'given' or 'auto', not {invariance!r}")
+    names = robot.coordinate_names
+    act = [c.name for c in robot.coordinates if c.actuated]
+    c_map = ", ".join(f"{nm}: {number_text(v)}" for nm, v in zip(names, gait.c) if v != 0.0)
+    lines = [f"# {line}" for h in header for line in str(h).splitlines() or [""]]
+    lines += [f"name: {text_scalar(gait.name)}", f"description: {text_scalar(description)}",
+              f"robot: {text_scalar(robot_ref)}",
+              "parameters:",
+              f"  af: {number_text(gait.alpha_f)}   # [rad] alpha_f = c q^-, the value of "
+              "alpha at impact",
+              "alpha:", f"  c: {{{c_map}}}   # alpha = c q [rad]", "  final: af",
+              "bezier:", f"  invariance: {invariance}",
+              "  coefficients:   # [rad]; column k at s = k/M, s = 0 after impact, "
+              "s = 1 before impact"]
+    for nm, row in zip(act, gait.A):
+        row = [float(v) for v in row]
+        lines.append(f"    {nm}: " + _seq([None, None, *row[2:]] if invariance == "auto"
+                                           else row))
+    lines += ["controller:", f"  kp: {number_text(gait.kp)}   # [1/s^2]",
+              f"  kd: {number_text(gait.kd)}   # [1/s]",
+              f"mu: {number_text(gait.mu if mu is None else mu)}"]
+    if thrust is not None:
+        mode, knots, values, unit = thrust
+        lines += ["thrust:" + (f"   # {thrust_comment}" if thrust_comment else ""),
+                  f"  mode: {mode}", f"  knots: {_seq(knots)}   # fractions of the step",
+                  "  fractions: true", "  values:"]
+        lines += [f"    {text_scalar(key)}: {_seq(v)}   # [{unit}] one value per interval"
+                  for key, v in values.items()]
+    return "\n".join(lines) + "\n"
+
+
+def robot_reference(robot: Robot, given: str | None = None, out: Path | None = None) -> str:
+    """How a gait file names its robot. With ``given`` (the robot as the user named it) and
+    ``out`` (the gait file's path): the bundled name when it was given by name, otherwise the
+    robot file's path relative to the gait file's folder. Without them: the bundled name when
+    the robot is the bundled one of that name, otherwise the robot file's absolute path."""
+    if given is not None and out is not None:
+        p = Path(given)
+        if not p.is_file() and "/" not in given and not given.endswith((".yaml", ".yml")):
+            return given
+        return os.path.relpath(Path(robot.source_file).resolve(), Path(out).resolve().parent)
+    if not robot.source_file:
+        return robot.name
+    try:
+        bundled = resolve(robot.name, "robots").resolve() == Path(robot.source_file).resolve()
+    except InputError:
+        bundled = False
+    return robot.name if bundled else str(Path(robot.source_file).resolve())

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 
@@ -17,7 +16,7 @@ from ..design.solver import DesignResult, WarmStart, solve_design
 from ..design.spec import DesignSpec
 from ..design.verify import check_gait
 from ..errors import ComputationError, InputError, check_callable, check_instance
-from ..files.gait_file import bind_gait, load_gait_text, same_robot_file
+from ..files.gait_file import bind_gait, gait_text, load_gait_text, same_robot_file
 from ..hzd.constraints import apply_invariance
 from ..hzd.zero_dynamics import limit_cycles, zero_dynamics
 from ..model.compiled import CompiledModel
@@ -83,33 +82,21 @@ def _num(v: float) -> float | None:
 def gait_yaml(res: DesignResult, model: CompiledModel, robot_ref: str,
               header: list[str]) -> str:
     """The gait as YAML (``invariance: auto``, columns 0 and 1 written as ``~``), loadable by
-    :func:`robot_io.load_gait_for`; ``header`` lines become ``#`` comments."""
+    :func:`robot_io.load_gait_for`; ``header`` lines become ``#`` comments
+    (:func:`files.gait_file.gait_text`)."""
     g, r = res.gait, model.robot
-    names = r.coordinate_names
-    act = [c.name for c in r.coordinates if c.actuated]
     o = res.check.get("orbit", {})
-    c_map = ", ".join(f"{nm}: {_f(v)}" for nm, v in zip(names, g.c) if v != 0.0)
     desc = (f"order-{g.order} Bezier gait designed by thrustwalk design-gait "
             f"({res.spec.objective} objective)")
     if o.get("speed") is not None:
         desc += f", {o['speed']:.3f} m/s, step {o['step_length']:.3f} m"
-    lines = [f"# {h}" for h in header]
-    lines += [f"name: {g.name}", f"description: {desc}", f"robot: {robot_ref}",
-              "parameters:",
-              f"  af: {_f(g.alpha_f)}   # [rad] alpha_f = c q^-, the value of alpha at impact",
-              "alpha:", f"  c: {{{c_map}}}   # alpha = c q [rad]", "  final: af",
-              "bezier:", "  invariance: auto",
-              "  coefficients:   # [rad]; column k at s = k/M, s = 0 after impact, "
-              "s = 1 before impact"]
-    for nm, row in zip(act, g.A):
-        lines.append(f"    {nm}: [~, ~, " + ", ".join(_f(v) for v in row[2:]) + "]")
-    lines += ["controller:", f"  kp: {_f(g.kp)}   # [1/s^2]", f"  kd: {_f(g.kd)}   # [1/s]",
-              f"mu: {_f(res.spec.mu)}"]
+    thrust = None
     if res.thrust:
-        vals = ", ".join(f"{nm}: [{_f(v)}]" for nm, v in zip(r.thruster_names, res.thrust))
-        lines += ["thrust:   # designed constant thrust [N]", "  mode: force",
-                  "  knots: [0, 1]", "  fractions: true", f"  values: {{{vals}}}"]
-    return "\n".join(lines) + "\n"
+        thrust = ("force", [0.0, 1.0], {nm: [v] for nm, v in zip(r.thruster_names, res.thrust)},
+                  "N")
+    return gait_text(g, r, robot_ref=robot_ref, description=desc, mu=res.spec.mu,
+                     invariance="auto", header=header, thrust=thrust,
+                     thrust_comment="designed constant thrust [N]")
 
 
 def yaml_header(res: DesignResult, provenance: dict, report_name: str,
@@ -159,11 +146,6 @@ def yaml_header(res: DesignResult, provenance: dict, report_name: str,
     out.append(f"Every margin and the fixed point: {report_name}. Re-check: thrustwalk "
                "limit-cycle / feasibility with this file.")
     return out
-
-
-def _f(v: float) -> str:
-    v = float(v)
-    return str(int(v)) if v.is_integer() and abs(v) < 1e15 else repr(v)
 
 
 def with_name(res: DesignResult, name: str) -> DesignResult:
@@ -350,14 +332,3 @@ def design_gait(robot: Robot | CompiledModel | Walker, spec: DesignSpec, *,
         cmp = {"gait": compare.gait.name, "file": compare.gait.source_file,
                **check_gait(robot, compare.gait, spec)}
     return DesignGaitResult(robot, res, cmp)
-
-
-def robot_reference(robot: Robot, given: str, out: Path) -> str:
-    """How a gait file at ``out`` names its robot: the bundled name it was given by, or the
-    robot file's path relative to the gait file's folder."""
-    import os
-
-    p = Path(given)
-    if not p.is_file() and "/" not in given and not given.endswith((".yaml", ".yml")):
-        return given
-    return os.path.relpath(Path(robot.source_file).resolve(), out.resolve().parent)

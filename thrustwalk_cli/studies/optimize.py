@@ -4,8 +4,7 @@ record, the gait file with the optimal schedule, and the figure."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -17,7 +16,7 @@ from ..errors import (
     check_numbers,
     check_text,
 )
-from ..files.bundled import resolve
+from ..files.gait_file import gait_text, robot_reference
 from ..hzd.zero_dynamics import LimitCycle
 from ..model.compiled import CompiledModel
 from ..optimize.min_effort import OptimalSchedule, describe, optimize
@@ -97,52 +96,19 @@ def check_options(*, fractions: list[float], target_zeta: float | None,
 
 def gait_yaml(gait, robot, res: OptimalSchedule, model: CompiledModel) -> str:
     """A gait file equal to ``gait`` (coefficients written out, ``invariance: given``) with the
-    optimal schedule as its ``thrust:`` section (schema: ``robot_io.GAIT_SCHEMA``)."""
-    names = robot.coordinate_names
-    act = [c.name for c in robot.coordinates if c.actuated]
-    try:
-        bundled = resolve(robot.name, "robots").resolve() == Path(robot.source_file).resolve()
-    except InputError:
-        bundled = False
-    ref = robot.name if bundled else str(Path(robot.source_file).resolve())
-    c = {n: v for n, v in zip(names, gait.c) if v != 0.0}
+    optimal schedule as its ``thrust:`` section (:func:`files.gait_file.gait_text`)."""
     p = res.problem
     key = model.robot.thruster_names[p.thruster] if p.mode == "force" else "T"
-    unit = "N" if p.mode == "force" else "N m"
-
-    def seq(v):
-        return "[" + ", ".join(repr(float(x)) for x in v) + "]"
-
-    lines = [
-        f"# Written by thrustwalk optimize from gait '{gait.name}' ({gait.source_file}).",
-        f"# Minimum-effort thrust schedule (SPEC 6): target {res.target}, objective "
-        f"{res.objective!r}; zeta* = {res.cycle.zeta_star!r} kg^2 m^4/s^2, speed "
-        f"{res.cycle.speed!r} m/s.",
-        "# Bezier columns 0 and 1 were computed for hybrid invariance; written out in full.",
-        f"name: {gait.name}_optimal",
-        f"description: {gait.name} with a minimum-effort thrust schedule",
-        f"robot: {ref}",
-        "alpha:",
-        "  c: {" + ", ".join(f"{k}: {float(v)!r}" for k, v in c.items()) + "}",
-        f"  final: {float(gait.alpha_f)!r}   # [rad]",
-        "bezier:",
-        "  invariance: given",
-        "  coefficients:   # [rad]",
-        *[f"    {n}: {seq(row)}" for n, row in zip(act, gait.A)],
-        "controller:",
-        f"  kp: {float(gait.kp)!r}   # [1/s^2]",
-        f"  kd: {float(gait.kd)!r}   # [1/s]",
-        f"mu: {float(gait.mu)!r}",
-        "thrust:",
-        f"  mode: {p.mode}",
-        f"  knots: {seq(res.fractions)}   # fractions of the step",
-        "  fractions: true",
-        "  values:",
-        f"    {key}: {seq(res.values)}   # [{unit}] one value per interval",
-        "",
-    ]
-    return "\n".join(lines)
-
+    header = [f"Written by thrustwalk optimize from gait '{gait.name}' ({gait.source_file}).",
+              f"Minimum-effort thrust schedule (SPEC 6): target {res.target}, objective "
+              f"{res.objective!r}; zeta* = {res.cycle.zeta_star!r} kg^2 m^4/s^2, speed "
+              f"{res.cycle.speed!r} m/s.",
+              "Bezier columns 0 and 1 were computed for hybrid invariance; written out in full."]
+    return gait_text(replace(gait, name=f"{gait.name}_optimal"), robot,
+                     robot_ref=robot_reference(robot), header=header, invariance="given",
+                     description=f"{gait.name} with a minimum-effort thrust schedule",
+                     thrust=(p.mode, list(res.fractions), {key: list(res.values)},
+                             "N" if p.mode == "force" else "N m"))
 
 
 @dataclass(frozen=True)

@@ -531,7 +531,7 @@ def run_sweep(sweep: Sweep, *, workers: int | None = None, scheduler: str | None
     a trial; 1: one per task); other studies run one point per task (their points cost tens
     of milliseconds or more). The records do not depend on it. Returns the result over all
     points."""
-    from .design_gait import robot_reference
+    from ..files.gait_file import robot_reference
 
     check_instance("sweep", sweep, Sweep, "a Sweep (tw.load_sweep)")
     if executor is None:
