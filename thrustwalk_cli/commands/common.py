@@ -431,25 +431,35 @@ def ensure_kernel(quiet: bool) -> dict | None:
 
 def write_result(result, out: Path, provenance: dict, *, json: str | None = None,
                  formats: set[str] | None = None, titles: bool = False,
-                 extra: dict[str, bytes] | None = None) -> dict:
+                 extra: dict[str, bytes] | None = None, into=None) -> dict:
     """Write a study result as the folder ``out``, as a whole (a killed run leaves the previous
     folder or none, never a mix): ``<name>.json`` (provenance first), its CSV tables, its
     attachments, ``extra`` files and its figures (PNG and PDF), each kind only when in
     ``formats`` (default: all); with ``json`` also the document to that path, or to standard
-    output for ``-``. Returns the JSON document written."""
+    output for ``-``. Returns the JSON document written.
+
+    ``into``: the open resumable folder (``output.SweepFolder``) of a command whose records
+    were written one by one (sweep, robustness): the same files are written into it, each
+    atomically, the JSON document last (it marks the folder complete) and listing the
+    figures."""
     import json as _json
 
     from ..files import output
 
     kinds = {"csv", "png", "pdf", "md", "yaml", "npz", "gif"} if formats is None else formats
-    folder = output.ResultFolder(out)
+    figure_kinds = [k for k in ("png", "pdf", "svg") if k in kinds]
+    folder = output.ResultFolder(out) if into is None else into
     try:
         tables = result.tables() if "csv" in kinds else {}
         doc = {"provenance": provenance, **result.document()}
-        if tables:
+        if tables or into is not None:
             doc["tables"] = {f"{name}.csv": {"columns": t.header, "notes": t.comments}
                              for name, t in tables.items()}
-        output.write_json(folder.path(f"{result.name}.json"), doc)
+        figures = result.figures(titles=titles) if figure_kinds else {}
+        if into is not None:
+            doc["figures"] = sorted(figures)
+        else:
+            output.write_json(folder.path(f"{result.name}.json"), doc)
         for name, t in tables.items():
             output.write_csv(folder.path(f"{name}.csv"), t.header, t.rows)
         attach = getattr(result, "attachments", None)
@@ -462,12 +472,15 @@ def write_result(result, out: Path, provenance: dict, *, json: str | None = None
                 output.write_bytes_atomic(folder.path(name), data)
             else:
                 output.write_text_atomic(folder.path(name), data)
-        figure_kinds = [k for k in ("png", "pdf", "svg") if k in kinds]
         if figure_kinds:
-            save_figures(result.figures(titles=titles), folder.tmp, figure_kinds)
-        folder.commit(provenance)
+            save_figures(figures, folder.tmp if into is None else folder.target, figure_kinds)
+        if into is None:
+            folder.commit(provenance)
+        else:
+            output.write_json(folder.path(f"{result.name}.json"), doc)
     except BaseException:
-        folder.abort()
+        if into is None:
+            folder.abort()
         raise
     if json == "-":
         sys.stdout.write(_json.dumps(output.jsonable(doc), indent=2) + "\n")

@@ -3,7 +3,6 @@ uncertainty per thrust strategy (SPEC 12), every trial a resumable point of the 
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -20,9 +19,9 @@ from .common import (
     parse_knots,
     parse_values,
     progress,
-    save_figures,
     show_table,
     warn,
+    write_result,
     wrote_line,
 )
 from .options import (
@@ -165,24 +164,10 @@ def run_robustness_command(
         if plan.uncertainty is not None:
             prov["uncertainty"] = output.file_ref(plan.uncertainty.source_file,
                                                   plan.uncertainty.source_sha256)
-        tables = result.tables() if "csv" in kinds else {}
-        figures = result.figures(titles=titles) if kinds & {"png", "pdf", "svg"} else {}
-        doc = {"provenance": prov, **result.document(),
-               "tables": {f"{n}.csv": {"columns": t.header, "notes": t.comments}
-                          for n, t in tables.items()},
-               "figures": sorted(figures)}
-        for name, t in tables.items():
-            output.write_csv(folder.path(f"{name}.csv"), t.header, t.rows)
-        save_figures(figures, folder.target, [k for k in ("png", "pdf", "svg") if k in kinds])
-        output.write_json(folder.path("robustness.json"), doc)
+        doc = write_result(result, out, prov, json=json, formats=kinds, titles=titles,
+                           into=folder)
     finally:
         folder.close()
-    if json == "-":
-        import json as _json
-
-        sys.stdout.write(_json.dumps(output.jsonable(doc), indent=2) + "\n")
-    elif json:
-        output.write_json(Path(json), doc)
     warn(doc["warnings"])
     if not quiet and json != "-":
         _table(doc)

@@ -19,9 +19,9 @@ from .common import (
     ensure_kernel,
     parse_formats,
     progress,
-    save_figures,
     show_table,
     warn,
+    write_result,
 )
 from .options import FormatsOpt, QuietOpt, TitlesOpt
 
@@ -131,7 +131,7 @@ def _explicit_option(p: Problem) -> Problem:
 
 def _write_summary(result, folder, kinds: set[str], titles: bool) -> dict:
     """sweep.json, results.csv (and library.csv, the gait files) and the figures, each file
-    written atomically."""
+    written atomically into the sweep's folder (:func:`write_result`)."""
     from ..files import output
 
     spec = result.sweep.spec
@@ -142,21 +142,7 @@ def _write_summary(result, folder, kinds: set[str], titles: bool) -> dict:
 
     prov = output.provenance(sweep=output.file_ref(spec.source_file, spec.source_sha256))
     prov.update(robot=ref(spec.robot, spec.robot_text), gait=ref(spec.gait, spec.gait_text))
-    tables = result.tables() if "csv" in kinds else {}
-    figures = result.figures(titles=titles) if kinds & {"png", "pdf", "svg"} else {}
-    library = result.library_files()
-    doc = {"provenance": prov, **result.document(),
-           "tables": {f"{n}.csv": {"columns": t.header, "notes": t.comments}
-                      for n, t in tables.items()},
-           "figures": sorted(figures),
-           "library": sorted(library)}
-    for name, text in library.items():
-        output.write_text_atomic(folder.path(name), text)
-    for name, t in tables.items():
-        output.write_csv(folder.path(f"{name}.csv"), t.header, t.rows)
-    save_figures(figures, folder.target, [k for k in ("png", "pdf", "svg") if k in kinds])
-    output.write_json(folder.path("sweep.json"), doc)
-    return doc
+    return write_result(result, folder.target, prov, formats=kinds, titles=titles, into=folder)
 
 
 def _summary(doc: dict, out: Path) -> None:

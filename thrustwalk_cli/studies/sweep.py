@@ -371,7 +371,12 @@ class SweepResult:
             "executor": self.executor,
             "points_folder": "points",
             "failures": failures,
+            "library": sorted(self.library_files()),
         }
+
+    def attachments(self, doc: dict) -> dict[str, str]:
+        """The gait library's files (:meth:`library_files`)."""
+        return self.library_files()
 
     def tables(self) -> dict[str, Table]:
         """``results``: one row per point (point, key, status, the axes, the collected fields,
