@@ -13,7 +13,7 @@ thrust-independent zero dynamics.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from math import pi
@@ -200,14 +200,9 @@ def load_walker(robot: str | None = None, gait: str | None = None, *,
         gait = default_gait(rob)
     g, source = load_gait(gait, gait_parameters)
     if rob is not None:
-        if not same_robot_file(rob, g.robot):
-            try:
-                own = load_robot(g.robot).name
-            except InputError:
-                own = rob.name  # the gait's own robot file is not reachable: trust the user
-            if own != rob.name:
-                raise InputError(source.where(("robot",), f"gait '{g.name}' is for robot "
-                                                          f"'{own}', not '{rob.name}'"))
+        wrong = gait_robot_mismatch(rob, g)
+        if wrong:
+            raise InputError(source.where(("robot",), wrong))
     else:
         try:
             resolve(g.robot, "robots")
@@ -215,6 +210,23 @@ def load_walker(robot: str | None = None, gait: str | None = None, *,
             raise InputError(source.where(("robot",), str(exc))) from None
         rob = load_robot(g.robot, robot_parameters)
     return assemble_walker(rob, g, source, progress=progress)
+
+
+def gait_robot_mismatch(robot: Robot, gait: Gait,
+                        load: Callable[[str], Robot] = load_robot) -> str | None:
+    """Why ``gait`` (loaded, its ``robot:`` as written) is not for ``robot``: its own robot
+    file names another robot. None when the gait names ``robot``'s file, or a robot of the
+    same name, or its own robot file cannot be read (the user's choice is then trusted).
+    ``load`` reads a robot reference (the sweep reads inside its folder). The one check used
+    by :func:`load_walker` and the sweeps."""
+    if same_robot_file(robot, gait.robot):
+        return None
+    try:
+        own = load(gait.robot).name
+    except InputError:
+        return None
+    return None if own == robot.name else (f"gait '{gait.name}' is for robot '{own}', not "
+                                           f"'{robot.name}'")
 
 
 def assemble_walker(robot: Robot, gait: Gait, source: GaitSource, *,

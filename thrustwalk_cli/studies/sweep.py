@@ -29,7 +29,7 @@ from ..errors import (
     check_text,
 )
 from ..files.bundled import EXPLICITLY, resolve, resolve_inside
-from ..files.gait_file import load_gait_text, same_robot_file
+from ..files.gait_file import load_gait_text
 from ..files.robot_file import load_robot_text
 from ..files.schema import _suggest
 from ..files.sweep_file import SweepSource, load_sweep_file, read_source, value_problem
@@ -37,7 +37,7 @@ from ..sweep.executors import DaskCluster, InProcess, LocalProcesses
 from ..sweep.points import expand, grid_coordinates, neighbours
 from ..sweep.runner import RunCounts, run_tasks
 from ..sweep.tasks import PointTask, canonical, identity, task_key
-from ..walker import assemble_walker, default_gait
+from ..walker import assemble_walker, default_gait, gait_robot_mismatch
 from .documents import SCHEMA_VERSION, Table, col, result_repr
 from .sweep_studies import (
     STUDIES,
@@ -117,15 +117,10 @@ def load_sweep(path: str | Path, *, robot: str | None = None,
                                how=f"{EXPLICITLY} `gait` (the gait, read wherever it is)")
             except InputError as exc:
                 raise InputError(gsource.where(("robot",), exc.problems[0].message)) from None
-        if not same_robot_file(robot, gait.robot):
-            try:
-                own = load_robot_text(read_source(str(resolve(gait.robot, "robots")),
-                                                  "robot"), gait.robot).name
-            except InputError:
-                own = robot.name
-            if own != robot.name:
-                problems.append(source.where(("gait",), f"gait '{gait.name}' is for robot "
-                                                        f"'{own}', not '{robot.name}'"))
+        wrong = gait_robot_mismatch(robot, gait, lambda ref: load_robot_text(
+            read_source(str(resolve(ref, "robots")), "robot"), ref))
+        if wrong:
+            problems.append(source.where(("gait",), wrong))
     robot_params = dict(robot.parameters)
     for a in spec.axes:
         known = robot_params if a.target == "robot" else gait_params
