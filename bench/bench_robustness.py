@@ -83,7 +83,7 @@ def _first_of_each(plan):
 def main(trials: int = 1953) -> None:
     from bench_sweep import ceiling
 
-    from thrustwalk_cli.studies import sweep_studies
+    from thrustwalk_cli.studies import sweep_points
     from thrustwalk_cli.studies.compile import compile_kernel
     from thrustwalk_cli.studies.robustness import plan_robustness, trial_chunk
     from thrustwalk_cli.walker import load_walker
@@ -95,7 +95,7 @@ def main(trials: int = 1953) -> None:
     for name, kw in _mixes(trials).items():
         plan = plan_robustness(w, steps=10, basin_grid=0, **kw)
         n = len(plan.tasks)
-        sweep_studies._CACHE.clear()  # this process's walkers and runners: made anew, timed
+        sweep_points.CACHE.clear()  # this process's walkers and runners: made anew, timed
         _, setup = _run(_first_of_each(plan), 1, tmp / f"{name}-setup")
         print(f"{f'{name}: set-up of {len(plan.strategies)} strategies (+1 trial each)':<58s} "
               f"{setup:12.2f} s", flush=True)

@@ -46,8 +46,8 @@ def test_gait_text_reads_back_bit_for_bit(robot_ref, gait_ref, tmp_path):
     thrust = None
     if thrusters:
         thrust = ("force", [0.0, 1 / 3, 1.0], {thrusters[0]: [-10.0 / 3, 2.5]}, "N")
-    text = gait_text(gait, robot, robot_ref=ref, description="a test: gait # not a comment", header=["x: y", "two\nlines"],
-                     invariance="given", thrust=thrust)
+    text = gait_text(gait, robot, robot_ref=ref, description="a test: gait # not a comment",
+                     header=["x: y", "two\nlines"], invariance="given", thrust=thrust)
     out.parent.mkdir()
     back, _ = _read_back(text, out, robot)
     assert back.c == gait.c and back.alpha_f == gait.alpha_f

@@ -297,12 +297,12 @@ def test_a_sweep_over_a_robot_parameter_compiles_once(tmp_path, monkeypatch):
     """Every point of a torso-mass sweep binds its numbers to one compiled model: one
     derivation in the process, one model entry in an empty cache."""
     import thrustwalk_cli as tw
-    from thrustwalk_cli.studies import sweep_studies
+    from thrustwalk_cli.studies import sweep_points
 
     cache_dir = tmp_path / "cache"
     monkeypatch.setenv("THRUSTWALK_CACHE_DIR", str(cache_dir))
     monkeypatch.setattr(compiler, "_LOADED", {})
-    monkeypatch.setattr(sweep_studies, "_CACHE", type(sweep_studies._CACHE)())
+    monkeypatch.setattr(sweep_points, "CACHE", type(sweep_points.CACHE)())
     path = tmp_path / "s.yaml"
     path.write_text(textwrap.dedent(SWEEP))
     before = compiler.COMPILES

@@ -96,7 +96,7 @@ _HOMES = {
     "zd_limit_cycles": "hzd.zero_dynamics:limit_cycles", "LimitCycle": "hzd.zero_dynamics",
     "ThrusterDynamics": "thrust.dynamics", "thruster_dynamics": "thrust.dynamics",
     "limit_cycle": "studies.limit_cycle", "LimitCycleResult": "studies.limit_cycle",
-    "shape": "studies.shape", "ShapeResult": "studies.shape",
+    "shape": "studies.shape", "ShapeResult": "studies.shape_result",
     "feasibility": "studies.feasibility", "FeasibilityResult": "studies.feasibility",
     "optimize_schedule": "studies.optimize", "OptimizeResult": "studies.optimize",
     "simulate": "studies.simulate", "SimulationResult": "studies.simulate",
@@ -104,7 +104,7 @@ _HOMES = {
     "InspectResult": "studies.inspect",
     "control": "studies.control", "ControlResult": "studies.control",
     "stability": "studies.stability", "StabilityResult": "studies.stability",
-    "robustness": "studies.robustness", "RobustnessResult": "studies.robustness",
+    "robustness": "studies.robustness", "RobustnessResult": "studies.robustness_result",
     "design_gait": "studies.design_gait", "DesignGaitResult": "studies.design_gait",
     "DesignSpec": "design.spec",
     "load_sweep": "studies.sweep", "Sweep": "studies.sweep", "run_sweep": "studies.sweep",
@@ -115,7 +115,7 @@ _HOMES = {
 # deprecated name -> (where it lives, what to use instead); not public names: not in __all__,
 # not in dir(), a DeprecationWarning on every use; kept for one release
 _DEPRECATED = {
-    "ShapeStudy": ("studies.shape:ShapeResult", "tw.ShapeResult"),
+    "ShapeStudy": ("studies.shape_result:ShapeResult", "tw.ShapeResult"),
     "ShapeRequest": ("studies.shape:ShapeRequest",
                      "the keywords of tw.shape(walker, pattern=..., k=[...], ...)"),
     "limit_cycles": ("hzd.zero_dynamics:limit_cycles", "tw.zd_limit_cycles"),

@@ -1,5 +1,5 @@
 """Figures of ``thrustwalk robustness`` (SPEC 12), from the figure data of
-:meth:`thrustwalk_cli.studies.robustness.RobustnessResult.figure_data`: the outcome of every
+:meth:`thrustwalk_cli.studies.robustness_result.RobustnessResult.figure_data`: the outcome of every
 push trial over (phase, impulse) per strategy, the largest survivable push against phase, the
 basins of attraction (reduced and full-order slices) and the spread of the converged speed
 under parameter uncertainty. Colours that encode a category come with a legend."""

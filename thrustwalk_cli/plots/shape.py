@@ -1,6 +1,6 @@
 """Figures of center-manifold shaping (SPEC 4, 8: the paper's figures 4 and 5).
 
-Rendered from :class:`thrustwalk_cli.studies.shape.ShapeResult` results; shared style from
+Rendered from :class:`thrustwalk_cli.studies.shape_result.ShapeResult` results; shared style from
 :mod:`thrustwalk_cli.plots` (labels with units, colour bar for a swept value, black every 10).
 """
 

@@ -29,10 +29,10 @@ from ..interchange.mujoco_run import (
     MujocoRun,
     Push,
     load_mujoco,
-    render_frames,
     run_mujoco,
     thrust_runs,
 )
+from ..interchange.mujoco_video import render_frames
 from ..thrust.dynamics import canonical
 from ..thrust.schedule import Schedule
 from ..walker import Walker, check_walker

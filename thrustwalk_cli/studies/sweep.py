@@ -39,14 +39,9 @@ from ..sweep.runner import RunCounts, run_tasks
 from ..sweep.tasks import PointTask, canonical, identity, task_key
 from ..walker import assemble_walker, default_gait, gait_robot_mismatch
 from .documents import SCHEMA_VERSION, Table, col, result_repr
-from .sweep_studies import (
-    STUDIES,
-    SweepStudy,
-    point_model,
-    point_walker,
-    run_point,
-    trial_chunk,
-)
+from .sweep_points import SweepStudy, point_model, point_walker
+from .sweep_studies import STUDIES, run_point
+from .trial_studies import trial_chunk
 
 
 @dataclass(frozen=True)
@@ -527,7 +522,7 @@ def run_sweep(sweep: Sweep, *, workers: int | None = None, scheduler: str | None
     ``workers`` / ``scheduler``); ``on_point(record)`` as each point finishes. ``library``:
     the folder a design-gait sweep's gait files will be written to (their ``robot:``
     reference is relative to it). ``chunk``: push trials per engine task (default
-    :func:`~.sweep_studies.trial_chunk` of the trials to run, the workers and the most steps of
+    :func:`~.trial_studies.trial_chunk` of the trials to run, the workers and the most steps of
     a trial; 1: one per task); other studies run one point per task (their points cost tens
     of milliseconds or more). The records do not depend on it. Returns the result over all
     points."""

@@ -17,58 +17,22 @@ computation), the collectable ``fields`` and the study's full JSON ``document``.
 from __future__ import annotations
 
 import time
-from collections import OrderedDict
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field, replace
+from collections.abc import Mapping
+from dataclasses import replace
 
 import numpy as np
 
 from .._version import __version__
 from ..description.robot import Robot
 from ..errors import ComputationError, InputError, param_problem
-from ..files.gait_file import load_gait_text
 from ..files.output import jsonable
-from ..files.robot_file import load_robot_text
 from ..model.compiled import CompiledModel
-from ..model.compiler import load_model
-from ..sweep.runner import chunk_size
-from ..sweep.tasks import PointTask, canonical
+from ..sweep.tasks import PointTask
 from ..thrust.schedule import WrittenSchedule
-from ..walker import Walker, assemble_walker
+from ..walker import Walker
 from .documents import UNITS
-
-
-@dataclass(frozen=True)
-class PointResult:
-    """What a study computes at one point: its JSON ``document``, the collectable ``fields``
-    (SI, None when not computed), ``extra`` data (e.g. a designed gait file) and the start a
-    continuing point may use (``next_start``)."""
-
-    document: dict
-    fields: dict[str, object]
-    extra: dict = field(default_factory=dict)
-    next_start: dict | None = None
-
-
-@dataclass(frozen=True)
-class SweepStudy:
-    """A study a sweep can run.
-
-    fields: collectable result fields, name -> (unit, meaning); point(base, params, start):
-    the computation of one point (``base`` a :class:`Walker`, or a :class:`CompiledModel` when
-    ``uses_gait`` is false); check(base, params): problems with the parameters of a point,
-    ``(parameter, message)`` pairs, found before any work; prepare(base, settings): once in
-    the calling process before local workers start (e.g. compile a kernel once, not in every
-    worker); continuation: points start from their finished neighbour's result.
-    """
-
-    name: str
-    fields: dict[str, tuple[str, str]]
-    point: Callable[[object, dict, dict | None], PointResult]
-    uses_gait: bool = True
-    check: Callable[[object, dict], list[tuple[str, str]]] | None = None
-    prepare: Callable[[object, dict], None] | None = None
-    continuation: bool = False
+from .sweep_points import PointResult, SweepStudy, nominal_of, point_model, point_walker
+from .trial_studies import TRIAL_STUDIES
 
 
 # ------------------------------------------------------------------------------- helpers
@@ -425,184 +389,6 @@ def _check_design(model: CompiledModel, p: dict) -> list[tuple[str, str]]:
     return out
 
 
-# ------------------------------------------------------------------- robustness (SPEC 12)
-_STRATEGY_KEYS = ("strategy", "strategy_label", "thruster", "thrust", "schedule", "knots",
-                  "max_thrust", "mu", "min_vertical_force")
-_RUNNER_KEYS = _STRATEGY_KEYS + ("push_direction", "push_link", "push_at", "push_duration",
-                                 "transverse", "steps", "recovery_tol", "output_tol", "rtol",
-                                 "atol")
-
-
-def _nominal(walker: Walker, p: Mapping) -> Walker:
-    """The walker a controller was made for: the base robot with the point's gait (the point's
-    robot is the plant)."""
-    make = p.get("_nominal")
-    return walker if make is None else make()
-
-
-def realized_strategy(walker: Walker, p: Mapping, points: int = 401):
-    """The point's strategy made concrete for its walker (kept per process: the trials of a
-    strategy share it)."""
-    from ..resilience.strategy import from_parameters, realize
-
-    model = _nominal(walker, p)
-    mu = walker.gait.mu if p.get("mu") is None else float(p["mu"])
-    key = ("realized", id(walker), id(model), canonical({k: p.get(k) for k in _STRATEGY_KEYS}),
-           points)
-    r = _fresh(key, lambda v: v[0] is walker and v[1] is model, lambda: (
-        walker, model, realize(walker.zd, from_parameters(p), mu=mu,
-                               eps=float(p["min_vertical_force"]), points=points,
-                               model_zd=None if model is walker else model.zd)))
-    return r[2], mu
-
-
-def trial_setup(walker: Walker, p: Mapping):
-    """The push point and the index of the transverse output of a push-trial point."""
-    from ..resilience.push import push_point
-
-    robot = walker.robot
-    act = [c.name for c in robot.coordinates if c.actuated]
-    name = p.get("transverse") or act[0]
-    if name not in act:
-        raise InputError.param("transverse", f"unknown actuated coordinate {name!r} (robot "
-                                             f"{robot.name} has: {', '.join(act)})")
-    point = push_point(walker.model, p.get("push_link"), float(p["push_at"]),
-                       tuple(p["push_direction"]))
-    return point, act.index(name)
-
-
-def _trial_runner(walker: Walker, p: Mapping):
-    """The trial runner of the point's strategy and settings (kept per process)."""
-    from ..resilience.trials import TrialRunner
-
-    real, mu = realized_strategy(walker, p)
-    key = ("runner", id(walker), canonical({k: p.get(k) for k in _RUNNER_KEYS}))
-
-    def make():
-        point, transverse = trial_setup(walker, p)
-        run = TrialRunner(walker.zd, real, point, steps=int(p["steps"]), mu=mu,
-                          eps=float(p["min_vertical_force"]),
-                          recovery_tol=float(p["recovery_tol"]),
-                          output_tol=float(p["output_tol"]), rtol=float(p["rtol"]),
-                          atol=float(p["atol"]), transverse=transverse,
-                          duration=float(p["push_duration"]))
-        return walker, run
-
-    return _fresh(key, lambda v: v[0] is walker, make)[1]
-
-
-_PT_FIELDS = {
-    "outcome": ("", "recovered, unsettled, fell, slipped, lifted, scuffed, stopped or error"),
-    "recovered": ("1", "back within recovery_tol of the orbit after the steps"),
-    "converging": ("1", "recovered, or still walking and converging (inside the reduced "
-                        "basin, closer each step)"),
-    "failed_step": ("1", "the step of a failure (empty when every step was walked)"),
-    "steps_completed": ("1", "steps completed"),
-    "final_zeta_minus": (UNITS["zeta"], "zeta^- of the last step"),
-    "relative_error": ("1", "|zeta^- - zeta_ref| / zeta_ref of the last step"),
-    "zeta_ref": (UNITS["zeta"], "the orbit a recovery is measured against"),
-    "speed": (UNITS["speed"], "average speed of the last step"),
-    "max_friction_ratio": (UNITS["friction_ratio"], "largest |F_1^h|/F_1^v over the steps"),
-    "min_vertical_force": (UNITS["force"], "least vertical ground force over the steps"),
-    "push_friction_ratio": (UNITS["friction_ratio"], "|F^h|/F^v of the push's impulsive "
-                                                     "ground reaction"),
-    "push_vertical_impulse": (UNITS["impulse"], "vertical part of the push's impulsive ground "
-                                                "reaction"),
-}
-
-
-def _push_trial_point(walker: Walker, p: dict, start: dict | None) -> PointResult:
-    from ..resilience.trials import Trial
-
-    impulse, sigma, rate = (float(p["push_impulse"]), float(p["start_sigma"]),
-                            float(p["start_rate"]))
-    if impulse != 0.0 and (sigma != 0.0 or rate != 0.0):
-        raise InputError.param(("push_impulse", "start_sigma"), "a push trial starts on the "
-                                                                "orbit: give a push or a start "
-                                                                "off the orbit, not both")
-    runner = _trial_runner(walker, p)
-    trial = Trial(impulse, float(p["push_phase"]), sigma, rate)
-    res = runner.run(trial)
-    doc = {"strategy": runner.r.strategy.label,
-           "trial": {"push_impulse": impulse, "push_phase": trial.phase,
-                     "push_vector": runner.point.impulse(impulse).tolist(),
-                     "start_sigma": sigma, "start_rate": rate},
-           **res.document()}
-    return PointResult(doc, res.fields())
-
-
-def _check_push_trial(walker: Walker, p: dict) -> list[tuple[str, str]]:
-    out = check_strategy(walker, p)
-    try:
-        walker.robot.check_push("push_impulse", float(p["push_impulse"]))
-    except InputError as exc:
-        out.append(("push_impulse", exc.problems[0].message))
-    try:
-        trial_setup(walker, p)
-    except InputError as exc:
-        out += [(pr.params[0], pr.message) for pr in exc.problems]
-    if float(p["push_impulse"]) != 0.0 and (float(p["start_sigma"]) != 0.0
-                                            or float(p["start_rate"]) != 0.0):
-        out.append(("push_impulse", "a push trial starts on the orbit: give a push or a start "
-                                    "off the orbit, not both"))
-    return out
-
-
-def check_strategy(walker: Walker, p: dict) -> list[tuple[str, str]]:
-    """The strategy's own problems (thruster, thrust limits, schedule, knots), found before
-    any point runs."""
-    try:
-        if p.get("strategy") == "control" and p.get("max_thrust") is not None:
-            robot = walker.robot
-            if robot.thrusters:
-                robot.check_thrust_bound("max_thrust", float(p["max_thrust"]),
-                                         [robot.thruster_index(p.get("thruster"))])
-        realized_strategy(walker, p)
-    except InputError as exc:
-        return [(pr.params[0] if pr.params else "strategy", pr.message) for pr in exc.problems]
-    return []
-
-
-_RW_FIELDS = {
-    "walks": ("1", "the point's robot walks under the strategy (stable orbit in its reduced "
-                   "basin, swing foot clear; control: the base robot's controller settles)"),
-    "zeta_star": (UNITS["zeta"], "the converged zeta^-"),
-    "speed": (UNITS["speed"], "the converged average speed"),
-    "step_time": (UNITS["step_time"], "the converged step time"),
-    "controlled_steps": ("1", "control: steps until the controlled map settled"),
-    "basin_exists": ("1", "fixed strategies: the reduced basin contains the orbit"),
-    "basin_lower": (UNITS["zeta"], "fixed strategies: lower end of the reduced basin in zeta^-"),
-    "basin_upper": (UNITS["zeta"], "fixed strategies: upper end of the reduced basin in zeta^-"),
-}
-
-
-def _reduced_walk_point(walker: Walker, p: dict, start: dict | None) -> PointResult:
-    from ..resilience.strategy import from_parameters
-    from ..resilience.uncertainty import controlled_sample, fixed_sample
-
-    s = from_parameters(p)
-    mu = walker.gait.mu if p.get("mu") is None else float(p["mu"])
-    eps = float(p["min_vertical_force"])
-    if s.kind == "control":
-        model = _nominal(walker, p)
-        real, _ = realized_strategy(model, {**p, "_nominal": None}, int(p["points"]))
-        res = controlled_sample(walker.zd, real.planner, real.zeta_ref, s.knots, real.driven,
-                                mu=mu, eps=eps)
-    else:
-        res = fixed_sample(walker.zd, s, mu=mu, eps=eps, points=int(p["points"]))
-    doc = {"strategy": s.label, "walks": res.success, "reason": res.reason,
-           "robot_parameters": dict(walker.robot.parameters),
-           "basin": None if res.basin is None else res.basin.document(), **res.fields()}
-    return PointResult(doc, res.fields())
-
-
-def _prepare_trials(walker: Walker, settings: dict) -> None:
-    """Compile the simulation kernel once here, not in every worker at the same time."""
-    from .compile import compile_kernel
-
-    compile_kernel()
-
-
 STUDIES: dict[str, SweepStudy] = {
     "limit-cycle": SweepStudy("limit-cycle", _LC_FIELDS, _limit_cycle_point,
                               check=_check_case),
@@ -610,92 +396,12 @@ STUDIES: dict[str, SweepStudy] = {
                               check=_check_case),
     "simulate": SweepStudy("simulate", _SIM_FIELDS, _simulate_point, check=_check_simulate,
                            prepare=_prepare_simulate),
-    "push-trial": SweepStudy("push-trial", _PT_FIELDS, _push_trial_point,
-                             check=_check_push_trial, prepare=_prepare_trials),
-    "reduced-walk": SweepStudy("reduced-walk", _RW_FIELDS, _reduced_walk_point,
-                               check=check_strategy),
+    **TRIAL_STUDIES,
     "design-gait": SweepStudy("design-gait", _DG_FIELDS, _design_point, uses_gait=False,
                               check=_check_design, continuation=True),
 }
 
 
-STEPS_PER_CHUNK = 320  # trial_chunk: simulated steps per task at most (32 ten-step trials)
-
-
-def trial_chunk(todo: int, workers: int, steps: int) -> int:
-    """Trials per engine task for ``todo`` trials of ``steps`` steps on ``workers`` workers:
-    :func:`~thrustwalk_cli.sweep.runner.chunk_size`, i.e. ``ceil(todo / (8 workers))`` (at
-    least 8 tasks per worker when there are that many trials: balance and progress), at most
-    ``STEPS_PER_CHUNK // steps`` trials (320 simulated steps: 32 trials of 10 steps, tens of
-    milliseconds of work against the engine's 1-2 ms per task) and at least 1."""
-    return chunk_size(todo, workers, most=max(1, STEPS_PER_CHUNK // max(1, int(steps))))
-
-
-# ------------------------------------------------------------------------- worker side
-_CACHE: OrderedDict = OrderedDict()  # this process's robots and walkers (a few, LRU)
-CACHE_SIZE = 8
-
-
-def _cached(key: tuple, make: Callable[[], object]) -> object:
-    if key in _CACHE:
-        _CACHE.move_to_end(key)
-        return _CACHE[key]
-    value = make()
-    _CACHE[key] = value
-    if len(_CACHE) > CACHE_SIZE:
-        _CACHE.popitem(last=False)
-    return value
-
-
-def _fresh(key: tuple, valid: Callable[[object], bool], make: Callable[[], object]) -> object:
-    """:func:`_cached` for values made from objects of this cache (keyed by their ``id``):
-    a value whose objects were evicted and replaced (``valid`` false) is made again."""
-    if key in _CACHE and valid(_CACHE[key]):
-        _CACHE.move_to_end(key)
-        return _CACHE[key]
-    _CACHE.pop(key, None)
-    return _cached(key, make)
-
-
-def point_robot(task: PointTask) -> Robot:
-    """The robot of one point: the base robot file with the point's ``robot.NAME`` values
-    substituted for its named parameters, exactly as if edited into the file. The one place a
-    sweep turns robot parameters into a robot; its model comes from
-    :func:`~thrustwalk_cli.model.compiler.load_model`, which binds the robot's numbers to the
-    model compiled once for the robot's structure (no compile per parameter value)."""
-    return load_robot_text(task.robot_text, task.robot_file, task.overrides("robot"))
-
-
-def point_model(task: PointTask) -> CompiledModel:
-    """The compiled model of the point's robot (kept per process): the model of the base
-    robot's structure with the point's numbers bound (compiled once for every value)."""
-    key = ("model", task.robot_text, task.robot_file,
-           tuple(sorted(task.overrides("robot").items())))
-    return _cached(key, lambda: load_model(point_robot(task)))
-
-
-def point_walker(task: PointTask) -> Walker:
-    """The point's robot with the base gait (``gait.NAME`` values substituted), its model
-    and zero dynamics (kept per process: points that differ only in study parameters share
-    it)."""
-    key = ("walker", task.robot_text, task.robot_file,
-           tuple(sorted(task.overrides("robot").items())), task.gait_text, task.gait_file,
-           tuple(sorted(task.overrides("gait").items())))
-
-    def make() -> Walker:
-        robot = point_robot(task)
-        gait, source = load_gait_text(task.gait_text, task.gait_file, task.overrides("gait"))
-        return assemble_walker(robot, gait, source)
-
-    return _cached(key, make)
-
-
-def _nominal_of(task: PointTask) -> Callable[[], Walker]:
-    """The walker of the base robot with the point's gait (a controller's model when the
-    point's robot differs: the plant)."""
-    base = replace(task, values=tuple((k, v) for k, v in task.values
-                                      if not k.startswith("robot.")))
-    return lambda: point_walker(base)
 
 
 def run_point(task: PointTask) -> dict:
@@ -713,7 +419,7 @@ def run_point(task: PointTask) -> dict:
         base = point_walker(task) if study.uses_gait else point_model(task)
         params = task.parameters
         params.update(_label=task.label, _robot_ref=task.robot_ref, _gait_name=task.name,
-                      _nominal=_nominal_of(task) if task.overrides("robot") else None)
+                      _nominal=nominal_of(task) if task.overrides("robot") else None)
         res = study.point(base, params, task.start)
         doc = jsonable(res.document)
         fields = jsonable({k: res.fields.get(k) for k in study.fields})

@@ -1,0 +1,213 @@
+"""The sweep studies of the robustness command (SPEC 12): ``push-trial`` (one full-order push
+or basin trial per point, several per engine task: :func:`trial_chunk`) and ``reduced-walk``
+(one Monte-Carlo sample of the robot's parameters on the reduced model), as entries of
+:data:`TRIAL_STUDIES`, which :data:`.sweep_studies.STUDIES` includes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from ..errors import InputError
+from ..sweep.runner import chunk_size
+from ..sweep.tasks import canonical
+from ..walker import Walker
+from .documents import UNITS
+from .sweep_points import PointResult, SweepStudy, fresh
+
+# ------------------------------------------------------------------- robustness (SPEC 12)
+_STRATEGY_KEYS = ("strategy", "strategy_label", "thruster", "thrust", "schedule", "knots",
+                  "max_thrust", "mu", "min_vertical_force")
+_RUNNER_KEYS = _STRATEGY_KEYS + ("push_direction", "push_link", "push_at", "push_duration",
+                                 "transverse", "steps", "recovery_tol", "output_tol", "rtol",
+                                 "atol")
+
+
+def _nominal(walker: Walker, p: Mapping) -> Walker:
+    """The walker a controller was made for: the base robot with the point's gait (the point's
+    robot is the plant)."""
+    make = p.get("_nominal")
+    return walker if make is None else make()
+
+
+def realized_strategy(walker: Walker, p: Mapping, points: int = 401):
+    """The point's strategy made concrete for its walker (kept per process: the trials of a
+    strategy share it)."""
+    from ..resilience.strategy import from_parameters, realize
+
+    model = _nominal(walker, p)
+    mu = walker.gait.mu if p.get("mu") is None else float(p["mu"])
+    key = ("realized", id(walker), id(model), canonical({k: p.get(k) for k in _STRATEGY_KEYS}),
+           points)
+    r = fresh(key, lambda v: v[0] is walker and v[1] is model, lambda: (
+        walker, model, realize(walker.zd, from_parameters(p), mu=mu,
+                               eps=float(p["min_vertical_force"]), points=points,
+                               model_zd=None if model is walker else model.zd)))
+    return r[2], mu
+
+
+def trial_setup(walker: Walker, p: Mapping):
+    """The push point and the index of the transverse output of a push-trial point."""
+    from ..resilience.push import push_point
+
+    robot = walker.robot
+    act = [c.name for c in robot.coordinates if c.actuated]
+    name = p.get("transverse") or act[0]
+    if name not in act:
+        raise InputError.param("transverse", f"unknown actuated coordinate {name!r} (robot "
+                                             f"{robot.name} has: {', '.join(act)})")
+    point = push_point(walker.model, p.get("push_link"), float(p["push_at"]),
+                       tuple(p["push_direction"]))
+    return point, act.index(name)
+
+
+def _trial_runner(walker: Walker, p: Mapping):
+    """The trial runner of the point's strategy and settings (kept per process)."""
+    from ..resilience.trials import TrialRunner
+
+    real, mu = realized_strategy(walker, p)
+    key = ("runner", id(walker), canonical({k: p.get(k) for k in _RUNNER_KEYS}))
+
+    def make():
+        point, transverse = trial_setup(walker, p)
+        run = TrialRunner(walker.zd, real, point, steps=int(p["steps"]), mu=mu,
+                          eps=float(p["min_vertical_force"]),
+                          recovery_tol=float(p["recovery_tol"]),
+                          output_tol=float(p["output_tol"]), rtol=float(p["rtol"]),
+                          atol=float(p["atol"]), transverse=transverse,
+                          duration=float(p["push_duration"]))
+        return walker, run
+
+    return fresh(key, lambda v: v[0] is walker, make)[1]
+
+
+_PT_FIELDS = {
+    "outcome": ("", "recovered, unsettled, fell, slipped, lifted, scuffed, stopped or error"),
+    "recovered": ("1", "back within recovery_tol of the orbit after the steps"),
+    "converging": ("1", "recovered, or still walking and converging (inside the reduced "
+                        "basin, closer each step)"),
+    "failed_step": ("1", "the step of a failure (empty when every step was walked)"),
+    "steps_completed": ("1", "steps completed"),
+    "final_zeta_minus": (UNITS["zeta"], "zeta^- of the last step"),
+    "relative_error": ("1", "|zeta^- - zeta_ref| / zeta_ref of the last step"),
+    "zeta_ref": (UNITS["zeta"], "the orbit a recovery is measured against"),
+    "speed": (UNITS["speed"], "average speed of the last step"),
+    "max_friction_ratio": (UNITS["friction_ratio"], "largest |F_1^h|/F_1^v over the steps"),
+    "min_vertical_force": (UNITS["force"], "least vertical ground force over the steps"),
+    "push_friction_ratio": (UNITS["friction_ratio"], "|F^h|/F^v of the push's impulsive "
+                                                     "ground reaction"),
+    "push_vertical_impulse": (UNITS["impulse"], "vertical part of the push's impulsive ground "
+                                                "reaction"),
+}
+
+
+def _push_trial_point(walker: Walker, p: dict, start: dict | None) -> PointResult:
+    from ..resilience.trials import Trial
+
+    impulse, sigma, rate = (float(p["push_impulse"]), float(p["start_sigma"]),
+                            float(p["start_rate"]))
+    if impulse != 0.0 and (sigma != 0.0 or rate != 0.0):
+        raise InputError.param(("push_impulse", "start_sigma"), "a push trial starts on the "
+                                                                "orbit: give a push or a start "
+                                                                "off the orbit, not both")
+    runner = _trial_runner(walker, p)
+    trial = Trial(impulse, float(p["push_phase"]), sigma, rate)
+    res = runner.run(trial)
+    doc = {"strategy": runner.r.strategy.label,
+           "trial": {"push_impulse": impulse, "push_phase": trial.phase,
+                     "push_vector": runner.point.impulse(impulse).tolist(),
+                     "start_sigma": sigma, "start_rate": rate},
+           **res.document()}
+    return PointResult(doc, res.fields())
+
+
+def _check_push_trial(walker: Walker, p: dict) -> list[tuple[str, str]]:
+    out = check_strategy(walker, p)
+    try:
+        walker.robot.check_push("push_impulse", float(p["push_impulse"]))
+    except InputError as exc:
+        out.append(("push_impulse", exc.problems[0].message))
+    try:
+        trial_setup(walker, p)
+    except InputError as exc:
+        out += [(pr.params[0], pr.message) for pr in exc.problems]
+    if float(p["push_impulse"]) != 0.0 and (float(p["start_sigma"]) != 0.0
+                                            or float(p["start_rate"]) != 0.0):
+        out.append(("push_impulse", "a push trial starts on the orbit: give a push or a start "
+                                    "off the orbit, not both"))
+    return out
+
+
+def check_strategy(walker: Walker, p: dict) -> list[tuple[str, str]]:
+    """The strategy's own problems (thruster, thrust limits, schedule, knots), found before
+    any point runs."""
+    try:
+        if p.get("strategy") == "control" and p.get("max_thrust") is not None:
+            robot = walker.robot
+            if robot.thrusters:
+                robot.check_thrust_bound("max_thrust", float(p["max_thrust"]),
+                                         [robot.thruster_index(p.get("thruster"))])
+        realized_strategy(walker, p)
+    except InputError as exc:
+        return [(pr.params[0] if pr.params else "strategy", pr.message) for pr in exc.problems]
+    return []
+
+
+_RW_FIELDS = {
+    "walks": ("1", "the point's robot walks under the strategy (stable orbit in its reduced "
+                   "basin, swing foot clear; control: the base robot's controller settles)"),
+    "zeta_star": (UNITS["zeta"], "the converged zeta^-"),
+    "speed": (UNITS["speed"], "the converged average speed"),
+    "step_time": (UNITS["step_time"], "the converged step time"),
+    "controlled_steps": ("1", "control: steps until the controlled map settled"),
+    "basin_exists": ("1", "fixed strategies: the reduced basin contains the orbit"),
+    "basin_lower": (UNITS["zeta"], "fixed strategies: lower end of the reduced basin in zeta^-"),
+    "basin_upper": (UNITS["zeta"], "fixed strategies: upper end of the reduced basin in zeta^-"),
+}
+
+
+def _reduced_walk_point(walker: Walker, p: dict, start: dict | None) -> PointResult:
+    from ..resilience.strategy import from_parameters
+    from ..resilience.uncertainty import controlled_sample, fixed_sample
+
+    s = from_parameters(p)
+    mu = walker.gait.mu if p.get("mu") is None else float(p["mu"])
+    eps = float(p["min_vertical_force"])
+    if s.kind == "control":
+        model = _nominal(walker, p)
+        real, _ = realized_strategy(model, {**p, "_nominal": None}, int(p["points"]))
+        res = controlled_sample(walker.zd, real.planner, real.zeta_ref, s.knots, real.driven,
+                                mu=mu, eps=eps)
+    else:
+        res = fixed_sample(walker.zd, s, mu=mu, eps=eps, points=int(p["points"]))
+    doc = {"strategy": s.label, "walks": res.success, "reason": res.reason,
+           "robot_parameters": dict(walker.robot.parameters),
+           "basin": None if res.basin is None else res.basin.document(), **res.fields()}
+    return PointResult(doc, res.fields())
+
+
+def _prepare_trials(walker: Walker, settings: dict) -> None:
+    """Compile the simulation kernel once here, not in every worker at the same time."""
+    from .compile import compile_kernel
+
+    compile_kernel()
+
+
+TRIAL_STUDIES: dict[str, SweepStudy] = {
+    "push-trial": SweepStudy("push-trial", _PT_FIELDS, _push_trial_point,
+                             check=_check_push_trial, prepare=_prepare_trials),
+    "reduced-walk": SweepStudy("reduced-walk", _RW_FIELDS, _reduced_walk_point,
+                               check=check_strategy),
+}
+
+
+STEPS_PER_CHUNK = 320  # trial_chunk: simulated steps per task at most (32 ten-step trials)
+
+
+def trial_chunk(todo: int, workers: int, steps: int) -> int:
+    """Trials per engine task for ``todo`` trials of ``steps`` steps on ``workers`` workers:
+    :func:`~thrustwalk_cli.sweep.runner.chunk_size`, i.e. ``ceil(todo / (8 workers))`` (at
+    least 8 tasks per worker when there are that many trials: balance and progress), at most
+    ``STEPS_PER_CHUNK // steps`` trials (320 simulated steps: 32 trials of 10 steps, tens of
+    milliseconds of work against the engine's 1-2 ms per task) and at least 1."""
+    return chunk_size(todo, workers, most=max(1, STEPS_PER_CHUNK // max(1, int(steps))))
