@@ -22,10 +22,10 @@ On Chebyshev-Lobatto nodes ``alpha_j`` (fixed count, so the functions are smooth
     alpha'       = kappa_1 sigma_N,   sigma_N = sgn sqrt(2 zeta),   T = int dalpha / alpha'
     u(alpha)     = U_2 F_T + U_1 zeta + U_0,   F_1(alpha) = Lambda_2 F_T + Lambda_1 zeta + Lambda_0
 
-(kappa terms from :func:`zero_dynamics.zero_dynamics_terms`, exact affine terms of SPEC 5 from
-:func:`contact.stance_terms`). Integrals use the nodes (Clenshaw-Curtis, cumulative Chebyshev);
-the constraints on F_1, u, the swing-foot height and the joint ranges use a dense uniform grid
-in ``s`` (the Lambdas and V_Z interpolated from the nodes). Objectives: ``effort``
+(kappa terms from :func:`hzd.zero_dynamics.zero_dynamics_terms`, exact affine terms of SPEC 5
+from :func:`contact.terms.stance_terms`). Integrals use the nodes (Clenshaw-Curtis, cumulative
+Chebyshev); the constraints on F_1, u, the swing-foot height and the joint ranges use a dense
+uniform grid in ``s`` (the Lambdas and V_Z interpolated from the nodes). Objectives: ``effort``
 ``J = (1/L) int_0^T |u|^2 dt = (1/L) int |u|^2 / alpha' dalpha`` [N^2 m s] (plus
 ``w_F |F_T|^2 T / L`` when thrust is designed), or ``peak`` ``max_{i, alpha} |u_i|`` [N m].
 

@@ -417,7 +417,7 @@ def describe(family: str, ev: Evaluation, prob: Problem) -> str:
 
 
 def _describe_orbit(ev: Evaluation, prob: Problem) -> str:
-    """The worst part of the ``orbit`` family (see :meth:`Problem._evaluate`)."""
+    """The worst part of the ``orbit`` family (see :meth:`Problem.evaluate`)."""
     s, i = prob.spec, ev.info
     p = i["orbit_parts"]
     worst = {"fixed_point": p["fixed_point"]}

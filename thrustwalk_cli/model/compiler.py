@@ -150,7 +150,7 @@ def load_model(robot: Robot, *, rebuild: bool = False,
     derives it and the others wait, say so through the cache's wait reporter, and load it).
     When the cache cannot be used at all (no home directory, the cache path is a file, a
     read-only or full disk, a folder where the entry should be: never removed) the model is
-    compiled in memory for this process and :attr:`CompiledModel.notes` says why in one
+    compiled in memory for this process and the model's ``notes`` say why in one
     line; nothing raises for cache trouble.
     Checks: dD/dq_N = 0 (when compiling) and, for every new set of numbers, D symmetric
     positive definite, R invertible and mapping the swing foot to the stance foot

@@ -1,5 +1,6 @@
-"""Figures of ``thrustwalk mujoco`` from plain data (:meth:`MujocoResult.figure_data`): the
-phase portraits of MuJoCo and of the rigid model, and the GIF of rendered frames."""
+"""Figures of ``thrustwalk mujoco`` from plain data
+(:meth:`thrustwalk_cli.studies.mujoco.MujocoResult.figure_data`): the phase portraits of MuJoCo
+and of the rigid model, and the GIF of rendered frames."""
 
 from __future__ import annotations
 

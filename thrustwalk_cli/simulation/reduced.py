@@ -367,8 +367,9 @@ def spectral_steps(zd: ZeroDynamics, thrust: ThrustModel, steps: int, alpha0: fl
     apply (then integrate in time).
 
     The thrusters do not feel the walker: from the state ``z_0`` at the start of a step the
-    thrust is ``F(tau) = Phi(tau) z_0 + Psi(tau) u`` [N] (:meth:`Servo.response`, closed form),
-    ``tau`` [s] the time since the start of the step. With alpha as the variable,
+    thrust is ``F(tau) = Phi(tau) z_0 + Psi(tau) u`` [N]
+    (:meth:`thrust.dynamics.Servo.response`, closed form), ``tau`` [s] the time since the start
+    of the step. With alpha as the variable,
 
         zeta(alpha) = zeta_s + int_{alpha_s}^{alpha} (kappa_2 + beta F(tau)) / kappa_1
         tau(alpha)  = int_{alpha_s}^{alpha} 1 / (kappa_1 sigma_N),  sigma_N = sgn sqrt(2 zeta)

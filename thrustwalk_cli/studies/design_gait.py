@@ -82,7 +82,7 @@ def _num(v: float) -> float | None:
 def gait_yaml(res: DesignResult, model: CompiledModel, robot_ref: str,
               header: list[str]) -> str:
     """The gait as YAML (``invariance: auto``, columns 0 and 1 written as ``~``), loadable by
-    :func:`robot_io.load_gait_for`; ``header`` lines become ``#`` comments
+    :func:`thrustwalk_cli.walker.load_walker`; ``header`` lines become ``#`` comments
     (:func:`files.gait_file.gait_text`)."""
     g, r = res.gait, model.robot
     o = res.check.get("orbit", {})

@@ -122,7 +122,8 @@ class ThrustModel:
 
     def force(self, z) -> list[float]:
         """Thrust per thruster [N] under the constant command, from the states ``z``
-        (piecewise thrust depends on the alpha interval: see :meth:`ClosedLoop.force`)."""
+        (piecewise thrust depends on the alpha interval: see
+        :meth:`thrustwalk_cli.simulation.closed_loop.ClosedLoop.force`)."""
         if self.piecewise:
             return self._target
         return self.dynamics.thrust(z, self._target)
