@@ -145,7 +145,7 @@ def main(argv: list[str] | None = None) -> None:
     from sympy import lambdify
 
     from thrustwalk_cli.files.robot_file import load_robot
-    from thrustwalk_cli.model import derive, jit
+    from thrustwalk_cli.model import derive_reference, jit
     from thrustwalk_cli.model.compiler import load_model
 
     rng = np.random.default_rng(0)
@@ -155,7 +155,7 @@ def main(argv: list[str] | None = None) -> None:
         n = m.n
         q, dq = rng.uniform(-1, 1, n), rng.uniform(-1, 1, n)
         ql, dql = q.tolist(), dq.tolist()
-        der = derive.derive_reference(robot, folded=True)  # numbers written in, as
+        der = derive_reference.derive_reference(robot, folded=True)  # numbers written in, as
         # lambdify users do (one expression per entry, no definitions)
         lam = lambdify([der.q, der.dq], [der.exprs["D"], der.exprs["h"]], "numpy")
         t_lam = median_time(lambda: lam(q, dq), number=200)

@@ -1,7 +1,7 @@
 """The robot's numbers as inputs of the compiled model (issue 14) and the derivation in
 absolute link angles (issue 26): one compiled model per structure, bound to each robot's
 numbers, equal to a model compiled by the reference derivation with the numbers folded into
-its code (``compiler.folded_model``: ``derive.derive_reference``, the Lagrange derivation
+its code (``compiler.folded_model``: ``derive_reference.derive_reference``, the Lagrange derivation
 with Christoffel sums in ``q`` that the model used before issue 26, and SymPy's
 common-subexpression elimination) to 1e-12 relative: every generated function (D, C, G,
 h = C q' + G, B_F, the unpinned model, the kinematics), the impact map, every tape program,

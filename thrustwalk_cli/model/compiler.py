@@ -34,7 +34,7 @@ def _generator_digest() -> str:
     """Hash of the derivation and code-generation sources: editing them invalidates caches."""
     h = hashlib.sha256()
     here = Path(__file__).parent
-    for name in ("derive.py", "codegen.py", "tape.py"):
+    for name in ("derive.py", "derive_reference.py", "codegen.py", "tape.py"):
         h.update((here / name).read_bytes())
     h.update(repr(sorted(FUNCTIONS.items())).encode())
     return h.hexdigest()
@@ -73,9 +73,9 @@ def generate_source(robot: Robot, key: str, folded: bool = False,
     """Derive with SymPy and generate the model module's source (imports SymPy lazily): the
     robot's numbers are inputs of its ``bind(P)`` (:func:`derive.derive`), or, when
     ``folded``, constants in code made by the reference derivation
-    (:func:`derive.derive_reference`, what :func:`folded_model` compiles). ``progress`` is
+    (:func:`derive_reference.derive_reference`, what :func:`folded_model` compiles). ``progress`` is
     told about every step but the checks (:data:`Progress`)."""
-    from . import codegen, derive
+    from . import codegen, derive, derive_reference
 
     global COMPILES
     COMPILES += 1
@@ -87,7 +87,7 @@ def generate_source(robot: Robot, key: str, folded: bool = False,
             progress(step[0], STEPS, phase)
 
     if folded:
-        der = derive.derive_reference(robot, folded=True)
+        der = derive_reference.derive_reference(robot, folded=True)
         hoist = codegen.Hoist(der.numbers.inputs)
         for part in DERIVATION_PARTS:
             tell(f"derivation: {part}")
@@ -113,7 +113,7 @@ def generate_source(robot: Robot, key: str, folded: bool = False,
             name, M, [(a, argsyms[a]) for a in args], doc, vector=name in VECTORS, defs=defs,
             printers=printers))
         tell(f"code generation: {name}")
-    programs = derive.tape_programs(der)
+    programs = derive_reference.tape_programs(der)
     if defs is None:
         programs = {name: (n_in, [hoist(e) for e in exprs])
                     for name, (n_in, exprs) in programs.items()}
@@ -210,7 +210,7 @@ def load_model(robot: Robot, *, rebuild: bool = False,
 
 def folded_model(robot: Robot, *, progress: Progress | None = None) -> CompiledModel:
     """The robot's model compiled by the reference derivation
-    (:func:`derive.derive_reference`: Christoffel sums in ``q``, the derivation before
+    (:func:`derive_reference.derive_reference`: Christoffel sums in ``q``, the derivation before
     issue 26) with its numbers substituted into the code (as constants), in memory and never
     cached: the reference for the model of :func:`load_model` (the tests compare the two;
     16 links take minutes)."""
