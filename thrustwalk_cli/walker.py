@@ -200,14 +200,7 @@ def load_walker(robot: str | None = None, gait: str | None = None, *,
         gait = default_gait(rob)
     g, source = load_gait(gait, gait_parameters)
     if rob is not None:
-        if not same_robot_file(rob, g.robot):
-            try:
-                own = load_robot(g.robot).name
-            except InputError:
-                own = rob.name  # the gait's own robot file is not reachable: trust the user
-            if own != rob.name:
-                raise InputError(source.where(("robot",), f"gait '{g.name}' is for robot "
-                                                          f"'{own}', not '{rob.name}'"))
+        _check_gait_robot(rob, g, source)
     else:
         try:
             resolve(g.robot, "robots")
@@ -215,6 +208,30 @@ def load_walker(robot: str | None = None, gait: str | None = None, *,
             raise InputError(source.where(("robot",), str(exc))) from None
         rob = load_robot(g.robot, robot_parameters)
     return assemble_walker(rob, g, source, progress=progress)
+
+
+def _check_gait_robot(rob: Robot, g: Gait, source: GaitSource) -> None:
+    """A gait loaded for the robot ``rob``: its ``robot:`` must name that robot's file or a
+    robot of the same name (:class:`InputError` at the gait file's ``robot:`` line)."""
+    if not same_robot_file(rob, g.robot):
+        try:
+            own = load_robot(g.robot).name
+        except InputError:
+            own = rob.name  # the gait's own robot file is not reachable: trust the user
+        if own != rob.name:
+            raise InputError(source.where(("robot",), f"gait '{g.name}' is for robot "
+                                                      f"'{own}', not '{rob.name}'"))
+
+
+def gait_on_robot(robot: Robot, gait: str) -> Walker:
+    """The gait file ``gait`` on the robot ``robot`` as loaded (its numbers, motors and power
+    models; as :func:`load_walker` with the robot given): the gait's ``robot:`` must name that
+    robot (:class:`InputError` at its line otherwise)."""
+    check_instance("robot", robot, Robot, "a Robot")
+    gait = check_path("gait", gait)
+    g, source = load_gait(gait)
+    _check_gait_robot(robot, g, source)
+    return assemble_walker(robot, g, source)
 
 
 def assemble_walker(robot: Robot, gait: Gait, source: GaitSource, *,
