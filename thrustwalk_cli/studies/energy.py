@@ -243,15 +243,21 @@ def pareto_headline(rows: Sequence[dict], designed: Sequence[Case], pushed: Sequ
         return (f"no common speed: the designed gaits walk at {rng(xa)}, {gait} with thrust "
                 f"at {rng(xb)} (the ranges do not overlap)")
     parts = []
-    runs: list[list[dict]] = []
-    for r in both:
-        if runs and runs[-1][-1]["cheapest"] == r["cheapest"]:
+    runs: list[list[dict]] = []  # consecutive speeds with the same answer
+    for r in rows:
+        if runs and (runs[-1][-1]["cheapest"], runs[-1][-1]["compared"]) == \
+                (r["cheapest"], r["compared"]):
             runs[-1].append(r)
         else:
             runs.append([r])
     for run in runs:
         lo, hi = run[0]["speed"], run[-1]["speed"]
         span = f"at {lo:.3g} m/s" if lo == hi else f"from {lo:.3g} to {hi:.3g} m/s"
+        if not run[0]["compared"]:
+            who = f"{gait} with thrust" if run[0]["cheapest"] == PUSHED else "the designed gaits"
+            parts.append(f"only {who} {'reach' if who.endswith('s') else 'reaches'} "
+                         + (f"{lo:.3g} m/s" if lo == hi else f"{lo:.3g}-{hi:.3g} m/s"))
+            continue
         a = [r[DESIGNED] for r in run]
         b = [r[PUSHED] for r in run]
         nums = (f"{basis} CoT {min(b):.3g}-{max(b):.3g} with thrust vs {min(a):.3g}-"
@@ -264,13 +270,6 @@ def pareto_headline(rows: Sequence[dict], designed: Sequence[Case], pushed: Sequ
             parts.append(f"the two cost the same {span}")
     if not any(r["cheapest"] == PUSHED for r in both):
         parts.append("thrust pays nowhere in the common range")
-    only = [r for r in rows if not r["compared"]]
-    for strategy, text in ((PUSHED, f"only {gait} with thrust reaches"),
-                           (DESIGNED, "only the designed gaits reach")):
-        sp = [r["speed"] for r in only if r["cheapest"] == strategy]
-        if sp:
-            parts.append(f"{text} {min(sp):.3g}-{max(sp):.3g} m/s" if len(sp) > 1
-                         else f"{text} {sp[0]:.3g} m/s")
     return "; ".join(parts)
 
 
