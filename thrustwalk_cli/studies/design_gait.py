@@ -244,7 +244,12 @@ class DesignGaitResult:
     def energy_record(self) -> dict:
         """The report's ``energy`` block: the orbit's energies and CoT (SPEC 15; None with the
         reason where a model is missing), at the design's thrust ``thrust`` [N] per thruster."""
-        return {"thrust": self._thrust().tolist(), **self.energy.record(),
+        try:
+            block = self.energy.record()
+        except (ComputationError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            # the report of a search is never lost to its energy: said, not computed
+            block = {"exists": False, "reason": f"energy not computed: {exc}"}
+        return {"thrust": self._thrust().tolist(), **block,
                 "cot_definition": "E / (m g d), d the step length; mechanical: joints' "
                                   "positive work + thrusters' positive work on the walker; "
                                   "total: joints' electrical energy (motor models) + "

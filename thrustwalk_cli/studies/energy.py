@@ -482,7 +482,8 @@ class EnergyResult:
                    and c.cot()[basis] is not None]
             curves[basis] = pts
         why_total = "" if curves["total"] else (
-            "total CoT not computed: " + (self.missing[0] if self.missing else "no orbit"))
+            f"total CoT not computed:\n{len(self.missing)} model(s) missing (energy.json)"
+            if self.missing else "no stable orbit")
         out = {"cot_speed": cot_speed_figure(
             curves, thruster=label, note_total=why_total,
             title=f"{w.name}: cost of transport vs speed" if titles else "")}
