@@ -287,3 +287,45 @@ def test_design_gait_reports_the_designed_gaits_cot(cli, tmp_path, monkeypatch):
                                                rel=1e-9)
     row = next(ln for ln in r.stdout.splitlines() if "CoT total [1]" in ln)
     assert f"{en['cot']['total']:.5g}" in row
+
+
+class _Point:
+    """A stand-in for a walkable orbit with energies (what the Pareto comparison reads)."""
+
+    walkable = True
+    energy = True
+
+    def __init__(self, speed: float, cot: float):
+        self._v, self._c = speed, cot
+
+    def speed(self) -> float:
+        return self._v
+
+    def cot(self) -> dict:
+        return {"total": self._c}
+
+
+def test_pareto_says_where_thrust_pays_and_when_the_ranges_do_not_overlap():
+    """Hand-made curves: designed gaits at 0.6, 0.8, 1.0 m/s (CoT 0.2, 0.4, 1.0); the gait with
+    thrust at 0.6, 0.9 m/s (CoT 0.3, 0.6): by hand, designed is cheaper at 0.6 (0.2 < 0.3) and
+    0.8 (0.4 < 0.5), thrust at 0.9 (0.6 < 0.7); 1.0 only designed. Disjoint ranges: said."""
+    from thrustwalk_cli.studies.energy import pareto_headline, pareto_rows
+
+    designed = [_Point(0.6, 0.2), _Point(0.8, 0.4), _Point(1.0, 1.0)]
+    pushed = [_Point(0.6, 0.3), _Point(0.9, 0.6)]
+    rows = pareto_rows(designed, pushed, "total")
+    assert [(r["speed"], r["cheapest"], r["compared"]) for r in rows] == [
+        (0.6, "designed gait", True), (0.8, "designed gait", True),
+        (0.9, "gait + thrust", True), (1.0, "designed gait", False)]
+    assert rows[1]["gait + thrust"] == pytest.approx(0.5)
+    assert rows[2]["designed gait"] == pytest.approx(0.7)
+    head = pareto_headline(rows, designed, pushed, "total", "g")
+    assert head == ("a gait designed for the speed is cheaper from 0.6 to 0.8 m/s (total CoT "
+                    "0.3-0.5 with thrust vs 0.2-0.4 designed); thrust pays at 0.9 m/s (total "
+                    "CoT 0.6 with thrust vs 0.7 designed); only the designed gaits reach 1 m/s")
+    apart = [_Point(1.2, 0.5), _Point(1.4, 0.8)]
+    rows = pareto_rows(designed, apart, "total")
+    assert not any(r["compared"] for r in rows)
+    assert pareto_headline(rows, designed, apart, "total", "g") == (
+        "no common speed: the designed gaits walk at 0.6-1 m/s, g with thrust at 1.2-1.4 m/s "
+        "(the ranges do not overlap)")

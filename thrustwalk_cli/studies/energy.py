@@ -258,10 +258,12 @@ def pareto_headline(rows: Sequence[dict], designed: Sequence[Case], pushed: Sequ
             parts.append(f"only {who} {'reach' if who.endswith('s') else 'reaches'} "
                          + (f"{lo:.3g} m/s" if lo == hi else f"{lo:.3g}-{hi:.3g} m/s"))
             continue
-        a = [r[DESIGNED] for r in run]
-        b = [r[PUSHED] for r in run]
-        nums = (f"{basis} CoT {min(b):.3g}-{max(b):.3g} with thrust vs {min(a):.3g}-"
-                f"{max(a):.3g} designed")
+        def span3(vals: list[float]) -> str:
+            lo_, hi_ = f"{min(vals):.3g}", f"{max(vals):.3g}"
+            return lo_ if lo_ == hi_ else f"{lo_}-{hi_}"
+
+        nums = (f"{basis} CoT {span3([r[PUSHED] for r in run])} with thrust vs "
+                f"{span3([r[DESIGNED] for r in run])} designed")
         if run[0]["cheapest"] == PUSHED:
             parts.append(f"thrust pays {span} ({nums})")
         elif run[0]["cheapest"] == DESIGNED:
