@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from thrustwalk_cli.description.robot import Motor, ThrusterPower
-from thrustwalk_cli.energy.power import (
+from thrustwalk_cli.energetics.power import (
     fuel_rate,
     hover_power,
     input_power,
@@ -133,7 +133,7 @@ def test_bad_power_models_are_one_line_errors(cli, tmp_path, monkeypatch, edit, 
 def orbit5(tmp_path_factory, _cache_dir):
     """walker5 with motors and a momentum rotor, its thrust gait, three constant thrusts
     (0, -20, -40 N on `back`): the orbits and their energies."""
-    from thrustwalk_cli.energy.orbit import orbit_energy
+    from thrustwalk_cli.energetics.orbit import orbit_energy
     from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
     from thrustwalk_cli.thrust.schedule import Schedule
     from thrustwalk_cli.walker import load_walker
@@ -227,7 +227,7 @@ def test_orbit_electrical_and_thrust_energy(orbit5):
 
 
 def test_missing_models_are_said_not_zero(tmp_path, _cache_dir):
-    from thrustwalk_cli.energy.orbit import orbit_energy
+    from thrustwalk_cli.energetics.orbit import orbit_energy
     from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
     from thrustwalk_cli.thrust.schedule import Schedule
     from thrustwalk_cli.walker import load_walker
@@ -258,7 +258,7 @@ def test_kinks_against_known_roots():
     a constant and a zero row."""
     from numpy.polynomial import Polynomial
 
-    from thrustwalk_cli.energy.orbit import _abs_and_positive
+    from thrustwalk_cli.energetics.orbit import _abs_and_positive
 
     n, half = 65, 0.7
     x = -np.cos(np.pi * np.arange(n) / (n - 1))
@@ -311,7 +311,7 @@ def _brute_abs_and_positive(values, half, grid=100001):
 def test_orbit_kinks_against_brute_force(tmp_path, monkeypatch, _cache_dir):
     """The joint and electrical powers of walker5's walking orbits (their kinks include root
     pairs a few thousandths apart): the piecewise integrals against a brute-force search."""
-    import thrustwalk_cli.energy.orbit as orbit
+    import thrustwalk_cli.energetics.orbit as orbit
     from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
     from thrustwalk_cli.thrust.schedule import Schedule
     from thrustwalk_cli.walker import load_walker
@@ -353,7 +353,7 @@ def test_electrical_energy_with_a_lossy_gearbox(tmp_path, _cache_dir):
     """Gearbox efficiency 0.8 (``P_m / eta`` motoring, ``P_m eta`` generating: a kink where
     ``P_m`` changes sign): the clipped and the regenerated electrical energy against a dense
     trapezoid of :func:`joint_electrical_power` with the torques of the pinned dynamics."""
-    from thrustwalk_cli.energy.orbit import orbit_energy
+    from thrustwalk_cli.energetics.orbit import orbit_energy
     from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
     from thrustwalk_cli.thrust.schedule import Schedule
     from thrustwalk_cli.walker import load_walker
@@ -395,7 +395,7 @@ def test_orbit_energies_equal_a_steady_full_order_run(tmp_path, _cache_dir):
     thrust work by Gauss-Legendre, the kinked ones (positive, absolute, clipped electrical)
     by a dense trapezoid, the rotor's input at the axial speed sign(F) d.p'; the impact loss
     against the run's own energies before and after the impact."""
-    from thrustwalk_cli.energy.orbit import orbit_energy
+    from thrustwalk_cli.energetics.orbit import orbit_energy
     from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
     from thrustwalk_cli.simulation.closed_loop import SimConfig, ThrustModel
     from thrustwalk_cli.simulation.full_order import simulate
@@ -449,7 +449,7 @@ def test_an_orbit_that_comes_to_rest_says_so_instead_of_zero_times(orbit5):
     are still there."""
     import dataclasses
 
-    from thrustwalk_cli.energy.orbit import orbit_energy
+    from thrustwalk_cli.energetics.orbit import orbit_energy
 
     w, sched, cycles, _ = orbit5
     zd = w.zd

@@ -173,6 +173,10 @@ STUDIES = {
          "out": "OUT"}),
     "robot_to_urdf": (lambda w, **kw: tw.robot_to_urdf(**kw), {"robot": ["walker5", 5, None]},
                       {"robot": "ROBOT"}),
+    "energy": (lambda w, **kw: tw.energy(**{"walker": w, **kw}), {
+        "walker": WALKER, "thrust": NUMBERS + [[0.0, 500.0]], "thruster": TEXT,
+        "slope": NUMBER + [1.6, -2.0],
+        "library": [5, "", str(DATA / "no_such_library"), str(DATA)]}, {}),
     "robot_to_mjcf": (lambda w, **kw: tw.robot_to_mjcf(**kw), {
         "robot": ["walker5", 5, None], "mu": POSITIVE + [11.0], "contact": [5, "soft"],
         "keyframe": [5, "x", ([NAN] * 5, [0.0] * 5), ([0.0] * 2, [0.0] * 5)],
@@ -406,6 +410,16 @@ for _cmd, _opt, _v, _msg in (
         ("slope", "--thrust", "0,1e308", ""),
         ("slope", "--thrust", "0:-500:-100", "-200 N is outside")):
     cli_case(f"slope-{_cmd}{_opt}={_v}", [_cmd, *COMMANDS[_cmd], _opt, _v, "--out", "{out}"],
+             _opt, _msg)
+# the energy command (SPEC 15), after the rotations above
+COMMANDS["energy"] = [W5, W5T]
+FLOATS["energy"] = ["--slope"]
+for _opt, _v, _msg in (("--slope", "nan", ""), ("--slope", "1.6", "a slope is an angle"),
+                       ("--thrust", "0,nan", ""), ("--thrust", "0:1:5e-324", ""),
+                       ("--thrust", "0,-500", "-500 N is outside"),
+                       ("--library", str(DATA), ".* is not a gait library"),
+                       ("--library", str(DATA / "no_such_library"), ".* is not a folder")):
+    cli_case(f"energy{_opt}={_v}", ["energy", *COMMANDS["energy"], _opt, _v, "--out", "{out}"],
              _opt, _msg)
 # item 5: the executor options of the commands that write a folder incrementally are checked
 # before the folder exists (robustness and sweep)

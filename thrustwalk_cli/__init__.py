@@ -39,6 +39,9 @@ Studies (one per command)
     ShapeResult         nominal and shaped cycles, shifts (true and the paper's), figures
     feasibility         ground-contact feasibility per thrust case -> :class:`FeasibilityResult`
     FeasibilityResult   verdicts, worst points, margins, feasible region, figures
+    energy              cost of transport and power over constant thrust, and with a gait
+                        library the cheapest way to each speed (SPEC 15) -> :class:`EnergyResult`
+    EnergyResult        per-thrust energies and CoT, the library's Pareto table, figures
     optimize_schedule   minimum-effort thrust schedule, an exact QP -> :class:`OptimizeResult`
     OptimizeResult      the optimal schedule (or why none exists), gait file, figure
     simulate            full-order closed-loop simulation -> :class:`SimulationResult`
@@ -98,6 +101,7 @@ _HOMES = {
     "limit_cycle": "studies.limit_cycle", "LimitCycleResult": "studies.limit_cycle",
     "shape": "studies.shape", "ShapeResult": "studies.shape_result",
     "feasibility": "studies.feasibility", "FeasibilityResult": "studies.feasibility",
+    "energy": "studies.energy", "EnergyResult": "studies.energy",
     "optimize_schedule": "studies.optimize", "OptimizeResult": "studies.optimize",
     "simulate": "studies.simulate", "SimulationResult": "studies.simulate",
     "SimConfig": "simulation.closed_loop", "Start": "simulation.full_order",

@@ -18,6 +18,7 @@ from .commands import (
     compile,
     control,
     design_gait,
+    energy,
     export_mjcf,
     feasibility,
     import_urdf,
@@ -36,8 +37,8 @@ from .commands import (
 
 # Help lists the commands in this order.
 COMMANDS = (compile, import_urdf, export_mjcf, inspect, limit_cycle, shape, feasibility,
-            slope, optimize, simulate, mujoco, control, stability, robustness, design_gait, sweep,
-            report)
+            slope, energy, optimize, simulate, mujoco, control, stability, robustness,
+            design_gait, sweep, report)
 
 class _OneLineErrors(TyperGroup):
     """The command group, with usage errors (an unknown option, a value of the wrong type, a

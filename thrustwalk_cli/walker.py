@@ -229,6 +229,19 @@ def gait_robot_mismatch(robot: Robot, gait: Gait,
                                            f"'{robot.name}'")
 
 
+def gait_on_robot(robot: Robot, gait: str) -> Walker:
+    """The gait file ``gait`` on the robot ``robot`` as loaded (its numbers, motors and power
+    models; as :func:`load_walker` with the robot given): the gait's ``robot:`` must name that
+    robot (:class:`InputError` at its line otherwise)."""
+    check_instance("robot", robot, Robot, "a Robot")
+    gait = check_path("gait", gait)
+    g, source = load_gait(gait)
+    wrong = gait_robot_mismatch(robot, g)
+    if wrong:
+        raise InputError(source.where(("robot",), wrong))
+    return assemble_walker(robot, g, source)
+
+
 def assemble_walker(robot: Robot, gait: Gait, source: GaitSource, *,
                     progress: Progress | None = None) -> Walker:
     """A walker from a robot and a gait as loaded (:func:`load_gait`, not yet bound): check

@@ -332,12 +332,20 @@ def _summary(doc: dict, out: Path, report: Path, files: list[Path]) -> None:
             ("zeta* [kg^2 m^4/s^2]", o.get("zeta_star"))]
     rows += [(f"designed thrust {n} [N]", v)
              for n, v in zip(doc.get("thrusters") or [], doc.get("thrust") or [])]
+    en = doc.get("energy") or {}
+    cot = en.get("cot") or {}
+    rows += [("CoT mechanical [1]", cot.get("mechanical")),
+             ("CoT total [1]", cot.get("total"))]
     for key in ("clearance_mid_step", "min_swing_height", "vertical_force", "friction",
                 "impact_friction", "liftoff_velocity", "touchdown_velocity"):
         rows.append((f"margin {key}", m.get(key)))
     for label, v in rows:
         t.add_row(escape(label), "—" if v is None else f"{v:.5g}")
     console().print(t)
+    if en and not en.get("exists"):
+        console().print(f"energy: {en.get('reason')}", markup=False)
+    for line in en.get("missing") or ():
+        console().print(f"energy: {line}", markup=False)
     if "compare" in doc:
         c = doc["compare"]
         console().print(f"compare {c['gait']}: objective {c.get('objective')}, "

@@ -64,3 +64,85 @@ def read_results(folder: Path, problems: list[str] | None = None) -> list[Result
 def _note(problems: list[str] | None, path: Path, why: str) -> None:
     if problems is not None:
         problems.append(f"{path}: skipped, {why}")
+
+
+# ---------------------------------------------------------------------- the gait library
+@dataclass(frozen=True)
+class LibraryGait:
+    """One feasible design of a gait library (a ``design-gait`` sweep's folder): its gait
+    name, the gait file (absolute path) and the row of ``library.csv`` (column -> text, the
+    axes with their units in the names, e.g. ``target_speed_m_s``, ``thrust_N``)."""
+
+    name: str
+    file: str
+    row: dict
+
+    def number(self, column: str) -> float | None:
+        """The row's number in ``column`` (None when absent or empty)."""
+        text = self.row.get(column)
+        try:
+            return None if text in (None, "") else float(text)
+        except ValueError:
+            return None
+
+
+LIBRARY_HINT = ("a gait library is the folder a design-gait sweep writes, e.g. "
+                "`thrustwalk sweep sweeps/gait_library.yaml`")
+
+
+def read_gait_library(folder: str | Path) -> tuple[LibraryGait, ...]:
+    """The feasible gaits of a gait library: ``folder`` holds a sweep's marker
+    (``.thrustwalk-sweep.json``) naming the ``design-gait`` study and its ``library.csv`` (one
+    row per design point; ``file`` empty where the design failed). Anything else (a missing
+    folder, another sweep, a folder without ``library.csv`` or without any feasible gait, a
+    gait file outside the folder or missing) is an :class:`InputError` on ``library``, one
+    line."""
+    from .output import SWEEP_MARKER
+
+    root = Path(folder)
+
+    def bad(message: str) -> InputError:
+        return InputError.param("library", message)
+
+    if not root.is_dir():
+        raise bad(f"{root} is not a folder ({LIBRARY_HINT})")
+    marker = root / SWEEP_MARKER
+    if not marker.is_file():
+        raise bad(f"{root} is not a gait library: no sweep marker {SWEEP_MARKER} ("
+                  f"{LIBRARY_HINT})")
+    try:
+        info = json.loads(read_input(marker, 1).decode("utf-8"))
+    except (InputError, UnicodeDecodeError, json.JSONDecodeError, OSError):
+        raise bad(f"{root} is not a gait library: its {SWEEP_MARKER} cannot be read") from None
+    study = info.get("study") if isinstance(info, dict) else None
+    if study != "design-gait":
+        raise bad(f"{root} is not a gait library: it holds a {study or 'unknown'} sweep, not a "
+                  f"design-gait sweep ({LIBRARY_HINT})")
+    table = root / "library.csv"
+    if not table.is_file():
+        raise bad(f"{root} has no library.csv (the sweep has not finished: run it again to "
+                  "complete it)")
+    try:
+        lines = read_input(table, MAX_RESULT_MB).decode("utf-8").splitlines()
+    except (InputError, UnicodeDecodeError, OSError):
+        raise bad(f"{table} cannot be read") from None
+    header = lines[0].split(",") if lines else []
+    if "gait" not in header or "file" not in header:
+        raise bad(f"{table} is not a gait library table (no `gait` and `file` columns)")
+    out = []
+    base = root.resolve()
+    for line in lines[1:]:
+        if not line.strip():
+            continue
+        row = dict(zip(header, line.split(",")))
+        if not row.get("file"):
+            continue  # no feasible gait at that point
+        path = (root / row["file"]).resolve()
+        if base not in path.parents:
+            raise bad(f"{table}: gait file {row['file']!r} is outside the library folder")
+        if not path.is_file():
+            raise bad(f"{table}: gait file {row['file']} is missing")
+        out.append(LibraryGait(row.get("gait") or path.stem, str(path), row))
+    if not out:
+        raise bad(f"{root}: library.csv lists no feasible gait")
+    return tuple(out)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -15,6 +16,7 @@ from ..description.robot import Robot
 from ..design.solver import DesignResult, WarmStart, solve_design
 from ..design.spec import DesignSpec
 from ..design.verify import check_gait
+from ..energetics.orbit import OrbitEnergy, orbit_energy
 from ..errors import ComputationError, InputError, check_callable, check_instance
 from ..files.gait_file import bind_gait, gait_text, load_gait_text, same_robot_file
 from ..hzd.constraints import apply_invariance
@@ -205,12 +207,45 @@ class DesignGaitResult:
     def reason(self) -> str:
         return self.design.reason
 
+    def _thrust(self) -> np.ndarray:
+        """The design's constant thrust per thruster [N] (0 where none was designed)."""
+        F = np.zeros(self.model.n_thrusters)
+        F[:len(self.design.thrust)] = self.design.thrust
+        return F
+
+    @cached_property
+    def energy(self) -> OrbitEnergy:
+        """The designed gait's step energies on its periodic orbit at the design's constant
+        thrust (SPEC 15, :func:`~thrustwalk_cli.energetics.orbit.orbit_energy`: the block
+        limit-cycle writes per case), computed when first asked for."""
+        zd = zero_dynamics(self.model, self.design.gait)
+        sched = Schedule.constant(zd, self._thrust()[None, :])
+        lc = limit_cycles(zd, sched)
+        return orbit_energy(zd, sched, lc)[0]
+
+    def energy_record(self) -> dict:
+        """The report's ``energy`` block: the orbit's energies and CoT (SPEC 15; None with the
+        reason where a model is missing), at the design's thrust ``thrust`` [N] per thruster."""
+        try:
+            block = self.energy.record()
+        except (ComputationError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            # the report of a search is never lost to its energy: said, not computed
+            block = {"exists": False, "reason": f"energy not computed: {exc}"}
+        return {"thrust": self._thrust().tolist(), **block,
+                "cot_definition": "E / (m g d), d the step length; mechanical: joints' "
+                                  "positive work + thrusters' positive work on the walker; "
+                                  "total: joints' electrical energy (motor models) + "
+                                  "thrusters' input energy (power models)",
+                "weight": self.robot.weight}
+
     def document(self) -> dict:
-        """The JSON body of ``NAME.report.json`` (provenance is added by the command)."""
+        """The JSON body of ``NAME.report.json`` (provenance is added by the command), with
+        the designed gait's energy block (:meth:`energy_record`)."""
         rob = self.robot
         doc = {"schema_version": SCHEMA_VERSION,
                "robot": {"name": rob.name, "file": rob.source_file},
-               "thrusters": rob.thruster_names, **report_record(self.design)}
+               "thrusters": rob.thruster_names, **report_record(self.design),
+               "energy": self.energy_record()}
         if self.compare is not None:
             doc["compare"] = self.compare
         return doc

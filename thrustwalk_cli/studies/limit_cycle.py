@@ -21,7 +21,7 @@ import numpy as np
 
 from ..contact.evaluate import CaseResult, check_contact_options, evaluate
 from ..contact.terms import scuff_reason
-from ..energy.orbit import OrbitEnergy, orbit_energy
+from ..energetics.orbit import OrbitEnergy, orbit_energy
 from ..errors import InputError, check_flag, check_number, check_numbers, check_text
 from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, grazing_warning, limit_cycles
 from ..thrust.schedule import Schedule

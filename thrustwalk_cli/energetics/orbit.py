@@ -515,3 +515,77 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
             distance=distance, weight=weight, error_estimate=errs[r],
             regenerate=regenerate, missing=tuple(missing + extra) if extra else missing_t)
     return out
+
+
+def power_profile(zd: ZeroDynamics, schedule: Schedule, cycle, *, samples: int = 201,
+                  regenerate: bool = False) -> dict | None:
+    """The powers along one step of the periodic orbit ``cycle`` of the first schedule of
+    ``schedule`` [W], at ``samples`` values of alpha from ``alpha_i`` to ``alpha_f`` (SPEC 15;
+    the integrands of :func:`orbit_energy` in time, not in alpha): with ``alpha' = s |kappa_1|
+    sqrt(2 zeta)``,
+
+        joint j          u_j q_j' = u_j Phi_j alpha'                         (N-1 columns)
+        thruster k       F_k d_k . p_k' = F_k (B_F^T Phi)_k alpha'           (m columns)
+        generalised      T q_N' = T Phi_N alpha'
+        joint electrical P_el(u_j, q_j') (motor), clipped at 0 unless ``regenerate``
+        thruster input   P_in(F_k, V_k), V_k = sign(F_k) d_k . p_k'  (power model)
+
+    and the time since the start of the step ``time`` [s] (trapezoid in alpha of ``1 /
+    |alpha'|``: for plots; the step time itself is :func:`orbit_energy`'s). A column whose
+    model is missing (or a table left) is None. None when the orbit does not exist or the
+    walker comes to rest on it."""
+    from .power import input_power, joint_electrical_power
+
+    if not cycle.exists:
+        return None
+    model, maps = zd.model, zd.maps
+    robot = model.robot
+    N, m = model.n, model.n_thrusters
+    sched = schedule.take(np.array([0]))
+    alpha = np.linspace(zd.alpha_i, zd.alpha_f, samples)
+    kn = np.asarray(sched.knots, float)
+    frac = (alpha - kn[0]) / (kn[-1] - kn[0])
+    pk = (kn - kn[0]) / (kn[-1] - kn[0])
+    j = np.clip(np.searchsorted(pk, frac, side="right") - 1, 0, len(kn) - 2)
+    F = sched.force[0, j, :]  # (g, m)
+    Tg = sched.generalized[0, j]  # (g,)
+    st = stance_terms(model, maps, alpha)
+    zeta = np.maximum(cycle.zeta_plus + zd.V_Z(alpha, sched)[0], 0.0)
+    adot = np.abs(st.AT) * np.sqrt(2.0 * zeta)  # |alpha'|
+    if not np.all(adot > 0.0):
+        return None
+    s = zd.direction
+    phi = maps.Phi(alpha)  # (g, N)
+    u = st.U0 + st.U1 * zeta[:, None] + st.UT * Tg[:, None]
+    if m:
+        u = u + np.einsum("gim,gm->gi", st.U2, F)
+    qd = phi * (s * adot)[:, None]  # q' (g, N)
+    joint = u * qd[:, :N - 1]
+    bt = np.einsum("gnm,gn->gm", model.B_F(maps.q_Z(alpha)), qd)  # d_k . p_k' (g, m)
+    thrust = F * bt
+    inv = 1.0 / adot
+    h = np.abs(np.diff(alpha))
+    time = np.concatenate([[0.0], np.cumsum(0.5 * h * (inv[1:] + inv[:-1]))])
+    acts = [c for c in robot.coordinates if c.actuated]
+    el: list = []
+    for jj, c in enumerate(acts):
+        if c.motor is None:
+            el.append(None)
+            continue
+        p = joint_electrical_power(u[:, jj], qd[:, jj], c.motor)
+        el.append(p if regenerate else np.maximum(p, 0.0))
+    tin: list = []
+    for kk, t in enumerate(robot.thrusters):
+        p = t.power
+        if p is None:
+            tin.append(None)
+            continue
+        try:
+            P = input_power(p, F[:, kk], np.sign(F[:, kk]) * bt[:, kk])
+        except ValueError:  # a table's range left
+            P = None
+        tin.append(P)
+    return {"alpha": alpha, "time": time, "joint_mechanical": joint,
+            "thrust_mechanical": thrust, "generalized": Tg * qd[:, N - 1],
+            "joint_electrical": el, "thruster_input": tin,
+            "joint_names": [c.name for c in acts], "thruster_names": list(robot.thruster_names)}
