@@ -244,3 +244,20 @@ def test_result_files_are_ordinary_files(tmp_path):
     os.umask(umask)
     assert p.stat().st_mode & 0o777 == 0o666 & ~umask
     assert [f.name for f in tmp_path.iterdir()] == ["x.json"]  # no temporary left behind
+
+
+def test_the_thrust_model_option_lists_the_option_table(cli):
+    """--thrust-model's help (written without importing numpy) names exactly the thruster
+    models of thrust/dynamics.MODELS plus piecewise, on every command that takes it."""
+    from thrustwalk_cli.commands.options import THRUST_MODEL_NAMES
+    from thrustwalk_cli.thrust.command import thrust_model_names
+
+    assert THRUST_MODEL_NAMES.split(" | ") == list(thrust_model_names())
+    for command in ("simulate", "stability", "mujoco", "control"):
+        res = cli(command, "--help")
+        assert res.exit_code == 0
+        text = " ".join(res.output.split())
+        for name in thrust_model_names():
+            if command == "control" and name == "piecewise":
+                continue
+            assert name in text, (command, name)

@@ -32,7 +32,11 @@ from .options import (
     OutOpt,
     QuietOpt,
     RobotArg,
+    TauOpt,
     TitlesOpt,
+    WnOpt,
+    XiOpt,
+    thrust_model_opt,
 )
 
 HELP = """Step-to-step thrust control with certified contact, in closed loop with the
@@ -209,16 +213,12 @@ def register(app: typer.Typer) -> None:
             "--knots", help="Knots as fractions of the step, 0 first, 1 last (0,1 for a "
                             "thruster with dynamics).")] = "0,0.5,1",
         steps: Annotated[int, typer.Option("--steps", help="Steps to walk.")] = 40,
-        thrust_model: Annotated[str, typer.Option(
-            "--thrust-model", help="ideal (the thrust is the command; `constant` is its "
-                                   "deprecated name), first-order (--tau [s]) or "
-                                   "second-order (--wn [rad/s], --xi).")] = "ideal",
-        wn: Annotated[float, typer.Option(
-            "--wn", help="Second-order thruster natural frequency [rad/s].")] = 20.0,
-        xi: Annotated[float, typer.Option(
-            "--xi", help="Second-order thruster damping ratio [1].")] = 1.0,
-        tau: Annotated[float, typer.Option(
-            "--tau", help="First-order thruster time constant [s].")] = 0.05,
+        thrust_model: Annotated[str, thrust_model_opt(
+            "ideal: the thrust is the command; first-order uses --tau, second-order --wn "
+            "and --xi", piecewise=False)] = "ideal",
+        wn: WnOpt = 20.0,
+        xi: XiOpt = 1.0,
+        tau: TauOpt = 0.05,
         thruster: Annotated[list[str] | None, typer.Option(
             "--thruster", metavar="NAME", help="Thruster the controller drives (repeat for "
                                                "several; default: the first).")] = None,

@@ -23,6 +23,7 @@ from .common import (
 )
 from .options import (
     ContactOpt,
+    F0Opt,
     FootRadiusOpt,
     FormatsOpt,
     GaitArg,
@@ -33,8 +34,12 @@ from .options import (
     RobotArg,
     SolimpOpt,
     SolrefOpt,
+    TauOpt,
     TimestepOpt,
     TitlesOpt,
+    WnOpt,
+    XiOpt,
+    thrust_model_opt,
 )
 
 HELP = """Run the gait's controller on MuJoCo's physics (soft contact) and compare every step
@@ -185,22 +190,15 @@ def register(app: typer.Typer) -> None:
         robot: RobotArg = "three_link",
         gait: GaitArg = None,
         steps: Annotated[int, typer.Option("--steps", help="Steps per run.")] = 20,
-        thrust_model: Annotated[str | None, typer.Option(
-            "--thrust-model",
-            help="ideal | first-order | second-order | piecewise (`constant`: the deprecated "
-                 "name of ideal; default: piecewise for a gait with a thrust: section and no "
-                 "--thrust, else ideal).")] = None,
+        thrust_model: Annotated[str | None, thrust_model_opt(
+            "piecewise for a gait with a thrust: section and no --thrust, else ideal")] = None,
         thrust: Annotated[str | None, typer.Option(
             "--thrust", help="Steady thrust F_ss [N], one run per value: start:stop:step or a "
                              "comma list (default 0).")] = None,
-        wn: Annotated[float, typer.Option(
-            "--wn", help="Second-order thruster natural frequency [rad/s].")] = 2.0,
-        xi: Annotated[float, typer.Option(
-            "--xi", help="Second-order thruster damping ratio [1].")] = 1.0,
-        tau: Annotated[float, typer.Option(
-            "--tau", help="First-order thruster time constant [s].")] = 0.5,
-        f0: Annotated[float, typer.Option(
-            "--f0", help="Thrust at t = 0 of the dynamic thrusters [N].")] = 0.0,
+        wn: WnOpt = 2.0,
+        xi: XiOpt = 1.0,
+        tau: TauOpt = 0.5,
+        f0: F0Opt = 0.0,
         thruster: Annotated[list[str] | None, typer.Option(
             "--thruster", metavar="NAME", help="Thruster driven by --thrust (repeat for "
                                                "several; default: the first).")] = None,

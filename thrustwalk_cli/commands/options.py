@@ -47,6 +47,25 @@ ThrusterOpt = Annotated[
     str | None, typer.Option("--thruster", help="Thruster driven by the thrust values "
                                                 "(default: the first).")
 ]
+# the thruster models (thrust/dynamics.MODELS and piecewise): listed here without importing
+# numpy (help stays fast); tests/test_cli.py checks the list against the option table
+THRUST_MODEL_NAMES = "ideal | first-order | second-order | piecewise"
+
+
+def thrust_model_opt(default: str, piecewise: bool = True):
+    """The ``--thrust-model`` option; ``default`` says what happens without it, ``piecewise``
+    whether the command takes a gait's ``thrust:`` schedule."""
+    names = THRUST_MODEL_NAMES if piecewise else THRUST_MODEL_NAMES.replace(" | piecewise", "")
+    return typer.Option("--thrust-model", help=f"{names} (`constant`: the deprecated name of "
+                                               f"ideal; default: {default}).")
+
+
+WnOpt = Annotated[float, typer.Option("--wn", help="Second-order thruster natural frequency "
+                                                   "[rad/s].")]
+XiOpt = Annotated[float, typer.Option("--xi", help="Second-order thruster damping ratio [1].")]
+TauOpt = Annotated[float, typer.Option("--tau", help="First-order thruster time constant [s].")]
+F0Opt = Annotated[float, typer.Option("--f0", help="Thrust at t = 0 of the dynamic thrusters "
+                                                   "[N].")]
 MuOpt = Annotated[
     float | None, typer.Option("--mu", help="Friction coefficient [-] (default: the gait's "
                                             "`mu`).")

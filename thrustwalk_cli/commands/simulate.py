@@ -23,6 +23,7 @@ from .common import (
     wrote_line,
 )
 from .options import (
+    F0Opt,
     FormatsOpt,
     GaitArg,
     JsonOpt,
@@ -30,7 +31,11 @@ from .options import (
     OutOpt,
     QuietOpt,
     RobotArg,
+    TauOpt,
     TitlesOpt,
+    WnOpt,
+    XiOpt,
+    thrust_model_opt,
 )
 
 HELP = """Full-order hybrid simulation of the closed loop with thruster dynamics.
@@ -151,23 +156,16 @@ def register(app: typer.Typer) -> None:
         robot: RobotArg = "three_link",
         gait: GaitArg = None,
         steps: Annotated[int, typer.Option("--steps", help="Steps per run.")] = 30,
-        thrust_model: Annotated[str | None, typer.Option(
-            "--thrust-model",
-            help="ideal | first-order | second-order | piecewise (`constant`: the deprecated "
-                 "name of ideal; default: piecewise for "
-                 "a gait with a thrust: section, else second-order).")] = None,
+        thrust_model: Annotated[str | None, thrust_model_opt(
+            "piecewise for a gait with a thrust: section, else second-order")] = None,
         thrust: Annotated[str | None, typer.Option(
             "--thrust", help="Steady thrust F_ss [N], one run per value: start:stop:step or "
                              "a comma list (default 0:-50:-10, or 0 for a robot without "
                              "thrusters; not with piecewise).")] = None,
-        wn: Annotated[float, typer.Option(
-            "--wn", help="Second-order thruster natural frequency [rad/s].")] = 2.0,
-        xi: Annotated[float, typer.Option(
-            "--xi", help="Second-order thruster damping ratio [1].")] = 1.0,
-        tau: Annotated[float, typer.Option(
-            "--tau", help="First-order thruster time constant [s].")] = 0.5,
-        f0: Annotated[float, typer.Option(
-            "--f0", help="Thrust at t = 0 of the dynamic thrusters [N].")] = 0.0,
+        wn: WnOpt = 2.0,
+        xi: XiOpt = 1.0,
+        tau: TauOpt = 0.5,
+        f0: F0Opt = 0.0,
         thruster: Annotated[list[str] | None, typer.Option(
             "--thruster", metavar="NAME",
             help="Thruster driven by --thrust (repeat for several; default: the "

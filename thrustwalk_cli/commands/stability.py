@@ -33,8 +33,12 @@ from .options import (
     OutOpt,
     QuietOpt,
     RobotArg,
+    TauOpt,
     ThrusterOpt,
     TitlesOpt,
+    WnOpt,
+    XiOpt,
+    thrust_model_opt,
 )
 
 HELP = """Floquet multipliers of the full-order hybrid closed loop, thruster states included.
@@ -183,21 +187,16 @@ def register(app: typer.Typer) -> None:
         ctx: typer.Context,
         robot: RobotArg = "three_link",
         gait: GaitArg = None,
-        thrust_model: Annotated[str | None, typer.Option(
-            "--thrust-model",
-            help="ideal | first-order | second-order | piecewise (`constant`: the deprecated "
-                 "name of ideal; default: piecewise for "
-                 "a gait with a thrust: section and no --thrust, else second-order).")] = None,
+        thrust_model: Annotated[str | None, thrust_model_opt(
+            "piecewise for a gait with a thrust: section and no --thrust, else "
+            "second-order")] = None,
         thrust: Annotated[str | None, typer.Option(
             "--thrust", help="Steady thrust F_ss [N], one value (default 0; sweep it with "
                              "--vary thrust=...).")] = None,
         thruster: ThrusterOpt = None,
-        wn: Annotated[float, typer.Option(
-            "--wn", help="Second-order thruster natural frequency [rad/s].")] = 2.0,
-        xi: Annotated[float, typer.Option(
-            "--xi", help="Second-order thruster damping ratio [1].")] = 1.0,
-        tau: Annotated[float, typer.Option(
-            "--tau", help="First-order thruster time constant [s].")] = 0.5,
+        wn: WnOpt = 2.0,
+        xi: XiOpt = 1.0,
+        tau: TauOpt = 0.5,
         kp: Annotated[float | None, typer.Option(
             "--kp", help="Output gain K_p [1/s^2] (default: the gait's).")] = None,
         kd: Annotated[float | None, typer.Option(
