@@ -42,6 +42,7 @@ from .kernel import (
     F_KP,
     F_MINIMP,
     F_SCUFF,
+    F_SLOPE,
     F_SPAN,
     F_TMAX,
     FAIL_BUFFER,
@@ -109,6 +110,7 @@ from .kernel import (
     W_TO,
     W_X,
     W_XE,
+    W_XT,
     alpha_of,
     event_list,
     foot_velocity,
@@ -116,6 +118,7 @@ from .kernel import (
     swing_height,
     tape_run,
     thrust_out,
+    tilted,
     vertical_force,
 )
 from .step_stats import step_stats
@@ -123,10 +126,15 @@ from .step_stats import step_stats
 # ---- end Python only
 
 
-def sigma_energy(q, dq, ip, w):
-    """``sigma_N = e_N^T D q'`` [kg m^2/s] and ``E = 1/2 q'^T D q' + V`` [J]."""
+def sigma_energy(q, dq, fs, ip, w):
+    """``sigma_N = e_N^T D q'`` [kg m^2/s] and ``E = 1/2 q'^T D q' + V`` [J] (on a slope ``V``
+    of the slope frame: the turned posture of :func:`tilted`)."""
     N = ip[I_N]
-    tape_run(ip, ip[T_ENERGY], q, w, ip[W_TO])
+    if fs[F_SLOPE] != 0.0:
+        tilted(q, N, fs, ip, w)
+        tape_run(ip, ip[T_ENERGY], w[ip[W_XT]:], w, ip[W_TO])
+    else:
+        tape_run(ip, ip[T_ENERGY], q, w, ip[W_TO])
     D = w[ip[W_TO]:]
     sig = 0.0
     kin = 0.0
@@ -434,9 +442,9 @@ def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
     # -- statistics on the integrator's nodes and a uniform grid of the step
     acc = w[ip[W_ACC]:]
     step_stats(calls, ncalls, buf, t0, t, fs, ip, par, w, rec)
-    sig_m, e_m = sigma_energy(x[:N], x[N:2 * N], ip, w)
-    sig_p, e_p = sigma_energy(x_next[:N], x_next[N:2 * N], ip, w)
-    sig_0, e_0 = sigma_energy(x0[:N], x0[N:2 * N], ip, w)
+    sig_m, e_m = sigma_energy(x[:N], x[N:2 * N], fs, ip, w)
+    sig_p, e_p = sigma_energy(x_next[:N], x_next[N:2 * N], fs, ip, w)
+    sig_0, e_0 = sigma_energy(x0[:N], x0[N:2 * N], fs, ip, w)
     rec[R_STEP] = k
     rec[R_T0] = t0
     rec[R_T1] = t
@@ -530,7 +538,7 @@ _IA, _IA2 = "int64[::1]", "int64[:, ::1]"
 _CTX = f"{_A}, {_IA}, {_A}, {_A}"  # fs, ip, par, w
 SIGNATURES = {
     "note_push": f"({_A}, {_F}, {_IA}, {_A})",
-    "sigma_energy": f"({_A}, {_A}, {_IA}, {_A})",
+    "sigma_energy": f"({_A}, {_A}, {_A}, {_IA}, {_A})",
     "impact": f"({_A}, {_A}, {_IA}, {_A}, {_A}, {_A}, {_A})",
     "apply_push": f"({_A}, {_A}, {_IA}, {_A})",
     "fail": f"({_A}, {_I}, {_I}, {_F}, {_F}, {_F}, {_I})",

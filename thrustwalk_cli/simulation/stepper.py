@@ -146,12 +146,18 @@ class Packed:
 
 def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
     """Arrays for the kernel from a :class:`ClosedLoop` (the SciPy path's own setup, so both
-    methods see the same breakpoints, thrust pieces and settings)."""
+    methods see the same breakpoints, thrust pieces and settings). On a slope (the closed
+    loop's model a slope-frame model, SPEC 14) the kernel runs the level-ground tape at the
+    turned posture (``kernel.tilted``) with the slope in ``fs``."""
     th, cfg, model = cl.thrust, cl.config, cl.model
     N, m = model.n, model.n_thrusters
     rows = np.array(cl.gait_s.rows, float)
     nbrk = len(cl.breaks)
-    tape = model.tape
+    gamma = float(getattr(model, "slope", 0.0))
+    flat = getattr(model, "flat", model) if gamma != 0.0 else model
+    if gamma != 0.0:
+        check_turn(flat)
+    tape = flat.tape
     ip = np.array(K.layout(N, m, th.n_states, len(model.robot.links), rows.shape[1], nbrk,
                            tape.nreg), np.int64)
     for slot, name in ((K.T_ACCEL, "accel"), (K.T_FORCE, "force"), (K.T_HEIGHT, "height"),
@@ -174,6 +180,7 @@ def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
     fs[K.F_GROUND], fs[K.F_TMAX] = cfg.ground_tol, t_max
     fs[K.F_MU] = np.inf if cfg.cone_mu is None else cfg.cone_mu
     fs[K.F_EPS] = cfg.cone_eps
+    fs[K.F_SLOPE], fs[K.F_COSG], fs[K.F_SING] = gamma, np.cos(gamma), np.sin(gamma)
     par = np.zeros(ip[K.P_SIZE])
     p = Packed(fs, ip, par, t_max, th.n_states)
     p.part(K.P_ROWS, rows.size)[:] = rows.ravel()
@@ -191,6 +198,27 @@ def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
                             ("D", K.P_DD, m * m)):
         p.part(slot, size)[:] = dyn[key].ravel()
     return p
+
+
+def check_turn(model) -> None:
+    """That turning the posture by ``delta`` (``q_N + delta``, ``kernel.tilted``) turns the
+    robot rigidly about its stance foot, counter-clockwise (the swing foot and the centre of
+    mass move by the rotation ``Rot(delta)``): what the compiled simulation on a slope rests
+    on (SPEC 1: ``q_N`` the one absolute angle). ``ComputationError`` otherwise."""
+    from ..errors import ComputationError
+
+    N = model.n
+    q = 0.3 + 0.17 * np.arange(N)
+    d = 0.4
+    qt = q.copy()
+    qt[N - 1] += d
+    rot = np.array([[np.cos(d), -np.sin(d)], [np.sin(d), np.cos(d)]])
+    for f in (model.p_swing, model.p_com):
+        a, b = np.asarray(f(qt), float)[:2], rot @ np.asarray(f(q), float)[:2]
+        if not np.allclose(a, b, rtol=1e-10, atol=1e-12):
+            raise ComputationError("the robot's unactuated coordinate does not turn it rigidly "
+                                   "about the stance foot: the compiled simulation cannot put "
+                                   "it on a slope")
 
 
 def with_thrust(p: Packed, target=None, seg_force=None, seg_T=None) -> np.ndarray:

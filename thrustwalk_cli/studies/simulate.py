@@ -29,6 +29,7 @@ from ..errors import (
     check_texts,
 )
 from ..hzd.zero_dynamics import ZeroDynamics, limit_cycles, paper_one_step_shift
+from ..model.slope import check_slope
 from ..simulation.closed_loop import (
     MAX_SAMPLES,
     MAX_STEPS,
@@ -42,7 +43,17 @@ from ..simulation.full_order import Start
 from ..simulation.scenario import Outcome, Scenario, deviations, make_scenario, run_scenario
 from ..thrust.schedule import Schedule
 from ..walker import Walker, check_walker
-from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import (
+    SCHEMA_VERSION,
+    Table,
+    climb_rate,
+    col,
+    gait_record,
+    result_repr,
+    robot_record,
+    slope_record,
+    units,
+)
 
 UNITS = units("time", "thrust", "generalized_thrust", "alpha", "alpha_dot", "sigma_N", "zeta",
               "impulse", "force", "torque", "output_y", "output_rate", "energy", "wn", "tau",
@@ -152,6 +163,10 @@ def run_entries(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
             reason += f" ({'; '.join(notes)})"
         if success and dev:
             reason += " off the zero-dynamics prediction: " + "; ".join(dev)
+        on_slope = {}
+        if zd.slope != 0.0:  # SPEC 14: speed along the ground, the climb rate beside it
+            v = _speed(zd, full.steps[-1]) if full is not None and full.steps else None
+            on_slope = {"speed": v, "climb_rate": climb_rate(v, zd.slope)}
         runs.append({
             "run": i, "f_ss": oc.value, "model": "full-order" if full is not None else "reduced",
             "success": success, "status": status, "failure": failure, "reason": reason,
@@ -161,6 +176,7 @@ def run_entries(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
                 "exists": lc.exists, "stable": lc.stable, "reason": lc.reason,
                 "zeta_star": lc.zeta_star, "sigma_minus": lc.sigma_minus,
                 "step_time": lc.step_time, "speed": lc.speed,
+                **({"climb_rate": climb_rate(lc.speed, zd.slope)} if zd.slope != 0.0 else {}),
                 "touchdown_velocity": lc.touchdown_velocity,
                 "paper_one_step_value": (None if z0 is None else
                                          z0 + float(paper_one_step_shift(zd, sched)[0])),
@@ -176,8 +192,16 @@ def run_entries(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
                 "final_zeta_minus": red.steps[-1].zeta_minus if red.steps else None},
             "deviations": dev,
             "warnings": dev + warn,
+            **on_slope,
         })
     return runs
+
+
+def _speed(zd: ZeroDynamics, step) -> float | None:
+    """Speed of a full-order step along the ground [m/s]: the swing foot's position at the
+    impact along the ground (the step length, slope frame) over the step time."""
+    length = float(zd.model.p_swing(np.asarray(step.q_minus, float))[0])
+    return length / step.step_time if step.step_time > 0 else None
 
 
 def _zeta_star(zd: ZeroDynamics, sched: Schedule) -> float | None:
@@ -198,10 +222,12 @@ def simulation_document(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
     cfg = sc.config
     return {
         "schema_version": SCHEMA_VERSION,
-        "units": UNITS,
+        "units": ({**UNITS, "slope": "rad", "speed": "m/s", "climb_rate": "m/s"}
+                  if zd.slope != 0.0 else UNITS),
         "warnings": list(warnings),
         "robot": robot_record(zd),
         "gait": gait_record(zd),
+        **({"slope": slope_record(zd.slope)} if zd.slope != 0.0 else {}),
         "zero_dynamics": {"delta_zero": zd.delta_zero, "delta_zero_sq": zd.delta_zero_sq,
                           "fixed_point_formula": "zeta* = V_Z(alpha_f) / (1 - delta_zero^2)"},
         "settings": {
@@ -364,7 +390,8 @@ def figure_data(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome]) -> dict
 
 def animation_frames(zd: ZeroDynamics, outcome: Outcome, fps: float = 20.0,
                      max_frames: int = 400) -> dict:
-    """Stick-figure frames of a full-order run in world coordinates [m]: per frame the links
+    """Stick-figure frames of a full-order run in world coordinates [m] (on a slope, the slope
+    frame: x along the ground, y normal to it): per frame the links
     ``(n_links, 2, 2)``, thruster points and thrust vectors ``(m, 2)`` [N], and the time."""
     full = outcome.full
     if full is None or not full.trajectory:
@@ -389,7 +416,9 @@ def animation_frames(zd: ZeroDynamics, outcome: Outcome, fps: float = 20.0,
     return {"t": t[idx], "links": lp, "points": pts, "thrust": vec, "roles": roles,
             "hip": hip, "thruster_names": model.robot.thruster_names,
             "title": f"{model.robot.name} / {zd.gait.name}"
-                     + (f", F_ss = {outcome.value:g} N" if outcome.value is not None else "")}
+                     + (f", F_ss = {outcome.value:g} N" if outcome.value is not None else "")
+                     + (f", slope {zd.slope:.4g} rad (slope frame: the ground drawn level)"
+                        if zd.slope != 0.0 else "")}
 
 
 
@@ -508,7 +537,7 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
              scuff_tol: float = 1e-4, min_impact_s: float = 0.75, impact_s_tol: float = 1e-3,
              zeta_tol: float = 1e-3, reduced: bool = False, mu: float | None = None,
              progress: Callable[[int], None] | None = None, check_only: bool = False,
-             config: SimConfig | None = None) -> SimulationResult | None:
+             config: SimConfig | None = None, slope: float = 0.0) -> SimulationResult | None:
     """Simulate ``steps`` steps of the full-order closed loop (SPEC 7) for each steady thrust
     ``thrust`` [N] (default 0 to -50 N in steps of 10, only 0 for a robot without thrusters;
     not with ``thrust_model="piecewise"``, which uses the gait's ``thrust:`` section) on
@@ -540,8 +569,15 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
     (``tw.SimConfig``: it replaces ``steps``, ``rtol``, ``atol``, ``method``, ``integrator``,
     ``samples``, ``torque_limit``, ``scuff_tol``, ``min_impact_s``, which then stay at their
     defaults).
+    ``slope`` [rad, positive uphill, |slope| < pi/2]: the ground angle (SPEC 14,
+    :meth:`Walker.on_slope`): the run is in the slope frame (gravity ``g (-sin, -cos)``,
+    world-frame thrusters turned by ``-slope``, link-frame ones not; guard, impact and
+    relabelling unchanged), compared with the zero dynamics on that slope; the document gains
+    the ``slope`` block and each run its speed along the ground and climb rate. 0: level
+    ground, bit for bit as without it.
     """
     check_walker(walker)
+    slope = check_slope(slope)
     steps = check_count("steps", steps, le=MAX_STEPS)
     thrust = check_numbers("thrust", thrust, optional=True, min_len=0)
     wn = check_number("wn", wn, gt=0, unit="rad/s")
@@ -609,6 +645,7 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
                            integrator=integrator, samples_per_step=samples,
                            torque_limit=torque_limit, scuff_tol=scuff_tol,
                            min_impact_s=min_impact_s)
+    walker = walker.on_slope(slope)
     zd = walker.zd
     schedule = None
     if thrust_model == "piecewise":
