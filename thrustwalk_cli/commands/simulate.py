@@ -61,6 +61,9 @@ With --slope GAMMA [rad, positive uphill] the walker is on a slope (SPEC 14): th
 slope frame (gravity and world-frame thrusters turned, link-frame thrusters not; guard, impact
 and relabelling unchanged), compared with the zero dynamics on that slope; speed is along the
 ground, with the climb rate beside it, and ground forces are tangential and normal to it.
+With --terrain FILE (docs/files.md) the walker walks steps or rough ground: step k's swing foot
+lands h_k above its stance foot (the guard), a step-down is met on the gait continued past
+s = 1 until the file's s_max (past it: missed_footing); each step records its terrain_height.
 
 Writes DIR/simulation.json, DIR/steps.csv, DIR/trajectory.csv (.npz above 20000 samples),
 DIR/thrust_time.png/.pdf, DIR/phase_portrait.png/.pdf and, with --animate, DIR/walker.gif.
@@ -84,7 +87,7 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
                  formats: set[str] | None = None, titles: bool = False,
                  min_impact_s: float = 0.75, impact_s_tol: float = 1e-3,
                  zeta_tol: float = 1e-3, integrator: str = "DOP853",
-                 slope: float = 0.0) -> dict:
+                 slope: float = 0.0, terrain: Path | None = None) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files import output
     from ..studies.simulate import default_f_ss, simulate
@@ -104,7 +107,7 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
                 start=start_orbit, torque_limit=torque_limit, rtol=rtol, atol=atol,
                 method=method, integrator=integrator, samples=samples, scuff_tol=scuff_tol,
                 min_impact_s=min_impact_s, impact_s_tol=impact_s_tol, zeta_tol=zeta_tol,
-                reduced=reduced, mu=mu, slope=slope)
+                reduced=reduced, mu=mu, slope=slope, terrain=terrain)
     simulate(walker, **args, check_only=True)  # every option before the kernel is compiled
     if method == "compiled" and not reduced:
         ensure_kernel(quiet)
@@ -197,6 +200,9 @@ def register(app: typer.Typer) -> None:
             "--torque-limit", help="Joint torque bound |u| [N m] (default: none).")] = None,
         mu: MuOpt = None,
         slope: SlopeOpt = 0.0,
+        terrain: Annotated[Path | None, typer.Option(
+            "--terrain", help="Terrain file (YAML, docs/files.md): a slope and step heights "
+                              "(explicit or rough, seeded).")] = None,
         rtol: Annotated[float, typer.Option("--rtol", help="Integrator relative tolerance.")
                         ] = 1e-9,
         atol: Annotated[float, typer.Option(
@@ -242,7 +248,7 @@ def register(app: typer.Typer) -> None:
                 reduced=reduced, animate=animate, out=out, quiet=quiet, mu=mu, json=json,
                 formats=parse_formats(formats), titles=titles, min_impact_s=min_impact_s,
                 impact_s_tol=impact_s_tol, zeta_tol=zeta_tol, integrator=integrator,
-                slope=slope)
+                slope=slope, terrain=terrain)
         if any(r["failure"] in ("integrator", "controller") for r in doc["runs"]):
             sys.stderr.write("error: an integrator or controller failure ended a run (see "
                              f"{out}/simulation.json)\n")

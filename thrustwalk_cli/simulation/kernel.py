@@ -72,11 +72,16 @@ def tape_batch(code, p, consts, c0, nreg, X, out, chunk):  # noqa: D103
 # ------------------------------------------------------------------ layout
 # float settings fs[...] (after the integrator's rtol, atol)
 (F_AI, F_SPAN, F_DIR, F_KP, F_KD, F_TLIM, F_SCUFF, F_MINIMP, F_MAXS, F_GROUND, F_TMAX, F_MU,
- F_EPS, F_SLOPE, F_COSG, F_SING) = range(N_FS_INTEGRATOR, N_FS_INTEGRATOR + 16)
+ F_EPS, F_SLOPE, F_COSG, F_SING, F_TERRAIN, F_BEHIND) = range(N_FS_INTEGRATOR,
+                                                               N_FS_INTEGRATOR + 18)
 # F_MU, F_EPS: the cone a step's first exit is timed against (mu inf: no slip timing);
 # F_SLOPE, F_COSG, F_SING: the ground angle gamma [rad] (SPEC 14; 0: level ground) and its
-# cosine and sine
-N_FS = N_FS_INTEGRATOR + 16
+# cosine and sine; F_TERRAIN: the height [m] of the ground where this step's swing foot lands,
+# above the stance foot and normal to the slope (SPEC 14; 0: level ground): the guard;
+# F_BEHIND: the ground the scuff checks measure from before the guard is armed [m]: the lower
+# of the stance foot's level (0) and the level the swing foot left (the previous step's
+# height below the stance foot)
+N_FS = N_FS_INTEGRATOR + 18
 # integer settings ip[...] (after the integrator's): sizes, then offsets into par (P_*) and
 # into the work array (W_*)
 (I_N, I_M, I_NZ, I_CMD, I_ROOT_END, I_GUARD_IDX, I_GRID, I_NLINKS, I_NCOL,
@@ -472,12 +477,12 @@ def event_value(code, x, seg, fs, ip, par, w, a_next, a_push):
         return d * (alpha_of(x, ip, par) - a_next)
     if code == EV_PUSH:
         return d * (alpha_of(x, ip, par) - a_push)
-    if code == EV_GUARD:
-        return swing_height(x, fs, ip, par, w)
+    if code == EV_GUARD:  # the swing foot reaches the ground of this step (F_TERRAIN)
+        return swing_height(x, fs, ip, par, w) - fs[F_TERRAIN]
     if code == EV_OVERSHOOT:
         return d * (alpha_of(x, ip, par) - (fs[F_AI] + fs[F_MAXS] * fs[F_SPAN]))
     if code == EV_SCUFF:
-        return swing_height(x, fs, ip, par, w) + fs[F_SCUFF]
+        return swing_height(x, fs, ip, par, w) - fs[F_BEHIND] + fs[F_SCUFF]
     if code == EV_FOOT_MAX or code == EV_FOOT_MIN:
         return foot_velocity(x, fs, ip, par, w)
     if code == EV_REVERSE:

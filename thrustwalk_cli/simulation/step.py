@@ -36,6 +36,7 @@ from .kernel import (
     EV_PUSH,
     EV_SCUFF,
     F_AI,
+    F_BEHIND,
     F_DIR,
     F_GROUND,
     F_KD,
@@ -44,6 +45,7 @@ from .kernel import (
     F_SCUFF,
     F_SLOPE,
     F_SPAN,
+    F_TERRAIN,
     F_TMAX,
     FAIL_BUFFER,
     FAIL_CONTROLLER,
@@ -306,7 +308,7 @@ def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
     fv0 = vertical_force(x, seg, fs, ip, par, w)
     if fv0 < 0:
         return fail(out, FAIL_START_FORCE, k, t0, s0, fv0, EV_NONE), 0, 0
-    h0 = swing_height(x, fs, ip, par, w)
+    h0 = swing_height(x, fs, ip, par, w) - fs[F_BEHIND]
     if h0 < -fs[F_SCUFF]:
         return fail(out, FAIL_START_BELOW, k, t0, s0, h0, EV_NONE), 0, 0
     t = t0
@@ -331,9 +333,12 @@ def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
             return fail(out, FAIL_CONTROLLER, k, t, s, 0.0, EV_NONE), ncalls, nbuf
         for i in range(n):
             xe[i] = yend[i]
-        # a dip of the swing foot below the ground between two integrator steps (_dip)
+        # a dip of the swing foot below the ground between two integrator steps (_dip): once
+        # the guard is armed, below the ground where it lands (F_TERRAIN), before below the
+        # ground it left or stands on (F_BEHIND)
         armed = seg > ip[I_GUARD_IDX]
         limit = -fs[F_GROUND] if armed else -fs[F_SCUFF]
+        ground = fs[F_TERRAIN] if armed else fs[F_BEHIND]
         dip = EV_NONE
         t_dip = 0.0
         for j in range(n_lows):
@@ -341,7 +346,7 @@ def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
             if tm > t1:
                 continue
             solution_at(buf, first, nbuf, tm, n, xs)
-            if swing_height(xs, fs, ip, par, w) >= limit:
+            if swing_height(xs, fs, ip, par, w) - ground >= limit:
                 continue
             if not armed:
                 dip, t_dip = EV_SCUFF, tm
@@ -353,7 +358,7 @@ def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
                 tt = t + gi * ((tm - t) / 64.0) if gi < 64 else tm
                 grid[gi] = tt
                 solution_at(buf, first, nbuf, tt, n, xs)
-                hh = swing_height(xs, fs, ip, par, w)
+                hh = swing_height(xs, fs, ip, par, w) - ground
                 if gi > 0 and hprev > 0 and hh <= 0 and found < 0:
                     found = gi - 1
                 hprev = hh
@@ -362,9 +367,9 @@ def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
                 break
             ga, gb = grid[found], grid[found + 1]
             solution_at(buf, first, nbuf, ga, n, xs)
-            fa = swing_height(xs, fs, ip, par, w)
+            fa = swing_height(xs, fs, ip, par, w) - ground
             solution_at(buf, first, nbuf, gb, n, xs)
-            fb = swing_height(xs, fs, ip, par, w)
+            fb = swing_height(xs, fs, ip, par, w) - ground
             dip = EV_GUARD
             t_dip = brent(EV_GUARD, ga, gb, fa, fb, buf, first, nbuf, seg, fs, ip, par, w, n,
                           a_next, a_push, 1e-14, 4 * EPS)
