@@ -240,11 +240,34 @@ def test_cli_simulate_on_a_slope(cli, tmp_path, monkeypatch):
         run["predicted"]["speed"] * math.sin(gamma), rel=1e-12)
 
 
+def test_stability_on_a_slope(walker5):
+    """Floquet analysis on a slope: the zero dynamics' fixed point on the slope is a fixed
+    point of the compiled full-order map (Newton's residual at the prediction, two independent
+    routes: the slope series of the zero dynamics and the kernel at the turned posture); the
+    finite differences of the kernel agree with the variational equations of the slope
+    model's G_x decomposition; the zero-dynamics multiplier is level ground's delta_zero^2
+    (the impact does not depend on the slope)."""
+    from thrustwalk_cli.studies.stability import stability
+
+    gamma = 0.03
+    doc = stability(walker5, thrust_model="ideal", thrust=-20.0, slope=gamma).document()
+    assert doc["slope"]["angle"] == gamma and doc["verdict"] == "stable"
+    case = doc["cases"][0]
+    F5 = np.array([-20.0])
+    zs = zeta_star_at(walker5.zd.on_slope(gamma), F5)
+    assert case["predicted"]["zeta_star"] == pytest.approx(zs, rel=1e-12)
+    assert zs != pytest.approx(zeta_star_at(walker5.zd, F5), rel=1e-3)  # not level ground
+    assert case["fixed_point"]["newton"]["start_residual"] < 1e-9
+    assert case["jacobian"]["agreement"]["agree"]
+    assert case["zero_dynamics"]["multiplier"]["re"] == pytest.approx(
+        walker5.zd.delta_zero_sq, abs=1e-8)
+
+
+@pytest.mark.parametrize("command", ["simulate", "stability"])
 @pytest.mark.parametrize("bad", ["2", "nan", "-1.6", "inf"])
-def test_cli_simulate_bad_slope(bad, cli, tmp_path, monkeypatch):
+def test_cli_bad_slope(command, bad, cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    r = cli("simulate", str(ROBOT5), str(GAIT5), f"--slope={bad}", "--steps", "2",
-            "--out", "o")
+    r = cli(command, str(ROBOT5), str(GAIT5), f"--slope={bad}", "--out", "o")
     assert r.exit_code == 2, r.output
     lines = [ln for ln in r.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("error: option --slope: "), r.output
