@@ -263,7 +263,26 @@ def test_stability_on_a_slope(walker5):
         walker5.zd.delta_zero_sq, abs=1e-8)
 
 
-@pytest.mark.parametrize("command", ["simulate", "stability"])
+def test_control_on_a_slope(walker5):
+    """Step-to-step control on a downhill slope: the full-order walker on the slope (the
+    compiled kernel at the turned posture) walks at the reference speed along the ground, the
+    controller braking (positive thrust of the backward-pointing thruster); the document
+    holds the slope and the nominal climb rate."""
+    from thrustwalk_cli.studies.control import control
+
+    gamma = -0.03
+    doc = control(walker5, reference="speed", profile=[(0, 0.6)], steps=10, slope=gamma,
+                  compare=False).document()
+    assert doc["slope"]["angle"] == gamma and doc["status"] == "ok", doc["reason"]
+    last = doc["steps"][-1]
+    assert last["speed"] == pytest.approx(0.6, rel=1e-8)
+    assert min(last["thrust_commanded"]["back"]) > 0
+    s = doc["settings"]
+    assert s["nominal_climb_rate"] == pytest.approx(s["nominal_speed"] * math.sin(gamma),
+                                                    rel=1e-12)
+
+
+@pytest.mark.parametrize("command", ["simulate", "stability", "control"])
 @pytest.mark.parametrize("bad", ["2", "nan", "-1.6", "inf"])
 def test_cli_bad_slope(command, bad, cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
