@@ -32,6 +32,7 @@ from .options import (
     OutOpt,
     QuietOpt,
     RobotArg,
+    SlopeOpt,
     TauOpt,
     TitlesOpt,
     WnOpt,
@@ -126,7 +127,8 @@ def run_control(robot: str | None, gait: str | None, *, reference: str, profile:
                 rate_limit: float | None, tracking_weight: float | None, effort_weight: float,
                 rate_weight: float, terms: str, fit_tol: float, points: int, out: Path,
                 quiet: bool, export: Path | None = None, json: str | None = None,
-                formats: set[str] | None = None, titles: bool = False) -> dict:
+                formats: set[str] | None = None, titles: bool = False,
+                slope: float = 0.0) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files import output
     from ..studies.control import control
@@ -149,7 +151,7 @@ def run_control(robot: str | None, gait: str | None, *, reference: str, profile:
                 min_vertical_force=min_vertical_force, zeta_min=zeta_min,
                 max_thrust=max_thrust, rate_limit=rate_limit, tracking_weight=tracking_weight,
                 effort_weight=effort_weight, rate_weight=rate_weight, terms=terms,
-                fit_tol=fit_tol, points=points)
+                fit_tol=fit_tol, points=points, slope=slope)
     control(walker, **args, check_only=True)  # every option before the kernel is compiled
     ensure_kernel(quiet)
     with progress("controlled steps", runs * steps, quiet) as advance:
@@ -188,7 +190,8 @@ def _table(doc: dict) -> None:
         rows.append(["lag ignored", str(lag["steps_completed"]), fmt(err, ".2e"),
                      fmt(lag["speed"][-1] if lag["speed"] else None), "—",
                      "ok" if lag["success"] else lag["failure"]])
-    show_table(f"control: {doc['robot']['name']} / {doc['gait']['name']} "
+    on = f", on the slope {doc['slope']['angle']:.4g} rad" if doc.get("slope") else ""
+    show_table(f"control: {doc['robot']['name']} / {doc['gait']['name']}{on} "
                f"({doc['settings']['reference']}, {doc['settings']['thrust_model']} thrust)",
                [("walker", False), ("steps", True), ("final error\n[-]", True),
                 ("final speed\n[m/s]", True), ("QP median\n[us]", True), ("status", False)],
@@ -262,6 +265,7 @@ def register(app: typer.Typer) -> None:
             "--export", metavar="FILE", help="Also write the controller's data (knots, "
                                              "delta_zero^2, V_0(alpha_f), Gamma_j, L_k fits, "
                                              "QP rows) as JSON with units.")] = None,
+        slope: SlopeOpt = 0.0,
         out: OutOpt = Path("out/control"),
         json: JsonOpt = None,
         formats: FormatsOpt = "csv,png,pdf",
@@ -278,7 +282,7 @@ def register(app: typer.Typer) -> None:
                 tracking_weight=tracking_weight, effort_weight=effort_weight,
                 rate_weight=rate_weight, terms=terms, fit_tol=fit_tol, points=points,
                 out=out, quiet=quiet, export=export, json=json,
-                formats=parse_formats(formats), titles=titles)
+                formats=parse_formats(formats), titles=titles, slope=slope)
         if doc["failure"] in ("integrator", "controller"):
             sys.stderr.write(f"error: an integrator or controller failure ended the run (see "
                              f"{out}/control.json)\n")

@@ -31,6 +31,7 @@ from .options import (
     OutOpt,
     QuietOpt,
     RobotArg,
+    SlopeOpt,
     TauOpt,
     TitlesOpt,
     WnOpt,
@@ -61,6 +62,14 @@ farther than --impact-s-tol from s = 1 or whose zeta^- leaves the zero-dynamics 
 more than --zeta-tol (a grazing or missed touchdown), or with a step out of the friction cone
 (mu) or a saturated torque, has status "warning" with the reason, never "ok".
 
+With --slope GAMMA [rad, positive uphill] the walker is on a slope (SPEC 14): the run is in the
+slope frame (gravity and world-frame thrusters turned, link-frame thrusters not; guard, impact
+and relabelling unchanged), compared with the zero dynamics on that slope; speed is along the
+ground, with the climb rate beside it, and ground forces are tangential and normal to it.
+With --terrain FILE (docs/files.md) the walker walks steps or rough ground: step k's swing foot
+lands h_k above its stance foot (the guard), a step-down is met on the gait continued past
+s = 1 until the file's s_max (past it: missed_footing); each step records its terrain_height.
+
 Writes DIR/simulation.json, DIR/steps.csv, DIR/trajectory.csv (.npz above 20000 samples),
 DIR/thrust_time.png/.pdf, DIR/phase_portrait.png/.pdf and, with --animate, DIR/walker.gif.
 """
@@ -82,7 +91,8 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
                  quiet: bool, mu: float | None = None, json: str | None = None,
                  formats: set[str] | None = None, titles: bool = False,
                  min_impact_s: float = 0.75, impact_s_tol: float = 1e-3,
-                 zeta_tol: float = 1e-3, integrator: str = "DOP853") -> dict:
+                 zeta_tol: float = 1e-3, integrator: str = "DOP853",
+                 slope: float = 0.0, terrain: Path | None = None) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files import output
     from ..studies.simulate import default_f_ss, simulate
@@ -102,7 +112,7 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
                 start=start_orbit, torque_limit=torque_limit, rtol=rtol, atol=atol,
                 method=method, integrator=integrator, samples=samples, scuff_tol=scuff_tol,
                 min_impact_s=min_impact_s, impact_s_tol=impact_s_tol, zeta_tol=zeta_tol,
-                reduced=reduced, mu=mu)
+                reduced=reduced, mu=mu, slope=slope, terrain=terrain)
     simulate(walker, **args, check_only=True)  # every option before the kernel is compiled
     if method == "compiled" and not reduced:
         ensure_kernel(quiet)
@@ -141,7 +151,8 @@ def _table(doc: dict) -> None:
     rows = [[fmt(r["f_ss"]), str(r["steps_completed"]), fmt(r["final_zeta_minus"]),
              fmt(r["predicted"]["zeta_star"]), fmt(r["final_relative_error"], ".2e"),
              status(r)] for r in doc["runs"]]
-    show_table(f"simulate: {doc['robot']['name']} / {doc['gait']['name']} "
+    on = f", on the slope {doc['slope']['angle']:.4g} rad" if doc.get("slope") else ""
+    show_table(f"simulate: {doc['robot']['name']} / {doc['gait']['name']}{on} "
                f"({doc['settings']['thrust_model']}, delta_zero^2 = "
                f"{doc['zero_dynamics']['delta_zero_sq']:.4f})",
                [("F_ss\n[N]", True), ("steps", True), ("final ζ⁻\n[kg^2 m^4/s^2]", True),
@@ -186,6 +197,10 @@ def register(app: typer.Typer) -> None:
         torque_limit: Annotated[float | None, typer.Option(
             "--torque-limit", help="Joint torque bound |u| [N m] (default: none).")] = None,
         mu: MuOpt = None,
+        slope: SlopeOpt = 0.0,
+        terrain: Annotated[Path | None, typer.Option(
+            "--terrain", help="Terrain file (YAML, docs/files.md): a slope and step heights "
+                              "(explicit or rough, seeded).")] = None,
         rtol: Annotated[float, typer.Option("--rtol", help="Integrator relative tolerance.")
                         ] = 1e-9,
         atol: Annotated[float, typer.Option(
@@ -230,7 +245,8 @@ def register(app: typer.Typer) -> None:
                 atol=atol, method=method, samples=samples, scuff_tol=scuff_tol,
                 reduced=reduced, animate=animate, out=out, quiet=quiet, mu=mu, json=json,
                 formats=parse_formats(formats), titles=titles, min_impact_s=min_impact_s,
-                impact_s_tol=impact_s_tol, zeta_tol=zeta_tol, integrator=integrator)
+                impact_s_tol=impact_s_tol, zeta_tol=zeta_tol, integrator=integrator,
+                slope=slope, terrain=terrain)
         if any(r["failure"] in ("integrator", "controller") for r in doc["runs"]):
             sys.stderr.write("error: an integrator or controller failure ended a run (see "
                              f"{out}/simulation.json)\n")

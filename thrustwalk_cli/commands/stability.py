@@ -33,6 +33,7 @@ from .options import (
     OutOpt,
     QuietOpt,
     RobotArg,
+    SlopeOpt,
     TauOpt,
     ThrusterOpt,
     TitlesOpt,
@@ -63,6 +64,10 @@ has no periodic orbit to start from.
 gains y'' = -kp y - kd y'), wn [rad/s], xi [1] (second-order thruster), tau [s] (first-order
 thruster) or thrust [N] (F_ss). VALUES is start:stop:logK (K values evenly spaced in log),
 start:stop:step, or a comma list.
+
+With --slope GAMMA [rad, positive uphill] the analysis is on a slope (SPEC 14): the orbit, the
+compiled simulation and the variational equations are in the slope frame (gravity and
+world-frame thrusters turned); delta_zero^2 does not depend on the slope.
 
 Writes DIR/stability.json, DIR/multipliers.csv, DIR/multipliers.png/.pdf (the complex plane
 with the unit circle) and, with --vary, DIR/spectral_radius.png/.pdf (the modulus of each
@@ -123,8 +128,8 @@ def run_stability(robot: str | None, gait: str | None, *, thrust_model: str | No
                   kp: float | None, kd: float | None, vary: str | None, rtol: float,
                   atol: float, out: Path, quiet: bool, json: str | None = None,
                   formats: set[str] | None = None, titles: bool = False,
-                  agreement_tol: float | None = None, ctx: typer.Context | None = None
-                  ) -> dict:
+                  agreement_tol: float | None = None, ctx: typer.Context | None = None,
+                  slope: float = 0.0) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files import output
     from ..floquet.multipliers import check_agreement_tol
@@ -137,7 +142,8 @@ def run_stability(robot: str | None, gait: str | None, *, thrust_model: str | No
     walker = load_walker(robot, gait)
     n = 1 if sweep is None else len(sweep[1])
     args = dict(thrust_model=thrust_model, thrust=F, thruster=thruster, wn=wn, xi=xi, tau=tau,
-                kp=kp, kd=kd, vary=sweep, rtol=rtol, atol=atol, agreement_tol=agreement_tol)
+                kp=kp, kd=kd, vary=sweep, rtol=rtol, atol=atol, agreement_tol=agreement_tol,
+                slope=slope)
     stability(walker, **args, check_only=True)  # every option before the kernel is compiled
     ensure_kernel(quiet)
     with progress("analysing settings", n, quiet) as advance:
@@ -176,7 +182,8 @@ def _table(doc: dict) -> None:
         ("|λ_Z - δ²|\n[1]", True), ("Newton\nresidual [1]", True),
         ("FD vs var.\nλ [1]", True), ("largest |λ| [1]", False), ("verdict", False)]
     s = doc["settings"]
-    show_table(f"stability: {doc['robot']['name']} / {doc['gait']['name']} "
+    on = f", on the slope {doc['slope']['angle']:.4g} rad" if doc.get("slope") else ""
+    show_table(f"stability: {doc['robot']['name']} / {doc['gait']['name']}{on} "
                f"({s['thrust_model']}, delta_zero^2 = "
                f"{doc['zero_dynamics']['delta_zero_sq']:.6f})", cols, rows)
 
@@ -217,6 +224,7 @@ def register(app: typer.Typer) -> None:
                  "differences and the variational equations (default: max(1e-6, 10 x the "
                  "finite-difference error estimate of each multiplier)); the spectral radius "
                  "must still clear 1 by more than the disagreement.")] = None,
+        slope: SlopeOpt = 0.0,
         out: OutOpt = Path("out/stability"),
         json: JsonOpt = None,
         formats: FormatsOpt = "csv,png,pdf",
@@ -228,4 +236,4 @@ def register(app: typer.Typer) -> None:
                           thruster=thruster, wn=wn, xi=xi, tau=tau, kp=kp, kd=kd, vary=vary,
                           rtol=rtol, atol=atol, out=out, quiet=quiet, json=json,
                           formats=parse_formats(formats), titles=titles,
-                          agreement_tol=agreement_tol, ctx=ctx)
+                          agreement_tol=agreement_tol, ctx=ctx, slope=slope)

@@ -505,12 +505,14 @@ KIND_KEYS = {
     "gait": ("bezier", "alpha", "controller"),
     "sweep": ("study", "collect", "grid", "zip", "random"),
     "URDF side": ("joints", "stance_foot", "swing_foot", "unactuated", "plane"),
+    "terrain": ("steps", "rough", "s_max"),
 }
 KIND_USE = {
     "robot": "the ROBOT argument or a robot: key",
     "gait": "the GAIT argument or a gait: key",
     "sweep": "thrustwalk sweep FILE",
     "URDF side": "the side file of thrustwalk import-urdf",
+    "terrain": "the terrain of thrustwalk simulate",
 }
 
 

@@ -11,12 +11,14 @@ from .output import write_text_atomic
 from .robot_file import ROBOT_SCHEMA
 from .schema import markdown_table
 from .sweep_file import STUDY_PARAMETERS, SWEEP_SCHEMA
+from .terrain_file import TERRAIN_SCHEMA
 from .uncertainty_file import UNCERTAINTY_SCHEMA
 from .urdf_file import URDF_SIDE_SCHEMA
 
 SECTIONS = {"robot-keys": ROBOT_SCHEMA, "gait-keys": GAIT_SCHEMA, "sweep-keys": SWEEP_SCHEMA,
             **{f"sweep-{study}-settings": kind for study, kind in STUDY_PARAMETERS.items()},
-            "uncertainty-keys": UNCERTAINTY_SCHEMA, "urdf-side-keys": URDF_SIDE_SCHEMA}
+            "uncertainty-keys": UNCERTAINTY_SCHEMA, "urdf-side-keys": URDF_SIDE_SCHEMA,
+            "terrain-keys": TERRAIN_SCHEMA}
 
 
 def render(text: str) -> str:

@@ -18,9 +18,13 @@ not change; what changes is linear in ``(cos gamma, sin gamma)``:
 constant ``a, b``, so ``J_p = J_o + a (J_e - J_o) + b perp(J_e - J_o)`` exactly.
 
 :func:`slope_model` returns a :class:`SlopeModel`, a :class:`CompiledModel` whose ``G``,
-``h``, ``V``, ``h_u``, ``B_F``, ``B_Fu`` and ``thruster_dirs`` are those of the slope frame;
-everything else is the flat model's. Its instruction tape (the compiled simulation) is the
-flat one's and is refused: the full-order simulation does not take a slope yet.
+``h``, ``V``, ``h_u``, ``B_F``, ``B_Fu`` and ``thruster_dirs`` (and their list-in, list-out
+``_s`` forms, which the SciPy simulation calls) are those of the slope frame; everything else
+is the flat model's. Its instruction tape is refused (a caller taking it would silently run
+level ground): the compiled simulation takes the flat model's tape and the slope as a
+parameter instead and evaluates it at the turned posture ``q_N + gamma``
+(``simulation/kernel.tilted``: the level-ground model of the robot turned rigidly by
+``gamma`` is the slope-frame model, an independent route to the same numbers).
 """
 
 from __future__ import annotations
@@ -145,7 +149,8 @@ class SlopeModel(CompiledModel):
 
     @property
     def tape(self):  # noqa: D401 - a refusal, not a value
-        raise ComputationError("the compiled simulation does not take a slope yet")
+        raise ComputationError("a slope-frame model has no instruction tape: the compiled "
+                               "simulation takes the level-ground tape and the slope")
 
     @tape.setter
     def tape(self, value) -> None:  # the copied instance dictionary holds the flat tape
@@ -209,9 +214,13 @@ def gravity_frame_model(flat: CompiledModel, c: float, s: float,
     for name, fn in (("G", G), ("h", h), ("V", V), ("h_u", h_u), ("B_F", B_F),
                      ("B_Fu", B_Fu), ("thruster_dirs", dirs)):
         sm.__dict__[name] = fn
-        sm.__dict__[name + "_s"] = _refused
+        sm.__dict__[name + "_s"] = _scalar(fn)
     return sm
 
 
-def _refused(*args, **kwargs):
-    raise ComputationError("the compiled simulation does not take a slope yet")
+def _scalar(fn):
+    """The list-in, list-out form of ``fn`` (one state; outputs flat, row-major), as the
+    compiled model's ``_s`` functions."""
+    def f(*args):
+        return np.asarray(fn(*(np.asarray(a, float) for a in args)), float).ravel().tolist()
+    return f

@@ -47,7 +47,8 @@ def push_row(model, step: int, s: float, impulse: Sequence[float], link: str | N
     """A push for :func:`simulate_batch`: impulse ``(P_x, P_y)`` [N s] at phase ``s`` of step
     ``step`` (1-based), applied at the point ``(1 - at) * origin + at * end`` of ``link``
     (default: the stance link's end, the hip of the bundled robots): ``q' += D^-1 J_p^T P``
-    with the stance foot pinned (SPEC 12)."""
+    with the stance foot pinned (SPEC 12). The impulse is in the world frame: on a slope
+    (``model`` a slope-frame model, SPEC 14) it is turned into the slope frame by ``-gamma``."""
     names = model.robot.link_names
     li = 0 if link is None else names.index(link) if link in names else -1
     if li < 0:
@@ -56,6 +57,10 @@ def push_row(model, step: int, s: float, impulse: Sequence[float], link: str | N
     P = np.asarray(impulse, float).ravel()
     if P.size != 2 or step < 1:
         raise InputError.param("push", "a push needs step >= 1 and an impulse (P_x, P_y)")
+    gamma = float(getattr(model, "slope", 0.0))
+    if gamma != 0.0:  # world -> slope frame
+        c, sn = np.cos(gamma), np.sin(gamma)
+        P = np.array([c * P[0] + sn * P[1], c * P[1] - sn * P[0]])
     return np.array([float(step), float(s), float(li), float(at), P[0], P[1]])
 
 

@@ -246,6 +246,12 @@ class ClosedLoop:
         self._Jy0 = np.hstack([np.eye(self.nb), np.zeros((self.nb, 1))])
         self.root_end = 4 * model.robot.link_index(model.robot.root.name) + 3
         self.nfev = 0
+        #: the height [m] above the stance foot (normal to the slope) of the ground where the
+        #: current step's swing foot lands: the guard (SPEC 14; 0: level ground)
+        self.ground = 0.0
+        #: the ground [m] the scuff checks measure from before the guard is armed: the lower
+        #: of the stance level and the level the swing foot left (SPEC 14; 0: level ground)
+        self.behind = 0.0
         self._segments_setup()
 
     # -- segments in alpha: guard arming and schedule knots --------------------------------
@@ -365,8 +371,9 @@ class ClosedLoop:
         """Event functions ``f(t, x, seg)`` of one segment, as (name, f).
 
         ``break``: alpha reaches the next breakpoint; ``guard`` (armed segments, s >
-        ``min_impact_s``): swing-foot height crosses 0 downward; ``scuff`` (before arming):
-        height crosses ``-scuff_tol``;
+        ``min_impact_s``): swing-foot height crosses :attr:`ground` (0 on level ground)
+        downward; ``scuff`` (before arming):
+        height crosses ``-scuff_tol`` (above :attr:`behind`);
         ``overshoot``: s reaches ``max_s``; ``foot_min``/``foot_max``: the swing foot's vertical
         velocity crosses 0 upward/downward, so that a dip below the ground between two
         integrator steps is never missed (armed: terminal, alternating with ``rising``;
@@ -379,12 +386,14 @@ class ClosedLoop:
             a_next = self.ai + self.breaks[seg] * self.span
             out.append(("break", lambda t, x, j: d * (float(c @ x[:N]) - a_next), 1))
         if self.guard_armed(seg):
-            out.append(("guard", lambda t, x, j: mod.p_swing_s(x[:N].tolist())[1], -1))
+            out.append(("guard", lambda t, x, j: mod.p_swing_s(x[:N].tolist())[1] - self.ground,
+                        -1))
             a_max = self.ai + self.config.max_s * self.span
             out.append(("overshoot", lambda t, x, j: d * (float(c @ x[:N]) - a_max), 1))
         else:
             tol = self.config.scuff_tol
-            out.append(("scuff", lambda t, x, j: mod.p_swing_s(x[:N].tolist())[1] + tol, -1))
+            out.append(("scuff", lambda t, x, j: mod.p_swing_s(x[:N].tolist())[1] - self.behind
+                        + tol, -1))
         if self.guard_armed(seg) and rising:
             out.append(("foot_max", lambda t, x, j: self.foot_velocity(x), -1))
         else:

@@ -14,7 +14,7 @@ reversing, negative vertical ground force, an infeasible impact, or no impact. S
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,7 +31,7 @@ from .closed_loop import (
     zeta_star_at,
 )
 from .records import EVENT_REASONS as _EVENT_REASONS
-from .records import Segment, StepRecord
+from .records import Segment, StepRecord, behind_level, missed_footing
 
 
 @dataclass(frozen=True)
@@ -59,7 +59,8 @@ class NoOrbit(InputError):
 @dataclass(frozen=True)
 class SimResult:
     """A full-order run. ``success`` false means the run stopped early; ``failure`` is one of
-    ``fall``, ``scuff``, ``impact``, ``no-impact``, ``integrator``, ``controller`` and ``reason``
+    ``fall``, ``scuff``, ``impact``, ``no-impact``, ``integrator``, ``controller`` (and on a
+    terrain ``missed_footing``) and ``reason``
     says what happened, where and when. ``steps`` holds every completed step."""
 
     success: bool
@@ -110,19 +111,23 @@ def _dip(cl: ClosedLoop, sol, lows, seg: int, t0: float, t1: float):
     guard is armed a dip deeper than ``scuff_tol`` is ``("scuff", t)``. None otherwise."""
     armed = cl.guard_armed(seg)
     limit = -cl.config.ground_tol if armed else -cl.config.scuff_tol
+    ground = cl.ground if armed else cl.behind  # armed: the ground where the foot lands
+
+    def height(tt):
+        return cl.swing_height(sol.sol(tt)) - ground
     for tm in lows:
-        if tm > t1 or cl.swing_height(sol.sol(tm)) >= limit:
+        if tm > t1 or height(tm) >= limit:
             continue
         if not armed:
             return "scuff", float(tm)
         grid = np.linspace(t0, tm, 65)
-        h = np.array([cl.swing_height(sol.sol(tt)) for tt in grid])
+        h = np.array([height(tt) for tt in grid])
         idx = np.nonzero((h[:-1] > 0) & (h[1:] <= 0))[0]
         if idx.size == 0:  # already below the ground when the guard was armed
             return "scuff", float(t0)
         i = int(idx[0])
-        return "guard", float(brentq(lambda tt: cl.swing_height(sol.sol(tt)), grid[i],
-                                     grid[i + 1], xtol=1e-14, rtol=4 * np.finfo(float).eps))
+        return "guard", float(brentq(height, grid[i], grid[i + 1], xtol=1e-14,
+                                     rtol=4 * np.finfo(float).eps))
     return None
 
 
@@ -173,11 +178,17 @@ def initial_state(zd: ZeroDynamics, thrust: ThrustModel, start: Start) -> np.nda
 
 
 def simulate(zd: ZeroDynamics, thrust: ThrustModel, config: SimConfig = SimConfig(),
-             start: Start = Start(), progress: Callable[[int], None] | None = None
-             ) -> SimResult:
+             start: Start = Start(), progress: Callable[[int], None] | None = None,
+             heights: Sequence[float] | None = None) -> SimResult:
     """Simulate ``config.steps`` steps of the closed-loop hybrid system (SPEC 7), with the
     compiled kernel (``config.method == "compiled"``) or ``solve_ivp`` (``"scipy"``, the
     reference): same equations, events and records; zeta^- agrees to the tolerance.
+
+    ``heights``: a terrain (SPEC 14), at least ``config.steps`` values: the swing foot of step
+    ``k`` lands ``heights[k - 1]`` [m] above its stance foot (normal to the slope): the guard
+    is the swing foot reaching that height once armed; a step-down is met past ``s = 1`` on
+    the Bezier polynomials continued, until ``config.max_s`` (past it: ``missed_footing``).
+    Each record carries its ``terrain_height``. None: level ground.
 
     ``progress(1)`` is called after every completed step. Never raises on a physical failure:
     the result carries ``success``, ``failure`` and ``reason``.
@@ -191,7 +202,8 @@ def simulate(zd: ZeroDynamics, thrust: ThrustModel, config: SimConfig = SimConfi
     if config.method == "compiled":
         from .stepper import run_steps
 
-        recs, segs, failure, reason, nfev = run_steps(cl, x, t_max, config.steps, progress)
+        recs, segs, failure, reason, nfev = run_steps(cl, x, t_max, config.steps, progress,
+                                                      heights)
         traj = _trajectory(cl, segs, config.samples_per_step)
         if not failure:
             reason = f"completed {len(recs)} steps"
@@ -202,8 +214,10 @@ def simulate(zd: ZeroDynamics, thrust: ThrustModel, config: SimConfig = SimConfi
     t = 0.0
     failure, reason = "", ""
     for k in range(1, config.steps + 1):
+        cl.ground = 0.0 if heights is None else float(heights[k - 1])
+        cl.behind = behind_level(heights, k)
         try:
-            rec, x, t = _one_step(cl, k, t, x, t_max, segments)
+            rec, x, t = _one_step(cl, k, t, x, t_max, segments, heights is not None)
         except _Stop as stop:
             failure, reason = stop.failure, f"step {k}: {stop.reason}"
             break
@@ -219,8 +233,10 @@ def simulate(zd: ZeroDynamics, thrust: ThrustModel, config: SimConfig = SimConfi
 
 
 def _one_step(cl: ClosedLoop, k: int, t0: float, x0: np.ndarray, t_max: float,
-              segments: list[Segment]) -> tuple[StepRecord, np.ndarray, float]:
-    """Integrate one step (segment by segment) up to the guard, then apply the impact."""
+              segments: list[Segment], terrain: bool = False
+              ) -> tuple[StepRecord, np.ndarray, float]:
+    """Integrate one step (segment by segment) up to the guard, then apply the impact
+    (``terrain``: the run is on a terrain, an overshoot is a missed footing)."""
     N, cfg = cl.N, cl.config
     nfev0 = cl.nfev
     s0 = (float(cl.c @ x0[:N]) - cl.ai) / cl.span
@@ -231,7 +247,7 @@ def _one_step(cl: ClosedLoop, k: int, t0: float, x0: np.ndarray, t_max: float,
     if d0["F1"][0, 1] < 0:
         raise _Stop("fall", f"the vertical ground force is negative at the start of the step "
                             f"({d0['F1'][0, 1]:.4g} N)")
-    h0 = cl.swing_height(x0)
+    h0 = cl.swing_height(x0) - cl.behind
     if h0 < -cfg.scuff_tol:  # no event can see a foot that starts below the ground and rises
         raise _Stop("scuff", f"the swing foot starts the step {-h0:.4g} m below the ground "
                              f"(s = {s0:.4g})")
@@ -289,6 +305,8 @@ def _one_step(cl: ClosedLoop, k: int, t0: float, x0: np.ndarray, t_max: float,
             continue
         if name == "guard":
             break
+        if name == "overshoot" and terrain:
+            raise _Stop(*missed_footing(cfg.max_s, cl.ground, t))
         failure, text = _EVENT_REASONS[name]
         s = (float(cl.c @ x[:N]) - cl.ai) / cl.span
         raise _Stop(failure, f"{text} at t = {t:.6g} s, s = {s:.4g}")
@@ -355,7 +373,7 @@ def _impact_and_record(cl: ClosedLoop, k, t0, t1, x0, x, seg, segs, nfev):
         energy_minus=float(model.energy(q, dq)),
         energy_plus=float(model.energy(imp.q_plus, imp.dq_plus)),
         q_minus=tuple(map(float, q)), dq_minus=tuple(map(float, dq)), nfev=nfev,
-        low_force_at=low, cone_exit_at=exit_,
+        low_force_at=low, cone_exit_at=exit_, terrain_height=cl.ground,
     )
     return rec, np.concatenate([imp.q_plus, imp.dq_plus, z])
 

@@ -72,9 +72,16 @@ def tape_batch(code, p, consts, c0, nreg, X, out, chunk):  # noqa: D103
 # ------------------------------------------------------------------ layout
 # float settings fs[...] (after the integrator's rtol, atol)
 (F_AI, F_SPAN, F_DIR, F_KP, F_KD, F_TLIM, F_SCUFF, F_MINIMP, F_MAXS, F_GROUND, F_TMAX, F_MU,
- F_EPS) = range(N_FS_INTEGRATOR, N_FS_INTEGRATOR + 13)
-# F_MU, F_EPS: the cone a step's first exit is timed against (mu inf: no slip timing)
-N_FS = N_FS_INTEGRATOR + 13
+ F_EPS, F_SLOPE, F_COSG, F_SING, F_TERRAIN, F_BEHIND) = range(N_FS_INTEGRATOR,
+                                                               N_FS_INTEGRATOR + 18)
+# F_MU, F_EPS: the cone a step's first exit is timed against (mu inf: no slip timing);
+# F_SLOPE, F_COSG, F_SING: the ground angle gamma [rad] (SPEC 14; 0: level ground) and its
+# cosine and sine; F_TERRAIN: the height [m] of the ground where this step's swing foot lands,
+# above the stance foot and normal to the slope (SPEC 14; 0: level ground): the guard;
+# F_BEHIND: the ground the scuff checks measure from before the guard is armed [m]: the lower
+# of the stance foot's level (0) and the level the swing foot left (the previous step's
+# height below the stance foot)
+N_FS = N_FS_INTEGRATOR + 18
 # integer settings ip[...] (after the integrator's): sizes, then offsets into par (P_*) and
 # into the work array (W_*)
 (I_N, I_M, I_NZ, I_CMD, I_ROOT_END, I_GUARD_IDX, I_GRID, I_NLINKS, I_NCOL,
@@ -85,8 +92,8 @@ N_FS = N_FS_INTEGRATOR + 13
 (P_ROWS, P_C, P_BRK, P_SEGF, P_SEGT, P_TGT, P_R, P_B, P_DE, P_DP, P_DQ, P_DK, P_DC, P_DD,
  P_SIZE) = range(I_NBRK + 1, I_NBRK + 16)
 (W_D, W_H, W_BF, W_GR, W_RHS, W_F, W_GH, W_BY, W_DDQ, W_U, W_A, W_TO, W_P2, W_FV, W_LP,
- W_X, W_XE, W_DQI, W_ACC, W_GRID2, W_OUT, W_CMD, W_ERR, W_SIZE) = range(P_SIZE + 1,
-                                                                       P_SIZE + 25)
+ W_X, W_XE, W_DQI, W_ACC, W_GRID2, W_OUT, W_CMD, W_ERR, W_XT, W_SIZE) = range(P_SIZE + 1,
+                                                                             P_SIZE + 26)
 # the model's tape (appended to ``ip``): offsets of its programs, the number of constants
 # (in ``fs`` from N_FS on) and their first register; registers are ``w[:nreg]``
 T_ACCEL, T_FORCE, T_HEIGHT, T_FOOTVEL, T_LINKS, T_IMPACT, T_ENERGY, T_PUSH = range(
@@ -148,7 +155,7 @@ def layout(N, m, nz, nlinks, ncol, nbrk, nreg):
             (W_F, mm), (W_GH, 3 * nb), (W_BY, nb), (W_DDQ, N), (W_U, nb),
             (W_A, n2 * (n2 + 2)), (W_TO, to), (W_P2, 2), (W_FV, 1), (W_LP, 4 * nlinks),
             (W_X, n), (W_XE, n), (W_DQI, n2), (W_ACC, 8), (W_GRID2, 65), (W_OUT, 8),
-            (W_CMD, mm), (W_ERR, mm)] + scratch(n)
+            (W_CMD, mm), (W_ERR, mm), (W_XT, 2 * N)] + scratch(n)
     off = nreg
     for key, size in work:
         ip[key] = off
@@ -190,6 +197,21 @@ def gauss(A, n, nrhs):
     return True
 
 
+def tilted(x, n, fs, ip, w):
+    """The first ``n`` values of the state ``x`` with the whole robot turned by the slope
+    into ``w[W_XT]``: ``q_N + gamma``, the posture in the world frame
+    (SPEC 14; ``q_N`` the absolute angle, counter-clockwise, the actuated ones relative). The
+    level-ground model at the turned posture is the slope-frame model: ``D`` and ``C`` do not
+    change, ``G``, ``V`` and the world thrusters' ``B_F`` are those of gravity ``g (-sin,
+    -cos)`` and directions turned by ``-gamma``; the ground-force rows come out in world
+    components (turned back in :func:`evaluate`). Heights above the ground, the swing foot,
+    the impact and the pushes stay in the slope frame (the untilted state)."""
+    o = ip[W_XT]
+    for i in range(n):
+        w[o + i] = x[i]
+    w[o + ip[I_N] - 1] += fs[F_SLOPE]
+
+
 def alpha_of(x, ip, par):
     """``alpha = c q`` [rad]."""
     c0 = ip[P_C]
@@ -217,7 +239,8 @@ def evaluate(x, seg, fs, ip, par, w, what):
     ``ClosedLoop._accel`` (and ``u`` into ``w[W_U]`` with ``E_U`` or torque limits, the
     saturation flag into ``w[W_OUT + V_SAT]``); ``E_FORCE``: the ground force
     ``F_1 = rows N+1..N+2 of (D_u [q''; 0] + h_u(q, [q'; 0]) - B_Fu F_T)`` [N] (SPEC 5) into
-    ``w[W_OUT + V_FH]``, ``w[W_OUT + V_FV]``; ``E_HEIGHT``/``E_FOOTVEL``: swing-foot height
+    ``w[W_OUT + V_FH]``, ``w[W_OUT + V_FV]`` (on a slope: tangential and normal to it, the
+    dynamics at the turned posture of :func:`tilted`); ``E_HEIGHT``/``E_FOOTVEL``: swing-foot height
     [m] and vertical velocity ``E_2,y q'`` [m/s]; ``E_ROOT``: height of the stance link's far
     end [m]. Returns False if the decoupling matrix (or D, when torques saturate) is
     singular."""
@@ -247,7 +270,12 @@ def evaluate(x, seg, fs, ip, par, w, what):
     # D, h, B_F (and with E_FORCE the ground-force rows) from the model's tape (already in
     # place with E_PRE)
     if not what & E_PRE:
-        tape_run(ip, ip[T_FORCE] if what & E_FORCE else ip[T_ACCEL], x, w, ip[W_D])
+        prog = ip[T_FORCE] if what & E_FORCE else ip[T_ACCEL]
+        if fs[F_SLOPE] != 0.0:  # on a slope: the turned posture (:func:`tilted`)
+            tilted(x, 2 * N, fs, ip, w)
+            tape_run(ip, prog, w[ip[W_XT]:], w, ip[W_D])
+        else:
+            tape_run(ip, prog, x, w, ip[W_D])
     for i in range(uN):
         w[orhs + i] = -w[oh + i]
     if m > 0:
@@ -349,6 +377,11 @@ def evaluate(x, seg, fs, ip, par, w, what):
             for k in range(um):
                 acc -= w[obg + r * um + k] * w[oF + k]
             w[u(vo + V_FH) + r] = acc
+        if fs[F_SLOPE] != 0.0:  # world components -> tangential and normal to the slope
+            cg, sg = fs[F_COSG], fs[F_SING]
+            fx, fy = w[vo + V_FH], w[vo + V_FV]
+            w[vo + V_FH] = cg * fx + sg * fy
+            w[vo + V_FV] = cg * fy - sg * fx
     return True
 
 
@@ -444,12 +477,12 @@ def event_value(code, x, seg, fs, ip, par, w, a_next, a_push):
         return d * (alpha_of(x, ip, par) - a_next)
     if code == EV_PUSH:
         return d * (alpha_of(x, ip, par) - a_push)
-    if code == EV_GUARD:
-        return swing_height(x, fs, ip, par, w)
+    if code == EV_GUARD:  # the swing foot reaches the ground of this step (F_TERRAIN)
+        return swing_height(x, fs, ip, par, w) - fs[F_TERRAIN]
     if code == EV_OVERSHOOT:
         return d * (alpha_of(x, ip, par) - (fs[F_AI] + fs[F_MAXS] * fs[F_SPAN]))
     if code == EV_SCUFF:
-        return swing_height(x, fs, ip, par, w) + fs[F_SCUFF]
+        return swing_height(x, fs, ip, par, w) - fs[F_BEHIND] + fs[F_SCUFF]
     if code == EV_FOOT_MAX or code == EV_FOOT_MIN:
         return foot_velocity(x, fs, ip, par, w)
     if code == EV_REVERSE:
@@ -513,6 +546,7 @@ _IA, _IA2 = "int64[::1]", "int64[:, ::1]"
 _CTX = f"{_A}, {_IA}, {_A}, {_A}"  # fs, ip, par, w
 SIGNATURES = {
     "gauss": f"({_A}, {_I}, {_I})",
+    "tilted": f"({_A}, {_I}, {_A}, {_IA}, {_A})",
     "alpha_of": f"({_A}, {_IA}, {_A})",
     "alpha_rate": f"({_A}, {_IA}, {_A})",
     "thrust_out": f"({_A}, {_I}, {_IA}, {_A}, {_A})",

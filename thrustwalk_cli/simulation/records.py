@@ -49,6 +49,9 @@ class StepRecord:
     # |F_1^h| > cone_mu F_1^v (F_1^v > 0) in the step; None: none (or not timed)
     low_force_at: tuple[float, float] | None = None
     cone_exit_at: tuple[float, float] | None = None
+    # the height [m] above the stance foot, normal to the slope, of the ground the swing foot
+    # landed on (SPEC 14; 0: level ground)
+    terrain_height: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -73,3 +76,21 @@ EVENT_REASONS = {
     "force": ("fall", "the vertical ground force becomes negative: the stance foot would "
                       "lift off"),
 }
+
+
+def missed_footing(s_max: float, height: float, t: float) -> tuple[str, str]:
+    """``(failure kind, reason)`` of a step on a terrain whose swing foot has not reached the
+    ground ``height`` [m] above its stance foot by ``s = s_max`` (SPEC 14), at ``t`` [s]."""
+    return "missed_footing", (f"the swing foot has not reached the ground at {height:+.4g} m "
+                              f"(height above the stance foot) by s = {s_max:g} (s_max): it "
+                              f"missed its footing at t = {t:.6g} s")
+
+
+def behind_level(heights, k: int) -> float:
+    """The ground [m] the scuff checks of step ``k`` (1-based) measure from before the guard
+    is armed (SPEC 14): the lower of the stance foot's level (0) and the level the swing foot
+    left, ``-heights[k - 2]`` (the previous step landed that much above it); 0 on level
+    ground and for the first step."""
+    if heights is None or k < 2:
+        return 0.0
+    return min(0.0, -float(heights[k - 2]))

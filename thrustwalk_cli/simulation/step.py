@@ -36,13 +36,16 @@ from .kernel import (
     EV_PUSH,
     EV_SCUFF,
     F_AI,
+    F_BEHIND,
     F_DIR,
     F_GROUND,
     F_KD,
     F_KP,
     F_MINIMP,
     F_SCUFF,
+    F_SLOPE,
     F_SPAN,
+    F_TERRAIN,
     F_TMAX,
     FAIL_BUFFER,
     FAIL_CONTROLLER,
@@ -109,6 +112,7 @@ from .kernel import (
     W_TO,
     W_X,
     W_XE,
+    W_XT,
     alpha_of,
     event_list,
     foot_velocity,
@@ -116,6 +120,7 @@ from .kernel import (
     swing_height,
     tape_run,
     thrust_out,
+    tilted,
     vertical_force,
 )
 from .step_stats import step_stats
@@ -123,10 +128,15 @@ from .step_stats import step_stats
 # ---- end Python only
 
 
-def sigma_energy(q, dq, ip, w):
-    """``sigma_N = e_N^T D q'`` [kg m^2/s] and ``E = 1/2 q'^T D q' + V`` [J]."""
+def sigma_energy(q, dq, fs, ip, w):
+    """``sigma_N = e_N^T D q'`` [kg m^2/s] and ``E = 1/2 q'^T D q' + V`` [J] (on a slope ``V``
+    of the slope frame: the turned posture of :func:`tilted`)."""
     N = ip[I_N]
-    tape_run(ip, ip[T_ENERGY], q, w, ip[W_TO])
+    if fs[F_SLOPE] != 0.0:
+        tilted(q, N, fs, ip, w)
+        tape_run(ip, ip[T_ENERGY], w[ip[W_XT]:], w, ip[W_TO])
+    else:
+        tape_run(ip, ip[T_ENERGY], q, w, ip[W_TO])
     D = w[ip[W_TO]:]
     sig = 0.0
     kin = 0.0
@@ -298,7 +308,7 @@ def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
     fv0 = vertical_force(x, seg, fs, ip, par, w)
     if fv0 < 0:
         return fail(out, FAIL_START_FORCE, k, t0, s0, fv0, EV_NONE), 0, 0
-    h0 = swing_height(x, fs, ip, par, w)
+    h0 = swing_height(x, fs, ip, par, w) - fs[F_BEHIND]
     if h0 < -fs[F_SCUFF]:
         return fail(out, FAIL_START_BELOW, k, t0, s0, h0, EV_NONE), 0, 0
     t = t0
@@ -323,9 +333,12 @@ def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
             return fail(out, FAIL_CONTROLLER, k, t, s, 0.0, EV_NONE), ncalls, nbuf
         for i in range(n):
             xe[i] = yend[i]
-        # a dip of the swing foot below the ground between two integrator steps (_dip)
+        # a dip of the swing foot below the ground between two integrator steps (_dip): once
+        # the guard is armed, below the ground where it lands (F_TERRAIN), before below the
+        # ground it left or stands on (F_BEHIND)
         armed = seg > ip[I_GUARD_IDX]
         limit = -fs[F_GROUND] if armed else -fs[F_SCUFF]
+        ground = fs[F_TERRAIN] if armed else fs[F_BEHIND]
         dip = EV_NONE
         t_dip = 0.0
         for j in range(n_lows):
@@ -333,7 +346,7 @@ def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
             if tm > t1:
                 continue
             solution_at(buf, first, nbuf, tm, n, xs)
-            if swing_height(xs, fs, ip, par, w) >= limit:
+            if swing_height(xs, fs, ip, par, w) - ground >= limit:
                 continue
             if not armed:
                 dip, t_dip = EV_SCUFF, tm
@@ -345,7 +358,7 @@ def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
                 tt = t + gi * ((tm - t) / 64.0) if gi < 64 else tm
                 grid[gi] = tt
                 solution_at(buf, first, nbuf, tt, n, xs)
-                hh = swing_height(xs, fs, ip, par, w)
+                hh = swing_height(xs, fs, ip, par, w) - ground
                 if gi > 0 and hprev > 0 and hh <= 0 and found < 0:
                     found = gi - 1
                 hprev = hh
@@ -354,9 +367,9 @@ def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
                 break
             ga, gb = grid[found], grid[found + 1]
             solution_at(buf, first, nbuf, ga, n, xs)
-            fa = swing_height(xs, fs, ip, par, w)
+            fa = swing_height(xs, fs, ip, par, w) - ground
             solution_at(buf, first, nbuf, gb, n, xs)
-            fb = swing_height(xs, fs, ip, par, w)
+            fb = swing_height(xs, fs, ip, par, w) - ground
             dip = EV_GUARD
             t_dip = brent(EV_GUARD, ga, gb, fa, fb, buf, first, nbuf, seg, fs, ip, par, w, n,
                           a_next, a_push, 1e-14, 4 * EPS)
@@ -434,9 +447,9 @@ def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
     # -- statistics on the integrator's nodes and a uniform grid of the step
     acc = w[ip[W_ACC]:]
     step_stats(calls, ncalls, buf, t0, t, fs, ip, par, w, rec)
-    sig_m, e_m = sigma_energy(x[:N], x[N:2 * N], ip, w)
-    sig_p, e_p = sigma_energy(x_next[:N], x_next[N:2 * N], ip, w)
-    sig_0, e_0 = sigma_energy(x0[:N], x0[N:2 * N], ip, w)
+    sig_m, e_m = sigma_energy(x[:N], x[N:2 * N], fs, ip, w)
+    sig_p, e_p = sigma_energy(x_next[:N], x_next[N:2 * N], fs, ip, w)
+    sig_0, e_0 = sigma_energy(x0[:N], x0[N:2 * N], fs, ip, w)
     rec[R_STEP] = k
     rec[R_T0] = t0
     rec[R_T1] = t
@@ -530,7 +543,7 @@ _IA, _IA2 = "int64[::1]", "int64[:, ::1]"
 _CTX = f"{_A}, {_IA}, {_A}, {_A}"  # fs, ip, par, w
 SIGNATURES = {
     "note_push": f"({_A}, {_F}, {_IA}, {_A})",
-    "sigma_energy": f"({_A}, {_A}, {_IA}, {_A})",
+    "sigma_energy": f"({_A}, {_A}, {_A}, {_IA}, {_A})",
     "impact": f"({_A}, {_A}, {_IA}, {_A}, {_A}, {_A}, {_A})",
     "apply_push": f"({_A}, {_A}, {_IA}, {_A})",
     "fail": f"({_A}, {_I}, {_I}, {_F}, {_F}, {_F}, {_I})",

@@ -21,6 +21,7 @@ from .kernel import (
     F_AI,
     F_EPS,
     F_MU,
+    F_SLOPE,
     F_SPAN,
     I_C0,
     I_GRID,
@@ -179,7 +180,12 @@ def step_stats(calls, ncalls, buf, t0, t1, fs, ip, par, w, rec):
             SC[i] = ci
     nout = ip[ip[T_FORCE] + 1]
     SO = np.empty((cnt, nout))
-    tape_batch(ip, ip[T_FORCE], fs[N_FS:N_FS + ip[I_NCONST]], ip[I_C0], ip[I_NREG], SX, SO,
+    SM = SX
+    if fs[F_SLOPE] != 0.0:  # on a slope: the model at the turned postures (kernel.tilted)
+        SM = SX.copy()
+        for i in range(cnt):
+            SM[i, N - 1] += fs[F_SLOPE]
+    tape_batch(ip, ip[T_FORCE], fs[N_FS:N_FS + ip[I_NCONST]], ip[I_C0], ip[I_NREG], SM, SO,
                32)
     D = w[ip[W_D]:]
     vo = ip[W_OUT]

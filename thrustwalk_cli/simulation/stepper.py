@@ -18,7 +18,7 @@ from __future__ import annotations
 import functools
 import inspect
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -30,7 +30,7 @@ from . import integrator as I
 from . import kernel as K
 from . import step as S
 from . import step_stats as SS
-from .records import EVENT_REASONS, Segment, StepRecord
+from .records import EVENT_REASONS, Segment, StepRecord, behind_level, missed_footing
 
 if TYPE_CHECKING:  # the closed loop (and the zero dynamics under it) load when a run needs them
     from .closed_loop import ClosedLoop, SimConfig
@@ -146,12 +146,18 @@ class Packed:
 
 def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
     """Arrays for the kernel from a :class:`ClosedLoop` (the SciPy path's own setup, so both
-    methods see the same breakpoints, thrust pieces and settings)."""
+    methods see the same breakpoints, thrust pieces and settings). On a slope (the closed
+    loop's model a slope-frame model, SPEC 14) the kernel runs the level-ground tape at the
+    turned posture (``kernel.tilted``) with the slope in ``fs``."""
     th, cfg, model = cl.thrust, cl.config, cl.model
     N, m = model.n, model.n_thrusters
     rows = np.array(cl.gait_s.rows, float)
     nbrk = len(cl.breaks)
-    tape = model.tape
+    gamma = float(getattr(model, "slope", 0.0))
+    flat = getattr(model, "flat", model) if gamma != 0.0 else model
+    if gamma != 0.0:
+        check_turn(flat)
+    tape = flat.tape
     ip = np.array(K.layout(N, m, th.n_states, len(model.robot.links), rows.shape[1], nbrk,
                            tape.nreg), np.int64)
     for slot, name in ((K.T_ACCEL, "accel"), (K.T_FORCE, "force"), (K.T_HEIGHT, "height"),
@@ -174,6 +180,7 @@ def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
     fs[K.F_GROUND], fs[K.F_TMAX] = cfg.ground_tol, t_max
     fs[K.F_MU] = np.inf if cfg.cone_mu is None else cfg.cone_mu
     fs[K.F_EPS] = cfg.cone_eps
+    fs[K.F_SLOPE], fs[K.F_COSG], fs[K.F_SING] = gamma, np.cos(gamma), np.sin(gamma)
     par = np.zeros(ip[K.P_SIZE])
     p = Packed(fs, ip, par, t_max, th.n_states)
     p.part(K.P_ROWS, rows.size)[:] = rows.ravel()
@@ -191,6 +198,27 @@ def pack(cl: ClosedLoop, t_max: float, grid: int = GRID) -> Packed:
                             ("D", K.P_DD, m * m)):
         p.part(slot, size)[:] = dyn[key].ravel()
     return p
+
+
+def check_turn(model) -> None:
+    """That turning the posture by ``delta`` (``q_N + delta``, ``kernel.tilted``) turns the
+    robot rigidly about its stance foot, counter-clockwise (the swing foot and the centre of
+    mass move by the rotation ``Rot(delta)``): what the compiled simulation on a slope rests
+    on (SPEC 1: ``q_N`` the one absolute angle). ``ComputationError`` otherwise."""
+    from ..errors import ComputationError
+
+    N = model.n
+    q = 0.3 + 0.17 * np.arange(N)
+    d = 0.4
+    qt = q.copy()
+    qt[N - 1] += d
+    rot = np.array([[np.cos(d), -np.sin(d)], [np.sin(d), np.cos(d)]])
+    for f in (model.p_swing, model.p_com):
+        a, b = np.asarray(f(qt), float)[:2], rot @ np.asarray(f(q), float)[:2]
+        if not np.allclose(a, b, rtol=1e-10, atol=1e-12):
+            raise ComputationError("the robot's unactuated coordinate does not turn it rigidly "
+                                   "about the stance foot: the compiled simulation cannot put "
+                                   "it on a slope")
 
 
 def with_thrust(p: Packed, target=None, seg_force=None, seg_T=None) -> np.ndarray:
@@ -326,6 +354,7 @@ class Stepper:
         self._done = np.zeros(1, np.int64)
         self._gains = np.array([[p.fs[K.F_KP], p.fs[K.F_KD]]])
         self._nopush = np.full((1, 6), -1.0)
+        self._fs = p.fs.copy()  # with this step's ground height (kernel.F_TERRAIN)
 
     def set_thrust(self, target=None, seg_force=None, seg_T=None) -> None:
         """Thrust values for the following steps (see :func:`with_thrust`)."""
@@ -333,10 +362,17 @@ class Stepper:
                                       self.packed.t_max, self.packed.nz),
                                target, seg_force, seg_T)
 
-    def step(self, k: int, t0: float, x0: np.ndarray, push=None) -> StepOutcome:
+    def step(self, k: int, t0: float, x0: np.ndarray, push=None, ground: float = 0.0,
+             behind: float = 0.0) -> StepOutcome:
         """Step ``k`` (1-based) from the post-impact state ``x0`` at time ``t0`` [s];
-        ``push``: ``[k, s, link index, lambda, P_x, P_y]`` (see ``kernel.apply_push``)."""
+        ``push``: ``[k, s, link index, lambda, P_x, P_y]`` (see ``kernel.apply_push``);
+        ``ground``: the height [m] above the stance foot (normal to the slope) of the ground
+        where the swing foot lands (SPEC 14: the guard is the swing foot at that height);
+        ``behind``: the ground [m] the scuff checks measure from before the guard is armed
+        (the lower of the stance level and the level the swing foot left)."""
         p = self.packed
+        fs = self._fs
+        fs[K.F_TERRAIN], fs[K.F_BEHIND] = ground, behind
         X0, recs, outs, XN, info = self._X0, self._recs, self._outs, self._XN, self._info
         X0[0] = np.asarray(x0, float).reshape(self.n)
         self._T0[0] = t0
@@ -344,7 +380,7 @@ class Stepper:
         pu = self._nopush if push is None else np.ascontiguousarray(
             np.asarray(push, float).reshape(1, 6))
         while True:
-            self.jm.module.run(X0, self._T0, self._K0, 1, p.fs, p.ip, self.par[None, :],
+            self.jm.module.run(X0, self._T0, self._K0, 1, fs, p.ip, self.par[None, :],
                                self._gains, pu, recs, outs, self._done, XN, info, 0, 1,
                                self._buf, self._calls)
             if int(outs[0, K.O_STATUS]) != K.FAIL_BUFFER or self._buf.shape[0] >= 1 << 18:
@@ -430,23 +466,31 @@ def step_record(rec: np.ndarray, N: int, nz: int, m: int):
 
 
 def run_steps(cl: ClosedLoop, x0: np.ndarray, t_max: float, steps: int,
-              progress: Callable[[int], None] | None = None):
+              progress: Callable[[int], None] | None = None, heights=None):
     """The compiled counterpart of ``full_order.simulate``'s loop: (records, segments,
-    failure, reason, nfev) with segments ``full_order.Segment`` holding dense solutions."""
+    failure, reason, nfev) with segments ``full_order.Segment`` holding dense solutions.
+    ``heights``: the terrain, step ``k`` landing ``heights[k - 1]`` [m] above its stance foot
+    (SPEC 14; None: level ground); each record carries its height (``terrain_height``)."""
     st = Stepper(cl, t_max, dense=True)
     N, m, nz = cl.N, cl.m, st.packed.nz
     records, segments = [], []
     failure, reason, nfev = "", "", 0
     t, x = 0.0, np.asarray(x0, float)
     for k in range(1, steps + 1):
-        res = st.step(k, t, x)
+        h = 0.0 if heights is None else float(heights[k - 1])
+        res = st.step(k, t, x, ground=h, behind=behind_level(heights, k))
         for ta, tb, seg, sol in res.pieces:
             segments.append(Segment(k, ta, tb, seg, sol))
         if res.status != K.OK:
             failure, text = failure_text(res.outcome, cl.config, t_max)
+            if (heights is not None and int(res.outcome[K.O_STATUS]) == K.FAIL_EVENT
+                    and int(res.outcome[K.O_EVENT]) == K.EV_OVERSHOOT):
+                failure, text = missed_footing(cl.config.max_s, h, res.outcome[K.O_T])
             reason = f"step {k}: {text}"
             break
         rec = step_record(res.record, N, nz, m)
+        if h != 0.0:
+            rec = replace(rec, terrain_height=h)
         nfev += rec.nfev
         records.append(rec)
         t, x = rec.t_impact, res.x_next

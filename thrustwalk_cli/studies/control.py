@@ -57,10 +57,21 @@ from ..errors import (
     check_texts,
 )
 from ..hzd.zero_dynamics import ZeroDynamics
+from ..model.slope import check_slope
 from ..simulation.closed_loop import MAX_STEPS, SimConfig, check_thruster_rate
 from ..thrust.dynamics import canonical, check_model, make, model_names
 from ..walker import Walker, check_walker, walker_from
-from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import (
+    SCHEMA_VERSION,
+    Table,
+    climb_rate,
+    col,
+    gait_record,
+    result_repr,
+    robot_record,
+    slope_record,
+    units,
+)
 
 REFERENCES = ("speed", "zeta", "nominal")
 TERMS = ("exact", "fitted")
@@ -258,7 +269,9 @@ class ControlResult:
         pol_times = [s.plan.polish_time for s in self.controlled.steps]
         out = {
             "schema_version": SCHEMA_VERSION,
-            "units": UNITS,
+            "units": {**UNITS, "slope": "rad", "climb_rate": "m/s"} if zd.slope != 0.0
+            else UNITS,
+            **({"slope": slope_record(zd.slope)} if zd.slope != 0.0 else {}),
             "success": self.success,
             "failure": self.controlled.failure or None,
             "status": self.status,
@@ -477,7 +490,7 @@ def _plant(walker: Walker, plant_scale: dict[str, float]) -> tuple[ZeroDynamics,
             raise InputError.param("plant_scale", f"factor of {name} must be > 0 (got {f:g})")
     robot = load_robot(walker.robot.source_file, scale=plant_scale)
     model = load_model(robot)
-    plant = walker_from(model, walker.gait).zd
+    plant = walker_from(model, walker.gait).zd.on_slope(walker.slope)
     return plant, {"same_as_model": False, "scale": dict(plant_scale),
                    "parameters": dict(robot.parameters),
                    "note": "the plant's robot file parameters scaled; the controller keeps "
@@ -497,7 +510,7 @@ def control(walker: Walker, *, reference: str = "speed",
             effort_weight: float = 1.0, rate_weight: float = 0.0, terms: str = "exact",
             fit_tol: float = 1e-3, points: int = 401, zeta0: float | None = None,
             compare: bool = True, progress: Callable[[int], None] | None = None,
-            check_only: bool = False) -> ControlResult | None:
+            check_only: bool = False, slope: float = 0.0) -> ControlResult | None:
     """Step-to-step thrust control (SPEC 11) in closed loop with the full-order simulation.
 
     ``reference``: ``speed`` [m/s], ``zeta`` [kg^2 m^4/s^2] (``profile`` of ``(step, value)``,
@@ -517,8 +530,12 @@ def control(walker: Walker, *, reference: str = "speed",
     check every argument, compute nothing and return None (a command checks its options before
     it compiles the simulation kernel). A push is at most 10 m/s of the whole robot's velocity
     (:meth:`~thrustwalk_cli.description.robot.Robot.push_bound`).
+    ``slope`` [rad, positive uphill, |slope| < pi/2]: the ground angle (SPEC 14): the model,
+    the step map, the contact terms and the simulated plant in the slope frame (a push's
+    impulse stays in the world frame); speeds are along the ground; 0: level ground.
     """
     check_walker(walker)
+    walker = walker.on_slope(check_slope(slope))
     check_choice("reference", reference, REFERENCES)
     profile = _check_profile_pairs(profile)
     ramp = check_flag("ramp", ramp)
@@ -692,6 +709,8 @@ def control(walker: Walker, *, reference: str = "speed",
         "noise": {"relative_bound": noise, "distribution": "uniform", "seed": seed},
         "start_zeta_minus": common["x0"], "nominal_zeta_star": zs0,
         "nominal_speed": float(lc0.speed),
+        **({"nominal_climb_rate": climb_rate(float(lc0.speed), walker.slope)}
+           if walker.slope != 0.0 else {}),
         "integrator": {"method": "compiled DOP853", "rtol": cfg.rtol, "atol": cfg.atol},
         "tracked": "speed" if reference == "speed" else "zeta_minus",
         "speed_reference": None if speed_refs is None else {

@@ -11,10 +11,12 @@ from __future__ import annotations
 import io
 import json
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
+from ..description.terrain import Terrain
 from ..design.problem import legs
 from ..errors import (
     InputError,
@@ -28,7 +30,9 @@ from ..errors import (
     check_text,
     check_texts,
 )
+from ..files.terrain_file import load_terrain
 from ..hzd.zero_dynamics import ZeroDynamics, limit_cycles, paper_one_step_shift
+from ..model.slope import check_slope
 from ..simulation.closed_loop import (
     MAX_SAMPLES,
     MAX_STEPS,
@@ -42,7 +46,17 @@ from ..simulation.full_order import Start
 from ..simulation.scenario import Outcome, Scenario, deviations, make_scenario, run_scenario
 from ..thrust.schedule import Schedule
 from ..walker import Walker, check_walker
-from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import (
+    SCHEMA_VERSION,
+    Table,
+    climb_rate,
+    col,
+    gait_record,
+    result_repr,
+    robot_record,
+    slope_record,
+    units,
+)
 
 UNITS = units("time", "thrust", "generalized_thrust", "alpha", "alpha_dot", "sigma_N", "zeta",
               "impulse", "force", "torque", "output_y", "output_rate", "energy", "wn", "tau",
@@ -57,8 +71,10 @@ def _names(zd: ZeroDynamics, values) -> dict:
     return dict(zip(zd.model.robot.thruster_names, map(float, values)))
 
 
-def step_entries(zd: ZeroDynamics, outcomes: list[Outcome]) -> list[dict]:
-    """The ``steps`` list of simulation.json (one entry per step of every run)."""
+def step_entries(zd: ZeroDynamics, outcomes: list[Outcome], terrain: bool = False
+                 ) -> list[dict]:
+    """The ``steps`` list of simulation.json (one entry per step of every run); on a
+    ``terrain`` each full-order step carries the height it landed on."""
     out = []
     for i, oc in enumerate(outcomes):
         if oc.primary is None:
@@ -93,6 +109,7 @@ def step_entries(zd: ZeroDynamics, outcomes: list[Outcome]) -> list[dict]:
                 "max_abs_torque": st.max_abs_torque, "torque_saturated": st.torque_saturated,
                 "energy_minus": st.energy_minus, "energy_plus": st.energy_plus,
                 "impact_energy_loss": st.energy_minus - st.energy_plus,
+                **({"terrain_height": st.terrain_height} if terrain else {}),
                 "prediction": cmp})
     return out
 
@@ -152,6 +169,10 @@ def run_entries(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
             reason += f" ({'; '.join(notes)})"
         if success and dev:
             reason += " off the zero-dynamics prediction: " + "; ".join(dev)
+        on_slope = {}
+        if zd.slope != 0.0:  # SPEC 14: speed along the ground, the climb rate beside it
+            v = _speed(zd, full.steps[-1]) if full is not None and full.steps else None
+            on_slope = {"speed": v, "climb_rate": climb_rate(v, zd.slope)}
         runs.append({
             "run": i, "f_ss": oc.value, "model": "full-order" if full is not None else "reduced",
             "success": success, "status": status, "failure": failure, "reason": reason,
@@ -161,6 +182,7 @@ def run_entries(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
                 "exists": lc.exists, "stable": lc.stable, "reason": lc.reason,
                 "zeta_star": lc.zeta_star, "sigma_minus": lc.sigma_minus,
                 "step_time": lc.step_time, "speed": lc.speed,
+                **({"climb_rate": climb_rate(lc.speed, zd.slope)} if zd.slope != 0.0 else {}),
                 "touchdown_velocity": lc.touchdown_velocity,
                 "paper_one_step_value": (None if z0 is None else
                                          z0 + float(paper_one_step_shift(zd, sched)[0])),
@@ -176,8 +198,16 @@ def run_entries(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
                 "final_zeta_minus": red.steps[-1].zeta_minus if red.steps else None},
             "deviations": dev,
             "warnings": dev + warn,
+            **on_slope,
         })
     return runs
+
+
+def _speed(zd: ZeroDynamics, step) -> float | None:
+    """Speed of a full-order step along the ground [m/s]: the swing foot's position at the
+    impact along the ground (the step length, slope frame) over the step time."""
+    length = float(zd.model.p_swing(np.asarray(step.q_minus, float))[0])
+    return length / step.step_time if step.step_time > 0 else None
 
 
 def _zeta_star(zd: ZeroDynamics, sched: Schedule) -> float | None:
@@ -187,10 +217,12 @@ def _zeta_star(zd: ZeroDynamics, sched: Schedule) -> float | None:
 
 
 def simulation_document(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
-                        mu: float | None = None, warnings: tuple[str, ...] = ()) -> dict:
+                        mu: float | None = None, warnings: tuple[str, ...] = (),
+                        terrain: Terrain | None = None) -> dict:
     """The body of simulation.json (provenance is added by the command). ``success``: every
     run completed its steps; ``status``: ``ok`` (and every run follows the zero-dynamics
-    prediction), ``warning`` or ``failed`` (some run did not complete)."""
+    prediction), ``warning`` or ``failed`` (some run did not complete). ``terrain``: the
+    terrain the runs walked (SPEC 14), recorded in ``settings.terrain``."""
     runs = run_entries(zd, sc, outcomes, mu)
     bad = [r for r in runs if not r["success"]]
     warned = [r for r in runs if r["status"] == "warning"]
@@ -198,10 +230,12 @@ def simulation_document(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
     cfg = sc.config
     return {
         "schema_version": SCHEMA_VERSION,
-        "units": UNITS,
+        "units": ({**UNITS, "slope": "rad", "speed": "m/s", "climb_rate": "m/s"}
+                  if zd.slope != 0.0 else UNITS),
         "warnings": list(warnings),
         "robot": robot_record(zd),
         "gait": gait_record(zd),
+        **({"slope": slope_record(zd.slope)} if zd.slope != 0.0 else {}),
         "zero_dynamics": {"delta_zero": zd.delta_zero, "delta_zero_sq": zd.delta_zero_sq,
                           "fixed_point_formula": "zeta* = V_Z(alpha_f) / (1 - delta_zero^2)"},
         "settings": {
@@ -217,11 +251,16 @@ def simulation_document(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
             "torque_limit": cfg.torque_limit,
             "kp": zd.gait.kp, "kd": zd.gait.kd, "scuff_tolerance": cfg.scuff_tol,
             "mu": zd.gait.mu if mu is None else mu,
-            "guard": f"swing-foot height crosses 0 downward for s > {cfg.min_impact_s:g}",
+            "guard": (f"swing-foot height crosses 0 downward for s > {cfg.min_impact_s:g}"
+                      if terrain is None else
+                      f"swing-foot height crosses the step's terrain height h_k downward for "
+                      f"s > {cfg.min_impact_s:g}, until s = {cfg.max_s:g} (s_max: past it a "
+                      f"missed footing)"),
             "min_impact_s": cfg.min_impact_s,
             "early_strike": f"before s = {cfg.min_impact_s:g} the swing foot may touch the "
                             f"ground; a dip deeper than {cfg.scuff_tol:g} m is a scuff",
             "impact_s_tolerance": sc.impact_s_tol, "zeta_tolerance": sc.zeta_tol,
+            **({"terrain": terrain.record()} if terrain is not None else {}),
         },
         "success": not bad,
         "status": "failed" if bad else ("warning" if warned else "ok"),
@@ -229,7 +268,7 @@ def simulation_document(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
                              for b in bad + warned) if bad or warned else
                    "all runs completed on the zero-dynamics prediction"),
         "runs": runs,
-        "steps": step_entries(zd, outcomes),
+        "steps": step_entries(zd, outcomes, terrain is not None),
     }
 
 
@@ -247,7 +286,9 @@ STEP_COLUMNS = ["run", col("f_ss", "N"), "model", "step", col("t_start", "s"),
 
 def steps_table(doc: dict, thruster_names: list[str]) -> Table:
     """steps.csv (header, rows, comments) from the document's ``steps`` list."""
-    header = STEP_COLUMNS + [col(f"thrust_{n}", "N") for n in thruster_names]
+    terrain = "terrain" in doc["settings"]
+    header = (STEP_COLUMNS + [col(f"thrust_{n}", "N") for n in thruster_names]
+              + ([col("terrain_height", "m")] if terrain else []))
     rows = []
     for e in doc["steps"]:
         p = e.get("prediction") or {}
@@ -261,7 +302,8 @@ def steps_table(doc: dict, thruster_names: list[str]) -> Table:
                      e.get("impact_energy_loss"), p.get("zeta_minus"),
                      p.get("relative_error"), p.get("zeta_star"), p.get("reduced_zeta_minus"),
                      od.get("q"), od.get("dq")]
-                    + [e["thrust_at_impact"][n] for n in thruster_names])
+                    + [e["thrust_at_impact"][n] for n in thruster_names]
+                    + ([e.get("terrain_height")] if terrain else []))
     return Table(header, rows, [
         "thrustwalk simulate: one row per step (pre-impact '_minus', post-impact '_plus')",
         "units: time s, zeta kg^2 m^4/s^2, sigma kg m^2/s, impulse N s, force N, torque N m, "
@@ -364,7 +406,8 @@ def figure_data(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome]) -> dict
 
 def animation_frames(zd: ZeroDynamics, outcome: Outcome, fps: float = 20.0,
                      max_frames: int = 400) -> dict:
-    """Stick-figure frames of a full-order run in world coordinates [m]: per frame the links
+    """Stick-figure frames of a full-order run in world coordinates [m] (on a slope, the slope
+    frame: x along the ground, y normal to it): per frame the links
     ``(n_links, 2, 2)``, thruster points and thrust vectors ``(m, 2)`` [N], and the time."""
     full = outcome.full
     if full is None or not full.trajectory:
@@ -389,7 +432,9 @@ def animation_frames(zd: ZeroDynamics, outcome: Outcome, fps: float = 20.0,
     return {"t": t[idx], "links": lp, "points": pts, "thrust": vec, "roles": roles,
             "hip": hip, "thruster_names": model.robot.thruster_names,
             "title": f"{model.robot.name} / {zd.gait.name}"
-                     + (f", F_ss = {outcome.value:g} N" if outcome.value is not None else "")}
+                     + (f", F_ss = {outcome.value:g} N" if outcome.value is not None else "")
+                     + (f", slope {zd.slope:.4g} rad (slope frame: the ground drawn level)"
+                        if zd.slope != 0.0 else "")}
 
 
 
@@ -412,6 +457,7 @@ class SimulationResult:
     scenario: Scenario
     outcomes: tuple[Outcome, ...]
     mu: float | None = None
+    terrain: Terrain | None = None
 
     name = "simulation"
 
@@ -429,7 +475,7 @@ class SimulationResult:
         """``ok``, ``warning`` (completed, but off the zero-dynamics prediction: see
         ``reason``) or ``failed``."""
         return simulation_document(self.walker.zd, self.scenario, list(self.outcomes),
-                                   self.mu)["status"]
+                                   self.mu, terrain=self.terrain)["status"]
 
     @property
     def reason(self) -> str:
@@ -449,7 +495,7 @@ class SimulationResult:
         kind = "npz" if trajectory_arrays(zd, list(self.outcomes)).get(
             col("t", "s"), np.zeros(0)).size > CSV_ROW_LIMIT else "csv"
         return {**simulation_document(zd, self.scenario, list(self.outcomes), self.mu,
-                                      self.walker.warnings),
+                                      self.walker.warnings, self.terrain),
                 "trajectory_file": f"trajectory.{kind}"}
 
     def tables(self) -> dict[str, Table]:
@@ -508,7 +554,8 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
              scuff_tol: float = 1e-4, min_impact_s: float = 0.75, impact_s_tol: float = 1e-3,
              zeta_tol: float = 1e-3, reduced: bool = False, mu: float | None = None,
              progress: Callable[[int], None] | None = None, check_only: bool = False,
-             config: SimConfig | None = None) -> SimulationResult | None:
+             config: SimConfig | None = None, slope: float = 0.0,
+             terrain: str | Path | Terrain | None = None) -> SimulationResult | None:
     """Simulate ``steps`` steps of the full-order closed loop (SPEC 7) for each steady thrust
     ``thrust`` [N] (default 0 to -50 N in steps of 10, only 0 for a robot without thrusters;
     not with ``thrust_model="piecewise"``, which uses the gait's ``thrust:`` section) on
@@ -540,8 +587,32 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
     (``tw.SimConfig``: it replaces ``steps``, ``rtol``, ``atol``, ``method``, ``integrator``,
     ``samples``, ``torque_limit``, ``scuff_tol``, ``min_impact_s``, which then stay at their
     defaults).
+    ``slope`` [rad, positive uphill, |slope| < pi/2]: the ground angle (SPEC 14,
+    :meth:`Walker.on_slope`): the run is in the slope frame (gravity ``g (-sin, -cos)``,
+    world-frame thrusters turned by ``-slope``, link-frame ones not; guard, impact and
+    relabelling unchanged), compared with the zero dynamics on that slope; the document gains
+    the ``slope`` block and each run its speed along the ground and climb rate. 0: level
+    ground, bit for bit as without it.
+    ``terrain``: a terrain file (path, read by :func:`~thrustwalk_cli.files.terrain_file.
+    load_terrain`) or a :class:`~thrustwalk_cli.description.terrain.Terrain` (SPEC 14): its
+    slope (unless ``slope`` is given: not both), and the height ``h_k`` [m] each step's swing
+    foot lands on above its stance foot: the guard is the swing foot reaching ``h_k`` once
+    armed, a step-down is met on the Bezier polynomials continued past s = 1 until the
+    terrain's ``s_max`` (past it: failure ``missed_footing``). Each step records its
+    ``terrain_height``; the document records the terrain (its draws are reproducible from its
+    seed). The reduced cascade and the zero-dynamics prediction stay those of level steps:
+    impacts away from s = 1 are reported as deviations.
     """
     check_walker(walker)
+    slope = check_slope(slope)
+    if terrain is not None and not isinstance(terrain, Terrain):
+        check_instance("terrain", terrain, (str, Path), "a terrain file's path or a Terrain")
+        terrain = load_terrain(terrain)
+    if terrain is not None and terrain.slope != 0.0:
+        if slope != 0.0 and slope != terrain.slope:
+            raise InputError.param(("slope", "terrain"), f"the terrain sets the slope "
+                                   f"({terrain.slope:g} rad): give the slope once")
+        slope = check_slope(terrain.slope)
     steps = check_count("steps", steps, le=MAX_STEPS)
     thrust = check_numbers("thrust", thrust, optional=True, min_len=0)
     wn = check_number("wn", wn, gt=0, unit="rad/s")
@@ -609,6 +680,14 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
                            integrator=integrator, samples_per_step=samples,
                            torque_limit=torque_limit, scuff_tol=scuff_tol,
                            min_impact_s=min_impact_s)
+    heights = None
+    if terrain is not None:
+        if reduced:
+            raise InputError.param(("reduced", "terrain"), "the reduced cascade walks level "
+                                   "steps only: simulate a terrain with the full-order model")
+        config = replace(config, max_s=terrain.s_max)
+        heights = tuple(float(h) for h in terrain.heights(config.steps))
+    walker = walker.on_slope(slope)
     zd = walker.zd
     schedule = None
     if thrust_model == "piecewise":
@@ -617,6 +696,8 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
                        schedule=schedule, wn=wn, xi=xi, tau=tau, f0=f0, start=st,
                        config=config, reduced_only=reduced, impact_s_tol=impact_s_tol,
                        zeta_tol=zeta_tol)
+    if heights is not None:
+        sc = replace(sc, heights=heights)
     if check_flag("check_only", check_only):
         return None
-    return SimulationResult(walker, sc, tuple(run_scenario(zd, sc, progress)), mu)
+    return SimulationResult(walker, sc, tuple(run_scenario(zd, sc, progress)), mu, terrain)

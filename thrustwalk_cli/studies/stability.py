@@ -34,6 +34,7 @@ from ..floquet.multipliers import (
     check_agreement_tol,
 )
 from ..floquet.poincare import Setting
+from ..model.slope import check_slope
 from ..simulation.closed_loop import (
     SimConfig,
     ThrustModel,
@@ -43,7 +44,16 @@ from ..simulation.full_order import Start
 from ..simulation.scenario import make_scenario
 from ..thrust.dynamics import MODELS, canonical
 from ..walker import Walker, check_walker
-from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import (
+    SCHEMA_VERSION,
+    Table,
+    col,
+    gait_record,
+    result_repr,
+    robot_record,
+    slope_record,
+    units,
+)
 
 UNITS = units("thrust", "time", "q", "q_dot", "wn", "tau", "multiplier", "kp", "kd", "xi",
               "delta_zero_sq", "zeta")
@@ -263,7 +273,8 @@ class StabilityResult:
         counts = {v: sum(c.floquet.verdict == v for c in self.cases) for v in VERDICTS}
         return {
             "schema_version": SCHEMA_VERSION,
-            "units": UNITS,
+            "units": {**UNITS, "slope": "rad"} if zd.slope != 0.0 else UNITS,
+            **({"slope": slope_record(zd.slope)} if zd.slope != 0.0 else {}),
             "success": self.success,
             "verdict": self.verdict,
             "verdicts": counts,
@@ -399,8 +410,8 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
               kp: float | None = None, kd: float | None = None,
               vary: tuple[str, Sequence[float]] | None = None, rtol: float = 1e-12,
               atol: float = 1e-12, agreement_tol: float | None = None,
-              progress: Callable[[int], None] | None = None, check_only: bool = False
-              ) -> StabilityResult | None:
+              progress: Callable[[int], None] | None = None, check_only: bool = False,
+              slope: float = 0.0) -> StabilityResult | None:
     """Floquet multipliers of the full-order closed loop (SPEC 13) at steady thrust ``thrust``
     [N] (default 0) on ``thruster`` (default: the first), thrust model ``thrust_model``
     (``constant``, ``first-order`` with ``tau`` [s], ``second-order`` with ``wn`` [rad/s] and
@@ -414,8 +425,13 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
     finite-difference error estimate carried to it; see
     :mod:`thrustwalk_cli.floquet.multipliers`). ``progress(1)`` after each case. Bad
     parameters raise :class:`InputError` naming them. ``check_only``: check every argument,
-    compute nothing and return None."""
+    compute nothing and return None. ``slope`` [rad, positive uphill, |slope| < pi/2]: the
+    ground angle (SPEC 14, :meth:`Walker.on_slope`): the orbit, the compiled simulation of the
+    finite differences and the variational equations are those of the slope frame (the
+    zero-dynamics multiplier delta_zero^2 does not depend on it); 0: level ground, bit for
+    bit."""
     check_walker(walker)
+    walker = walker.on_slope(check_slope(slope))
     thrust = check_number("thrust", thrust, optional=True, unit="N")
     check_text("thruster", thruster, optional=True)
     wn = check_number("wn", wn, gt=0, unit="rad/s")
