@@ -421,6 +421,12 @@ for _opt, _v, _msg in (("--slope", "nan", ""), ("--slope", "1.6", "a slope is an
                        ("--library", str(DATA / "no_such_library"), ".* is not a folder")):
     cli_case(f"energy{_opt}={_v}", ["energy", *COMMANDS["energy"], _opt, _v, "--out", "{out}"],
              _opt, _msg)
+# the full-order commands on a slope (SPEC 14)
+for _cmd in ("simulate", "stability", "control"):
+    FLOATS[_cmd].append("--slope")
+    for _v, _msg in (("nan", ""), ("-inf", ""), ("1.6", "a slope is an angle")):
+        cli_case(f"slope-{_cmd}={_v}", [_cmd, *COMMANDS[_cmd], "--slope", _v, "--out", "{out}"],
+                 "--slope", _msg)
 # item 5: the executor options of the commands that write a folder incrementally are checked
 # before the folder exists (robustness and sweep)
 for _args, _opt, _msg in ((["--workers", "0"], "--workers", "must be 1..1024"),
