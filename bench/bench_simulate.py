@@ -114,6 +114,19 @@ def whole() -> None:
                 target = "; target >= 30 x" + (", <= 60 ms" if robot == "rabbit" else "")
             print(f"{tag + ', compiled':<64s} {cmp * 1e3:10.1f} ms  {ratio:6.1f} x"
                   f"{target}", flush=True)
+            if model != "ideal":
+                continue
+
+            def sampled(**more):  # the call and its samples read (what the command writes)
+                res = tw.simulate(walker, **kw, **more)
+                for oc in res.outcomes:
+                    dict(oc.full.trajectory)
+            ref_s = _cpu(lambda: sampled(method="scipy"), 1)
+            cmp_s = _cpu(sampled, 7)
+            print(f"{tag + ', samples read: SciPy method (baseline)':<64s} {ref_s * 1e3:10.1f} ms",
+                  flush=True)
+            print(f"{tag + ', samples read: compiled':<64s} {cmp_s * 1e3:10.1f} ms  "
+                  f"{ref_s / cmp_s:6.1f} x", flush=True)
 
 
 def main() -> None:

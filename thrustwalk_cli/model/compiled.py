@@ -116,10 +116,12 @@ class CompiledModel:
         self.tape = Tape.from_data(module.TAPE, fns["_consts"])
 
     # -- derived quantities ----------------------------------------------------------------
-    def energy(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """Mechanical energy ``1/2 q'^T D q' + V`` [J] (pinned)."""
+    def energy(self, q: np.ndarray, dq: np.ndarray, D: np.ndarray | None = None
+               ) -> np.ndarray:
+        """Mechanical energy ``1/2 q'^T D q' + V`` [J] (pinned); ``D``: ``D(q)`` when the
+        caller has it already."""
         q, dq = np.asarray(q, float), np.asarray(dq, float)
-        K = 0.5 * np.einsum("...i,...ij,...j->...", dq, self.D(q), dq)
+        K = 0.5 * np.einsum("...i,...ij,...j->...", dq, self.D(q) if D is None else D, dq)
         return K + self.V(q)[..., 0]
 
     def relabel(self, q: np.ndarray) -> np.ndarray:

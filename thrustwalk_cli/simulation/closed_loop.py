@@ -464,7 +464,7 @@ class ClosedLoop:
         sigma = np.einsum("kj,kj->k", D[:, N - 1, :], dq)
         return {"q": q, "dq": dq, "ddq": ddq, "u": u, "saturated": sat, "y": y, "dy": dy,
                 "alpha": alpha, "alpha_dot": adot, "s": s, "sigma": sigma, "F": F, "T": T,
-                "F1": F1, "swing_height": mod.p_swing(q)[:, 1], "energy": mod.energy(q, dq),
+                "F1": F1, "swing_height": mod.p_swing(q)[:, 1], "energy": mod.energy(q, dq, D),
                 "z": z}
 
 

@@ -14,7 +14,7 @@ reversing, negative vertical ground force, an infeasible impact, or no impact. S
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -70,7 +70,7 @@ class SimResult:
     config: SimConfig
     steps: tuple[StepRecord, ...]
     prediction: LimitCycle
-    trajectory: dict[str, np.ndarray] = field(repr=False)
+    trajectory: Mapping[str, np.ndarray] = field(repr=False)  # a Trajectory: sampled when read
     segments: tuple[Segment, ...] = field(repr=False)
     nfev: int = 0
     wall_time: float = 0.0
@@ -204,7 +204,7 @@ def simulate(zd: ZeroDynamics, thrust: ThrustModel, config: SimConfig = SimConfi
 
         recs, segs, failure, reason, nfev = run_steps(cl, x, t_max, config.steps, progress,
                                                       heights)
-        traj = _trajectory(cl, segs, config.samples_per_step)
+        traj = Trajectory(cl, segs, config.samples_per_step)
         if not failure:
             reason = f"completed {len(recs)} steps"
         return SimResult(not failure, reason, failure, thrust, config, tuple(recs), pred, traj,
@@ -224,7 +224,7 @@ def simulate(zd: ZeroDynamics, thrust: ThrustModel, config: SimConfig = SimConfi
         steps.append(rec)
         if progress is not None:
             progress(1)
-    traj = _trajectory(cl, segments, config.samples_per_step)
+    traj = Trajectory(cl, segments, config.samples_per_step)
     ok = not failure
     if ok:
         reason = f"completed {len(steps)} steps"
@@ -427,6 +427,42 @@ def _first_exits(cl: ClosedLoop, segs, ts, F1):
     return out[0], out[1]
 
 
+class Trajectory(Mapping):
+    """The sampled time histories of a run (:func:`_trajectory`: ``per_step`` uniform samples
+    of every step with their details), computed when first read: a caller that wants only the
+    steps (a sweep's point, a Python user reading ``steps``) never pays for them. Reads as a
+    ``dict`` of arrays; empty (false) when the run has no segment. ``rows``: the number of
+    samples, known without computing them."""
+
+    def __init__(self, cl: ClosedLoop, segments: list[Segment], per_step: int):
+        self._args = (cl, list(segments), int(per_step))
+        self._data: dict[str, np.ndarray] | None = None
+        self.rows = len({s.step for s in segments}) * int(per_step)
+
+    def _built(self) -> dict[str, np.ndarray]:
+        if self._data is None:
+            self._data = _trajectory(*self._args)
+            self._args = None
+        return self._data
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        return self._built()[key]
+
+    def __iter__(self):
+        return iter(self._built())
+
+    def __len__(self) -> int:
+        return len(self._built()) if self.rows else 0
+
+    def __bool__(self) -> bool:
+        return self.rows > 0
+
+    def __eq__(self, other) -> bool:
+        return dict(self) == other if isinstance(other, Mapping) else NotImplemented
+
+    __hash__ = None
+
+
 def _trajectory(cl: ClosedLoop, segments: list[Segment], per_step: int) -> dict:
     """Uniform samples of every step (end points included) with the stance-foot position.
 
@@ -458,10 +494,11 @@ def _trajectory(cl: ClosedLoop, segments: list[Segment], per_step: int) -> dict:
     out["step"] = np.concatenate(K)
     # the stance foot moves to the swing foot's position at the end of every step
     ends = np.cumsum([t.size for t in T]) - 1
+    advance = cl.model.p_swing(out["q"][ends])[:, 0]  # each step's swing foot, all at once
     feet, foot = [], 0.0
-    for e, times in zip(ends, T):
+    for a, times in zip(advance.tolist(), T):
         feet.append(np.full(times.size, foot))
-        foot += float(cl.model.p_swing(out["q"][e])[0])
+        foot += a
     out["foot_x"] = np.concatenate(feet)
     return out
 
@@ -475,17 +512,19 @@ def dense_rows(parts: list[tuple]) -> np.ndarray:
     if not parts:
         return np.zeros((0, 0))
     n = parts[0][0].n
-    rows, ks, ts = [], [], []
+    rows, ks, ts, lo, hi = [], [], [], [], []
     off = 0
     for sol, tt in parts:
         tt = np.atleast_1d(np.asarray(tt, float))
-        k = np.searchsorted(sol.ts, tt, side="left") - 1
-        ks.append(np.clip(k, 0, sol.t_old.size - 1) + off)
+        ks.append(np.searchsorted(sol.ts, tt, side="left") - 1)
+        lo.append(np.full(tt.size, off))  # each piece's rows: [off, off + rows - 1]
+        hi.append(np.full(tt.size, off + sol.t_old.size - 1))
         rows.append(sol.rows)
         ts.append(tt)
         off += sol.rows.shape[0]
     R = np.concatenate(rows) if len(rows) > 1 else rows[0]
-    k = np.concatenate(ks)
+    lo = np.concatenate(lo)
+    k = np.minimum(np.maximum(np.concatenate(ks) + lo, lo), np.concatenate(hi))
     tt = np.concatenate(ts)
     t_old, t_new = R[:, 0], R[:, 1]
     F = R[:, 2 + n:].reshape(-1, 7, n)

@@ -345,6 +345,17 @@ def trajectory_arrays(zd: ZeroDynamics, outcomes: list[Outcome]) -> dict[str, np
     return {k: np.concatenate(v) for k, v in cols.items()}
 
 
+def trajectory_rows(outcomes: list[Outcome]) -> int:
+    """The rows :func:`trajectory_arrays` has, without sampling a run whose samples were not
+    read yet (``Trajectory.rows``)."""
+    total = 0
+    for oc in outcomes:
+        tr = oc.primary.trajectory if oc.primary is not None else {}
+        if tr:
+            total += tr.rows if hasattr(tr, "rows") else int(np.asarray(tr["t"]).size)
+    return total
+
+
 def trajectory_output(zd: ZeroDynamics, outcomes: list[Outcome],
                       provenance: dict | None = None) -> tuple[str, object]:
     """``("csv", {header, rows, comments})`` or, above CSV_ROW_LIMIT rows, ``("npz", bytes)``.
@@ -492,8 +503,7 @@ class SimulationResult:
     def document(self) -> dict:
         """The JSON body of ``simulation.json``."""
         zd = self.walker.zd
-        kind = "npz" if trajectory_arrays(zd, list(self.outcomes)).get(
-            col("t", "s"), np.zeros(0)).size > CSV_ROW_LIMIT else "csv"
+        kind = "npz" if trajectory_rows(list(self.outcomes)) > CSV_ROW_LIMIT else "csv"
         return {**simulation_document(zd, self.scenario, list(self.outcomes), self.mu,
                                       self.walker.warnings, self.terrain),
                 "trajectory_file": f"trajectory.{kind}"}
