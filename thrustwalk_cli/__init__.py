@@ -103,7 +103,7 @@ _HOMES = {
     "feasibility": "studies.feasibility", "FeasibilityResult": "studies.feasibility",
     "energy": "studies.energy", "EnergyResult": "studies.energy",
     "optimize_schedule": "studies.optimize", "OptimizeResult": "studies.optimize",
-    "simulate": "studies.simulate", "SimulationResult": "studies.simulate",
+    "simulate": "studies.simulate", "SimulationResult": "studies.simulate_result",
     "SimConfig": "simulation.closed_loop", "Start": "simulation.full_order",
     "InspectResult": "studies.inspect",
     "control": "studies.control", "ControlResult": "studies.control",
