@@ -106,7 +106,7 @@ _HOMES = {
     "simulate": "studies.simulate", "SimulationResult": "studies.simulate_result",
     "SimConfig": "simulation.closed_loop", "Start": "simulation.full_order",
     "InspectResult": "studies.inspect",
-    "control": "studies.control", "ControlResult": "studies.control",
+    "control": "studies.control", "ControlResult": "studies.control_result",
     "stability": "studies.stability", "StabilityResult": "studies.stability",
     "robustness": "studies.robustness", "RobustnessResult": "studies.robustness_result",
     "design_gait": "studies.design_gait", "DesignGaitResult": "studies.design_gait",
