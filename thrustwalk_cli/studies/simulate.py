@@ -36,6 +36,7 @@ from ..simulation.closed_loop import (
 )
 from ..simulation.full_order import Start
 from ..simulation.scenario import make_scenario, run_scenario
+from ..thrust.dynamics import ThrusterDynamics
 from ..walker import Walker, check_walker
 from .simulate_result import SimulationResult
 
@@ -51,7 +52,8 @@ _SIM_DEFAULTS = dict(steps=30, rtol=1e-9, atol=1e-9, method="compiled", integrat
                      samples=80, torque_limit=None, scuff_tol=1e-4, min_impact_s=0.75)
 
 
-def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None,
+def simulate(walker: Walker, *, steps: int = 30,
+             thrust_model: str | ThrusterDynamics | None = None,
              thrust: Sequence[float] | None = None, wn: float = 2.0, xi: float = 1.0,
              tau: float = 0.5, f0: float = 0.0, thruster: Sequence[str] | None = None,
              perturb: float = 0.0, zeta0: float | None = None,
@@ -70,10 +72,13 @@ def simulate(walker: Walker, *, steps: int = 30, thrust_model: str | None = None
     not with ``thrust_model="piecewise"``, which uses the gait's ``thrust:`` section) on
     ``thruster`` (default: the first).
 
-    Thrust models: ``constant``, ``first-order`` (``tau`` [s]), ``second-order`` (``wn``
-    [rad/s], ``xi``), ``piecewise``; default: ``piecewise`` when the gait has a ``thrust:``
-    section and no ``thrust`` is given (the walker starts on that schedule's orbit), else
-    ``second-order``. ``f0`` [N] is the thrust at t = 0 of the dynamic models. ``mu`` (default:
+    Thrust models: a :class:`~thrustwalk_cli.thrust.dynamics.ThrusterDynamics` built once
+    (``tw.thruster_dynamics(kind, m, ...)`` or by hand; its parameters hold, ``wn``, ``xi``,
+    ``tau`` are not used), or by name: ``ideal``, ``first-order`` (``tau`` [s]),
+    ``second-order`` (``wn`` [rad/s], ``xi``), ``piecewise``; default: ``piecewise`` when the
+    gait has a ``thrust:`` section and no ``thrust`` is given (the walker starts on that
+    schedule's orbit), else ``second-order``. ``f0`` [N] is the thrust at t = 0 of the dynamic
+    models. ``mu`` (default:
     the gait's) is the friction cone every step is checked against: a run that leaves it or
     saturates a torque is never plain ``ok``.
     The start is just after an impact on the predicted orbit (``start="predicted"``) or the
