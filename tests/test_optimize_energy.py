@@ -237,3 +237,19 @@ def test_non_convex_power_table_is_refused(cli, tmp_path, monkeypatch):
     assert r.exit_code == 2
     assert "not convex" in r.stderr and "20 N" in r.stderr
     assert not Path("o").exists()
+
+
+def test_a_fixed_point_that_does_not_converge_is_never_called_optimal(w5, monkeypatch):
+    """One iteration allowed (the start, the minimum-effort schedule, is not the energy
+    optimum): status 'not converged', success false, no gait file, the reason says so."""
+    import thrustwalk_cli as tw
+
+    monkeypatch.setattr(min_energy, "MAX_SCP", 1)
+    r = tw.optimize_schedule(w5, target_zeta=1.2 * w5.zd.nominal_cycle().zeta_star,
+                             objective="energy")
+    doc = r.document()
+    assert doc["status"] == "not converged" and not r.success and doc["feasible"]
+    assert "not converged" in doc["reason"] and "optimal" not in doc["reason"].split(";")[0][4:]
+    assert doc["objective_details"]["converged"] is False
+    assert doc["objective_details"]["final_change"] > 1e-10
+    assert r.files == ["optimal_schedule.json"] and r.attachments(doc) == {}

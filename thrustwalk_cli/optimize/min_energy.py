@@ -328,7 +328,8 @@ def _solve_lp(obj: EnergyObjective, g: np.ndarray, rows, prob: LinearProblem) ->
     if res.status != 0:
         raise ComputationError(f"energy LP (HiGHS) failed: {res.message}")
     y = res.x
-    return y[:n] if obj.kind == "table" else y[:n] - y[n:]
+    x = y[:n] if obj.kind == "table" else y[:n] - y[n:]
+    return x + 0.0  # no -0.0
 
 
 def _ipm(obj: EnergyObjective, g: np.ndarray, rows, x0: np.ndarray,
