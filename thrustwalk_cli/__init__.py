@@ -42,7 +42,8 @@ Studies (one per command)
     energy              cost of transport and power over constant thrust, and with a gait
                         library the cheapest way to each speed (SPEC 15) -> :class:`EnergyResult`
     EnergyResult        per-thrust energies and CoT, the library's Pareto table, figures
-    optimize_schedule   minimum-effort thrust schedule, an exact QP -> :class:`OptimizeResult`
+    optimize_schedule   minimum-effort thrust schedule, an exact QP, or (objective="energy")
+                        the least thruster input energy -> :class:`OptimizeResult`
     OptimizeResult      the optimal schedule (or why none exists), gait file, figure
     simulate            full-order closed-loop simulation -> :class:`SimulationResult`
     SimulationResult    runs, per-step records, comparison with the zero dynamics, figures
