@@ -53,7 +53,7 @@ from ..contact.terms import stance_terms
 from ..hzd.quadrature import _cc_weights, _dct_matrix, lobatto
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..thrust.schedule import Schedule
-from .power import input_power, joule_power
+from .power import input_power, joule_power, missing_models
 
 RTOL = 1e-10
 MAX_NODES = 1025
@@ -354,21 +354,9 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
     model, maps = zd.model, zd.maps
     robot = model.robot
     N, m = model.n, model.n_thrusters
-    acts = [c for c in robot.coordinates if c.actuated]
-    motors = [c.motor for c in acts]
+    motors = [c.motor for c in robot.coordinates if c.actuated]
     powers = [t.power for t in robot.thrusters]
-    missing = []
-    if any(mo is None for mo in motors):
-        names = [c.name for c, mo in zip(acts, motors) if mo is None]
-        missing.append(f"no motor data for {', '.join(names)}: joint electrical energy not "
-                       "computed (a `motor:` per actuated coordinate in the robot file)")
-    for t, p in zip(robot.thrusters, powers):
-        if p is None:
-            missing.append(f"no power model for thruster {t.name}: its input energy not "
-                           "computed (a `power:` in the robot file)")
-        elif p.kind == "fuel" and p.heating_value is None:
-            missing.append(f"thruster {t.name}: a fuel model without `heating_value`: fuel "
-                           "mass only, input energy not computed")
+    missing = missing_models(robot)
     missing_t = tuple(missing)
     live = [i for i, lc in enumerate(cycles) if lc.exists]
     out: list[OrbitEnergy | None] = [

@@ -110,3 +110,23 @@ def joule_power(u, motor) -> np.ndarray:
     """Winding loss ``R i^2`` [W], ``i = u / (G k_t)`` [A]."""
     i = np.asarray(u, float) / (motor.G * motor.k_t)
     return motor.R * i * i
+
+
+def missing_models(robot) -> list[str]:
+    """The lines that say which power models the robot file does not give (SPEC 15: a part
+    whose model is missing is None with a reason, never 0)."""
+    acts = [c for c in robot.coordinates if c.actuated]
+    missing = []
+    names = [c.name for c in acts if c.motor is None]
+    if names:
+        missing.append(f"no motor data for {', '.join(names)}: joint electrical energy not "
+                       "computed (a `motor:` per actuated coordinate in the robot file)")
+    for t in robot.thrusters:
+        p = t.power
+        if p is None:
+            missing.append(f"no power model for thruster {t.name}: its input energy not "
+                           "computed (a `power:` in the robot file)")
+        elif p.kind == "fuel" and p.heating_value is None:
+            missing.append(f"thruster {t.name}: a fuel model without `heating_value`: fuel "
+                           "mass only, input energy not computed")
+    return missing

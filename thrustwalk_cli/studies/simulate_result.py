@@ -15,6 +15,7 @@ import numpy as np
 
 from ..description.terrain import Terrain
 from ..design.problem import legs
+from ..energetics.run import run_block, simulation_energy, step_block
 from ..errors import (
     InputError,
 )
@@ -40,7 +41,8 @@ from .documents import (
 
 UNITS = units("time", "thrust", "generalized_thrust", "alpha", "alpha_dot", "sigma_N", "zeta",
               "impulse", "force", "torque", "output_y", "output_rate", "energy", "wn", "tau",
-              "velocity", orbit_distance="rad")
+              "velocity", orbit_distance="rad", power="W", cost_of_transport="1",
+              fuel_mass="kg", distance="m")
 
 
 CSV_ROW_LIMIT = 20000  # trajectories with more samples go to .npz
@@ -71,7 +73,8 @@ def step_entries(zd: ZeroDynamics, outcomes: list[Outcome], terrain: bool = Fals
                     "min_vertical_force": None, "max_abs_output": None,
                     "prediction": None})
             continue
-        for st, cmp in zip(oc.full.steps, oc.comparison):
+        energies = simulation_energy(oc.full)
+        for st, cmp, en in zip(oc.full.steps, oc.comparison, energies):
             out.append({
                 "run": i, "f_ss": oc.value, "model": "full-order", "step": st.step,
                 "t_start": st.t_start, "t_impact": st.t_impact, "step_time": st.step_time,
@@ -90,7 +93,7 @@ def step_entries(zd: ZeroDynamics, outcomes: list[Outcome], terrain: bool = Fals
                 "energy_minus": st.energy_minus, "energy_plus": st.energy_plus,
                 "impact_energy_loss": st.energy_minus - st.energy_plus,
                 **({"terrain_height": st.terrain_height} if terrain else {}),
-                "prediction": cmp})
+                "prediction": cmp, "energy": step_block(en)})
     return out
 
 
@@ -179,6 +182,7 @@ def run_entries(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
             "deviations": dev,
             "warnings": dev + warn,
             **on_slope,
+            "energy": (None if full is None else run_block(simulation_energy(full))),
         })
     return runs
 
@@ -265,13 +269,41 @@ STEP_COLUMNS = ["run", col("f_ss", "N"), "model", "step", col("t_start", "s"),
                 col("impact_energy_loss", "J"), col("predicted_zeta_minus", _Z),
                 "relative_error", col("zeta_star", _Z), col("reduced_zeta_minus", _Z),
                 col("orbit_distance_q", "rad"), col("orbit_distance_dq", "rad/s")]
+# the step's energies (SPEC 15), after the thrust and terrain columns
+ENERGY_COLUMNS = [col("legs_mechanical", "J"), col("thrust_mechanical", "J"),
+                  col("legs_electrical", "J"), col("thrust_input", "J"),
+                  col("kinetic_impact_loss", "J"), col("work_energy_residual", "J"),
+                  "cot_mechanical", "cot_mechanical_legs", "cot_mechanical_thrust",
+                  "cot_total", "cot_total_legs", "cot_total_thrust"]
+_COT = ("mechanical", "mechanical_legs", "mechanical_thrust", "total", "total_legs",
+        "total_thrust")
+
+
+def energy_cells(en: dict | None) -> list:
+    """The :data:`ENERGY_COLUMNS` cells of a step entry's ``energy`` block (empty: none)."""
+    if not en:
+        return [None] * len(ENERGY_COLUMNS)
+    p, c = en["per_step"], en["cot"]
+    return ([p["legs_mechanical"], p["thrust_mechanical"], p["legs_electrical"],
+             p["thrust_input"], p["impact_loss"], en["work_energy_residual"]]
+            + [c[k] for k in _COT])
+
+
+def energy_notes(doc: dict) -> list[str]:
+    """The CSV comment lines of the runs' missing power models (once each)."""
+    seen: list[str] = []
+    for r in doc["runs"]:
+        for line in (r.get("energy") or {}).get("missing", []):
+            if line not in seen:
+                seen.append(line)
+    return [f"energy: {line}" for line in seen]
 
 
 def steps_table(doc: dict, thruster_names: list[str]) -> Table:
     """steps.csv (header, rows, comments) from the document's ``steps`` list."""
     terrain = "terrain" in doc["settings"]
     header = (STEP_COLUMNS + [col(f"thrust_{n}", "N") for n in thruster_names]
-              + ([col("terrain_height", "m")] if terrain else []))
+              + ([col("terrain_height", "m")] if terrain else []) + ENERGY_COLUMNS)
     rows = []
     for e in doc["steps"]:
         p = e.get("prediction") or {}
@@ -286,11 +318,15 @@ def steps_table(doc: dict, thruster_names: list[str]) -> Table:
                      p.get("relative_error"), p.get("zeta_star"), p.get("reduced_zeta_minus"),
                      od.get("q"), od.get("dq")]
                     + [e["thrust_at_impact"][n] for n in thruster_names]
-                    + ([e.get("terrain_height")] if terrain else []))
+                    + ([e.get("terrain_height")] if terrain else [])
+                    + energy_cells(e.get("energy")))
     return Table(header, rows, [
         "thrustwalk simulate: one row per step (pre-impact '_minus', post-impact '_plus')",
         "units: time s, zeta kg^2 m^4/s^2, sigma kg m^2/s, impulse N s, force N, torque N m, "
         "output rad, energy J, thrust N; empty = not computed (reduced model) or no orbit",
+        "energy columns (SPEC 15): along the full-order step; cot over m g times the step's "
+        "length; empty = not computed (reduced model, or the model named below is missing)",
+        *energy_notes(doc),
     ])
 
 
