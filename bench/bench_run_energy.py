@@ -1,0 +1,57 @@
+"""Energy along a full-order run (SPEC 15, issue 28: "energy along a run adds < 10 % to
+simulate"): ``tw.simulate`` of RABBIT, two runs of 20 steps (ideal thrust 0 and -10 N, from the
+nominal start), warm, against the same results' step energies
+(``energetics.run.simulation_energy``: 6-point Gauss-Lobatto on every integrator step of the
+dense output, computed when first read) and against the whole document (which includes
+them). CPU times of this process, medians. Prints the ratios energy / simulate and document /
+simulate.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+import thrustwalk_cli as tw
+from thrustwalk_cli.energetics.run import simulation_energy
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _cpu(fn, repeat: int = 7) -> float:
+    out = []
+    for _ in range(repeat):
+        t0 = time.process_time()
+        fn()
+        out.append(time.process_time() - t0)
+    return float(np.median(out))
+
+
+def main() -> None:
+    w = tw.load_walker(str(REPO / "robots" / "rabbit.yaml"),
+                       str(REPO / "gaits" / "rabbit_walk.yaml"))
+
+    def sim():
+        return tw.simulate(w, steps=20, thrust_model="ideal", thrust=[0.0, -10.0],
+                           start="nominal")
+
+    sim()
+    t_sim = _cpu(sim)
+    results = [sim() for _ in range(7)]
+    it = iter(results)
+
+    def energy():
+        r = next(it)
+        for oc in r.outcomes:
+            simulation_energy(oc.full)
+    t_energy = _cpu(energy)
+    t_doc = _cpu(lambda: sim().document()) - t_sim
+    print(f"RABBIT 2 runs x 20 steps: simulate {1e3 * t_sim:.1f} ms, step energies "
+          f"{1e3 * t_energy:.1f} ms ({100 * t_energy / t_sim:.0f} % of simulate), "
+          f"document with energies {1e3 * t_doc:.1f} ms ({100 * t_doc / t_sim:.0f} %)")
+
+
+if __name__ == "__main__":
+    main()
