@@ -190,19 +190,23 @@ def test_cli_walker5_reported_energy_is_the_written_gaits(cli, tmp_path, monkeyp
     assert "J per step" in r.output and "saved" in r.output
 
 
-def test_cli_three_link_bundled_rotor_target_speed(cli, tmp_path, monkeypatch):
-    """The bundled 3-link robot carries rotor models: a target speed, the written gait's
-    energy (loaded back) equals the document's and the gait walks at the target speed."""
+def test_cli_three_link_bundled_rotor_target_zeta(cli, tmp_path, monkeypatch):
+    """The bundled 3-link robot carries rotor models: a target zeta* (the zeta* at which the
+    minimum-effort schedule walks 0.9 m/s), the written gait's energy (loaded back) equals
+    the document's, the gait's fixed point is the target, and it spends no more than the
+    minimum-effort schedule of the same target."""
     monkeypatch.chdir(tmp_path)
     r = cli("optimize", "three_link", "three_link_walk", "--knots", "0,0.5,1",
-            "--target-speed", "0.9", "--max-thrust", "30", "--mu", "0.7", "--objective",
-            "energy", "--out", "o", "-q")
+            "--target-zeta", "924.5084746351356", "--max-thrust", "30", "--mu", "0.7",
+            "--objective", "energy", "--out", "o", "-q")
     assert r.exit_code == 0, r.output
     doc = json.loads(Path("o/optimal_schedule.json").read_text())
     assert doc["status"] == "optimal", doc["reason"]
     e, energy, _ = _gait_energy("three_link", Path("o/three_link_walk_optimal.yaml"))
     assert doc["objective"] == pytest.approx(e, rel=1e-9)
-    assert doc["speed"] == pytest.approx(0.9, rel=1e-8)
+    assert doc["zeta_star"] == pytest.approx(924.5084746351356, rel=1e-9)
+    effort = doc["objective_details"]["effort_optimal"]["input_energy"]
+    assert e <= effort * (1 + 1e-9)
 
 
 def test_infeasible_target_is_reported_like_the_effort_objective(w5):
@@ -253,3 +257,27 @@ def test_a_fixed_point_that_does_not_converge_is_never_called_optimal(w5, monkey
     assert doc["objective_details"]["converged"] is False
     assert doc["objective_details"]["final_change"] > 1e-10
     assert r.files == ["optimal_schedule.json"] and r.attachments(doc) == {}
+
+
+def test_a_target_speed_reached_cheaper_by_the_effort_schedule_is_not_optimal(tmp_path):
+    """No verdict better than the truth: on the kneed 4-link user robot, the energy schedule
+    found along zeta* for 0.6 m/s spends more than the minimum-effort schedule for the same
+    target (both re-computed here by orbit_energy): the result says `not optimal`, never
+    `optimal`, and writes no gait file."""
+    import thrustwalk_cli as tw
+    from thrustwalk_cli.walker import load_walker
+
+    w = load_walker(str(DATA / "kneed4.yaml"), str(DATA / "kneed4_walk.yaml"))
+    kw = dict(knots=[0.0, 0.5, 1.0], target_speed=0.6, max_thrust=60.0)
+    en = tw.optimize_schedule(w, objective="energy", **kw)
+    ef = tw.optimize_schedule(w, **kw)
+
+    def energy(res):
+        s = res.schedule
+        sched = s.problem.schedule(s.values, w.model.n_thrusters)
+        return orbit_energy(w.zd, sched, [s.cycle])[0].thruster_input[0]
+    e_en, e_ef = energy(en), energy(ef)
+    assert e_ef < e_en  # the effort schedule walks at the same speed for less
+    assert en.schedule.status == "not optimal" and not en.success
+    assert "minimum-effort schedule for the same target spends" in en.schedule.reason
+    assert en.attachments(en.document()) == {}

@@ -32,7 +32,7 @@ from .options import (
     TitlesOpt,
 )
 
-HELP = """Cost of transport and power of a gait over constant thrust values (SPEC 15).
+HELP = """Cost of transport and power of a gait over constant thrust values.
 
 For every constant thrust value [N] on one thruster, on the zero-dynamics periodic orbit (exact
 quadrature, no simulation): speed [m/s], step time [s], step length [m], the joints' net,

@@ -41,7 +41,7 @@ constraints are linear in the thrust values: the convex QP is solved exactly (LP
 HiGHS, least-distance QP by NNLS, KKT conditions verified). An infeasible problem is reported
 with the violated constraint family (exit 0); bad input exits 2, a tool failure 1.
 
---objective energy minimises the thruster's input energy per step [J] instead (SPEC 15; the
+--objective energy minimises the thruster's input energy per step [J] instead (the
 thruster needs a `power:` model in the robot file; a fuel model without heating value: its fuel
 mass [kg]) under the same constraints: sequential convex programming on the orbit's time
 weights, each convex problem solved exactly; the energy is re-computed on the schedule's orbit

@@ -62,7 +62,7 @@ farther than --impact-s-tol from s = 1 or whose zeta^- leaves the zero-dynamics 
 more than --zeta-tol (a grazing or missed touchdown), or with a step out of the friction cone
 (mu) or a saturated torque, has status "warning" with the reason, never "ok".
 
-With --slope GAMMA [rad, positive uphill] the walker is on a slope (SPEC 14): the run is in the
+With --slope GAMMA [rad, positive uphill] the walker is on a slope: the run is in the
 slope frame (gravity and world-frame thrusters turned, link-frame thrusters not; guard, impact
 and relabelling unchanged), compared with the zero dynamics on that slope; speed is along the
 ground, with the climb rate beside it, and ground forces are tangential and normal to it.

@@ -65,7 +65,7 @@ gains y'' = -kp y - kd y'), wn [rad/s], xi [1] (second-order thruster), tau [s] 
 thruster) or thrust [N] (F_ss). VALUES is start:stop:logK (K values evenly spaced in log),
 start:stop:step, or a comma list.
 
-With --slope GAMMA [rad, positive uphill] the analysis is on a slope (SPEC 14): the orbit, the
+With --slope GAMMA [rad, positive uphill] the analysis is on a slope: the orbit, the
 compiled simulation and the variational equations are in the slope frame (gravity and
 world-frame thrusters turned); delta_zero^2 does not depend on the slope.
 

@@ -289,7 +289,28 @@ def optimize_schedule(walker: Walker, *, knots: list[float] = (0.0, 0.25, 0.5, 0
     if objective == "energy":
         effort = optimize(model, zd, fr, mode=mode, weights=weights, **kw)
         block = _energy_block(walker, res, effort, j)
+        res = _cheaper_elsewhere(res, block)
     return OptimizeResult(walker, res, mu, eps, zeta_min, weights, nominal, objective, block)
+
+
+def _cheaper_elsewhere(res: OptimalSchedule, block: dict) -> OptimalSchedule:
+    """No verdict better than the truth: an energy schedule reported ``optimal`` while the
+    minimum-effort schedule, feasible for the same target, spends less (both by
+    :func:`orbit_energy`) is not optimal. That happens with a target speed: the speed fixes
+    zeta* only through the schedule, and the search runs along zeta* (module docstring of
+    min_effort), so another zeta* can walk at the speed for less."""
+    mine = block.get("orbit_energy")
+    other = (block.get("effort_optimal") or {})
+    theirs = next((v for k, v in other.items() if k in ("input_energy", "fuel_mass")), None)
+    if not (res.optimal and other.get("feasible") and mine is not None and theirs is not None):
+        return res
+    if theirs >= mine * (1.0 - 1e-9):
+        return res
+    return replace(res, status="not optimal", reason=(
+        f"not optimal: the minimum-effort schedule for the same target spends {theirs:.6g} "
+        f"against {mine:.6g} per step; the target speed is met by a search along zeta* and "
+        f"the energy's optimum at this zeta* is not the least energy that walks at the speed "
+        f"(at fixed zeta*: {res.reason.split(': ', 1)[-1]})"))
 
 
 def _step_energy(walker: Walker, res: OptimalSchedule, k: int) -> tuple[float | None, str]:
