@@ -167,3 +167,25 @@ def test_a_failed_step_has_no_energy(walker5):
                    SimConfig(steps=3, torque_limit=5.0))
     assert not res.success
     assert len(simulation_energy(res)) == len(res.steps)
+
+
+def test_control_steps_carry_their_energy_and_the_push(cli, tmp_path, monkeypatch):
+    """control (controlled and uncontrolled runs): every step has its energies; the work-energy
+    balance closes with the push's energy at the pushed step only (zero elsewhere), the impact
+    loses kinetic energy."""
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "ctl"
+    r = cli("control", "three_link", "three_link_walk", "--reference", "speed", "--profile",
+            "0:0.8,4:1.0", "--knots", "0,0.5,1", "--steps", "4", "--push", "3:0.5:-10",
+            "--out", str(out))
+    assert r.exit_code == 0, r.output
+    doc = json.loads((out / "control.json").read_text())
+    for st in doc["steps"]:
+        en = st["energy"]
+        works = sum(map(abs, en["per_step"]["joint_work"])) + sum(
+            map(abs, en["per_step"]["thrust_work"]))
+        assert abs(en["work_energy_residual"]) <= 1e-7 * works
+        assert (en["push_energy"] != 0.0) == st["pushed"]
+        assert en["per_step"]["impact_loss"] > 0
+    assert doc["summary"]["energy"]["steps"] == len(doc["steps"])
+    assert doc["uncontrolled"]["energy"]["steps"] == doc["uncontrolled"]["steps_completed"]

@@ -83,6 +83,9 @@ class StepLog:
     realised: dict | None = None
     certificate: dict | None = None
     samples: dict = field(default_factory=dict, repr=False)
+    #: what the step's energies are computed from (``energetics.run.run_energy``): the
+    #: step's closed loop with its own thrust and ``(step, pieces, q^-, q'^-)``
+    energy_input: tuple | None = field(default=None, repr=False)
 
 
 @dataclass
@@ -177,8 +180,9 @@ def run_loop(plant: ZeroDynamics, planner: Planner | None, *, label: str, steps:
             max_friction_ratio=rec.max_friction_ratio,
             impact_friction_ratio=rec.impulse_friction_ratio, pushed=push is not None,
             thrust_at_impact=np.asarray(rec.thrust_at_impact, float))
-        _sample(log, res.pieces, plant, th, u, knots, driven, dynamics, cfg,
-                None if plan is None else (eps, mu))
+        step_cl = _sample(log, res.pieces, plant, th, u, knots, driven, dynamics, cfg,
+                          None if plan is None else (eps, mu))
+        log.energy_input = (step_cl, (k, res.pieces, rec.q_minus, rec.dq_minus))
         if plan is not None:
             _certify(log, planner, plan, weight, mu, eps)
         logs.append(log)
@@ -193,10 +197,10 @@ def run_loop(plant: ZeroDynamics, planner: Planner | None, *, label: str, steps:
 
 def _sample(log: StepLog, pieces: list, plant: ZeroDynamics, th: ThrustModel, u: np.ndarray,
             knots: np.ndarray, driven: list[int], dynamics, cfg: SimConfig,
-            extremes: tuple[float, float] | None = None) -> None:
+            extremes: tuple[float, float] | None = None) -> ClosedLoop:
     """Realised time histories of the step at ``SAMPLES`` times: alpha, thrust, F_1; with
     ``extremes = (eps, mu)`` also the polished realised extremes
-    (:func:`realised_extremes`)."""
+    (:func:`realised_extremes`). Returns the step's closed loop (its own thrust)."""
     m = plant.model.n_thrusters
     if dynamics is None:  # the simulation's own schedule for this step
         md = len(driven)
@@ -224,6 +228,7 @@ def _sample(log: StepLog, pieces: list, plant: ZeroDynamics, th: ThrustModel, u:
     if extremes is not None:
         log.samples["extremes"] = realised_extremes(cl, pieces, log.t_start, log.t_impact,
                                                     *extremes)
+    return cl
 
 
 def realised_extremes(cl: ClosedLoop, pieces: list, t0: float, t1: float, eps: float,

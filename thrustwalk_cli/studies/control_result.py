@@ -19,6 +19,7 @@ from ..controller.planner import (
     Planner,
 )
 from ..controller.step_model import IdealThrust
+from ..energetics.run import run_block, run_energy, step_block
 from ..walker import Walker
 from .documents import (
     SCHEMA_VERSION,
@@ -162,6 +163,7 @@ class ControlResult:
                              for k, v in s.predicted.items()}, "step_time": p.step_time},
             "realised": {**s.realised, "impact_friction_ratio": s.impact_friction_ratio},
             "certificate": s.certificate,
+            "energy": _step_energy_block(s),
         }
 
     def document(self) -> dict:
@@ -206,6 +208,7 @@ class ControlResult:
                 "polish_time_median": float(np.median(pol_times)) if pol_times else None,
                 "polish_time_max": float(np.max(pol_times)) if pol_times else None,
                 "cut_rounds_total": int(sum(s.plan.cut_rounds for s in self.controlled.steps)),
+                "energy": _run_energy_block(self.controlled),
             },
             "uncontrolled": _run_summary(self.uncontrolled),
             "lag_ignored": _run_summary(self.naive, certificate=True),
@@ -361,10 +364,36 @@ def _run_summary(run: Run | None, certificate: bool = False) -> dict | None:
     out = {"success": run.success, "failure": run.failure or None, "reason": run.reason,
            "steps_completed": len(run.steps),
            "speed": [s.speed for s in run.steps],
-           "zeta_minus_end": [s.x_next for s in run.steps]}
+           "zeta_minus_end": [s.x_next for s in run.steps],
+           "energy": _run_energy_block(run)}
     if certificate:
         out["mismatch"] = [{"step": s.step, "x_next_predicted": s.plan.x_next,
                             "x_next_realised": s.x_next,
                             "relative_mismatch": (s.x_next - s.plan.x_next) / s.plan.x_next,
                             "flagged": s.certificate["flagged"]} for s in run.steps]
     return out
+
+
+def step_energy(s):
+    """The energies of a completed step (``energetics.run.RunStepEnergy``; SPEC 15) on its own
+    closed loop and thrust, computed when first asked for and kept with the step (None:
+    nothing to compute them from)."""
+    if s.energy_input is None:
+        return None
+    if "energy" not in s.samples:
+        cl, step = s.energy_input
+        s.samples["energy"] = run_energy(cl, [step])[0]
+    return s.samples["energy"]
+
+
+def _step_energy_block(s) -> dict | None:
+    e = step_energy(s)
+    return None if e is None else step_block(e)
+
+
+def _run_energy_block(run: Run) -> dict | None:
+    """The run's energy summary over its completed steps (``energetics.run.run_block``)."""
+    es = [step_energy(s) for s in run.steps]
+    if any(e is None for e in es):
+        return None
+    return run_block(es)
