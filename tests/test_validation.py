@@ -116,7 +116,8 @@ STUDIES = {
         "min_vertical_force": NUMBER, "thruster": TEXT, "knots": NUMBERS,
         "max_thrust": POSITIVE + [1e6], "basin_grid": COUNT + [1000], "basin_sigma":
         NUMBERS + [[0.0]], "basin_rate": NUMBER, "basin_joint": TEXT, "uncertainty": [5],
-        "samples": POS_COUNT, "rtol": NUMBER, "atol": NUMBER, "bogus": [1.0]},
+        "samples": POS_COUNT, "rtol": NUMBER, "atol": NUMBER, "bogus": [1.0],
+        "slope": NUMBER + [1.6, -2.0]},
         {"push_impulse": [1.0], "push_phase": [0.5], "strategy": ["none"], "basin_grid": 0}),
     "design_gait": (lambda w, model, **kw: tw.design_gait(**{"robot": model, **kw}), {
         "robot": ["walker5", 5], "spec": ["x", {"speed": 0.6}], "compare": ["x", 5],
@@ -425,6 +426,12 @@ for _opt, _v, _msg in (("--slope", "nan", ""), ("--slope", "1.6", "a slope is an
 for _cmd in ("simulate", "stability", "control"):
     FLOATS[_cmd].append("--slope")
     for _v, _msg in (("nan", ""), ("-inf", ""), ("1.6", "a slope is an angle")):
+        cli_case(f"slope-{_cmd}={_v}", [_cmd, *COMMANDS[_cmd], "--slope", _v, "--out", "{out}"],
+                 "--slope", _msg)
+# slope on every remaining command (issue 27)
+for _cmd in ("robustness",):
+    FLOATS[_cmd].append("--slope")
+    for _v, _msg in (("nan", ""), ("inf", ""), ("1.6", "a slope is an angle")):
         cli_case(f"slope-{_cmd}={_v}", [_cmd, *COMMANDS[_cmd], "--slope", _v, "--out", "{out}"],
                  "--slope", _msg)
 # item 5: the executor options of the commands that write a folder incrementally are checked

@@ -11,6 +11,7 @@ lines kept by :class:`SweepSource`.
 
 from __future__ import annotations
 
+import math
 import os
 import re
 from dataclasses import replace
@@ -89,6 +90,21 @@ _STRATEGY = (
     field("min_vertical_force", number("N", ge=0), "least vertical ground force F^v (a step "
           "below it is lifted)", default=0.0),
 )
+
+# the ground angle of a point (SPEC 14); a slope of 0 is level ground and is left out of a
+# sweep's settings (:func:`keyed`), so the keys of level-ground points do not change
+_SLOPE = field("slope", number("rad", gt=-0.5 * math.pi, lt=0.5 * math.pi), "ground angle, "
+               "positive uphill (SPEC 14: gravity and world-frame thrusters turned into the "
+               "slope frame; speed along the ground); 0: level ground", default=0.0)
+LEVEL = {"slope": 0.0}  # parameters left out of a point's settings at this value (keyed)
+
+
+def keyed(settings: dict[str, Any]) -> dict[str, Any]:
+    """``settings`` without the parameters at their level-ground value (:data:`LEVEL`): a
+    sweep or trial on level ground keeps the settings, keys and identity it had before the
+    parameter existed."""
+    return {k: v for k, v in settings.items() if not (k in LEVEL and v == LEVEL[k])}
+
 
 STUDY_PARAMETERS: dict[str, Kind] = {
     "limit-cycle": mapping(
@@ -171,9 +187,11 @@ STUDY_PARAMETERS: dict[str, Kind] = {
         field("rtol", number("1", gt=0, lt=0.1), "relative integration tolerance",
               default=1e-9),
         field("atol", number("1", gt=0, lt=0.1), "absolute integration tolerance", default=1e-9),
+        _SLOPE,
     ),
     "reduced-walk": mapping(
         *_STRATEGY,
+        _SLOPE,
         field("points", integer("1", ge=21, le=10_000), "alpha grid points of the contact "
               "conditions", default=401),
     ),
@@ -555,7 +573,7 @@ def load_sweep_file(ref: str | Path, robot: str | None = None, gait: str | None 
         robot_text=read_source(robot_path, "robot"),
         gait=None if gait_path is None else str(gait_path),
         gait_text=None if gait_path is None else read_source(gait_path, "gait"),
-        settings=tuple(sorted(settings.items())), axes=tuple(axes),
+        settings=tuple(sorted(keyed(settings).items())), axes=tuple(axes),
         collect=tuple(d["collect"]), samples=rnd["samples"] if rnd_axes else 0,
         seed=rnd["seed"] if rnd_axes else 0, description=d["description"],
         source_file=str(path), source_sha256=doc.sha256)

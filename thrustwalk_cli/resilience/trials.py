@@ -53,7 +53,7 @@ from ..simulation.closed_loop import ClosedLoop, SimConfig
 from ..simulation.full_order import Start, initial_state
 from ..simulation.records import EVENT_REASONS
 from ..simulation.stepper import Stepper, failure_text, first_times, push_state, step_record
-from .push import PushPoint, check_push, stance_impulse
+from .push import PushPoint, check_push, stance_impulse, world_to_slope
 from .strategy import Realized
 
 OUTCOMES = ("recovered", "unsettled", "fell", "slipped", "lifted", "scuffed", "stopped",
@@ -202,7 +202,8 @@ class TrialRunner:
         if trial.impulse == 0.0:
             return None, "", ""
         zd, N = self.zd, self.model.n
-        P = self.point.impulse(trial.impulse)
+        P = world_to_slope(self.point.impulse(trial.impulse),
+                           float(getattr(self.model, "slope", 0.0)))
         if at is None:
             s = min(trial.phase, LAST_PHASE)
             alpha = zd.alpha_i + s * (zd.alpha_f - zd.alpha_i)
@@ -217,7 +218,8 @@ class TrialRunner:
         if self.duration > 0:
             stance = self._orbit_force(alpha) if at is None else self._state_force(at[1])
         chk = check_push(F, self.mu, stance, self.duration)
-        rec = {"impulse": P.tolist(), "reaction": list(chk.impulse), "ratio": chk.ratio,
+        rec = {"impulse": self.point.impulse(trial.impulse).tolist(),
+               "reaction": list(chk.impulse), "ratio": chk.ratio,
                "phase": trial.phase, "phase_applied": s, "time": t_push,
                "state": "orbit (predicted)" if at is None else "simulated",
                "applied": at is not None, "link": self.point.link, "at": self.point.at,

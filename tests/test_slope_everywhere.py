@@ -1,0 +1,128 @@
+"""Slope (and terrain) on every remaining command (issue 27, SPEC 14): robustness, control
+--terrain, shape, optimize, design-gait and sweep files.
+
+Each slope result is compared with an independent route: the robot on level ground with its
+gravity turned (``test_slope.turned_robot``: built without the slope code), a world-frame
+computation rotated by hand, or the single-command run the result must equal.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_slope import turned_robot
+
+from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
+from thrustwalk_cli.model.compiler import load_model
+from thrustwalk_cli.thrust.schedule import Schedule
+from thrustwalk_cli.walker import load_walker, walker_from
+
+DATA = Path(__file__).resolve().parent / "data"
+ROBOT5, GAIT5 = str(DATA / "walker5.yaml"), str(DATA / "walker5_thrust.yaml")
+
+
+@pytest.fixture(scope="module")
+def walker5(_cache_dir):
+    return load_walker(ROBOT5, GAIT5)
+
+
+def _turn(v, gamma: float) -> np.ndarray:
+    """A world-frame vector in the slope frame, by hand: Rot(-gamma) v."""
+    c, s = math.cos(gamma), math.sin(gamma)
+    return np.array([c * v[0] + s * v[1], -s * v[0] + c * v[1]])
+
+
+def _turned_cycle(walker, gamma: float, thrust: float):
+    """The limit cycle of ``walker`` under ``thrust`` [N] on its first thruster, from the
+    robot on level ground with gravity turned (independent of the slope code)."""
+    robot2, grav = turned_robot(walker.robot, gamma)
+    w2 = walker_from(load_model(robot2), walker.gait)
+    F = np.zeros((1, len(walker.robot.thrusters)))
+    if F.shape[1]:
+        F[0, 0] = thrust
+    return limit_cycles(w2.zd, Schedule.constant(w2.zd, np.hstack([F, [grav]])))[0]
+
+
+# ------------------------------------------------------------------------------ robustness
+def test_robustness_push_trial_on_a_slope_equals_a_simulation_of_the_same_push(walker5):
+    """A push trial on a slope (world-frame thruster, a push with a vertical part): the
+    strategy's orbit is the turned robot's (zeta* to 1e-10); the push's impulsive ground
+    reaction is the level-ground robot's at the turned posture rotated into the slope frame by
+    hand; and zeta^- of every step equals a compiled simulation of the slope walker with the
+    push turned into the slope frame by hand (1e-10 relative)."""
+    from thrustwalk_cli.resilience.push import push_point, stance_impulse
+    from thrustwalk_cli.resilience.trials import Trial, TrialRunner
+    from thrustwalk_cli.simulation.batch import simulate_batch
+    from thrustwalk_cli.simulation.closed_loop import SimConfig
+    from thrustwalk_cli.simulation.full_order import Start, initial_state
+    from thrustwalk_cli.studies.robustness import plan_robustness, run_robustness
+
+    gamma, P, phase, steps = 0.04, 3.0, 0.4, 3
+    d = np.array([1.0, -0.5]) / math.hypot(1.0, 0.5)
+    plan = plan_robustness(walker5, push_impulse=[P], push_phase=[phase],
+                           strategy=["constant:-20"], steps=steps, basin_grid=0,
+                           push_direction=tuple(d), push_duration=0.2, mu=2.0, slope=gamma)
+    res = run_robustness(plan, workers=1)
+    doc = res.document()
+    assert doc["slope"]["angle"] == gamma and doc["settings"]["slope"] == gamma
+    orbit = doc["strategies"][0]["orbit"]
+    ref = _turned_cycle(walker5, gamma, -20.0)
+    assert orbit["zeta_star"] == pytest.approx(ref.zeta_star, rel=1e-10)
+    assert orbit["speed"] == pytest.approx(ref.speed, rel=1e-10)
+    assert orbit["climb_rate"] == pytest.approx(ref.speed * math.sin(gamma), rel=1e-10)
+    trial = res.records[0]["document"]
+    assert trial["outcome"] == "recovered", trial["reason"]
+    # the simulation of the same push, turned into the slope frame by hand
+    ws, real = walker5.on_slope(gamma), plan.realized[0]
+    x0 = initial_state(ws.zd, real.thrust, Start(zeta_minus=real.zeta_ref))
+    row = np.array([1.0, phase, 0.0, 1.0, *_turn(P * d, gamma)])
+    b = simulate_batch(ws.zd, real.thrust, x0[None], SimConfig(steps=steps), pushes=row[None],
+                       workers=1)
+    assert bool(b.success[0])
+    np.testing.assert_allclose(trial["zeta_minus"], b.field("zeta_minus")[0], rtol=1e-10)
+    # the push's ground reaction: the level-ground robot at the turned posture, rotated
+    point = push_point(walker5.model, None, 1.0, tuple(d))
+    N = walker5.model.n
+    alpha = ws.zd.alpha_i + phase * (ws.zd.alpha_f - ws.zd.alpha_i)
+    q = ws.zd.maps.q_Z(np.array(alpha)).copy()
+    q[N - 1] += gamma
+    F_world = stance_impulse(walker5.model, q, point, P * d)
+    got = TrialRunner(ws.zd, real, point, steps=1).push_check(Trial(P, phase))[0]["reaction"]
+    np.testing.assert_allclose(got, _turn(F_world, gamma), rtol=1e-8, atol=1e-9)
+
+
+def test_robustness_slope_zero_is_level_ground(walker5):
+    """--slope 0: the same trials, keys and identity as without the option (no trial run)."""
+    from thrustwalk_cli.studies.robustness import plan_robustness
+
+    kw = dict(push_impulse=[1.0, 2.0], push_phase=[0.5], strategy=["none", "constant:-20"],
+              basin_grid=3)
+    a, b = plan_robustness(walker5, **kw), plan_robustness(walker5, slope=0.0, **kw)
+    assert a.identity == b.identity and a.settings == b.settings and "slope" not in a.settings
+    c = plan_robustness(walker5, slope=-0.02, **kw)
+    assert c.identity != a.identity and c.settings["slope"] == -0.02
+    assert all(dict(t.settings)["slope"] == -0.02 for t in c.tasks)
+
+
+def test_robustness_cli_on_a_slope(cli, tmp_path, monkeypatch):
+    """robustness --slope from another folder: the slope block, the orbit's climb rate; bad
+    slopes one line, exit 2, nothing written."""
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "out"
+    r = cli("robustness", ROBOT5, GAIT5, "--push-impulse", "1", "--push-phase", "0.5",
+            "--strategy", "constant:-20", "--basin-grid", "0", "--steps", "2", "--slope",
+            "-0.03", "--workers", "1", "--out", out, "--quiet", "--formats", "")
+    assert r.exit_code == 0, r.output
+    doc = json.loads((out / "robustness.json").read_text())
+    assert doc["slope"]["angle"] == -0.03 and doc["units"]["climb_rate"] == "m/s"
+    o = doc["strategies"][0]["orbit"]
+    assert o["climb_rate"] == pytest.approx(o["speed"] * math.sin(-0.03), rel=1e-15)
+    for bad in ("nan", "1.6", "-inf"):
+        bad_out = tmp_path / f"bad{bad}"
+        r = cli("robustness", ROBOT5, GAIT5, "--slope", bad, "--out", bad_out)
+        assert r.exit_code == 2 and "--slope" in r.output
+        assert len(r.output.strip().splitlines()) == 1 and not bad_out.exists()
