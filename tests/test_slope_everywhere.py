@@ -126,3 +126,68 @@ def test_robustness_cli_on_a_slope(cli, tmp_path, monkeypatch):
         r = cli("robustness", ROBOT5, GAIT5, "--slope", bad, "--out", bad_out)
         assert r.exit_code == 2 and "--slope" in r.output
         assert len(r.output.strip().splitlines()) == 1 and not bad_out.exists()
+
+
+# ------------------------------------------------------------------------- control --terrain
+def test_control_on_steps_equals_simulate_on_the_same_terrain(walker5):
+    """control --terrain: the uncontrolled plant (zero thrust) on a step up then a step down
+    walks zeta^- per step as ``simulate --terrain`` of the same file (the simulate study's
+    own loop: 1e-8 relative); every step records the file's height; the controller, whose
+    step model is level ground, brings the walker back to its reference after the steps."""
+    from thrustwalk_cli.description.terrain import Terrain
+    from thrustwalk_cli.studies.control import control
+    from thrustwalk_cli.studies.simulate import simulate
+
+    terrain = Terrain(steps=(0.01, -0.005))
+    r = control(walker5, reference="nominal", steps=8, terrain=terrain)
+    doc = r.document()
+    heights = [0.01, -0.005] + [0.0] * 6
+    assert [e["terrain_height"] for e in doc["steps"]] == heights
+    assert doc["settings"]["terrain"]["steps"] == [0.01, -0.005]
+    assert doc["steps"][-1]["zeta_minus_error"] < 1e-8
+    assert doc["steps"][0]["zeta_minus_error"] > 0.1  # the step up threw it off
+    zs0 = doc["settings"]["nominal_zeta_star"]
+    sim = simulate(walker5, steps=8, thrust=[0.0], thrust_model="ideal", terrain=terrain,
+                   zeta0=zs0).document()
+    want = [st["zeta_minus"] for st in sim["steps"]]
+    assert [st["terrain_height"] for st in sim["steps"]] == heights
+    np.testing.assert_allclose([s.x_next for s in r.uncontrolled.steps], want, rtol=1e-8)
+
+
+def test_control_zero_terrain_is_level_ground(walker5):
+    """A terrain of zero heights: the controlled and uncontrolled runs of level ground, step
+    for step and bit for bit (with each step's terrain_height 0 beside)."""
+    from thrustwalk_cli.description.terrain import Terrain
+    from thrustwalk_cli.studies.control import control
+
+    kw = dict(reference="nominal", steps=3, noise=0.01, seed=3)
+    a = control(walker5, **kw)
+    b = control(walker5, terrain=Terrain(steps=(0.0,)), **kw)
+    for x, y in zip(a.controlled.steps + a.uncontrolled.steps,
+                    b.controlled.steps + b.uncontrolled.steps):
+        assert (x.x_next, x.step_time, x.speed, x.x_meas) == (y.x_next, y.step_time, y.speed,
+                                                              y.x_meas)
+        assert y.terrain_height == 0.0
+
+
+def test_control_terrain_cli(cli, tmp_path, monkeypatch):
+    """control --terrain from another folder: the steps' heights in JSON and CSV; a terrain
+    with a NaN height or a slope beside --slope: one line, exit 2, nothing written."""
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    (tmp_path / "up.yaml").write_text("description: a step up\nslope: -0.02\nsteps: [0.01]\n")
+    out = tmp_path / "out"
+    r = cli("control", ROBOT5, GAIT5, "--reference", "nominal", "--steps", "3", "--terrain",
+            "../up.yaml", "--out", out, "--quiet", "--formats", "csv")
+    assert r.exit_code == 0, r.output
+    doc = json.loads((out / "control.json").read_text())
+    assert doc["slope"]["angle"] == -0.02
+    assert [e["terrain_height"] for e in doc["steps"]] == [0.01, 0.0, 0.0]
+    assert "terrain_height_m" in (out / "control_steps.csv").read_text()
+    (tmp_path / "bad.yaml").write_text("steps: [.nan]\n")
+    for args in (["--terrain", "../bad.yaml"], ["--terrain", "../up.yaml", "--slope", "0.1"]):
+        bad_out = tmp_path / "bad_out"
+        r = cli("control", ROBOT5, GAIT5, "--reference", "nominal", *args, "--out", bad_out)
+        assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1, r.output
+        assert not bad_out.exists()
