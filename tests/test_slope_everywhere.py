@@ -191,3 +191,66 @@ def test_control_terrain_cli(cli, tmp_path, monkeypatch):
         r = cli("control", ROBOT5, GAIT5, "--reference", "nominal", *args, "--out", bad_out)
         assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1, r.output
         assert not bad_out.exists()
+
+
+# ------------------------------------------------------------------------------ shape
+def test_shape_on_a_slope_equals_the_turned_robot(walker5):
+    """shape --slope (force mode on the world-frame thruster): every shaped fixed point and
+    speed equals the turned robot's limit cycle under the same schedule (plus its gravity
+    thrusters) to 1e-12; the climb rate is speed sin(slope); slope 0 is level ground."""
+    from thrustwalk_cli.studies.shape import shape
+
+    gamma = -0.04
+    kw = dict(knots=[0, 0.3, 0.6, 1], pattern="-k*j", k=[0, 5, 10], field_k=5, mode="force",
+              thruster="back")
+    r = shape(walker5, slope=gamma, **kw)
+    doc = r.document()
+    assert r.success and doc["slope"]["angle"] == gamma
+    robot2, grav = turned_robot(walker5.robot, gamma)
+    w2 = walker_from(load_model(robot2), walker5.gait)
+    S = r.schedule
+    n, J, _ = S.force.shape
+    F2 = np.concatenate([S.force, np.broadcast_to(np.array(grav), (n, J, len(grav)))], axis=2)
+    ref = limit_cycles(w2.zd, Schedule(S.knots, F2, S.generalized))
+    for e, c in zip(doc["schedules"], ref):
+        assert e["zeta_star"]["shaped"] == pytest.approx(c.zeta_star, rel=1e-12)
+        assert e["speed"] == pytest.approx(c.speed, rel=1e-12)
+        assert e["climb_rate"] == pytest.approx(c.speed * math.sin(gamma), rel=1e-12)
+    assert shape(walker5, slope=0.0, **kw).document() == shape(walker5, **kw).document()
+
+
+# ------------------------------------------------------------------------------ design-gait
+def test_design_gait_on_a_slope_walks_that_slope(cli, tmp_path, monkeypatch):
+    """design-gait --slope (bundled 3-link walker, from another folder): the report and the
+    gait file's header say the slope; limit-cycle --slope on the written gait file finds it
+    walkable at the reported speed along the ground (1e-9), and the turned robot on level
+    ground (independent of the slope code) has the same fixed point; a bad slope is one line,
+    exit 2, nothing written."""
+    monkeypatch.chdir(tmp_path)
+    gamma = 0.05
+    r = cli("design-gait", "three_link", "--target-speed", "0.8", "--clearance", "0",
+            "--starts", "1", "--slope", str(gamma), "--out", "d", "--name", "up",
+            "--formats", "none", "-q")
+    assert r.exit_code == 0, r.output
+    rep = json.loads((tmp_path / "d" / "up.report.json").read_text())
+    fp = rep["fixed_point"]
+    assert rep["feasible"] and rep["slope"]["angle"] == gamma
+    assert fp["speed"] == pytest.approx(0.8, rel=1e-6)
+    assert fp["climb_rate"] == pytest.approx(fp["speed"] * math.sin(gamma), rel=1e-15)
+    text = (tmp_path / "d" / "up.yaml").read_text()
+    assert f"# Designed for the slope {gamma!r} rad" in text
+    r = cli("limit-cycle", "three_link", "d/up.yaml", "--slope", str(gamma), "--thrust", "0",
+            "--out", "lc", "--formats", "", "-q")
+    assert r.exit_code == 0, r.output
+    c = json.loads((tmp_path / "lc" / "limit_cycles.json").read_text())["cycles"][0]
+    assert c["walkable"], c["verdict"]
+    assert c["speed"] == pytest.approx(fp["speed"], rel=1e-9)
+    assert c["zeta_star"] == pytest.approx(fp["zeta_star"], rel=1e-9)
+    w = load_walker("three_link", str(tmp_path / "d" / "up.yaml"))
+    ref = _turned_cycle(w, gamma, 0.0)
+    assert ref.zeta_star == pytest.approx(fp["zeta_star"], rel=1e-9)
+    for bad in ("nan", "1.6", "-inf"):
+        r = cli("design-gait", "three_link", "--target-speed", "0.8", "--slope", bad, "--out",
+                f"bad{bad}")
+        assert r.exit_code == 2 and "--slope" in r.output, r.output
+        assert len(r.output.strip().splitlines()) == 1 and not (tmp_path / f"bad{bad}").exists()

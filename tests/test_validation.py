@@ -60,7 +60,8 @@ STUDIES = {
         "walker": WALKER, "knots": NUMBERS, "alpha_knots": FLAG,
         "n_knots": POS_COUNT + [1, 10**6], "pattern": [5, ["k"]], "k": NUMBERS,
         "field_k": NUMBER, "mode": CHOICE, "thruster": TEXT, "target_zeta": NUMBER,
-        "target_speed": NUMBER, "progress": CALLBACK, "max_output": POSITIVE, "bogus": [1.0]},
+        "target_speed": NUMBER, "progress": CALLBACK, "max_output": POSITIVE, "bogus": [1.0],
+        "slope": NUMBER + [1.6, -2.0]},
         {}),
     "feasibility": (lambda w, **kw: tw.feasibility(**{"walker": w, **kw}), {
         "walker": WALKER, "thrust": NUMBERS, "schedule": [5, [1.0]], "thruster": TEXT,
@@ -121,7 +122,7 @@ STUDIES = {
         {"push_impulse": [1.0], "push_phase": [0.5], "strategy": ["none"], "basin_grid": 0}),
     "design_gait": (lambda w, model, **kw: tw.design_gait(**{"robot": model, **kw}), {
         "robot": ["walker5", 5], "spec": ["x", {"speed": 0.6}], "compare": ["x", 5],
-        "progress": CALLBACK, "initial": [5]}, {"spec": "SPEC"}),
+        "progress": CALLBACK, "initial": [5], "slope": NUMBER + [1.6]}, {"spec": "SPEC"}),
     "DesignSpec": (lambda w, model, **kw: tw.design_gait(model, tw.DesignSpec(**kw)), {
         "speed": POSITIVE, "step_length": POSITIVE, "mu": POSITIVE, "order": POS_COUNT,
         "clearance": NONNEG, "max_delta_sq": POSITIVE, "min_vertical_force": NONNEG,
@@ -429,8 +430,8 @@ for _cmd in ("simulate", "stability", "control"):
         cli_case(f"slope-{_cmd}={_v}", [_cmd, *COMMANDS[_cmd], "--slope", _v, "--out", "{out}"],
                  "--slope", _msg)
 # slope on every remaining command (issue 27)
-for _cmd in ("robustness",):
-    FLOATS[_cmd].append("--slope")
+for _cmd in ("robustness", "shape", "design-gait"):
+    FLOATS.setdefault(_cmd, []).append("--slope")
     for _v, _msg in (("nan", ""), ("inf", ""), ("1.6", "a slope is an angle")):
         cli_case(f"slope-{_cmd}={_v}", [_cmd, *COMMANDS[_cmd], "--slope", _v, "--out", "{out}"],
                  "--slope", _msg)
