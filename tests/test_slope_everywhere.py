@@ -254,3 +254,45 @@ def test_design_gait_on_a_slope_walks_that_slope(cli, tmp_path, monkeypatch):
                 f"bad{bad}")
         assert r.exit_code == 2 and "--slope" in r.output, r.output
         assert len(r.output.strip().splitlines()) == 1 and not (tmp_path / f"bad{bad}").exists()
+
+
+# ------------------------------------------------------------------------------ sweeps
+def test_sweep_over_slope_equals_limit_cycle_runs(cli, tmp_path, monkeypatch, walker5):
+    """A limit-cycle sweep with a `slope` axis (3 values) gives, point by point, the numbers
+    of limit-cycle --slope on each slope (bit for bit: the same computation), and its points'
+    documents the slope block and climb rate; a level-ground sweep keeps its settings (no
+    `slope` key: keys and identity as before)."""
+    from thrustwalk_cli.studies.limit_cycle import limit_cycle
+    from thrustwalk_cli.studies.sweep import load_sweep
+
+    import shutil
+
+    monkeypatch.chdir(tmp_path)
+    for f in (ROBOT5, GAIT5):
+        shutil.copy(f, tmp_path)
+    slopes = [-0.05, 0.0, 0.05]
+    text = ("name: slopes\nstudy: limit-cycle\nrobot: walker5.yaml\n"
+            "gait: walker5_thrust.yaml\n"
+            "settings:\n  thruster: back\n  thrust: -20\n"
+            f"grid:\n  slope: {{values: {slopes}}}\n"
+            "collect: [speed, zeta_star, step_time, walkable, min_vertical_force]\n")
+    (tmp_path / "s.yaml").write_text(text)
+    r = cli("sweep", "s.yaml", "--out", "out", "--workers", "1", "-q", "--formats", "")
+    assert r.exit_code == 0, r.output
+    recs = sorted((json.loads(p.read_text()) for p in (tmp_path / "out" / "points").glob(
+        "*.json")), key=lambda d: d["index"])
+    assert len(recs) == 3
+    for g, rec in zip(slopes, recs):
+        assert rec["values"]["slope"] == g
+        want = limit_cycle(walker5, [-20.0], "back", slope=g).document()
+        c, f = want["cycles"][0], rec["fields"]
+        for key in ("speed", "zeta_star", "step_time", "walkable"):
+            assert f[key] == c[key], (g, key)
+        assert f["min_vertical_force"] == c["contact"]["min_vertical_force"]
+        got = rec["document"]
+        assert got.get("slope", {}).get("angle") == (g if g else None)
+        if g:
+            assert got["cycles"][0]["climb_rate"] == c["climb_rate"]
+    flat = load_sweep(str(Path(__file__).resolve().parents[1] / "sweeps" /
+                          "thrust_torso_mass.yaml"))
+    assert "slope" not in dict(flat.spec.settings)

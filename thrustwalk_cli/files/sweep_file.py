@@ -115,6 +115,7 @@ STUDY_PARAMETERS: dict[str, Kind] = {
         _MU,
         field("min_vertical_force", number("N", ge=0), "least vertical ground force F^v of "
               "the contact check (walkable needs it)", default=0.0),
+        _SLOPE,
     ),
     "feasibility": mapping(
         _THRUSTER,
@@ -124,6 +125,7 @@ STUDY_PARAMETERS: dict[str, Kind] = {
         _MU,
         field("min_vertical_force", number("N", ge=0), "least vertical ground force F^v",
               default=0.0),
+        _SLOPE,
     ),
     "simulate": mapping(
         _THRUSTER,
@@ -156,6 +158,7 @@ STUDY_PARAMETERS: dict[str, Kind] = {
               "(solve_ivp, the reference)", default="compiled"),
         field("rtol", number("1", gt=0, lt=0.1), "relative integration tolerance", default=1e-9),
         field("atol", number("1", gt=0, lt=0.1), "absolute integration tolerance", default=1e-9),
+        _SLOPE,
     ),
     "push-trial": mapping(
         *_STRATEGY,
@@ -222,6 +225,7 @@ STUDY_PARAMETERS: dict[str, Kind] = {
               "peak max |u| [N m]", default="effort"),
         field("continuation", boolean(), "start each design from its finished neighbour along "
               "the last grid axis (the first grid axis links the chains)", default=True),
+        _SLOPE,
     ),
 }
 STUDIES = tuple(STUDY_PARAMETERS)
