@@ -262,10 +262,10 @@ def test_sweep_over_slope_equals_limit_cycle_runs(cli, tmp_path, monkeypatch, wa
     of limit-cycle --slope on each slope (bit for bit: the same computation), and its points'
     documents the slope block and climb rate; a level-ground sweep keeps its settings (no
     `slope` key: keys and identity as before)."""
+    import shutil
+
     from thrustwalk_cli.studies.limit_cycle import limit_cycle
     from thrustwalk_cli.studies.sweep import load_sweep
-
-    import shutil
 
     monkeypatch.chdir(tmp_path)
     for f in (ROBOT5, GAIT5):
