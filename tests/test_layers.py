@@ -363,3 +363,20 @@ def test_no_study_imports_another_studys_private_names():
                 found += [f"{path.name}: from .{node.module} import {a.name}"
                           for a in node.names if a.name.startswith("_")]
     assert not found, "\n".join(found)
+
+
+def test_no_module_above_600_lines_unless_one_idea():
+    """Issue 25: no module above 600 lines unless its docstring says why it is one idea."""
+
+
+    root = Path(__file__).resolve().parents[1] / "thrustwalk_cli"
+    long = []
+    for path in sorted(root.rglob("*.py")):
+        text = path.read_text()
+        if text.count("\n") <= 600:
+            continue
+        doc = ast.get_docstring(ast.parse(text)) or ""
+        if "One idea in one file" not in doc:
+            long.append(f"{path.relative_to(root.parent)}: {text.count(chr(10))} lines")
+    assert not long, "split these, or say in the docstring why each is one idea:\n" + \
+        "\n".join(long)

@@ -18,6 +18,7 @@ import pytest
 from scipy.linalg import expm
 
 import thrustwalk_cli as tw
+from thrustwalk_cli.errors import InputError
 from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
 from thrustwalk_cli.thrust import dynamics as D
 from thrustwalk_cli.thrust.schedule import Schedule, WrittenSchedule, thrust_on
@@ -186,3 +187,47 @@ def test_the_stiffness_bound_reads_any_model_of_the_family(walker3, monkeypatch)
     with pytest.raises(tw.InputError, match="tau: a thruster with a 0.667 ms"):
         tw.simulate(walker3, steps=1, thrust_model="lag-fast", thrust=[-10.0], tau=0.002,
                     thruster=["hip_x", "torso_back"])
+
+
+# ---------------------------------------------------------- a model given as an object
+def test_a_model_built_once_is_passed_as_an_object(walker3):
+    """tw.thruster_dynamics(...) (or a ThrusterDynamics made by hand, without touching the
+    option table) passed as thrust_model: the same run as the model by name, the document
+    naming the object's kind and poles instead of the unused wn/xi/tau."""
+    F = -10.0
+    dyn = tw.thruster_dynamics("first-order", 2, tau=0.3)
+    by_object = tw.simulate(walker3, steps=3, thrust_model=dyn, thrust=[F], samples=5)
+    by_name = tw.simulate(walker3, steps=3, thrust_model="first-order", tau=0.3, thrust=[F],
+                          samples=5)
+    a, b = by_object.outcomes[0].full.steps, by_name.outcomes[0].full.steps
+    assert [s.zeta_minus for s in a] == [s.zeta_minus for s in b]  # bit for bit
+    st = by_object.document()["settings"]
+    assert st["tau"] is None and st["thruster_dynamics"]["kind"] == "first-order"
+    np.testing.assert_allclose(st["thruster_dynamics"]["poles"], [[-1 / 0.3, 0.0]] * 2)
+    # a model that is in no option table: the analytic lag of each thruster
+    lag = lag_per_thruster(2, 0.2)
+    res = tw.simulate(walker3, steps=2, thrust_model=lag, thrust=[F],
+                      thruster=["hip_x", "torso_back"], samples=5)
+    for s in res.outcomes[0].full.steps:
+        want = [F * (1.0 - np.exp(-s.t_impact / (0.2 * f))) for f in TAU_FACTOR]
+        np.testing.assert_allclose(s.thrust_at_impact, want, rtol=0, atol=1e-7)
+    assert res.document()["settings"]["thrust_model"] == "lag-each"
+
+
+def test_a_model_object_for_another_robot_or_too_fast_is_refused(walker3):
+    with pytest.raises(InputError, match="thrust_model: thruster dynamics for 3 thruster"):
+        tw.simulate(walker3, steps=1, thrust_model=tw.thruster_dynamics("ideal", 3))
+    fast = lag_per_thruster(2, 1e-4)
+    with pytest.raises(InputError, match="thrust_model: poles up to"):
+        tw.stability(walker3, thrust_model=fast, thrust=-10.0)
+
+
+@pytest.mark.slow
+def test_stability_of_a_model_object_equals_the_model_by_name(walker3):
+    dyn = tw.thruster_dynamics("first-order", 2, tau=0.2)
+    a = tw.stability(walker3, thrust_model=dyn, thrust=-10.0)
+    b = tw.stability(walker3, thrust_model="first-order", tau=0.2, thrust=-10.0)
+    va = sorted(abs(m.value) for m in a.cases[0].floquet.multipliers)
+    vb = sorted(abs(m.value) for m in b.cases[0].floquet.multipliers)
+    assert va == vb
+    assert a.document()["settings"]["thruster_dynamics"]["kind"] == "first-order"

@@ -42,7 +42,8 @@ Studies (one per command)
     energy              cost of transport and power over constant thrust, and with a gait
                         library the cheapest way to each speed (SPEC 15) -> :class:`EnergyResult`
     EnergyResult        per-thrust energies and CoT, the library's Pareto table, figures
-    optimize_schedule   minimum-effort thrust schedule, an exact QP -> :class:`OptimizeResult`
+    optimize_schedule   minimum-effort thrust schedule, an exact QP, or (objective="energy")
+                        the least thruster input energy -> :class:`OptimizeResult`
     OptimizeResult      the optimal schedule (or why none exists), gait file, figure
     simulate            full-order closed-loop simulation -> :class:`SimulationResult`
     SimulationResult    runs, per-step records, comparison with the zero dynamics, figures
@@ -103,10 +104,10 @@ _HOMES = {
     "feasibility": "studies.feasibility", "FeasibilityResult": "studies.feasibility",
     "energy": "studies.energy", "EnergyResult": "studies.energy",
     "optimize_schedule": "studies.optimize", "OptimizeResult": "studies.optimize",
-    "simulate": "studies.simulate", "SimulationResult": "studies.simulate",
+    "simulate": "studies.simulate", "SimulationResult": "studies.simulate_result",
     "SimConfig": "simulation.closed_loop", "Start": "simulation.full_order",
     "InspectResult": "studies.inspect",
-    "control": "studies.control", "ControlResult": "studies.control",
+    "control": "studies.control", "ControlResult": "studies.control_result",
     "stability": "studies.stability", "StabilityResult": "studies.stability",
     "robustness": "studies.robustness", "RobustnessResult": "studies.robustness_result",
     "design_gait": "studies.design_gait", "DesignGaitResult": "studies.design_gait",

@@ -41,6 +41,12 @@ constraints are linear in the thrust values: the convex QP is solved exactly (LP
 HiGHS, least-distance QP by NNLS, KKT conditions verified). An infeasible problem is reported
 with the violated constraint family (exit 0); bad input exits 2, a tool failure 1.
 
+--objective energy minimises the thruster's input energy per step [J] instead (SPEC 15; the
+thruster needs a `power:` model in the robot file; a fuel model without heating value: its fuel
+mass [kg]) under the same constraints: sequential convex programming on the orbit's time
+weights, each convex problem solved exactly; the energy is re-computed on the schedule's orbit
+and compared with the minimum-effort schedule's.
+
 Writes DIR/optimal_schedule.json, DIR/<gait>_optimal.yaml (the gait with the resulting
 `thrust:` section) and DIR/optimal_orbit.png/.pdf.
 """
@@ -54,7 +60,8 @@ def run_optimize(robot: str | None, gait: str | None, *, knots: list[float | Non
                  max_thrust: float | None, mu: float | None, min_vertical_force: float,
                  zeta_min: float | None, thruster: str | None, mode: str, weights: str,
                  out: Path, quiet: bool, json: str | None = None,
-                 formats: set[str] | None = None, titles: bool = False) -> dict:
+                 formats: set[str] | None = None, titles: bool = False,
+                 objective: str = "effort") -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files.output import provenance
     from ..studies.optimize import optimize_schedule
@@ -64,7 +71,7 @@ def run_optimize(robot: str | None, gait: str | None, *, knots: list[float | Non
     result = optimize_schedule(
         walker, knots=knots, target_zeta=target_zeta, target_speed=target_speed,
         max_thrust=max_thrust, mu=mu, min_vertical_force=min_vertical_force,
-        zeta_min=zeta_min, thruster=thruster, mode=mode, weights=weights)
+        zeta_min=zeta_min, thruster=thruster, mode=mode, weights=weights, objective=objective)
     doc = write_result(result, out, provenance(walker.robot, walker.gait), json=json,
                        formats=formats, titles=titles)
     if not quiet and json != "-":
@@ -79,9 +86,28 @@ def _summary(doc: dict) -> None:
     if not doc["feasible"]:
         c.print(f"INFEASIBLE — {doc['reason']}", markup=False)
         return
-    c.print(f"optimal schedule ({doc['mode']} mode): objective {doc['objective']:.4g}, "
-            f"zeta* = {doc['zeta_star']:.6g} kg^2 m^4/s^2, speed {doc['speed']:.4g} m/s",
-            markup=False)
+    en = doc.get("objective_details")
+    if en is None:
+        c.print(f"optimal schedule ({doc['mode']} mode): objective {doc['objective']:.4g}, "
+                f"zeta* = {doc['zeta_star']:.6g} kg^2 m^4/s^2, speed {doc['speed']:.4g} m/s",
+                markup=False)
+    else:
+        word = ("energy-optimal schedule" if doc["status"] == "optimal"
+                else f"NOT OPTIMAL ({doc['status']})")
+        c.print(f"{word}: {_num(en['orbit_energy'])} {en['unit']} ({en['quantity']}), "
+                f"zeta* = {doc['zeta_star']:.6g} kg^2 m^4/s^2, speed {doc['speed']:.4g} m/s; "
+                f"fixed point of the time weights: {en['iterations']} iteration(s), last "
+                f"change {en['final_change']:.2g}", markup=False)
+        if doc["status"] != "optimal":
+            c.print(doc["reason"], markup=False)
+        eff = en["effort_optimal"]
+        key = [k for k in eff if k not in ("feasible", "values", "objective", "method")][0]
+        if en["saving_vs_effort_optimal"] is not None:
+            c.print(f"the minimum-effort schedule spends {_num(eff[key])} {en['unit']}: "
+                    f"{100 * en['saving_vs_effort_optimal']:.3g} % saved", markup=False)
+        else:
+            c.print(f"the minimum-effort schedule's {key.replace('_', ' ')}: "
+                    f"{_num(eff[key])}", markup=False)
     k = doc["knots_fraction"]
     show_table("thrust per knot interval",
                [("interval\n[fraction of step]", False), (f"thrust\n[{doc['unit']}]", True)],
@@ -90,6 +116,10 @@ def _summary(doc: dict) -> None:
     c.print(f"active constraints: {len(act)}"
             + ("" if not act else " (" + ", ".join(sorted({a['family'] for a in act})) + ")"),
             markup=False)
+
+
+def _num(v) -> str:
+    return "not computed" if v is None else f"{v:.6g}"
 
 
 def register(app: typer.Typer) -> None:
@@ -120,6 +150,9 @@ def register(app: typer.Typer) -> None:
         weights: Annotated[str, typer.Option(
             "--weights", help="Effort weights w_j: alpha (interval length [rad]) or time "
                               "(nominal time in the interval [s]).")] = "alpha",
+        objective: Annotated[str, typer.Option(
+            "--objective", help="effort (sum_j w_j x_j^2) or energy (the thruster's input "
+                                "energy per step [J], from its `power:` model).")] = "effort",
         out: OutOpt = Path("out/optimize"),
         json: JsonOpt = None,
         formats: FormatsOpt = "png,pdf",
@@ -132,4 +165,4 @@ def register(app: typer.Typer) -> None:
                          min_vertical_force=min_vertical_force, zeta_min=zeta_min,
                          thruster=thruster, mode=mode, weights=weights, out=out, quiet=quiet,
                          json=json, formats=parse_formats(formats, ("png", "pdf")),
-                         titles=titles)
+                         titles=titles, objective=objective)

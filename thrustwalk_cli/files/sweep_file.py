@@ -7,6 +7,10 @@ as ``file:line: key.path: message`` (all of them, not only the first); the key t
 ``docs/files.md`` are generated from ``sweep_schema`` and ``STUDY_PARAMETERS``. Checks that
 need the robot, the gait or the study's result fields are made by the sweep study, at the
 lines kept by :class:`SweepSource`.
+
+One idea in one file: the sweep-file format, whose keys are the study parameter tables (every
+study's settings and sweepable axes, read and checked by the same loader); split, the format
+and its keys would live apart.
 """
 
 from __future__ import annotations

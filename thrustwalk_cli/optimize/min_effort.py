@@ -278,6 +278,14 @@ class OptimalSchedule:
     contact: CaseResult | None = None
     solver: str = ""
     zeta_range: tuple[float, float] | None = None
+    objective_name: str = "effort"
+    energy: object | None = None  # min_energy.EnergySolve of an energy objective
+
+    @property
+    def optimal(self) -> bool:
+        """A feasible schedule that is verified optimal (energy: the fixed point converged and
+        the KKT conditions hold); ``status`` says otherwise."""
+        return self.feasible and self.status == "optimal"
 
 
 def _solve_fixed(prob: LinearProblem, zs: float) -> tuple[np.ndarray | None, dict | None, str]:
@@ -385,20 +393,42 @@ class _Infeasible(Exception):
     pass
 
 
+class OrbitAtRest(ComputationError):
+    """A schedule's orbit comes to rest (zeta <= 0 somewhere): an objective that integrates
+    in time (energy) is not defined there."""
+
+
+def _effort_solve(prob: LinearProblem, zs: float):
+    """The effort objective's solve at fixed zeta*: (x, kkt, solver, None)."""
+    x, k, solver = _solve_fixed(prob, zs)
+    return x, k, solver, None
+
+
 def optimize(model: CompiledModel, zd: ZeroDynamics, fractions: np.ndarray, *,
              target_zeta: float | None = None, target_speed: float | None = None,
              mode: str = "force", thruster: int = 0, mu: float, eps: float = 0.0,
              zeta_min: float | None = None, max_thrust: float | None = None,
-             weights: str = "alpha", points: int = 201) -> OptimalSchedule:
+             weights: str = "alpha", points: int = 201, solve=None,
+             objective_name: str = "effort",
+             thrust_range: tuple[float, float] | None = None) -> OptimalSchedule:
     """Minimum-effort schedule reaching ``target_zeta`` [kg^2 m^4/s^2] or ``target_speed`` [m/s]
     under the SPEC 6 constraints. ``zeta_min`` default: 1 % of zeta*. ``max_thrust``: ``|x_j| <=``
-    this [N or N m], intersected with the thruster's limits in force mode."""
+    this [N or N m], intersected with the thruster's limits in force mode (and with
+    ``thrust_range`` [N] when given).
+
+    ``solve(prob, zs) -> (x, kkt, solver, extra)`` replaces the effort QP at fixed zeta* (the
+    energy objective, :func:`.min_energy.optimize_energy`; ``extra`` its record, None: the
+    problem is infeasible when ``x`` is None); the constraints, the exchange method and the
+    root search for a target speed are the same for every objective."""
+    solve = _effort_solve if solve is None else solve
     fr = np.asarray(fractions, float)
     n = len(fr) - 1
     if mode == "force":
         lim = model.robot.thrusters[thruster].limits
         lo = np.full(n, lim[0] if max_thrust is None else max(lim[0], -max_thrust))
         hi = np.full(n, lim[1] if max_thrust is None else min(lim[1], max_thrust))
+        if thrust_range is not None:
+            lo, hi = np.maximum(lo, thrust_range[0]), np.minimum(hi, thrust_range[1])
     else:
         lo, hi = np.full(n, -max_thrust), np.full(n, max_thrust)
     prob = build_problem(model, zd, fr, mode=mode, thruster=thruster, mu=mu, eps=eps,
@@ -421,11 +451,11 @@ def optimize(model: CompiledModel, zd: ZeroDynamics, fractions: np.ndarray, *,
         if target_zeta is not None:
             zs = float(target_zeta)
         else:
-            found = _zeta_for_speed(model, zd, prob, target, fr, target_speed)
+            found = _zeta_for_speed(model, zd, prob, target, fr, target_speed, solve)
             if isinstance(found, OptimalSchedule):
                 return found
             zs, zrange = found
-        x, k, solver = _solve_fixed(prob, zs)
+        x, k, solver, extra = solve(prob, zs)
         if x is None:
             return _infeasible(prob, target, fr, diagnose(prob, zs), zs=zs, zrange=zrange)
         sched = prob.schedule(x, model.n_thrusters)
@@ -445,18 +475,26 @@ def optimize(model: CompiledModel, zd: ZeroDynamics, fractions: np.ndarray, *,
     if not check.cycle.exists:
         raise ComputationError(f"the optimal schedule has no periodic orbit after "
                                f"{MAX_EXCHANGE} exchange rounds: {check.cycle.reason}")
-    reason = ("optimal: minimum-effort schedule found (KKT conditions verified; contact "
-              f"conditions hold between grid points, {rounds} exchange round(s))"
-              if check.feasible else
-              f"optimal on the alpha grid, but the continuous re-check fails after "
-              f"{MAX_EXCHANGE} exchange rounds: {check.reason}")
+    contact = (f"contact conditions hold between grid points, {rounds} exchange round(s)"
+               if check.feasible else
+               f"the continuous re-check fails after {MAX_EXCHANGE} exchange rounds: "
+               f"{check.reason}")
+    status = "optimal"
+    if extra is None:
+        reason = ("optimal: minimum-effort schedule found (KKT conditions verified; "
+                  f"{contact})" if check.feasible else f"optimal on the alpha grid, but {contact}")
+        value = float(prob.weights @ x**2)
+    else:
+        status, reason = extra.verdict(contact, check.feasible)
+        value = float(extra.energy)
     return OptimalSchedule(
-        True, "optimal", reason, prob, target, fr, values=x,
-        objective=float(prob.weights @ x**2), zeta_star_target=zs, cycle=check.cycle,
-        active=_active_rows(prob, k), kkt=k, contact=check, solver=solver, zeta_range=zrange)
+        True, status, reason, prob, target, fr, values=x,
+        objective=value, zeta_star_target=zs, cycle=check.cycle,
+        active=_active_rows(prob, k), kkt=k, contact=check, solver=solver, zeta_range=zrange,
+        objective_name=objective_name, energy=extra)
 
 
-def _zeta_for_speed(model, zd, prob, target, fr, target_speed):
+def _zeta_for_speed(model, zd, prob, target, fr, target_speed, solve=_effort_solve):
     """zeta* whose minimum-effort schedule walks at ``target_speed`` (1-D root search inside
     the reachable zeta* range), or an infeasible result naming the limiting families."""
     try:
@@ -466,12 +504,12 @@ def _zeta_for_speed(model, zd, prob, target, fr, target_speed):
     zrange = (zlo, zhi)
     pad = 1e-9 * max(abs(zhi), 1.0)
     a, b = zlo + pad, zhi - pad
-    vb = _speed_at(model, zd, prob, b)
-    va = _speed_at(model, zd, prob, a, strict=False)
+    vb = _speed_at(model, zd, prob, b, solve=solve)
+    va = _speed_at(model, zd, prob, a, strict=False, solve=solve)
     frac = 1e-6
     while va is None and frac < 1.0:  # no orbit at the very bottom: move up geometrically
         a = zlo + frac * (b - zlo)
-        va = _speed_at(model, zd, prob, a, strict=False)
+        va = _speed_at(model, zd, prob, a, strict=False, solve=solve)
         frac *= 4.0
     if va is None:
         raise ComputationError("no periodic orbit anywhere in the reachable zeta* range")
@@ -483,18 +521,28 @@ def _zeta_for_speed(model, zd, prob, target, fr, target_speed):
         return _infeasible(
             prob, target, fr, tuple(limits[end]),
             f"target speed {target_speed:g} m/s is outside the reachable range "
-            f"[{va:.4g}, {vb:.4g}] m/s of minimum-effort schedules (the {word} has "
+            f"[{va:.4g}, {vb:.4g}] m/s of {_OPTIMA[solve is _effort_solve]} schedules (the "
+            f"{word} has "
             f"zeta* = {(b if end == 'max' else a):.6g}, {bound:.4g} m/s), limited by: {lim}",
             removal=False, zrange=zrange)
-    zs = zd.zeta_for_speed(target_speed, lambda z: _speed_at(model, zd, prob, z), a, b,
-                           xtol=1e-12 * max(abs(b), 1.0), rtol=1e-12)
+    zs = zd.zeta_for_speed(target_speed, lambda z: _speed_at(model, zd, prob, z, solve=solve),
+                           a, b, xtol=1e-12 * max(abs(b), 1.0), rtol=1e-12)
     return zs, zrange
 
 
-def _speed_at(model, zd, prob, zs: float, strict: bool = True) -> float | None:
-    """Speed [m/s] of the minimum-effort schedule at ``zs``; None (strict: error) without an
-    orbit."""
-    x, _, _ = _solve_fixed(prob, zs)
+_OPTIMA = {True: "minimum-effort", False: "energy-optimal"}
+
+
+def _speed_at(model, zd, prob, zs: float, strict: bool = True,
+              solve=_effort_solve) -> float | None:
+    """Speed [m/s] of the optimal schedule at ``zs`` (``solve``: the objective's solve at fixed
+    zeta*); None (strict: error) without an orbit."""
+    try:
+        x = solve(prob, zs)[0]
+    except OrbitAtRest:
+        if strict:
+            raise
+        return None
     if x is None:
         raise ComputationError(f"QP infeasible at zeta* = {zs:.6g} inside the reachable range")
     lc = limit_cycles(zd, prob.schedule(x, model.n_thrusters))[0]

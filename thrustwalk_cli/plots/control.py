@@ -1,5 +1,5 @@
 """Figures of ``thrustwalk control`` (SPEC 11), from the figure data of
-:meth:`thrustwalk_cli.studies.control.ControlResult.figure_data`: speed per step against the
+:meth:`thrustwalk_cli.studies.control_result.ControlResult.figure_data`: speed per step against the
 reference, thrust against time (commanded and delivered), and the contact margins (friction
 ratio and vertical force against time, predicted and realised, with the cone)."""
 

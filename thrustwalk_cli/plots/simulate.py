@@ -1,6 +1,6 @@
 """Figures of ``thrustwalk simulate`` (SPEC 8 figures 1-2), rendered from figure data built by
-:func:`thrustwalk_cli.studies.simulate.figure_data` and
-:func:`thrustwalk_cli.studies.simulate.animation_frames`."""
+:func:`thrustwalk_cli.studies.simulate_result.figure_data` and
+:func:`thrustwalk_cli.studies.simulate_result.animation_frames`."""
 
 from __future__ import annotations
 

@@ -23,7 +23,8 @@ import numpy as np
 
 from ..errors import InputError, param_problem
 from ..hzd.zero_dynamics import ZeroDynamics
-from ..thrust.dynamics import canonical
+from ..thrust.command import given_dynamics
+from ..thrust.dynamics import ThrusterDynamics, canonical
 from ..thrust.schedule import Schedule
 from .closed_loop import (
     ThrustModel,
@@ -61,6 +62,7 @@ class Scenario:
     impact_s_tol: float = 1e-3
     zeta_tol: float = 1e-3
     heights: tuple[float, ...] | None = None
+    dynamics: ThrusterDynamics | None = None  # given as an object: its kind is a label
 
 
 @dataclass(frozen=True)
@@ -98,8 +100,9 @@ def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
     ``kind == "piecewise"``."""
     robot = zd.model.robot
     problems = []
-    kind = canonical(kind)  # the deprecated `constant` is `ideal`
-    if kind not in thrust_model_names():
+    dynamics = given_dynamics(kind, zd.model.n_thrusters)
+    kind = dynamics.kind if dynamics is not None else canonical(kind)  # `constant` is `ideal`
+    if dynamics is None and kind not in thrust_model_names():
         raise InputError.param("thrust_model", f"unknown model {kind!r} (choose from "
                                f"{', '.join(thrust_model_names())})")
     if kind == "piecewise":
@@ -137,10 +140,11 @@ def make_scenario(zd: ZeroDynamics, kind: str, values: list[float] | None,
                                                f"(got {kw[key]:g})"))
     if problems:
         raise InputError(sorted(set(problems), key=str))
-    check_thruster_rate(kind, kw.get("wn", 2.0), kw.get("xi", 1.0), kw.get("tau", 0.5),
-                        zd.model.n_thrusters)
+    if dynamics is None:
+        check_thruster_rate(kind, kw.get("wn", 2.0), kw.get("xi", 1.0), kw.get("tau", 0.5),
+                            zd.model.n_thrusters)
     kw["config"].validate()
-    return Scenario(kind, tuple(values), idx, schedule=schedule, **kw)
+    return Scenario(kind, tuple(values), idx, schedule=schedule, dynamics=dynamics, **kw)
 
 
 def thrust_models(zd: ZeroDynamics, sc: Scenario) -> list[tuple[float | None, ThrustModel]]:
@@ -155,7 +159,7 @@ def thrust_models(zd: ZeroDynamics, sc: Scenario) -> list[tuple[float | None, Th
         target[list(sc.thrusters)] = v
         f0[list(sc.thrusters)] = sc.f0
         out.append((v, ThrustModel(sc.kind, target, wn=sc.wn, xi=sc.xi, tau=sc.tau,
-                                   initial=f0)))
+                                   initial=f0, dynamics=sc.dynamics)))
     return out
 
 

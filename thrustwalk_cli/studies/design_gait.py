@@ -292,7 +292,7 @@ class DesignGaitResult:
             head.insert(1 if failure is None else 2, (
                 f"Designed for the slope {g!r} rad ({math.degrees(g):.4g} deg, positive "
                 f"uphill; SPEC 14): speed and step length along the ground{climb}. Re-check: "
-                f"thrustwalk limit-cycle ROBOT GAIT --slope {g!r}"))
+                "thrustwalk limit-cycle with this file on that slope."))
         return gait_yaml(self.design, self.model, robot_ref, head)
 
     def tables(self) -> dict[str, Table]:

@@ -138,6 +138,18 @@ def slope_record(gamma: float) -> dict:
                      "(F^h) and normal (F^v) to the slope"}
 
 
+def dynamics_record(dyn) -> dict:
+    """Thruster dynamics given as an object (``tw.thruster_dynamics`` or built by hand, SPEC
+    7, 13) as a document records them: the model's label, its states and the poles of its
+    stacked ``A`` [1/s] as ``[real, imaginary]`` pairs, slowest first."""
+    import numpy as np
+
+    A = dyn.matrices()[0]
+    poles = sorted(np.linalg.eigvals(A).tolist() if A.size else [], key=lambda z: abs(z))
+    return {"kind": dyn.kind, "states": int(dyn.n_states),
+            "poles": [[float(z.real), float(z.imag)] for z in poles]}
+
+
 def climb_rate(speed: float | None, gamma: float) -> float | None:
     """``speed sin(gamma)`` [m/s]: the rate of climb of a walker at ``speed`` along a slope
     ``gamma`` [rad] (SPEC 14); None without a speed."""

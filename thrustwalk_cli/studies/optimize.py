@@ -9,6 +9,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..contact.evaluate import check_contact_options
+from ..energetics.orbit import orbit_energy
 from ..errors import (
     InputError,
     check_choice,
@@ -20,6 +21,7 @@ from ..files.gait_file import gait_text, robot_reference
 from ..hzd.zero_dynamics import LimitCycle
 from ..model.compiled import CompiledModel
 from ..optimize.min_effort import OptimalSchedule, describe, optimize
+from ..optimize.min_energy import MAX_SCP, TOL_SCP, check_power, objective_quantity, optimize_energy
 from ..walker import Walker, check_walker
 from .documents import SCHEMA_VERSION, result_repr, units
 
@@ -42,8 +44,11 @@ def result_record(res: OptimalSchedule, model: CompiledModel) -> dict:
         "reachable_zeta_star": None if res.zeta_range is None else list(res.zeta_range),
         "values": None if res.values is None else res.values.tolist(),
         "objective": res.objective,
-        "objective_definition": "sum_j w_j x_j^2, w_j = interval alpha-length [rad] or "
-                                "nominal time [s]",
+        "objective_definition": (
+            "sum_j w_j x_j^2, w_j = interval alpha-length [rad] or nominal time [s]"
+            if res.objective_name == "effort" else
+            "thruster input energy per step sum_j int_{interval j} P(x_j, V) dt on the "
+            "schedule's own orbit [J] (fuel model without heating value: fuel mass [kg])"),
         "solver": res.solver,
     }
     if res.feasible:
@@ -99,14 +104,24 @@ def gait_yaml(gait, robot, res: OptimalSchedule, model: CompiledModel) -> str:
     optimal schedule as its ``thrust:`` section (:func:`files.gait_file.gait_text`)."""
     p = res.problem
     key = model.robot.thruster_names[p.thruster] if p.mode == "force" else "T"
+    if res.objective_name == "energy":
+        quantity, unit = objective_quantity(model.robot.thrusters[p.thruster].power)
+        kind = "energy-optimal"
+        what = (f"Energy-optimal thrust schedule (SPEC 15; least thruster {quantity} per step "
+                f"under the SPEC 6 constraints): target {res.target}, {quantity} "
+                f"{res.objective!r} {unit} per step")
+    else:
+        kind = "minimum-effort"
+        what = (f"Minimum-effort thrust schedule (SPEC 6): target {res.target}, objective "
+                f"{res.objective!r}")
     header = [f"Written by thrustwalk optimize from gait '{gait.name}' ({gait.source_file}).",
-              f"Minimum-effort thrust schedule (SPEC 6): target {res.target}, objective "
-              f"{res.objective!r}; zeta* = {res.cycle.zeta_star!r} kg^2 m^4/s^2, speed "
+              f"{what}; zeta* = {res.cycle.zeta_star!r} kg^2 m^4/s^2, speed "
               f"{res.cycle.speed!r} m/s.",
               "Bezier columns 0 and 1 were computed for hybrid invariance; written out in full."]
     return gait_text(replace(gait, name=f"{gait.name}_optimal"), robot,
                      robot_ref=robot_reference(robot), header=header, invariance="given",
-                     description=f"{gait.name} with a minimum-effort thrust schedule",
+                     description=f"{gait.name} with {'an' if kind[0] == 'e' else 'a'} {kind} "
+                                 "thrust schedule",
                      thrust=(p.mode, list(res.fractions), {key: list(res.values)},
                              "N" if p.mode == "force" else "N m"))
 
@@ -129,12 +144,14 @@ class OptimizeResult:
     zeta_min: float | None
     weights: str = "alpha"
     nominal: LimitCycle | None = None
+    objective: str = "effort"
+    energy: dict | None = None  # the energy objective's block (objective_details)
 
     name = "optimal_schedule"
 
     @property
     def success(self) -> bool:
-        return self.schedule.feasible
+        return self.schedule.optimal
 
     @property
     def reason(self) -> str:
@@ -157,16 +174,21 @@ class OptimizeResult:
         w = self.walker
         unit = "N" if self.schedule.problem.mode == "force" else "N m"
         weight = "rad" if self.weights == "alpha" else "s"
+        extra = {}
+        obj_unit = f"{unit}^2 {weight}"
+        if self.energy is not None:
+            extra = {"objective_details": self.energy}
+            obj_unit = self.energy["unit"]
         return {"schema_version": SCHEMA_VERSION,
                 "units": units("zeta", "speed", "step_time", "alpha", "force",
-                               "friction_ratio", values=unit, objective=f"{unit}^2 {weight}"),
+                               "friction_ratio", values=unit, objective=obj_unit),
                 "robot": {"name": w.robot.name, "file": w.robot.source_file},
                 "gait": {"name": w.gait.name, "file": w.gait.source_file},
                 "success": self.success, "reason": self.reason,
                 "warnings": list(w.warnings),
                 "mu": self.mu, "min_vertical_force": self.eps,
                 "zeta_min": self.zeta_min if self.zeta_min is not None else "1 % of zeta*",
-                **result_record(self.schedule, w.model), "files": self.files}
+                **result_record(self.schedule, w.model), **extra, "files": self.files}
 
     def tables(self) -> dict:
         return {}
@@ -187,10 +209,11 @@ class OptimizeResult:
                     "jump": (zd.alpha_f, lc.alpha_dot_minus, zd.alpha_i, lc.alpha_dot_plus)}
 
         unit = "N" if res.problem.mode == "force" else "N m"
+        what = "energy-optimal" if self.objective == "energy" else "optimal"
         return {"optimal_orbit": optimal_figure(
             orbit(self.nominal), orbit(res.cycle), res.problem.knots, res.values, unit=unit,
             profile=res.contact.profile, mu=self.mu,
-            title=f"{self.walker.name}: optimal schedule" if titles else "")}
+            title=f"{self.walker.name}: {what} schedule" if titles else "")}
 
     def attachments(self, doc: dict) -> dict[str, str]:
         """The gait file with the optimal schedule as its ``thrust:`` section."""
@@ -205,14 +228,22 @@ def optimize_schedule(walker: Walker, *, knots: list[float] = (0.0, 0.25, 0.5, 0
                       max_thrust: float | None = None, mu: float | None = None,
                       min_vertical_force: float = 0.0, zeta_min: float | None = None,
                       thruster: str | None = None, mode: str = "force",
-                      weights: str = "alpha") -> OptimizeResult:
+                      weights: str = "alpha", objective: str = "effort") -> OptimizeResult:
     """The minimum-effort schedule (SPEC 6) on ``knots`` (fractions of the step) reaching
     ``target_zeta`` [kg^2 m^4/s^2] or ``target_speed`` [m/s], with ``|x_j| <= max_thrust``
     [N, or N m in generalized mode], the friction cone ``mu`` (default: the gait's), vertical
     force ``>= min_vertical_force`` [N] and ``zeta >= zeta_min`` (default 1 % of zeta*). An
     infeasible problem is a result with ``success`` false and the violated constraint
-    families. A robot without thrusters has only ``mode="generalized"``."""
+    families. A robot without thrusters has only ``mode="generalized"``.
+
+    ``objective="energy"`` (force mode; the thruster needs a ``power:`` model): the schedule
+    of least thruster input energy per step [J] (fuel mass [kg] for a fuel model without a
+    heating value) under the same constraints (SPEC 15, :mod:`..optimize.min_energy`:
+    sequential convex programming on the orbit's time weights, each convex problem solved
+    exactly); its energy is re-computed by :func:`..energetics.orbit.orbit_energy` and
+    compared with the minimum-effort schedule's (``weights``: that schedule's)."""
     check_walker(walker)
+    check_choice("objective", objective, ("effort", "energy"))
     if isinstance(knots, (list, tuple)) and any(k is None for k in knots):
         raise InputError.param("knots", "free knots (?) are solved only by shape-only shaping "
                                         "(the shape command); give every knot")
@@ -238,12 +269,90 @@ def optimize_schedule(walker: Walker, *, knots: list[float] = (0.0, 0.25, 0.5, 0
     j = model.robot.thruster_index(thruster) if mode == "force" else 0
     if mode == "force" and max_thrust is not None:
         model.robot.check_thrust_bound("max_thrust", max_thrust, [j])
+    if objective == "energy":
+        if mode != "force":
+            raise InputError.param("objective", "energy needs force mode (a thruster's "
+                                                "physical thrust and its power model)")
+        check_power(model, j)
     fr = np.asarray(knots, float)
     fr[0], fr[-1] = 0.0, 1.0
-    res = optimize(model, zd, fr, target_zeta=target_zeta, target_speed=target_speed,
-                   mode=mode, thruster=j, mu=mu, eps=eps, zeta_min=zeta_min,
-                   max_thrust=max_thrust, weights=weights)
+    kw = dict(target_zeta=target_zeta, target_speed=target_speed, thruster=j, mu=mu, eps=eps,
+              zeta_min=zeta_min, max_thrust=max_thrust)
+    if objective == "effort":
+        res = optimize(model, zd, fr, mode=mode, weights=weights, **kw)
+    else:
+        res = optimize_energy(model, zd, fr, weights=weights, **kw)
     nominal = None
     if res.feasible:
         nominal = zd.nominal_cycle()
-    return OptimizeResult(walker, res, mu, eps, zeta_min, weights, nominal)
+    block = None
+    if objective == "energy":
+        effort = optimize(model, zd, fr, mode=mode, weights=weights, **kw)
+        block = _energy_block(walker, res, effort, j)
+    return OptimizeResult(walker, res, mu, eps, zeta_min, weights, nominal, objective, block)
+
+
+def _step_energy(walker: Walker, res: OptimalSchedule, k: int) -> tuple[float | None, str]:
+    """Thruster ``k``'s input energy [J] (fuel mass [kg] without heating value) per step of
+    ``res``'s schedule on its orbit by :func:`orbit_energy` (independent of the optimiser),
+    or None and why."""
+    if not res.feasible or res.cycle is None or not res.cycle.exists:
+        return None, "no feasible schedule"
+    sched = res.problem.schedule(res.values, walker.model.n_thrusters)
+    e = orbit_energy(walker.zd, sched, [res.cycle])[0]
+    if not e.exists:
+        return None, e.reason
+    p = walker.robot.thrusters[k].power
+    val = e.fuel_mass[k] if objective_quantity(p)[0] == "fuel mass" else e.thruster_input[k]
+    if val is None:
+        return None, "; ".join(e.missing) or "not computed"
+    return float(val), "orbit_energy (exact quadrature on the schedule's periodic orbit)"
+
+
+def _energy_block(walker: Walker, res: OptimalSchedule, effort: OptimalSchedule,
+                  k: int) -> dict:
+    """The ``objective_details`` block of an energy objective (SPEC 15)."""
+    p = walker.robot.thrusters[k].power
+    quantity, unit = objective_quantity(p)
+    es = res.energy
+    ind, how = _step_energy(walker, res, k)
+    eff, eff_how = _step_energy(walker, effort, k)
+    agree = None
+    if ind is not None and res.objective is not None:
+        agree = abs(res.objective - ind) / max(abs(ind), 1e-300) if ind else abs(res.objective)
+    saving = None
+    if ind is not None and eff is not None and eff > 0:
+        saving = 1.0 - ind / eff
+    return {
+        "name": "energy",
+        "quantity": f"thruster {walker.robot.thruster_names[k]} {quantity} per step",
+        "unit": f"{unit} per step",
+        "power_model": p.kind,
+        "definition": ("sum_j int_{interval j} P(x_j, V(alpha)) dt over the schedule's own "
+                       "periodic orbit, dt = d alpha / alpha', V the axial air speed through "
+                       "the disk (momentum model); SPEC 15" +
+                       (" (fuel model without heating value: fuel mass tsfc |x| dt)"
+                        if quantity == "fuel mass" else "")),
+        "method": ("sequential convex programming: the orbit (time weights dt_j, 1/alpha' and "
+                   "the inflow along each interval) frozen at the current schedule, the convex "
+                   "problem solved exactly with the orbit's gradient term, repeated to a fixed "
+                   "point (a KKT point of the full problem)"),
+        "value": res.objective if res.feasible else None,
+        "orbit_energy": ind,
+        "orbit_energy_method": how,
+        "relative_difference": agree,
+        "iterations": None if es is None else es.iterations,
+        "final_change": None if es is None else es.change,
+        "converged": None if es is None else es.converged,
+        "tolerance": TOL_SCP, "max_iterations": MAX_SCP,
+        "history": None if es is None else list(es.history),
+        "interval_times": None if es is None else es.dt.tolist(),
+        "effort_optimal": {
+            "feasible": effort.feasible,
+            "values": None if effort.values is None else effort.values.tolist(),
+            "objective": effort.objective,
+            quantity.replace(" ", "_"): eff,
+            "method": eff_how,
+        },
+        "saving_vs_effort_optimal": saving,
+    }

@@ -42,12 +42,14 @@ from ..simulation.closed_loop import (
 )
 from ..simulation.full_order import Start
 from ..simulation.scenario import make_scenario
-from ..thrust.dynamics import MODELS, canonical
+from ..thrust.command import given_dynamics
+from ..thrust.dynamics import MODELS, ThrusterDynamics, canonical
 from ..walker import Walker, check_walker
 from .documents import (
     SCHEMA_VERSION,
     Table,
     col,
+    dynamics_record,
     gait_record,
     result_repr,
     robot_record,
@@ -405,7 +407,8 @@ def _check_vary(vary, kind: str, wn: float, xi: float, tau: float
     return name, values
 
 
-def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float | None = None,
+def stability(walker: Walker, *, thrust_model: str | ThrusterDynamics | None = None,
+              thrust: float | None = None,
               thruster: str | None = None, wn: float = 2.0, xi: float = 1.0, tau: float = 0.5,
               kp: float | None = None, kd: float | None = None,
               vary: tuple[str, Sequence[float]] | None = None, rtol: float = 1e-12,
@@ -414,8 +417,10 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
               slope: float = 0.0) -> StabilityResult | None:
     """Floquet multipliers of the full-order closed loop (SPEC 13) at steady thrust ``thrust``
     [N] (default 0) on ``thruster`` (default: the first), thrust model ``thrust_model``
-    (``constant``, ``first-order`` with ``tau`` [s], ``second-order`` with ``wn`` [rad/s] and
-    ``xi`` [1], ``piecewise``: the gait's ``thrust:`` section; default as ``simulate``:
+    (``ideal``, ``first-order`` with ``tau`` [s], ``second-order`` with ``wn`` [rad/s] and
+    ``xi`` [1], ``piecewise``: the gait's ``thrust:`` section, or a
+    :class:`~thrustwalk_cli.thrust.dynamics.ThrusterDynamics` built once, e.g. by
+    ``tw.thruster_dynamics``, whose own parameters then hold; default as ``simulate``:
     piecewise for a gait with a schedule and no ``thrust``, else second-order), output gains
     ``kp`` [1/s^2], ``kd`` [1/s] (default: the gait's). ``vary``: ``(name, values)`` sweeps one
     of ``kp``, ``kd``, ``wn``, ``xi``, ``tau``, ``thrust`` (one case per value). ``rtol``,
@@ -448,7 +453,9 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
     if thrust_model is None:
         thrust_model = ("piecewise" if walker.gait.thrust is not None and thrust is None
                         else "second-order")
-    thrust_model = canonical(thrust_model)  # the deprecated `constant` is `ideal`
+    dynamics = given_dynamics(thrust_model, zd.model.n_thrusters)  # a model given as an object
+    # the deprecated `constant` is `ideal`; a model given as an object is named by its kind
+    thrust_model = dynamics.kind if dynamics is not None else canonical(thrust_model)
     vary_t = _check_vary(vary, thrust_model, wn, xi, tau)
     kp = float(walker.gait.kp if kp is None else kp)
     kd = float(walker.gait.kd if kd is None else kd)
@@ -461,7 +468,8 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
     base = 0.0 if thrust is None else float(thrust)
     values = [base] + (list(vary_t[1]) if vary_t and vary_t[0] == "thrust" else [])
     config = SimConfig(steps=1, rtol=rtol, atol=atol)
-    sc = make_scenario(zd, thrust_model, None if thrust_model == "piecewise" else values,
+    sc = make_scenario(zd, dynamics or thrust_model,
+                       None if thrust_model == "piecewise" else values,
                        [thruster] if thruster else None, schedule=schedule, wn=wn, xi=xi,
                        tau=tau, f0=0.0, start=Start(), config=config)
     for key, v in (("kp", kp), ("kd", kd)):
@@ -478,7 +486,7 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
         if sc.thrusters:
             target[sc.thrusters[0]] = p["thrust"]
         th = ThrustModel(thrust_model, target, wn=p["wn"], xi=p["xi"], tau=p["tau"],
-                         schedule=schedule)
+                         schedule=schedule, dynamics=dynamics)
         return Setting(th, p["kp"], p["kd"], rtol, atol), p["thrust"]
 
     todo = ([(None, {})] if vary_t is None else
@@ -496,5 +504,7 @@ def stability(walker: Walker, *, thrust_model: str | None = None, thrust: float 
                 "xi": xi if "xi" in model_params(thrust_model) else None,
                 "tau": tau if "tau" in model_params(thrust_model) else None,
                 "rtol": rtol, "atol": atol,
-                "agreement_tol": None if agreement_tol is None else float(agreement_tol)}
+                "agreement_tol": None if agreement_tol is None else float(agreement_tol),
+                **({"thruster_dynamics": dynamics_record(dynamics)} if dynamics is not None
+                   else {})}
     return StabilityResult(walker, tuple(cases), thrust_model, vary_t, settings)

@@ -47,6 +47,26 @@ def thruster_rate(kind: str, wn: float, xi: float, tau: float, m: int = 1) -> fl
     return float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
 
 
+def given_dynamics(value: object, m: int, name: str = "thrust_model"
+                   ) -> ThrusterDynamics | None:
+    """``value`` when it is a :class:`ThrusterDynamics` (a model built once by
+    ``tw.thruster_dynamics`` or by hand and passed instead of a model's name), checked for the
+    robot's ``m`` thrusters and the speed bound (:data:`MAX_THRUSTER_RATE`); None for a name.
+    :class:`InputError` naming ``name`` otherwise."""
+    if not isinstance(value, ThrusterDynamics):
+        return None
+    if value.m != m:
+        raise InputError.param(name, f"thruster dynamics for {value.m} thruster(s), but the "
+                                     f"robot has {m}")
+    A = value.matrices()[0]
+    rate = float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
+    if rate > MAX_THRUSTER_RATE:
+        raise InputError.param(name, f"poles up to {rate:.3g} 1/s are faster than "
+                                     f"{MAX_THRUSTER_RATE:g} 1/s: on a step's time scale that is "
+                                     "the ideal thrust model, and it makes the equations stiff")
+    return value
+
+
 def check_thruster_rate(kind: str, wn: float, xi: float, tau: float, m: int = 1) -> None:
     """A thruster model's fastest pole at most :data:`MAX_THRUSTER_RATE` (a time constant of
     1 ms): a faster thruster follows its command within a thousandth of a walking step, is
