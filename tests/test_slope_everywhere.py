@@ -296,3 +296,36 @@ def test_sweep_over_slope_equals_limit_cycle_runs(cli, tmp_path, monkeypatch, wa
     flat = load_sweep(str(Path(__file__).resolve().parents[1] / "sweeps" /
                           "thrust_torso_mass.yaml"))
     assert "slope" not in dict(flat.spec.settings)
+
+
+# ------------------------------------------------------------------------------ optimize
+def test_optimize_on_a_slope_reaches_the_target_on_the_turned_robot(walker5):
+    """optimize --slope (uphill, world-frame thruster): the minimum-effort schedule, put on
+    the turned robot on level ground (its gravity thrusters held at m_i g sin(slope)), walks at
+    the target speed with the reported zeta* (1e-10) and keeps the stance force in the cone;
+    the document says the slope and the climb rate; slope 0 is level ground."""
+    from thrustwalk_cli.contact.evaluate import evaluate
+    from thrustwalk_cli.studies.optimize import optimize_schedule
+
+    gamma, v = 0.05, 0.6
+    r = optimize_schedule(walker5, target_speed=v, knots=[0, 0.5, 1], slope=gamma)
+    doc = r.document()
+    assert r.success and doc["slope"]["angle"] == gamma
+    assert doc["climb_rate"] == pytest.approx(doc["speed"] * math.sin(gamma), rel=1e-15)
+    robot2, grav = turned_robot(walker5.robot, gamma)
+    w2 = walker_from(load_model(robot2), walker5.gait)
+    knots = np.array(doc["knots_alpha"])
+    F = np.zeros((1, len(knots) - 1, len(robot2.thrusters)))
+    F[0, :, 0] = doc["values"]
+    F[0, :, 1:] = grav
+    sched = Schedule(knots, F, np.zeros((1, len(knots) - 1)))
+    lc = limit_cycles(w2.zd, sched)[0]
+    assert lc.speed == pytest.approx(v, rel=1e-10)
+    assert lc.zeta_star == pytest.approx(doc["zeta_star"], rel=1e-10)
+    rep = evaluate(w2.model, w2.zd, sched, mu=walker5.gait.mu, eps=0.0, cycles=[lc],
+                   polynomial=False, torque=False, profiles=False)
+    assert rep.cases[0].feasible, rep.cases[0].reason
+    assert f"# Optimized for the slope {gamma!r} rad" in r.attachments(doc)[r.gait_file]
+    a = optimize_schedule(walker5, target_speed=v, knots=[0, 0.5, 1])
+    b = optimize_schedule(walker5, target_speed=v, knots=[0, 0.5, 1], slope=0.0)
+    assert a.document() == b.document() and "slope" not in a.document()

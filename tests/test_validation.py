@@ -75,7 +75,8 @@ STUDIES = {
     "optimize_schedule": (lambda w, **kw: tw.optimize_schedule(**{"walker": w, **kw}), {
         "walker": WALKER, "knots": NUMBERS, "target_speed": POSITIVE, "max_thrust":
         NUMBER + [-1.0, 1e6], "mu": POSITIVE, "min_vertical_force": NONNEG,
-        "zeta_min": POSITIVE, "thruster": TEXT, "mode": CHOICE, "weights": CHOICE},
+        "zeta_min": POSITIVE, "thruster": TEXT, "mode": CHOICE, "weights": CHOICE,
+        "slope": NUMBER + [1.6, -2.0]},
         {"target_speed": 0.6}),
     "simulate": (lambda w, **kw: tw.simulate(**{"walker": w, **kw}), {
         "walker": WALKER, "steps": POS_COUNT, "thrust_model": CHOICE, "thrust": NUMBERS,
@@ -430,7 +431,7 @@ for _cmd in ("simulate", "stability", "control"):
         cli_case(f"slope-{_cmd}={_v}", [_cmd, *COMMANDS[_cmd], "--slope", _v, "--out", "{out}"],
                  "--slope", _msg)
 # slope on every remaining command (issue 27)
-for _cmd in ("robustness", "shape", "design-gait"):
+for _cmd in ("robustness", "shape", "design-gait", "optimize"):
     FLOATS.setdefault(_cmd, []).append("--slope")
     for _v, _msg in (("nan", ""), ("inf", ""), ("1.6", "a slope is an angle")):
         cli_case(f"slope-{_cmd}={_v}", [_cmd, *COMMANDS[_cmd], "--slope", _v, "--out", "{out}"],
