@@ -121,11 +121,50 @@ def test_robustness_cli_on_a_slope(cli, tmp_path, monkeypatch):
     assert doc["slope"]["angle"] == -0.03 and doc["units"]["climb_rate"] == "m/s"
     o = doc["strategies"][0]["orbit"]
     assert o["climb_rate"] == pytest.approx(o["speed"] * math.sin(-0.03), rel=1e-15)
-    for bad in ("nan", "1.6", "-inf"):
+    (tmp_path / "up.yaml").write_text("steps: [0.004]\n")
+    r = cli("robustness", ROBOT5, GAIT5, "--push-impulse", "1", "--push-phase", "0.5",
+            "--strategy", "none", "--basin-grid", "0", "--steps", "2", "--terrain", "up.yaml",
+            "--workers", "1", "--out", tmp_path / "t", "--quiet", "--formats", "")
+    assert r.exit_code == 0, r.output
+    doc = json.loads((tmp_path / "t" / "robustness.json").read_text())
+    assert doc["settings"]["terrain"]["heights"] == [0.004, 0.0]
+    (tmp_path / "bad.yaml").write_text("rough: {distribution: cauchy, sigma: 0.01}\n")
+    for args in (["--slope", "nan"], ["--slope", "1.6"], ["--slope", "-inf"],
+                 ["--terrain", "bad.yaml"]):
+        bad = args[1]
         bad_out = tmp_path / f"bad{bad}"
-        r = cli("robustness", ROBOT5, GAIT5, "--slope", bad, "--out", bad_out)
-        assert r.exit_code == 2 and "--slope" in r.output
+        r = cli("robustness", ROBOT5, GAIT5, *args, "--out", bad_out)
+        assert r.exit_code == 2 and (args[0] in r.output or "bad.yaml" in r.output), r.output
         assert len(r.output.strip().splitlines()) == 1 and not bad_out.exists()
+
+
+def test_robustness_on_a_terrain_equals_simulate_on_it(walker5):
+    """robustness --terrain: an unpushed trial walks zeta^- per step as simulate --terrain of
+    the same strategy from the same orbit (1e-10); a terrain of zero heights gives the level
+    trials bit for bit; a drop past s_max is a fall by missed footing."""
+    from thrustwalk_cli.description.terrain import Terrain
+    from thrustwalk_cli.studies.robustness import plan_robustness, run_robustness
+    from thrustwalk_cli.studies.simulate import simulate
+
+    kw = dict(push_impulse=[0.0, 2.0], push_phase=[0.5], strategy=["none"], steps=4,
+              basin_grid=0, push_duration=0.2, mu=2.0)
+    terrain = Terrain(steps=(0.005, -0.003))
+    plan = plan_robustness(walker5, terrain=terrain, **kw)
+    res = run_robustness(plan, workers=1)
+    assert res.document()["settings"]["terrain"]["heights"] == [0.005, -0.003, 0.0, 0.0]
+    sim = simulate(walker5, steps=4, thrust=[0.0], thrust_model="ideal", terrain=terrain,
+                   zeta0=plan.realized[0].zeta_ref).document()
+    np.testing.assert_allclose(res.records[0]["document"]["zeta_minus"],
+                               [st["zeta_minus"] for st in sim["steps"]], rtol=1e-10)
+    level = run_robustness(plan_robustness(walker5, **kw), workers=1)
+    zero = run_robustness(plan_robustness(walker5, terrain=Terrain(steps=(0.0,)), **kw),
+                          workers=1)
+    for a, b in zip(level.records, zero.records):
+        assert a["document"] == b["document"]
+    drop = run_robustness(plan_robustness(walker5, terrain=Terrain(steps=(-0.2,), s_max=1.02),
+                                          **{**kw, "push_impulse": [0.0]}), workers=1)
+    d = drop.records[0]["document"]
+    assert d["outcome"] == "fell" and "missed its footing" in d["reason"]
 
 
 # ------------------------------------------------------------------------- control --terrain

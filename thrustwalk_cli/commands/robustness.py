@@ -63,7 +63,10 @@ With --slope GAMMA [rad, positive uphill] everything is on a slope (SPEC 14): ea
 orbit, reduced basin and controller, the trials (pushes given in the world frame, turned into
 the slope frame as simulate --slope turns them; ground forces tangential and normal to the
 slope) and the uncertainty samples; the JSON gains the slope block and each orbit its climb
-rate beside its speed along the ground.
+rate beside its speed along the ground. With --terrain FILE (docs/files.md, as simulate
+--terrain) every push and basin trial walks the file's step heights (the same ground for each;
+past its s_max without a touchdown a trial fell: missed footing), measured against the plane
+ground's orbit; the uncertainty samples (reduced model) do not walk it.
 
 Every trial is a point of the sweep engine (consecutive trials share a task): --workers local
 processes (default: one per core) or the Dask cluster of --scheduler. DIR is written
@@ -107,7 +110,7 @@ def run_robustness_command(
         basin_joint: str | None, uncertainty: Path | None, samples: int, rtol: float,
         atol: float, workers: int | None, scheduler: str | None, out: Path, quiet: bool,
         json: str | None = None, formats: set[str] | None = None, titles: bool = False,
-        slope: float = 0.0) -> dict:
+        slope: float = 0.0, terrain: Path | None = None) -> dict:
     """Plain function behind the command; returns the ``robustness.json`` document."""
     from ..files import output
     from ..studies.robustness import plan_robustness, run_robustness
@@ -138,7 +141,8 @@ def run_robustness_command(
         max_thrust=max_thrust, basin_grid=basin_grid, basin_sigma=sigma,
         basin_rate=basin_rate, basin_joint=basin_joint,
         uncertainty=str(uncertainty) if uncertainty is not None else None, samples=samples,
-        rtol=rtol, atol=atol, slope=slope)
+        rtol=rtol, atol=atol, slope=slope,
+        terrain=None if terrain is None else str(terrain))
     warn(plan.warnings)
     folder = output.SweepFolder(out, {"identity": plan.identity, "sweep": "robustness",
                                       "file": f"{walker.robot.name} / {walker.gait.name}",
@@ -278,6 +282,9 @@ def register(app: typer.Typer) -> None:
         atol: Annotated[float, typer.Option("--atol", help="Absolute integration tolerance.")
                         ] = 1e-9,
         slope: SlopeOpt = 0.0,
+        terrain: Annotated[Path | None, typer.Option(
+            "--terrain", help="Terrain file (YAML, docs/files.md) every trial walks: a slope "
+                              "and step heights (explicit or rough, seeded).")] = None,
         workers: Annotated[int | None, typer.Option(
             "--workers", help="Local worker processes (default: one per core; 1 runs in "
                               "this process).")] = None,
@@ -303,6 +310,6 @@ def register(app: typer.Typer) -> None:
                 basin_rate=basin_rate, basin_joint=basin_joint, uncertainty=uncertainty,
                 samples=samples, rtol=rtol, atol=atol, workers=workers, scheduler=scheduler,
                 out=out, quiet=quiet, json=json, formats=parse_formats(formats),
-                titles=titles, slope=slope)
+                titles=titles, slope=slope, terrain=terrain)
             if doc["counts"]["not_run"]:
                 raise typer.Exit(1)

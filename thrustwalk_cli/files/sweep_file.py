@@ -100,7 +100,7 @@ _STRATEGY = (
 _SLOPE = field("slope", number("rad", gt=-0.5 * math.pi, lt=0.5 * math.pi), "ground angle, "
                "positive uphill (SPEC 14: gravity and world-frame thrusters turned into the "
                "slope frame; speed along the ground); 0: level ground", default=0.0)
-LEVEL = {"slope": 0.0}  # parameters left out of a point's settings at this value (keyed)
+LEVEL = {"slope": 0.0, "terrain": None}  # left out of a point's settings at these values
 
 
 def keyed(settings: dict[str, Any]) -> dict[str, Any]:
@@ -195,6 +195,13 @@ STUDY_PARAMETERS: dict[str, Kind] = {
               default=1e-9),
         field("atol", number("1", gt=0, lt=0.1), "absolute integration tolerance", default=1e-9),
         _SLOPE,
+        field("terrain", null_or(mapping(
+            field("heights", vector(unit="m", min_len=1, max_len=1000, ge=-1, le=1),
+                  "step k's swing foot lands heights[k-1] above its stance foot, normal to "
+                  "the slope"),
+            field("s_max", number("1", gt=1, le=3), "past this s without a touchdown: missed "
+                  "footing (the trial fell)", default=1.3))), "the ground the trial walks "
+              "(SPEC 14; none: level)", default=None),
     ),
     "reduced-walk": mapping(
         *_STRATEGY,

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from ..description.terrain import S_MAX
 from ..errors import InputError
 from ..sweep.runner import chunk_size
 from ..sweep.tasks import canonical
@@ -20,7 +21,7 @@ _STRATEGY_KEYS = ("strategy", "strategy_label", "thruster", "thrust", "schedule"
                   "max_thrust", "mu", "min_vertical_force")
 _RUNNER_KEYS = _STRATEGY_KEYS + ("push_direction", "push_link", "push_at", "push_duration",
                                  "transverse", "steps", "recovery_tol", "output_tol", "rtol",
-                                 "atol")
+                                 "atol", "terrain")
 
 
 def _nominal(walker: Walker, p: Mapping) -> Walker:
@@ -62,6 +63,13 @@ def trial_setup(walker: Walker, p: Mapping):
     return point, act.index(name)
 
 
+def _terrain_of(p: Mapping) -> dict:
+    """The ``heights`` and ``s_max`` of the point's ``terrain`` (SPEC 14; none: level)."""
+    t = p.get("terrain")
+    return {} if t is None else {"heights": [float(h) for h in t["heights"]],
+                                 "s_max": float(t.get("s_max", S_MAX))}
+
+
 def _trial_runner(walker: Walker, p: Mapping):
     """The trial runner of the point's strategy and settings (kept per process)."""
     from ..resilience.trials import TrialRunner
@@ -77,7 +85,8 @@ def _trial_runner(walker: Walker, p: Mapping):
                           recovery_tol=float(p["recovery_tol"]),
                           output_tol=float(p["output_tol"]), rtol=float(p["rtol"]),
                           atol=float(p["atol"]), transverse=transverse,
-                          duration=float(p["push_duration"]))
+                          duration=float(p["push_duration"]),
+                          **_terrain_of(p))
         return walker, run
 
     return fresh(key, lambda v: v[0] is walker, make)[1]
