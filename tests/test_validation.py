@@ -60,7 +60,8 @@ STUDIES = {
         "walker": WALKER, "knots": NUMBERS, "alpha_knots": FLAG,
         "n_knots": POS_COUNT + [1, 10**6], "pattern": [5, ["k"]], "k": NUMBERS,
         "field_k": NUMBER, "mode": CHOICE, "thruster": TEXT, "target_zeta": NUMBER,
-        "target_speed": NUMBER, "progress": CALLBACK, "max_output": POSITIVE, "bogus": [1.0]},
+        "target_speed": NUMBER, "progress": CALLBACK, "max_output": POSITIVE, "bogus": [1.0],
+        "slope": NUMBER + [1.6, -2.0]},
         {}),
     "feasibility": (lambda w, **kw: tw.feasibility(**{"walker": w, **kw}), {
         "walker": WALKER, "thrust": NUMBERS, "schedule": [5, [1.0]], "thruster": TEXT,
@@ -74,7 +75,8 @@ STUDIES = {
     "optimize_schedule": (lambda w, **kw: tw.optimize_schedule(**{"walker": w, **kw}), {
         "walker": WALKER, "knots": NUMBERS, "target_speed": POSITIVE, "max_thrust":
         NUMBER + [-1.0, 1e6], "mu": POSITIVE, "min_vertical_force": NONNEG,
-        "zeta_min": POSITIVE, "thruster": TEXT, "mode": CHOICE, "weights": CHOICE},
+        "zeta_min": POSITIVE, "thruster": TEXT, "mode": CHOICE, "weights": CHOICE,
+        "slope": NUMBER + [1.6, -2.0]},
         {"target_speed": 0.6}),
     "simulate": (lambda w, **kw: tw.simulate(**{"walker": w, **kw}), {
         "walker": WALKER, "steps": POS_COUNT, "thrust_model": CHOICE, "thrust": NUMBERS,
@@ -116,11 +118,12 @@ STUDIES = {
         "min_vertical_force": NUMBER, "thruster": TEXT, "knots": NUMBERS,
         "max_thrust": POSITIVE + [1e6], "basin_grid": COUNT + [1000], "basin_sigma":
         NUMBERS + [[0.0]], "basin_rate": NUMBER, "basin_joint": TEXT, "uncertainty": [5],
-        "samples": POS_COUNT, "rtol": NUMBER, "atol": NUMBER, "bogus": [1.0]},
+        "samples": POS_COUNT, "rtol": NUMBER, "atol": NUMBER, "bogus": [1.0],
+        "slope": NUMBER + [1.6, -2.0]},
         {"push_impulse": [1.0], "push_phase": [0.5], "strategy": ["none"], "basin_grid": 0}),
     "design_gait": (lambda w, model, **kw: tw.design_gait(**{"robot": model, **kw}), {
         "robot": ["walker5", 5], "spec": ["x", {"speed": 0.6}], "compare": ["x", 5],
-        "progress": CALLBACK, "initial": [5]}, {"spec": "SPEC"}),
+        "progress": CALLBACK, "initial": [5], "slope": NUMBER + [1.6]}, {"spec": "SPEC"}),
     "DesignSpec": (lambda w, model, **kw: tw.design_gait(model, tw.DesignSpec(**kw)), {
         "speed": POSITIVE, "step_length": POSITIVE, "mu": POSITIVE, "order": POS_COUNT,
         "clearance": NONNEG, "max_delta_sq": POSITIVE, "min_vertical_force": NONNEG,
@@ -425,6 +428,12 @@ for _opt, _v, _msg in (("--slope", "nan", ""), ("--slope", "1.6", "a slope is an
 for _cmd in ("simulate", "stability", "control"):
     FLOATS[_cmd].append("--slope")
     for _v, _msg in (("nan", ""), ("-inf", ""), ("1.6", "a slope is an angle")):
+        cli_case(f"slope-{_cmd}={_v}", [_cmd, *COMMANDS[_cmd], "--slope", _v, "--out", "{out}"],
+                 "--slope", _msg)
+# slope on every remaining command (issue 27)
+for _cmd in ("robustness", "shape", "design-gait", "optimize"):
+    FLOATS.setdefault(_cmd, []).append("--slope")
+    for _v, _msg in (("nan", ""), ("inf", ""), ("1.6", "a slope is an angle")):
         cli_case(f"slope-{_cmd}={_v}", [_cmd, *COMMANDS[_cmd], "--slope", _v, "--out", "{out}"],
                  "--slope", _msg)
 # item 5: the executor options of the commands that write a folder incrementally are checked

@@ -63,6 +63,11 @@ the controller uses the thruster's linear response; the same plant under a contr
 ignores the lag is run for comparison. Certificate: per step the predicted and realised margins;
 a step outside the prediction's error bound is flagged.
 
+With --terrain FILE (docs/files.md, as simulate --terrain) the plant walks steps or rough
+ground: step k's swing foot lands h_k above its stance foot; the controller's step model stays
+that of the plane ground and meets the steps through the measured zeta^-. Each step records its
+terrain_height.
+
 Writes DIR/control.json, DIR/control_steps.csv and the figures speed_tracking, thrust_schedule,
 contact_margin (PNG/PDF); --export FILE the controller's data (JSON with units).
 """
@@ -128,7 +133,7 @@ def run_control(robot: str | None, gait: str | None, *, reference: str, profile:
                 rate_weight: float, terms: str, fit_tol: float, points: int, out: Path,
                 quiet: bool, export: Path | None = None, json: str | None = None,
                 formats: set[str] | None = None, titles: bool = False,
-                slope: float = 0.0) -> dict:
+                slope: float = 0.0, terrain: Path | None = None) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files import output
     from ..studies.control import control
@@ -151,7 +156,8 @@ def run_control(robot: str | None, gait: str | None, *, reference: str, profile:
                 min_vertical_force=min_vertical_force, zeta_min=zeta_min,
                 max_thrust=max_thrust, rate_limit=rate_limit, tracking_weight=tracking_weight,
                 effort_weight=effort_weight, rate_weight=rate_weight, terms=terms,
-                fit_tol=fit_tol, points=points, slope=slope)
+                fit_tol=fit_tol, points=points, slope=slope,
+                terrain=None if terrain is None else str(terrain))
     control(walker, **args, check_only=True)  # every option before the kernel is compiled
     ensure_kernel(quiet)
     with progress("controlled steps", runs * steps, quiet) as advance:
@@ -266,6 +272,9 @@ def register(app: typer.Typer) -> None:
                                              "delta_zero^2, V_0(alpha_f), Gamma_j, L_k fits, "
                                              "QP rows) as JSON with units.")] = None,
         slope: SlopeOpt = 0.0,
+        terrain: Annotated[Path | None, typer.Option(
+            "--terrain", help="Terrain file (YAML, docs/files.md) the plant walks: a slope "
+                              "and step heights (explicit or rough, seeded).")] = None,
         out: OutOpt = Path("out/control"),
         json: JsonOpt = None,
         formats: FormatsOpt = "csv,png,pdf",
@@ -282,7 +291,8 @@ def register(app: typer.Typer) -> None:
                 tracking_weight=tracking_weight, effort_weight=effort_weight,
                 rate_weight=rate_weight, terms=terms, fit_tol=fit_tol, points=points,
                 out=out, quiet=quiet, export=export, json=json,
-                formats=parse_formats(formats), titles=titles, slope=slope)
+                formats=parse_formats(formats), titles=titles, slope=slope,
+                terrain=terrain)
         if doc["failure"] in ("integrator", "controller"):
             sys.stderr.write(f"error: an integrator or controller failure ended the run (see "
                              f"{out}/control.json)\n")

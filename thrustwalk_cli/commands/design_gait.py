@@ -11,7 +11,7 @@ import typer
 
 from ..errors import ComputationError, InputError
 from .common import cli_errors, console, parse_formats, progress, render_mentions
-from .options import JsonOpt, QuietOpt, RobotArg
+from .options import JsonOpt, QuietOpt, RobotArg, SlopeOpt
 
 HELP = """Design a stable, hybrid-invariant Bezier gait by constrained optimisation.
 
@@ -86,7 +86,7 @@ def run_design_gait(robot: str, out: Path, *, speed: float | None, step_length: 
                     quiet: bool, json: str | None = None,
                     min_touchdown_velocity: float = 0.05,
                     formats: set[str] | None = None,
-                    render: Callable[[str], str] = str) -> dict:
+                    render: Callable[[str], str] = str, slope: float = 0.0) -> dict:
     """Plain function behind the command; returns the report it wrote (``feasible`` says
     whether the gait file was written). ``formats``: figure kinds (png, pdf; default both);
     ``render``: writes the parameters that warnings in the gait header mention (in
@@ -99,6 +99,7 @@ def run_design_gait(robot: str, out: Path, *, speed: float | None, step_length: 
     ``error``), or, when ``DIR`` cannot take them, in a new temporary folder; then
     :class:`ComputationError` says what failed and where the files are."""
     from ..design.spec import DesignSpec
+    from ..model.slope import check_slope
     from ..studies.design_gait import design_gait
     from .common import check_out, load_model, load_walker, warn
 
@@ -120,10 +121,11 @@ def run_design_gait(robot: str, out: Path, *, speed: float | None, step_length: 
                       alpha_c=parse_alpha(alpha, rob.coordinate_names), starts=starts,
                       seed=seed, max_iter=max_iter, name=gait_name)
     spec.validate(model)
+    slope = check_slope(slope)  # before the search
     cmp = load_walker(None, compare) if compare is not None else None
     with progress(f"design-gait {rob.name}: {starts} start(s)", starts, quiet) as advance:
         result = design_gait(model, spec, compare=cmp,
-                             progress=lambda done, total, msg: advance(1))
+                             progress=lambda done, total, msg: advance(1), slope=slope)
     # the search is over: from here on, whatever fails, what it found is written
     step = ["building the report"]
     try:
@@ -183,7 +185,7 @@ def _keep(result, model, robot: str, out: Path, gait_name: str, formats: set[str
         text = result.gait_text(prov, robot_reference(rob, robot, gait_path), report_path.name,
                                 render)
         step[0] = "the reload check"
-        back = reload_check(model, text, str(gait_path), result.design)
+        back = reload_check(result.model, text, str(gait_path), result.design)
         if not back["relative_error"] <= 1e-8:
             raise ComputationError(
                 f"the written gait does not reproduce the designed fixed point "
@@ -411,6 +413,7 @@ def register(app: typer.Typer) -> None:
         compare: Annotated[str | None, typer.Option(
             "--compare", help="Also evaluate this existing gait with the same objective and "
                               "constraints (written to the report).")] = None,
+        slope: SlopeOpt = 0.0,
         json: JsonOpt = None,
         formats: Annotated[str, typer.Option(
             "--formats", help="Figure kinds written beside the gait (NAME.stick.png/.pdf): "
@@ -427,7 +430,7 @@ def register(app: typer.Typer) -> None:
                 name=name, compare=compare, quiet=quiet, json=json,
                 min_touchdown_velocity=min_touchdown_velocity,
                 formats=parse_formats(formats, ("png", "pdf")),
-                render=lambda text: render_mentions(text, ctx))
+                render=lambda text: render_mentions(text, ctx), slope=slope)
             if not doc["feasible"]:
                 sys.stderr.write(f"infeasible: {render_mentions(doc['reason'], ctx)}\n")
                 raise typer.Exit(INFEASIBLE_EXIT)

@@ -26,6 +26,7 @@ from .options import (
     OutOpt,
     QuietOpt,
     RobotArg,
+    SlopeOpt,
     TargetSpeedOpt,
     TitlesOpt,
 )
@@ -47,6 +48,10 @@ mass [kg]) under the same constraints: sequential convex programming on the orbi
 weights, each convex problem solved exactly; the energy is re-computed on the schedule's orbit
 and compared with the minimum-effort schedule's.
 
+--slope GAMMA [rad, positive uphill] solves the problem on a slope (SPEC 14): the fixed point
+and the contact terms of the slope frame, the target speed along the ground; the JSON gains
+the slope block and the climb rate, the gait file's header the slope.
+
 Writes DIR/optimal_schedule.json, DIR/<gait>_optimal.yaml (the gait with the resulting
 `thrust:` section) and DIR/optimal_orbit.png/.pdf.
 """
@@ -61,7 +66,7 @@ def run_optimize(robot: str | None, gait: str | None, *, knots: list[float | Non
                  zeta_min: float | None, thruster: str | None, mode: str, weights: str,
                  out: Path, quiet: bool, json: str | None = None,
                  formats: set[str] | None = None, titles: bool = False,
-                 objective: str = "effort") -> dict:
+                 objective: str = "effort", slope: float = 0.0) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files.output import provenance
     from ..studies.optimize import optimize_schedule
@@ -71,7 +76,8 @@ def run_optimize(robot: str | None, gait: str | None, *, knots: list[float | Non
     result = optimize_schedule(
         walker, knots=knots, target_zeta=target_zeta, target_speed=target_speed,
         max_thrust=max_thrust, mu=mu, min_vertical_force=min_vertical_force,
-        zeta_min=zeta_min, thruster=thruster, mode=mode, weights=weights, objective=objective)
+        zeta_min=zeta_min, thruster=thruster, mode=mode, weights=weights, objective=objective,
+        slope=slope)
     doc = write_result(result, out, provenance(walker.robot, walker.gait), json=json,
                        formats=formats, titles=titles)
     if not quiet and json != "-":
@@ -153,6 +159,7 @@ def register(app: typer.Typer) -> None:
         objective: Annotated[str, typer.Option(
             "--objective", help="effort (sum_j w_j x_j^2) or energy (the thruster's input "
                                 "energy per step [J], from its `power:` model).")] = "effort",
+        slope: SlopeOpt = 0.0,
         out: OutOpt = Path("out/optimize"),
         json: JsonOpt = None,
         formats: FormatsOpt = "png,pdf",
@@ -165,4 +172,4 @@ def register(app: typer.Typer) -> None:
                          min_vertical_force=min_vertical_force, zeta_min=zeta_min,
                          thruster=thruster, mode=mode, weights=weights, out=out, quiet=quiet,
                          json=json, formats=parse_formats(formats, ("png", "pdf")),
-                         titles=titles, objective=objective)
+                         titles=titles, objective=objective, slope=slope)

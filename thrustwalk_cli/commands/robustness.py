@@ -32,6 +32,7 @@ from .options import (
     MuOpt,
     QuietOpt,
     RobotArg,
+    SlopeOpt,
     ThrusterOpt,
     TitlesOpt,
 )
@@ -57,6 +58,15 @@ exact basin of the reduced walker (in closed form) and a full-order slice over s
 and one output rate (--basin-grid, --basin-sigma, --basin-rate); with --uncertainty FILE,
 --samples robots drawn from the file's distributions (reduced model): the fraction that walks
 and the spread of the converged speed.
+
+With --slope GAMMA [rad, positive uphill] everything is on a slope (SPEC 14): each strategy's
+orbit, reduced basin and controller, the trials (pushes given in the world frame, turned into
+the slope frame as simulate --slope turns them; ground forces tangential and normal to the
+slope) and the uncertainty samples; the JSON gains the slope block and each orbit its climb
+rate beside its speed along the ground. With --terrain FILE (docs/files.md, as simulate
+--terrain) every push and basin trial walks the file's step heights (the same ground for each;
+past its s_max without a touchdown a trial fell: missed footing), measured against the plane
+ground's orbit; the uncertainty samples (reduced model) do not walk it.
 
 Every trial is a point of the sweep engine (consecutive trials share a task): --workers local
 processes (default: one per core) or the Dask cluster of --scheduler. DIR is written
@@ -99,8 +109,8 @@ def run_robustness_command(
         max_thrust: float | None, basin_grid: int, basin_sigma: str, basin_rate: float,
         basin_joint: str | None, uncertainty: Path | None, samples: int, rtol: float,
         atol: float, workers: int | None, scheduler: str | None, out: Path, quiet: bool,
-        json: str | None = None, formats: set[str] | None = None, titles: bool = False
-) -> dict:
+        json: str | None = None, formats: set[str] | None = None, titles: bool = False,
+        slope: float = 0.0, terrain: Path | None = None) -> dict:
     """Plain function behind the command; returns the ``robustness.json`` document."""
     from ..files import output
     from ..studies.robustness import plan_robustness, run_robustness
@@ -131,7 +141,8 @@ def run_robustness_command(
         max_thrust=max_thrust, basin_grid=basin_grid, basin_sigma=sigma,
         basin_rate=basin_rate, basin_joint=basin_joint,
         uncertainty=str(uncertainty) if uncertainty is not None else None, samples=samples,
-        rtol=rtol, atol=atol)
+        rtol=rtol, atol=atol, slope=slope,
+        terrain=None if terrain is None else str(terrain))
     warn(plan.warnings)
     folder = output.SweepFolder(out, {"identity": plan.identity, "sweep": "robustness",
                                       "file": f"{walker.robot.name} / {walker.gait.name}",
@@ -194,7 +205,8 @@ def _table(doc: dict) -> None:
                      fmt(sl["converging_fraction"], ".0%") if sl else "—",
                      fmt(un["success_rate"], ".0%") if un else "—",
                      f"{speed['mean']:.3f} ± {speed['std']:.3f}" if speed else "—"])
-    show_table(f"robustness: {doc['robot']['name']} / {doc['gait']['name']}",
+    on = f", on the slope {doc['slope']['angle']:.4g} rad" if doc.get("slope") else ""
+    show_table(f"robustness: {doc['robot']['name']} / {doc['gait']['name']}{on}",
                [("strategy", False), ("reduced basin\n[zeta*]", False), ("pushes\nrecovered",
                                                                           True),
                 ("forward\n[N s]", True), ("backward\n[N s]", True), ("summary\n[N s]", True),
@@ -269,6 +281,10 @@ def register(app: typer.Typer) -> None:
                         ] = 1e-9,
         atol: Annotated[float, typer.Option("--atol", help="Absolute integration tolerance.")
                         ] = 1e-9,
+        slope: SlopeOpt = 0.0,
+        terrain: Annotated[Path | None, typer.Option(
+            "--terrain", help="Terrain file (YAML, docs/files.md) every trial walks: a slope "
+                              "and step heights (explicit or rough, seeded).")] = None,
         workers: Annotated[int | None, typer.Option(
             "--workers", help="Local worker processes (default: one per core; 1 runs in "
                               "this process).")] = None,
@@ -294,6 +310,6 @@ def register(app: typer.Typer) -> None:
                 basin_rate=basin_rate, basin_joint=basin_joint, uncertainty=uncertainty,
                 samples=samples, rtol=rtol, atol=atol, workers=workers, scheduler=scheduler,
                 out=out, quiet=quiet, json=json, formats=parse_formats(formats),
-                titles=titles)
+                titles=titles, slope=slope, terrain=terrain)
             if doc["counts"]["not_run"]:
                 raise typer.Exit(1)

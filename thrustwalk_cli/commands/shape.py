@@ -30,6 +30,7 @@ from .options import (
     OutOpt,
     QuietOpt,
     RobotArg,
+    SlopeOpt,
     TitlesOpt,
 )
 
@@ -73,7 +74,7 @@ def _number(text: str | None, option: str, unit: str) -> float | None:
 
 def run_shape(robot: str | None, gait: str | None, request: ShapeRequest, out: Path,
               quiet: bool, *, json: str | None = None, formats: set[str] | None = None,
-              titles: bool = False, max_output: float = 100.0) -> dict:
+              titles: bool = False, max_output: float = 100.0, slope: float = 0.0) -> dict:
     """Plain function behind the command; returns the JSON document it wrote.
 
     Exit 1 (after writing shape.json with the reason) when no shape-only knots exist or a
@@ -86,7 +87,7 @@ def run_shape(robot: str | None, gait: str | None, request: ShapeRequest, out: P
     walker = load_walker(robot, gait)
     with progress("shaped limit cycles", schedule_count(walker, request), quiet) as advance:
         result = shape(walker, **request.keywords(), progress=advance,
-                       max_output=max_output * 1e6)
+                       max_output=max_output * 1e6, slope=slope)
     if result.base is not None and not quiet:
         warn(["the gait has a constant thrust: the patterns are shaped around it and the "
               "nominal orbit is the gait's own"])
@@ -194,6 +195,7 @@ def register(app: typer.Typer) -> None:
         formats: FormatsOpt = "csv,png,pdf",
         titles: TitlesOpt = False,
         max_output: MaxOutputOpt = 100.0,
+        slope: SlopeOpt = 0.0,
         quiet: QuietOpt = False,
     ) -> None:
         with cli_errors(ctx):
@@ -209,7 +211,7 @@ def register(app: typer.Typer) -> None:
                 target_speed=_number(target_speed, "--target-speed", "m/s"))
             doc = run_shape(robot, gait, req, out, quiet, json=json,
                             formats=parse_formats(formats), titles=titles,
-                            max_output=max_output)
+                            max_output=max_output, slope=slope)
             if not doc["success"] and not doc.get("schedules"):  # nothing could be shaped
                 import sys
 

@@ -33,9 +33,11 @@ import numpy as np
 from ..contact.evaluate import friction_ratio
 from ..hzd.extrema import golden_min, grid_miss, neighbours, peaks
 from ..hzd.zero_dynamics import ZeroDynamics
+from ..simulation import kernel as K
 from ..simulation.batch import push_row
 from ..simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel
 from ..simulation.full_order import Start, initial_state
+from ..simulation.records import behind_level, missed_footing
 from ..simulation.stepper import Stepper, failure_text, step_record
 from ..thrust.dynamics import ThrusterDynamics
 from ..thrust.schedule import Schedule
@@ -86,6 +88,7 @@ class StepLog:
     #: what the step's energies are computed from (``energetics.run.run_energy``): the
     #: step's closed loop with its own thrust and ``(step, pieces, q^-, q'^-)``
     energy_input: tuple | None = field(default=None, repr=False)
+    terrain_height: float = 0.0  # [m] the ground the step landed on (SPEC 14; 0: level)
 
 
 @dataclass
@@ -113,11 +116,15 @@ def run_loop(plant: ZeroDynamics, planner: Planner | None, *, label: str, steps:
              dynamics: ThrusterDynamics | None, f0: float = 0.0, pushes: tuple[Push, ...] = (),
              noise: float = 0.0, seed: int = 0, config: SimConfig = SimConfig(),
              t_max: float = 10.0, mu: float = 0.7, eps: float = 0.0,
-             progress=None) -> Run:
+             progress=None, heights=None) -> Run:
     """Run ``steps`` steps of the plant from the post-impact state of ``zeta^- = x0`` on Z;
     ``planner`` None: the uncontrolled walker (all thrust setpoints 0). ``refs[k-1]``: the
     reference for ``x_{k+1}`` [kg^2 m^4/s^2]; ``dynamics``: the plant's thruster dynamics (None:
-    ideal thrust on ``knots``)."""
+    ideal thrust on ``knots``). ``heights``: the terrain (SPEC 14), step ``k``'s swing foot
+    landing ``heights[k - 1]`` [m] above its stance foot (the guard; past ``config.max_s``
+    without touching the ground: ``missed_footing``), None: level ground; the planner's step
+    model stays that of level (or sloped) ground and sees each step through its measured
+    zeta^-."""
     model = plant.model
     m = model.n_thrusters
     md = len(driven)
@@ -129,7 +136,8 @@ def run_loop(plant: ZeroDynamics, planner: Planner | None, *, label: str, steps:
     else:
         th = ThrustModel(dynamics.kind, np.zeros(m), initial=np.full(m, f0), dynamics=dynamics)
     cfg = SimConfig(steps=1, rtol=config.rtol, atol=config.atol, scuff_tol=config.scuff_tol,
-                    min_impact_s=config.min_impact_s, torque_limit=config.torque_limit)
+                    min_impact_s=config.min_impact_s, torque_limit=config.torque_limit,
+                    max_s=config.max_s)
     cl = ClosedLoop(plant, th, cfg)
     stepper = Stepper(cl, t_max, dense=True)
     seg_int = segment_intervals(cl, knots, plant) if dynamics is None else None
@@ -166,9 +174,13 @@ def run_loop(plant: ZeroDynamics, planner: Planner | None, *, label: str, steps:
             stepper.set_thrust(target=target)
         push = next((p for p in pushes if p.step == k), None)
         row = None if push is None else push_row(model, k, push.s, push.impulse)
-        res = stepper.step(k, t, x, push=row)
+        h = 0.0 if heights is None else float(heights[k - 1])
+        res = stepper.step(k, t, x, push=row, ground=h, behind=behind_level(heights, k))
         if res.status != 0:
             kind, text = failure_text(res.outcome, cfg, t_max)
+            if (heights is not None and int(res.outcome[K.O_STATUS]) == K.FAIL_EVENT
+                    and int(res.outcome[K.O_EVENT]) == K.EV_OVERSHOOT):
+                kind, text = missed_footing(cfg.max_s, h, res.outcome[K.O_T])
             return Run(label, False, kind, f"step {k}: {text}", logs)
         rec = step_record(res.record, N, nz, m)
         length = float(model.p_swing(np.asarray(rec.q_minus))[0])
@@ -179,7 +191,7 @@ def run_loop(plant: ZeroDynamics, planner: Planner | None, *, label: str, steps:
             speed=length / rec.step_time, min_vertical_force=rec.min_vertical_force,
             max_friction_ratio=rec.max_friction_ratio,
             impact_friction_ratio=rec.impulse_friction_ratio, pushed=push is not None,
-            thrust_at_impact=np.asarray(rec.thrust_at_impact, float))
+            thrust_at_impact=np.asarray(rec.thrust_at_impact, float), terrain_height=h)
         step_cl = _sample(log, res.pieces, plant, th, u, knots, driven, dynamics, cfg,
                           None if plan is None else (eps, mu))
         log.energy_input = (step_cl, (k, res.pieces, rec.q_minus, rec.dq_minus))

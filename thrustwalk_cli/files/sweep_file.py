@@ -7,10 +7,15 @@ as ``file:line: key.path: message`` (all of them, not only the first); the key t
 ``docs/files.md`` are generated from ``sweep_schema`` and ``STUDY_PARAMETERS``. Checks that
 need the robot, the gait or the study's result fields are made by the sweep study, at the
 lines kept by :class:`SweepSource`.
+
+One idea in one file: the sweep-file format, whose keys are the study parameter tables (every
+study's settings and sweepable axes, read and checked by the same loader); split, the format
+and its keys would live apart.
 """
 
 from __future__ import annotations
 
+import math
 import os
 import re
 from dataclasses import replace
@@ -90,6 +95,21 @@ _STRATEGY = (
           "below it is lifted)", default=0.0),
 )
 
+# the ground angle of a point (SPEC 14); a slope of 0 is level ground and is left out of a
+# sweep's settings (:func:`keyed`), so the keys of level-ground points do not change
+_SLOPE = field("slope", number("rad", gt=-0.5 * math.pi, lt=0.5 * math.pi), "ground angle, "
+               "positive uphill (SPEC 14: gravity and world-frame thrusters turned into the "
+               "slope frame; speed along the ground); 0: level ground", default=0.0)
+LEVEL = {"slope": 0.0, "terrain": None}  # left out of a point's settings at these values
+
+
+def keyed(settings: dict[str, Any]) -> dict[str, Any]:
+    """``settings`` without the parameters at their level-ground value (:data:`LEVEL`): a
+    sweep or trial on level ground keeps the settings, keys and identity it had before the
+    parameter existed."""
+    return {k: v for k, v in settings.items() if not (k in LEVEL and v == LEVEL[k])}
+
+
 STUDY_PARAMETERS: dict[str, Kind] = {
     "limit-cycle": mapping(
         _THRUSTER,
@@ -99,6 +119,7 @@ STUDY_PARAMETERS: dict[str, Kind] = {
         _MU,
         field("min_vertical_force", number("N", ge=0), "least vertical ground force F^v of "
               "the contact check (walkable needs it)", default=0.0),
+        _SLOPE,
     ),
     "feasibility": mapping(
         _THRUSTER,
@@ -108,6 +129,7 @@ STUDY_PARAMETERS: dict[str, Kind] = {
         _MU,
         field("min_vertical_force", number("N", ge=0), "least vertical ground force F^v",
               default=0.0),
+        _SLOPE,
     ),
     "simulate": mapping(
         _THRUSTER,
@@ -140,6 +162,7 @@ STUDY_PARAMETERS: dict[str, Kind] = {
               "(solve_ivp, the reference)", default="compiled"),
         field("rtol", number("1", gt=0, lt=0.1), "relative integration tolerance", default=1e-9),
         field("atol", number("1", gt=0, lt=0.1), "absolute integration tolerance", default=1e-9),
+        _SLOPE,
     ),
     "push-trial": mapping(
         *_STRATEGY,
@@ -171,9 +194,18 @@ STUDY_PARAMETERS: dict[str, Kind] = {
         field("rtol", number("1", gt=0, lt=0.1), "relative integration tolerance",
               default=1e-9),
         field("atol", number("1", gt=0, lt=0.1), "absolute integration tolerance", default=1e-9),
+        _SLOPE,
+        field("terrain", null_or(mapping(
+            field("heights", vector(unit="m", min_len=1, max_len=1000, ge=-1, le=1),
+                  "step k's swing foot lands heights[k-1] above its stance foot, normal to "
+                  "the slope"),
+            field("s_max", number("1", gt=1, le=3), "past this s without a touchdown: missed "
+                  "footing (the trial fell)", default=1.3))), "the ground the trial walks "
+              "(SPEC 14; none: level)", default=None),
     ),
     "reduced-walk": mapping(
         *_STRATEGY,
+        _SLOPE,
         field("points", integer("1", ge=21, le=10_000), "alpha grid points of the contact "
               "conditions", default=401),
     ),
@@ -204,6 +236,7 @@ STUDY_PARAMETERS: dict[str, Kind] = {
               "peak max |u| [N m]", default="effort"),
         field("continuation", boolean(), "start each design from its finished neighbour along "
               "the last grid axis (the first grid axis links the chains)", default=True),
+        _SLOPE,
     ),
 }
 STUDIES = tuple(STUDY_PARAMETERS)
@@ -555,7 +588,7 @@ def load_sweep_file(ref: str | Path, robot: str | None = None, gait: str | None 
         robot_text=read_source(robot_path, "robot"),
         gait=None if gait_path is None else str(gait_path),
         gait_text=None if gait_path is None else read_source(gait_path, "gait"),
-        settings=tuple(sorted(settings.items())), axes=tuple(axes),
+        settings=tuple(sorted(keyed(settings).items())), axes=tuple(axes),
         collect=tuple(d["collect"]), samples=rnd["samples"] if rnd_axes else 0,
         seed=rnd["seed"] if rnd_axes else 0, description=d["description"],
         source_file=str(path), source_sha256=doc.sha256)

@@ -48,6 +48,17 @@ class PushPoint:
         return float(value) * np.asarray(self.direction, float)
 
 
+def world_to_slope(P: np.ndarray, gamma: float) -> np.ndarray:
+    """A world-frame vector ``P`` (an impulse [N s]) in the frame of the slope ``gamma`` [rad,
+    positive uphill] (SPEC 14): ``Rot(-gamma) P``; ``P`` itself on level ground (as
+    :func:`~thrustwalk_cli.simulation.batch.push_row` turns the push it applies)."""
+    P = np.asarray(P, float)
+    if gamma == 0.0:
+        return P
+    c, s = np.cos(gamma), np.sin(gamma)
+    return np.array([c * P[0] + s * P[1], c * P[1] - s * P[0]])
+
+
 def push_point(model: CompiledModel, link: str | None = None, at: float = 1.0,
                direction=(1.0, 0.0)) -> PushPoint:
     """The push point (default: the end of the stance link, the hip of the bundled robots) and

@@ -51,9 +51,9 @@ from ..simulation import kernel as K
 from ..simulation.batch import FIELDS, push_row
 from ..simulation.closed_loop import ClosedLoop, SimConfig
 from ..simulation.full_order import Start, initial_state
-from ..simulation.records import EVENT_REASONS
+from ..simulation.records import EVENT_REASONS, behind_level, missed_footing
 from ..simulation.stepper import Stepper, failure_text, first_times, push_state, step_record
-from .push import PushPoint, check_push, stance_impulse
+from .push import PushPoint, check_push, stance_impulse, world_to_slope
 from .strategy import Realized
 
 OUTCOMES = ("recovered", "unsettled", "fell", "slipped", "lifted", "scuffed", "stopped",
@@ -154,19 +154,26 @@ class TrialRunner:
     ``output_tol`` [rad]: the recovery test; ``transverse``: index of the actuated coordinate
     whose rate a basin trial perturbs; ``duration`` [s]: the push's duration for the stance
     check (0: impulsive, SPEC 12; > 0: the stance force just before the push over it is
-    added to the reaction)."""
+    added to the reaction). ``heights``: the terrain (SPEC 14): step ``k``'s swing foot lands
+    ``heights[k - 1]`` [m] above its stance foot (level ground after the list; None: level
+    ground), past ``s_max`` without a touchdown the trial ``fell`` (missed footing)."""
 
     def __init__(self, zd: ZeroDynamics, realized: Realized, point: PushPoint, *,
                  steps: int = 10, mu: float = 0.7, eps: float = 0.0,
                  recovery_tol: float = 0.05, output_tol: float = 1e-3, rtol: float = 1e-9,
-                 atol: float = 1e-9, transverse: int = 0, duration: float = 0.0):
+                 atol: float = 1e-9, transverse: int = 0, duration: float = 0.0,
+                 heights=None, s_max: float | None = None):
         self.zd, self.r, self.point = zd, realized, point
+        self.heights = None if heights is None else tuple(  # level ground after the list
+            float(h) for h in list(heights)[:int(steps)] + [0.0] * max(0, int(steps) -
+                                                                       len(heights)))
         self.model = zd.model
         self.steps, self.mu, self.eps = int(steps), float(mu), float(eps)
         self.recovery_tol, self.output_tol = float(recovery_tol), float(output_tol)
         self.transverse, self.duration = int(transverse), float(duration)
         self.config = SimConfig(steps=1, rtol=rtol, atol=atol, cone_mu=self.mu,
-                                cone_eps=self.eps)
+                                cone_eps=self.eps,
+                                **({} if s_max is None else {"max_s": float(s_max)}))
         self.cl = ClosedLoop(zd, realized.thrust, self.config)
         ts = realized.cycle.step_time if realized.cycle.exists else None
         self.t_max = 10.0 * ts if ts else 10.0
@@ -202,7 +209,8 @@ class TrialRunner:
         if trial.impulse == 0.0:
             return None, "", ""
         zd, N = self.zd, self.model.n
-        P = self.point.impulse(trial.impulse)
+        P = world_to_slope(self.point.impulse(trial.impulse),
+                           float(getattr(self.model, "slope", 0.0)))
         if at is None:
             s = min(trial.phase, LAST_PHASE)
             alpha = zd.alpha_i + s * (zd.alpha_f - zd.alpha_i)
@@ -217,7 +225,8 @@ class TrialRunner:
         if self.duration > 0:
             stance = self._orbit_force(alpha) if at is None else self._state_force(at[1])
         chk = check_push(F, self.mu, stance, self.duration)
-        rec = {"impulse": P.tolist(), "reaction": list(chk.impulse), "ratio": chk.ratio,
+        rec = {"impulse": self.point.impulse(trial.impulse).tolist(),
+               "reaction": list(chk.impulse), "ratio": chk.ratio,
                "phase": trial.phase, "phase_applied": s, "time": t_push,
                "state": "orbit (predicted)" if at is None else "simulated",
                "applied": at is not None, "link": self.point.link, "at": self.point.at,
@@ -269,7 +278,9 @@ class TrialRunner:
                 seg_force[:, r.driven] = per[self.seg_int]
                 self.stepper.set_thrust(seg_force=seg_force)
                 u_prev = plan.u
-            res = self.stepper.step(k, t, x, push=row if k == 1 else None)
+            h = 0.0 if self.heights is None else self.heights[k - 1]
+            res = self.stepper.step(k, t, x, push=row if k == 1 else None, ground=h,
+                                    behind=behind_level(self.heights, k))
             # the events of this step, in time: (t, tie order, outcome, reason, phase)
             events = []
             if k == 1 and row is not None:
@@ -290,6 +301,10 @@ class TrialRunner:
             if res.status != 0:
                 kind, text = failure_text(res.outcome, self.config, self.t_max)
                 out = _failure_outcome(kind, text)
+                if (self.heights is not None and int(res.outcome[K.O_STATUS]) == K.FAIL_EVENT
+                        and int(res.outcome[K.O_EVENT]) == K.EV_OVERSHOOT):
+                    out, text = "fell", missed_footing(self.config.max_s, h,
+                                                       res.outcome[K.O_T])[1]
                 if out == "error":
                     text = f"the trial could not be computed ({kind}): {text}"
                 events.append((float(res.outcome[K.O_T]), 3, out, text,

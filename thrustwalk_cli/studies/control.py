@@ -20,6 +20,8 @@ the command) and the mismatch of each of its steps is reported. Units SI.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -42,18 +44,21 @@ from ..controller.planner import (
 )
 from ..controller.references import SpeedReference, reference_values, speed_references
 from ..controller.step_model import IdealThrust, ResponseThrust, Terms
+from ..description.terrain import Terrain
 from ..errors import (
     InputError,
     check_callable,
     check_choice,
     check_count,
     check_flag,
+    check_instance,
     check_number,
     check_number_map,
     check_numbers,
     check_pushes,
     check_texts,
 )
+from ..files.terrain_file import load_terrain
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..model.slope import check_slope
 from ..simulation.closed_loop import MAX_STEPS, SimConfig, check_thruster_rate
@@ -161,7 +166,8 @@ def control(walker: Walker, *, reference: str = "speed",
             effort_weight: float = 1.0, rate_weight: float = 0.0, terms: str = "exact",
             fit_tol: float = 1e-3, points: int = 401, zeta0: float | None = None,
             compare: bool = True, progress: Callable[[int], None] | None = None,
-            check_only: bool = False, slope: float = 0.0) -> ControlResult | None:
+            check_only: bool = False, slope: float = 0.0,
+            terrain: str | Path | Terrain | None = None) -> ControlResult | None:
     """Step-to-step thrust control (SPEC 11) in closed loop with the full-order simulation.
 
     ``reference``: ``speed`` [m/s], ``zeta`` [kg^2 m^4/s^2] (``profile`` of ``(step, value)``,
@@ -184,9 +190,24 @@ def control(walker: Walker, *, reference: str = "speed",
     ``slope`` [rad, positive uphill, |slope| < pi/2]: the ground angle (SPEC 14): the model,
     the step map, the contact terms and the simulated plant in the slope frame (a push's
     impulse stays in the world frame); speeds are along the ground; 0: level ground.
+    ``terrain``: a terrain file (path) or :class:`~thrustwalk_cli.description.terrain.Terrain`
+    (SPEC 14, as ``simulate``'s): its slope (unless ``slope`` is given: not both) and the
+    height ``h_k`` [m] each step of the plant lands on (the guard, step-downs on the continued
+    virtual constraints up to its ``s_max``, past it ``missed_footing``); the controller's step
+    model is that of the plane (level or sloped) ground and meets the steps through the
+    measured zeta^-. Every step records its ``terrain_height``, the settings the terrain.
     """
     check_walker(walker)
-    walker = walker.on_slope(check_slope(slope))
+    slope = check_slope(slope)
+    if terrain is not None and not isinstance(terrain, Terrain):
+        check_instance("terrain", terrain, (str, Path), "a terrain file's path or a Terrain")
+        terrain = load_terrain(terrain)
+    if terrain is not None and terrain.slope != 0.0:
+        if slope != 0.0 and slope != terrain.slope:
+            raise InputError.param(("slope", "terrain"), f"the terrain sets the slope "
+                                   f"({terrain.slope:g} rad): give the slope once")
+        slope = check_slope(terrain.slope)
+    walker = walker.on_slope(slope)
     check_choice("reference", reference, REFERENCES)
     profile = _check_profile_pairs(profile)
     ramp = check_flag("ramp", ramp)
@@ -317,10 +338,15 @@ def control(walker: Walker, *, reference: str = "speed",
             refs = np.array([speed_plan[float(v)].zeta_minus for v in vals])
     plant, plant_doc = _plant(walker, dict(plant_scale or {}))
     cfg = SimConfig(steps=1)
+    heights = None
+    if terrain is not None:
+        cfg = replace(cfg, max_s=terrain.s_max)
+        heights = tuple(float(h) for h in terrain.heights(steps))
     t_max = 10.0 * float(lc0.step_time)
     common = dict(steps=steps, x0=zs0 if zeta0 is None else float(zeta0), knots=kn,
                   driven=driven, dynamics=dyn, pushes=tuple(pushes), config=cfg,
-                  t_max=t_max, mu=mu, eps=float(min_vertical_force), progress=progress)
+                  t_max=t_max, mu=mu, eps=float(min_vertical_force), progress=progress,
+                  heights=heights)
     if zeta0 is not None and not zeta0 > 0:
         raise InputError.param("zeta0", f"must be > 0 kg^2 m^4/s^2 (got {zeta0:g})")
     controlled = run_loop(plant, planner, label="controlled", refs=refs, noise=noise,
@@ -363,6 +389,7 @@ def control(walker: Walker, *, reference: str = "speed",
         **({"nominal_climb_rate": climb_rate(float(lc0.speed), walker.slope)}
            if walker.slope != 0.0 else {}),
         "integrator": {"method": "compiled DOP853", "rtol": cfg.rtol, "atol": cfg.atol},
+        **({"terrain": terrain.record()} if terrain is not None else {}),
         "tracked": "speed" if reference == "speed" else "zeta_minus",
         "speed_reference": None if speed_refs is None else {
             "method": "zeta^- reference = the zeta^- of the controller's own steady state "

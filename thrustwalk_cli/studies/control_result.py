@@ -159,6 +159,7 @@ class ControlResult:
                    "cutting_planes_alpha": [float(a) for a in p.cut_alpha],
                    "polish_time": p.polish_time},
             "pushed": s.pushed,
+            **({"terrain_height": s.terrain_height} if "terrain" in self.settings else {}),
             "predicted": {**{k: _finite(v) if isinstance(v, float) else v
                              for k, v in s.predicted.items()}, "step_time": p.step_time},
             "realised": {**s.realised, "impact_friction_ratio": s.impact_friction_ratio},
@@ -230,6 +231,8 @@ class ControlResult:
         ncmd = len(self.controlled.steps[0].u) if self.controlled.steps else 0
         header += [col(f"command_{i}", "N") for i in range(ncmd)]
         header += [col(f"mean_thrust_{n}", "N") for n in names]
+        terrain = "terrain" in self.settings
+        header += [col("terrain_height", "m")] if terrain else []
         rows = []
         for e, s in zip(self.document()["steps"], self.controlled.steps):
             rows.append([e["step"], e["t_start"], e["reference"]["zeta_minus"],
@@ -245,7 +248,8 @@ class ControlResult:
                          e["certificate"]["certified"], e["certificate"]["flagged"],
                          e["certificate"]["max_force_outside_bound"]]
                         + [float(v) for v in s.u]
-                        + [e["thrust_delivered"]["mean"][n] for n in names])
+                        + [e["thrust_delivered"]["mean"][n] for n in names]
+                        + ([e["terrain_height"]] if terrain else []))
         return {"control_steps": Table(header, rows, [
             "thrustwalk control: one row per controlled step (zeta^- measured at the impact "
             "that starts it, zeta_minus_end at the impact that ends it)",

@@ -5,6 +5,7 @@ the gait file text (with a header recording how it was made) and the reload chec
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from functools import cached_property
@@ -22,9 +23,10 @@ from ..files.gait_file import bind_gait, gait_text, load_gait_text, same_robot_f
 from ..hzd.constraints import apply_invariance
 from ..hzd.zero_dynamics import limit_cycles, zero_dynamics
 from ..model.compiled import CompiledModel
+from ..model.slope import check_slope, slope_model
 from ..thrust.schedule import Schedule
 from ..walker import Walker, as_model, check_walker
-from .documents import SCHEMA_VERSION, Table, col, result_repr, units
+from .documents import SCHEMA_VERSION, Table, climb_rate, col, result_repr, slope_record, units
 
 
 # ------------------------------------------------------------------------------ records
@@ -246,9 +248,23 @@ class DesignGaitResult:
                "robot": {"name": rob.name, "file": rob.source_file},
                "thrusters": rob.thruster_names, **report_record(self.design),
                "energy": self.energy_record()}
+        gamma = self.slope
+        if gamma != 0.0:  # SPEC 14: which slope the design holds for, the climb rate
+            doc["units"] = {**doc["units"], "slope": "rad", "climb_rate": "m/s"}
+            doc = {**doc, "slope": slope_record(gamma)}
+            orbit = doc.get("fixed_point")
+            if isinstance(orbit, dict) and "speed" in orbit:
+                doc["fixed_point"] = {**orbit,
+                                      "climb_rate": climb_rate(orbit["speed"], gamma)}
         if self.compare is not None:
             doc["compare"] = self.compare
         return doc
+
+    @property
+    def slope(self) -> float:
+        """The ground angle [rad, positive uphill] the gait is designed for (SPEC 14; 0:
+        level ground)."""
+        return float(getattr(self.model, "slope", 0.0))
 
     @property
     def warnings(self) -> tuple[str, ...]:
@@ -269,6 +285,14 @@ class DesignGaitResult:
             if failure is None:
                 raise
             head.append(f"Every margin and the fixed point: {report_name}.")
+        if self.slope != 0.0:
+            g = self.slope
+            v = self.design.check.get("orbit", {}).get("speed")
+            climb = "" if v is None else f", climb rate {climb_rate(v, g):.4g} m/s"
+            head.insert(1 if failure is None else 2, (
+                f"Designed for the slope {g!r} rad ({math.degrees(g):.4g} deg, positive "
+                f"uphill; SPEC 14): speed and step length along the ground{climb}. Re-check: "
+                "thrustwalk limit-cycle with this file on that slope."))
         return gait_yaml(self.design, self.model, robot_ref, head)
 
     def tables(self) -> dict[str, Table]:
@@ -342,15 +366,23 @@ def stick_frames(model: CompiledModel, gait: Gait, instants: int = 10,
 def design_gait(robot: Robot | CompiledModel | Walker, spec: DesignSpec, *,
                 compare: Walker | None = None,
                 progress: Callable[[int, int, str], None] | None = None,
-                initial: WarmStart | None = None) -> DesignGaitResult:
+                initial: WarmStart | None = None, slope: float = 0.0) -> DesignGaitResult:
     """Design a gait for ``robot`` (:func:`solve_design`, SPEC 2, 3, 5) and optionally
     evaluate an existing gait (``compare``) with the same objective and constraints.
     ``robot``: a :class:`Robot` (compiled by :func:`load_model`, cached by structure), its
     :class:`CompiledModel`, or a :class:`Walker` (its robot; its gait is not a start: pass it
     as ``compare`` to evaluate it). ``progress(done, total, message)`` after every solver
     start. ``initial``: a finished neighbouring design to start from (continuation; replaces
-    the default start)."""
+    the default start). ``slope`` [rad, positive uphill, |slope| < pi/2]: design for that
+    ground (SPEC 14): the design problem's gravity terms, world-frame thrusters and contact
+    terms are those of the slope frame (:func:`~thrustwalk_cli.model.slope.slope_model`; the
+    kinematics, the impact and the guard do not change), so the designed orbit walks the slope
+    at the target speed along the ground; the report gains the ``slope`` block and the fixed
+    point its climb rate, the gait file's header the slope. 0: level ground, bit for bit."""
     robot = as_model(robot, "robot")
+    slope = check_slope(slope)
+    if slope != 0.0:
+        robot = slope_model(robot, slope)
     check_instance("spec", spec, DesignSpec, "a DesignSpec (tw.DesignSpec(speed=...))")
     if compare is not None:
         check_walker(compare, "compare")

@@ -20,10 +20,11 @@ from ..errors import (
 from ..files.gait_file import gait_text, robot_reference
 from ..hzd.zero_dynamics import LimitCycle
 from ..model.compiled import CompiledModel
+from ..model.slope import check_slope
 from ..optimize.min_effort import OptimalSchedule, describe, optimize
 from ..optimize.min_energy import MAX_SCP, TOL_SCP, check_power, objective_quantity, optimize_energy
 from ..walker import Walker, check_walker
-from .documents import SCHEMA_VERSION, result_repr, units
+from .documents import SCHEMA_VERSION, climb_rate, result_repr, slope_record, units
 
 
 def result_record(res: OptimalSchedule, model: CompiledModel) -> dict:
@@ -118,6 +119,12 @@ def gait_yaml(gait, robot, res: OptimalSchedule, model: CompiledModel) -> str:
               f"{what}; zeta* = {res.cycle.zeta_star!r} kg^2 m^4/s^2, speed "
               f"{res.cycle.speed!r} m/s.",
               "Bezier columns 0 and 1 were computed for hybrid invariance; written out in full."]
+    gamma = float(getattr(model, "slope", 0.0))
+    if gamma != 0.0:
+        header.insert(2, f"Optimized for the slope {gamma!r} rad (positive uphill; SPEC 14): "
+                         f"speed along the ground, climb rate "
+                         f"{climb_rate(res.cycle.speed, gamma)!r} m/s. Re-check: thrustwalk "
+                         "limit-cycle with this file on that slope.")
     return gait_text(replace(gait, name=f"{gait.name}_optimal"), robot,
                      robot_ref=robot_reference(robot), header=header, invariance="given",
                      description=f"{gait.name} with {'an' if kind[0] == 'e' else 'a'} {kind} "
@@ -179,16 +186,24 @@ class OptimizeResult:
         if self.energy is not None:
             extra = {"objective_details": self.energy}
             obj_unit = self.energy["unit"]
-        return {"schema_version": SCHEMA_VERSION,
-                "units": units("zeta", "speed", "step_time", "alpha", "force",
-                               "friction_ratio", values=unit, objective=obj_unit),
-                "robot": {"name": w.robot.name, "file": w.robot.source_file},
-                "gait": {"name": w.gait.name, "file": w.gait.source_file},
-                "success": self.success, "reason": self.reason,
-                "warnings": list(w.warnings),
-                "mu": self.mu, "min_vertical_force": self.eps,
-                "zeta_min": self.zeta_min if self.zeta_min is not None else "1 % of zeta*",
-                **result_record(self.schedule, w.model), **extra, "files": self.files}
+        if w.slope != 0.0:  # SPEC 14: the slope it holds for, the climb rate beside the speed
+            extra["slope"] = slope_record(w.slope)
+            obj_unit = {"objective": obj_unit, "slope": "rad", "climb_rate": "m/s"}
+        else:
+            obj_unit = {"objective": obj_unit}
+        doc = {"schema_version": SCHEMA_VERSION,
+               "units": units("zeta", "speed", "step_time", "alpha", "force",
+                              "friction_ratio", values=unit, **obj_unit),
+               "robot": {"name": w.robot.name, "file": w.robot.source_file},
+               "gait": {"name": w.gait.name, "file": w.gait.source_file},
+               "success": self.success, "reason": self.reason,
+               "warnings": list(w.warnings),
+               "mu": self.mu, "min_vertical_force": self.eps,
+               "zeta_min": self.zeta_min if self.zeta_min is not None else "1 % of zeta*",
+               **result_record(self.schedule, w.model), **extra, "files": self.files}
+        if w.slope != 0.0 and "speed" in doc:
+            doc["climb_rate"] = climb_rate(doc["speed"], w.slope)
+        return doc
 
     def tables(self) -> dict:
         return {}
@@ -228,7 +243,8 @@ def optimize_schedule(walker: Walker, *, knots: list[float] = (0.0, 0.25, 0.5, 0
                       max_thrust: float | None = None, mu: float | None = None,
                       min_vertical_force: float = 0.0, zeta_min: float | None = None,
                       thruster: str | None = None, mode: str = "force",
-                      weights: str = "alpha", objective: str = "effort") -> OptimizeResult:
+                      weights: str = "alpha", objective: str = "effort",
+                      slope: float = 0.0) -> OptimizeResult:
     """The minimum-effort schedule (SPEC 6) on ``knots`` (fractions of the step) reaching
     ``target_zeta`` [kg^2 m^4/s^2] or ``target_speed`` [m/s], with ``|x_j| <= max_thrust``
     [N, or N m in generalized mode], the friction cone ``mu`` (default: the gait's), vertical
@@ -241,8 +257,15 @@ def optimize_schedule(walker: Walker, *, knots: list[float] = (0.0, 0.25, 0.5, 0
     heating value) under the same constraints (SPEC 15, :mod:`..optimize.min_energy`:
     sequential convex programming on the orbit's time weights, each convex problem solved
     exactly); its energy is re-computed by :func:`..energetics.orbit.orbit_energy` and
-    compared with the minimum-effort schedule's (``weights``: that schedule's)."""
+    compared with the minimum-effort schedule's (``weights``: that schedule's).
+
+    ``slope`` [rad, positive uphill, |slope| < pi/2]: the ground angle (SPEC 14,
+    :meth:`Walker.on_slope`): the SPEC 6 problem of the slope frame (its fixed-point equation
+    and contact terms explicit in cos/sin of the slope, world-frame thrusters turned); the
+    target speed is along the ground, the document gains the ``slope`` block and the climb
+    rate, the gait file's header the slope. 0: level ground, bit for bit."""
     check_walker(walker)
+    walker = walker.on_slope(check_slope(slope))
     check_choice("objective", objective, ("effort", "energy"))
     if isinstance(knots, (list, tuple)) and any(k is None for k in knots):
         raise InputError.param("knots", "free knots (?) are solved only by shape-only shaping "

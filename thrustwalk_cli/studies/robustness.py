@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..description.terrain import Terrain
 from ..description.uncertainty import Uncertainty
 from ..errors import (
     InputError,
@@ -49,8 +50,10 @@ from ..errors import (
 )
 from ..files.gait_file import load_gait
 from ..files.robot_file import load_robot_text
-from ..files.sweep_file import STUDY_PARAMETERS, read_source
+from ..files.sweep_file import STUDY_PARAMETERS, keyed, read_source
+from ..files.terrain_file import load_terrain
 from ..files.uncertainty_file import load_uncertainty
+from ..model.slope import check_slope
 from ..resilience.strategy import KINDS, Strategy, labels_unique, schedule_of_file
 from ..sweep.points import draw
 from ..sweep.runner import RunCounts, run_tasks
@@ -129,7 +132,8 @@ def plan_robustness(walker: Walker, *, push_impulse: Sequence[float] | None = No
                     basin_sigma: tuple[float, float] = (-0.8, 1.6), basin_rate: float = 0.5,
                     basin_joint: str | None = None,
                     uncertainty: str | Path | Uncertainty | None = None, samples: int = 100,
-                    rtol: float = 1e-9, atol: float = 1e-9) -> RobustnessPlan:
+                    rtol: float = 1e-9, atol: float = 1e-9, slope: float = 0.0,
+                    terrain: str | Path | Terrain | None = None) -> RobustnessPlan:
     """Check every option and key every trial (module docstring; parameters as the command's
     options, SI units): ``push_impulse`` [N s] signed along ``push_direction`` (default -30 to
     30 by 2), ``push_phase`` [1] in [0, 1] (default 0 to 1 by 0.05), ``strategy`` (default
@@ -142,8 +146,33 @@ def plan_robustness(walker: Walker, *, push_impulse: Sequence[float] | None = No
     +- of the rate of ``basin_joint``), ``uncertainty`` (a file or :class:`Uncertainty`) with
     ``samples`` draws, and the integrator tolerances. A push impulse is at most
     :meth:`~thrustwalk_cli.description.robot.Robot.push_bound` (10 m/s of the whole robot's
-    velocity)."""
+    velocity).
+
+    ``slope`` [rad, positive uphill, |slope| < pi/2]: the ground angle (SPEC 14,
+    :meth:`Walker.on_slope`): every strategy's orbit, reduced basin and controller, every push
+    and basin trial (the pushes stay in the world frame, turned into the slope frame as
+    ``simulate --slope`` turns them) and every uncertainty sample are on that slope; the
+    document gains the ``slope`` block and each orbit its climb rate. 0: level ground, bit for
+    bit (the trials' keys included).
+
+    ``terrain``: a terrain file (path) or :class:`~thrustwalk_cli.description.terrain.Terrain`
+    (SPEC 14, as ``simulate --terrain``): its slope (unless ``slope`` is given: not both) and
+    the step heights every push and basin trial walks (the same ground for every trial: step
+    ``k`` lands ``h_k`` above its stance foot; past the terrain's ``s_max`` without a
+    touchdown the trial ``fell``, missed footing). The strategies' orbits, basins and
+    controllers stay those of the plane ground (the reference the recovery is measured
+    against); the uncertainty samples (reduced model) do not walk the terrain."""
     check_walker(walker)
+    slope = check_slope(slope)
+    if terrain is not None and not isinstance(terrain, Terrain):
+        check_instance("terrain", terrain, (str, Path), "a terrain file's path or a Terrain")
+        terrain = load_terrain(terrain)
+    if terrain is not None and terrain.slope != 0.0:
+        if slope != 0.0 and slope != terrain.slope:
+            raise InputError.param(("slope", "terrain"), f"the terrain sets the slope "
+                                   f"({terrain.slope:g} rad): give the slope once")
+        slope = check_slope(terrain.slope)
+    walker = walker.on_slope(slope)
     push_impulse = check_numbers("push_impulse", push_impulse, optional=True, min_len=0,
                                  max_len=MAX_TRIALS)
     push_phase = check_numbers("push_phase", push_phase, optional=True, min_len=0,
@@ -244,19 +273,23 @@ def plan_robustness(walker: Walker, *, push_impulse: Sequence[float] | None = No
               "push_duration": float(push_duration), "transverse": basin_joint,
               "recovery_tol": float(recovery_tol), "output_tol": float(output_tol),
               "mu": mu, "min_vertical_force": float(min_vertical_force),
-              "rtol": float(rtol), "atol": float(atol)}
+              "rtol": float(rtol), "atol": float(atol),
+              **({"slope": slope} if slope != 0.0 else {})}
+    if terrain is not None:
+        common["terrain"] = {"heights": [float(h) for h in terrain.heights(int(steps))],
+                             "s_max": float(terrain.s_max)}
     # the strategies made concrete here: every problem before any trial (and the basins)
     realized, warnings = [], []
     from .trial_studies import check_strategy, trial_setup
 
     try:
-        trial_setup(walker, {**_defaults("push-trial"), **common})
+        trial_setup(walker, keyed({**_defaults("push-trial"), **common}))
     except InputError as exc:
         raise InputError([InputError.param(RENAMED.get(pr.params[0], pr.params[0]),
                                            pr.message).problems[0]
                           for pr in exc.problems]) from None
     for s in strategies:
-        p = {**_defaults("push-trial"), **common, **s.parameters()}
+        p = keyed({**_defaults("push-trial"), **common, **s.parameters()})
         for name, msg in check_strategy(walker, p):
             raise InputError.param(RENAMED.get(name, name), f"{s.label}: {msg}")
         real, _ = realized_strategy(walker, p)
@@ -292,7 +325,7 @@ def plan_robustness(walker: Walker, *, push_impulse: Sequence[float] | None = No
         where.append(at)
 
     for k, s in enumerate(strategies):
-        st = {**_defaults("push-trial"), **common, **s.parameters()}
+        st = keyed({**_defaults("push-trial"), **common, **s.parameters()})
         for i, ph in enumerate(phases):
             for j, P in enumerate(impulses):
                 add("push-trial", st, {"push_impulse": P, "push_phase": ph}, "push", (k, i, j))
@@ -301,9 +334,9 @@ def plan_robustness(walker: Walker, *, push_impulse: Sequence[float] | None = No
                 add("push-trial", st, {"start_sigma": sg, "start_rate": rt}, "basin", (k, i, j))
     if unc is not None:
         for k, s in enumerate(strategies):
-            st = {**_defaults("reduced-walk"), **{c: common[c] for c in ("mu",
-                                                                         "min_vertical_force")},
-                  **s.parameters()}
+            st = keyed({**_defaults("reduced-walk"),
+                        **{c: common[c] for c in ("mu", "min_vertical_force", "slope")
+                           if c in common}, **s.parameters()})
             for i in range(samples):
                 vals = {"sample": float(i), **{n: v[i] for n, v in draws.items()}}
                 add("reduced-walk", st, vals, "sample", (k, i, 0))
@@ -321,6 +354,11 @@ def plan_robustness(walker: Walker, *, push_impulse: Sequence[float] | None = No
                                                  "parameters": list(a.parameters),
                                                  "unit": a.unit} for a in unc.axes}},
                 "integrator": {"method": "compiled DOP853", "rtol": rtol, "atol": atol}}
+    if terrain is not None:
+        settings["terrain"] = {**terrain.record(), "heights": common["terrain"]["heights"]}
+        if unc is not None:
+            warnings.append("the uncertainty samples walk the reduced model on the plane "
+                            "ground: the terrain's steps are not in them")
     return RobustnessPlan(walker, tuple(strategies), tuple(realized), settings, impulses,
                           phases, sigmas, rates, unc, draws, tuple(tasks), tuple(kinds),
                           tuple(where), identity([t.key for t in tasks]), tuple(warnings))

@@ -27,7 +27,17 @@ from ..resilience.trials import OUTCOMES
 from ..sweep.runner import RunCounts
 from ..sweep.tasks import PointTask
 from ..walker import Walker
-from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import (
+    SCHEMA_VERSION,
+    Table,
+    climb_rate,
+    col,
+    gait_record,
+    result_repr,
+    robot_record,
+    slope_record,
+    units,
+)
 
 UNITS = units("impulse", "zeta", "speed", "force", "friction_ratio", "sigma_N", "output_rate",
               "output_y", "step_time", "delta_zero_sq", "alpha", phase="1", duration="s")
@@ -181,6 +191,9 @@ class RobustnessResult:
             "orbit": {"exists": bool(lc.exists), "reason": lc.reason,
                       "zeta_star": real.zeta_ref,
                       "speed": float(lc.speed) if lc.exists else None,
+                      **({"climb_rate": climb_rate(float(lc.speed) if lc.exists else None,
+                                                   p.walker.slope)}
+                         if p.walker.slope != 0.0 else {}),
                       "what": "the controller's reference (the zero-thrust orbit)"
                       if s.kind == "control" else "the strategy's own fixed point"},
             "reduced_basin": real.basin.document(),
@@ -335,9 +348,12 @@ class RobustnessResult:
         p, w = self.plan, self.plan.walker
         n_trials = sum(kd != "sample" for kd in p.kinds)
         return {
-            "schema_version": SCHEMA_VERSION, "units": UNITS,
+            "schema_version": SCHEMA_VERSION,
+            "units": ({**UNITS, "slope": "rad", "climb_rate": "m/s"} if w.slope != 0.0
+                      else UNITS),
             "success": self.success, "reason": self.reason, "warnings": self.warnings(),
             "robot": robot_record(w.zd), "gait": gait_record(w.zd),
+            **({"slope": slope_record(w.slope)} if w.slope != 0.0 else {}),
             "settings": p.settings, "definitions": DEFINITIONS,
             "strategies": [self.strategy_summary(k) for k in range(len(p.strategies))],
             "counts": {"trials": n_trials, "samples": len(p.kinds) - n_trials,

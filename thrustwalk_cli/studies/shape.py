@@ -35,6 +35,7 @@ from ..hzd.shaping import (
     solve_target_zeta,
 )
 from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, limit_cycles
+from ..model.slope import check_slope
 from ..thrust.schedule import MODES, Schedule, check_knots, knots_alpha, uniform_fractions
 from ..walker import Walker, check_walker
 from .shape_result import ShapeResult, around
@@ -218,7 +219,7 @@ def shape(walker: Walker, *deprecated_req: ShapeRequest,
           field_k: float | None = None, mode: str | None = None, thruster: str | None = None,
           target_zeta: float | None = None, target_speed: float | None = None,
           progress: Callable[[int], None] | None = None, max_output: float = 100e6,
-          **deprecated: ShapeRequest) -> ShapeResult:
+          slope: float = 0.0, **deprecated: ShapeRequest) -> ShapeResult:
     """Shape the limit cycle of ``walker`` (SPEC 4): resolve the schedule family, solve knots or
     targets, compute nominal and shaped limit cycles and the shifts.
 
@@ -234,12 +235,19 @@ def shape(walker: Walker, *deprecated_req: ShapeRequest,
     are located in the gait file. Raises :class:`InputError` for bad parameters; solver
     failures come back as ``success = False`` with a reason. ``max_output`` [bytes]: a sweep
     whose CSV table would be larger is refused before any work. ``req`` (a
-    :class:`ShapeRequest`, positional or keyword) is deprecated: give the keywords."""
+    :class:`ShapeRequest`, positional or keyword) is deprecated: give the keywords.
+
+    ``slope`` [rad, positive uphill, |slope| < pi/2]: the ground angle (SPEC 14,
+    :meth:`Walker.on_slope`): b_F, Gamma_j, the fixed points and the orbits are those of the
+    slope frame (the zero dynamics explicit in cos/sin of the slope, world-frame thrusters
+    turned, link-frame ones not); speeds are along the ground, each orbit gains its climb
+    rate, the document the ``slope`` block. 0: level ground, bit for bit."""
     import warnings
 
     from .limit_cycle import ORBIT_SAMPLES, ROW_BYTES
 
     check_walker(walker)
+    walker = walker.on_slope(check_slope(slope))
     unknown = sorted(set(deprecated) - {"req"})
     if unknown:
         raise InputError.param(unknown[0], "not a parameter of shape")

@@ -23,7 +23,17 @@ from ..hzd.shaping import (
 from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics
 from ..thrust.schedule import Schedule
 from ..walker import Walker
-from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import (
+    SCHEMA_VERSION,
+    Table,
+    climb_rate,
+    col,
+    gait_record,
+    result_repr,
+    robot_record,
+    slope_record,
+    units,
+)
 
 
 @dataclass(frozen=True)
@@ -147,9 +157,11 @@ def _state(zd: ZeroDynamics, lc: LimitCycle, pre: bool) -> dict:
             "q_dot": dict(zip(names, qd.tolist()))}
 
 
-def _cycle_summary(lc: LimitCycle) -> dict:
+def _cycle_summary(lc: LimitCycle, slope: float = 0.0) -> dict:
+    """An orbit's summary; on a slope (SPEC 14) with its climb rate beside the speed."""
     return {"exists": lc.exists, "stable": lc.stable, "reason": lc.reason,
             "zeta_star": lc.zeta_star, "step_time": lc.step_time, "speed": lc.speed,
+            **({"climb_rate": climb_rate(lc.speed, slope)} if slope != 0.0 else {}),
             "min_abs_alpha_dot": lc.min_abs_alpha_dot, "alpha_at_min": lc.alpha_at_min}
 
 
@@ -170,9 +182,11 @@ def shape_records(zd: ZeroDynamics, study: ShapeResult) -> tuple[dict, Table]:
     ks = study.knot_solution
     doc: dict = {
         "schema_version": SCHEMA_VERSION,
-        "units": SHAPE_UNITS,
+        "units": ({**SHAPE_UNITS, "slope": "rad", "climb_rate": "m/s"} if zd.slope != 0.0
+                  else SHAPE_UNITS),
         "robot": robot_record(zd),
         "gait": gait_record(zd),
+        **({"slope": slope_record(zd.slope)} if zd.slope != 0.0 else {}),
         "success": study.success, "reason": study.reason,
         "warnings": list(study.walker.warnings), "source": study.source,
         "base_thrust": None if study.base is None else {
@@ -205,7 +219,7 @@ def shape_records(zd: ZeroDynamics, study: ShapeResult) -> tuple[dict, Table]:
             "zeta_star": study.target.zeta_star, "speed": study.target.speed,
             "residual": study.target.residual, "evaluations": study.target.evaluations,
             "method": "minimum Euclidean norm of the interval values (exact linear relation)"},
-        "nominal": {**_cycle_summary(nom), "pre_impact": _state(zd, nom, True),
+        "nominal": {**_cycle_summary(nom, zd.slope), "pre_impact": _state(zd, nom, True),
                     "post_impact": _state(zd, nom, False)},
     }
     iv = study.intervals
@@ -241,7 +255,7 @@ def shape_records(zd: ZeroDynamics, study: ShapeResult) -> tuple[dict, Table]:
             change = float(np.max(np.abs(lc.orbit["alpha_dot"] - nom.orbit["alpha_dot"])))
         scheds.append({
             "label": study.labels[i], "k": k, **_values(zd, study, study.schedule, i),
-            **{key: v for key, v in _cycle_summary(lc).items() if key != "zeta_star"},
+            **{key: v for key, v in _cycle_summary(lc, zd.slope).items() if key != "zeta_star"},
             "zeta_star": {"nominal": nom.zeta_star, "shaped": lc.zeta_star},
             "shift": {"true_fixed_point_shift": float(study.shift[i]),
                       "paper_one_step_shift": float(study.one_step[i]),
@@ -258,7 +272,7 @@ def shape_records(zd: ZeroDynamics, study: ShapeResult) -> tuple[dict, Table]:
         fc = study.field_cycle
         doc["vector_field"] = {"label": study.field_label,
                                **_values(zd, study, study.field_schedule, 0),
-                               **_cycle_summary(fc),
+                               **_cycle_summary(fc, zd.slope),
                                "shift": {"true_fixed_point_shift": float(
                                    true_shift(zd, study.field_schedule)[0]
                                    - (0.0 if study.base is None else

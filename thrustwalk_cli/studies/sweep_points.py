@@ -119,3 +119,14 @@ def nominal_of(task: PointTask) -> Callable[[], Walker]:
     base = replace(task, values=tuple((k, v) for k, v in task.values
                                       if not k.startswith("robot.")))
     return lambda: point_walker(base)
+
+
+def on_slope(walker: Walker, p) -> Walker:
+    """The walker on the point's ``slope`` [rad] (SPEC 14; absent or 0: level ground, the
+    walker itself), kept per process so that the points of one slope share it (and what is
+    cached by its ``id``: the realized strategies, the trial runners)."""
+    gamma = float(p.get("slope") or 0.0)
+    if gamma == walker.slope:
+        return walker
+    return fresh(("slope", id(walker), gamma), lambda v: v[0] is walker,
+                 lambda: (walker, walker.on_slope(gamma)))[1]

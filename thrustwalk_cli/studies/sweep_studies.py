@@ -76,6 +76,11 @@ def _thrust_case(walker: Walker, p: Mapping) -> tuple[Walker, list[float] | None
     return walker, (None if walker.gait.thrust is not None else [0.0])
 
 
+def _slope(p: Mapping) -> float:
+    """The point's ground angle [rad] (SPEC 14; a level-ground point has none: 0)."""
+    return float(p.get("slope") or 0.0)
+
+
 def _first(doc: dict, key: str) -> dict:
     return doc[key][0]
 
@@ -165,7 +170,8 @@ def _limit_cycle_point(walker: Walker, p: dict, start: dict | None) -> PointResu
     w, thrust = _thrust_case(walker, p)
     # a schedule names its thruster itself (`thruster` drove it into the schedule)
     res = limit_cycle(w, thrust, p.get("thruster") if thrust is not None else None,
-                      mu=p.get("mu"), min_vertical_force=p.get("min_vertical_force", 0.0))
+                      mu=p.get("mu"), min_vertical_force=p.get("min_vertical_force", 0.0),
+                      slope=_slope(p))
     doc = res.document()
     case = _first(doc, "cycles")
     fields = _pick(case, [k for k in _LC_FIELDS if k not in ("contact_feasible",
@@ -198,7 +204,8 @@ def _feasibility_point(walker: Walker, p: dict, start: dict | None) -> PointResu
 
     w, thrust = _thrust_case(walker, p)
     res = feasibility(w, thrust, thruster=p.get("thruster"), mu=p.get("mu"),
-                      min_vertical_force=p["min_vertical_force"], region_shape=(11, 11))
+                      min_vertical_force=p["min_vertical_force"], region_shape=(11, 11),
+                      slope=_slope(p))
     doc = res.document()
     case = _first(doc, "cases")
     fields = _pick(case, [k for k in _FE_FIELDS if not k.endswith("_margin")])
@@ -242,7 +249,7 @@ def _simulate_point(walker: Walker, p: dict, start: dict | None) -> PointResult:
                    thruster=[p["thruster"]] if p.get("thruster") and not piecewise else None,
                    perturb=p["perturb"], torque_limit=p.get("torque_limit"),
                    rtol=p["rtol"], atol=p["atol"], method=p["method"], mu=p.get("mu"),
-                   samples=2)
+                   samples=2, slope=_slope(p))
     doc = res.document()
     run = _first(doc, "runs")
     steps = [s for s in doc["steps"] if s["run"] == 0]
@@ -342,7 +349,7 @@ def _design_point(model: CompiledModel, p: dict, start: dict | None) -> PointRes
     if p["continuation"] and start is not None:
         initial = WarmStart(tuple(start["q_minus"]), tuple(map(tuple, start["coefficients"])),
                             float(start["zeta_minus"]))
-    res = design_gait(model, spec, initial=initial)
+    res = design_gait(model, spec, initial=initial, slope=_slope(p))
     doc = res.document()
     o, m = doc.get("fixed_point") or {}, doc.get("margins") or {}
     cost = doc.get("cost") or {}
@@ -366,6 +373,10 @@ def _design_point(model: CompiledModel, p: dict, start: dict | None) -> PointRes
                   f"{o['delta_zero_sq']:.4f}; {o['speed']:.4f} m/s; step "
                   f"{o['step_length']:.4f} m; zeta* = {o['zeta_star']:.6g} kg^2 m^4/s^2.",
                   "Every margin: the point's JSON in the sweep folder's points/."]
+        if _slope(p) != 0.0:
+            header.insert(1, f"Designed for the slope {_slope(p)!r} rad (positive uphill; "
+                             f"SPEC 14): speed and step length along the ground, climb rate "
+                             f"{o['climb_rate']:.4g} m/s.")
         extra["gait_yaml"] = gait_yaml(res.design, model, p.get("_robot_ref") or
                                        model.robot.source_file, header)
         maps = gait_maps(model, res.design.gait)

@@ -8,26 +8,27 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from ..description.terrain import S_MAX
 from ..errors import InputError
 from ..sweep.runner import chunk_size
 from ..sweep.tasks import canonical
 from ..walker import Walker
 from .documents import UNITS
-from .sweep_points import PointResult, SweepStudy, fresh
+from .sweep_points import PointResult, SweepStudy, fresh, on_slope
 
 # ------------------------------------------------------------------- robustness (SPEC 12)
 _STRATEGY_KEYS = ("strategy", "strategy_label", "thruster", "thrust", "schedule", "knots",
                   "max_thrust", "mu", "min_vertical_force")
 _RUNNER_KEYS = _STRATEGY_KEYS + ("push_direction", "push_link", "push_at", "push_duration",
                                  "transverse", "steps", "recovery_tol", "output_tol", "rtol",
-                                 "atol")
+                                 "atol", "terrain")
 
 
 def _nominal(walker: Walker, p: Mapping) -> Walker:
     """The walker a controller was made for: the base robot with the point's gait (the point's
     robot is the plant)."""
     make = p.get("_nominal")
-    return walker if make is None else make()
+    return walker if make is None else on_slope(make(), p)
 
 
 def realized_strategy(walker: Walker, p: Mapping, points: int = 401):
@@ -35,6 +36,7 @@ def realized_strategy(walker: Walker, p: Mapping, points: int = 401):
     strategy share it)."""
     from ..resilience.strategy import from_parameters, realize
 
+    walker = on_slope(walker, p)
     model = _nominal(walker, p)
     mu = walker.gait.mu if p.get("mu") is None else float(p["mu"])
     key = ("realized", id(walker), id(model), canonical({k: p.get(k) for k in _STRATEGY_KEYS}),
@@ -61,10 +63,18 @@ def trial_setup(walker: Walker, p: Mapping):
     return point, act.index(name)
 
 
+def _terrain_of(p: Mapping) -> dict:
+    """The ``heights`` and ``s_max`` of the point's ``terrain`` (SPEC 14; none: level)."""
+    t = p.get("terrain")
+    return {} if t is None else {"heights": [float(h) for h in t["heights"]],
+                                 "s_max": float(t.get("s_max", S_MAX))}
+
+
 def _trial_runner(walker: Walker, p: Mapping):
     """The trial runner of the point's strategy and settings (kept per process)."""
     from ..resilience.trials import TrialRunner
 
+    walker = on_slope(walker, p)
     real, mu = realized_strategy(walker, p)
     key = ("runner", id(walker), canonical({k: p.get(k) for k in _RUNNER_KEYS}))
 
@@ -75,7 +85,8 @@ def _trial_runner(walker: Walker, p: Mapping):
                           recovery_tol=float(p["recovery_tol"]),
                           output_tol=float(p["output_tol"]), rtol=float(p["rtol"]),
                           atol=float(p["atol"]), transverse=transverse,
-                          duration=float(p["push_duration"]))
+                          duration=float(p["push_duration"]),
+                          **_terrain_of(p))
         return walker, run
 
     return fresh(key, lambda v: v[0] is walker, make)[1]
@@ -104,6 +115,7 @@ _PT_FIELDS = {
 def _push_trial_point(walker: Walker, p: dict, start: dict | None) -> PointResult:
     from ..resilience.trials import Trial
 
+    walker = on_slope(walker, p)
     impulse, sigma, rate = (float(p["push_impulse"]), float(p["start_sigma"]),
                             float(p["start_rate"]))
     if impulse != 0.0 and (sigma != 0.0 or rate != 0.0):
@@ -122,6 +134,10 @@ def _push_trial_point(walker: Walker, p: dict, start: dict | None) -> PointResul
 
 
 def _check_push_trial(walker: Walker, p: dict) -> list[tuple[str, str]]:
+    try:
+        walker = on_slope(walker, p)
+    except InputError as exc:
+        return [("slope", exc.problems[0].message)]
     out = check_strategy(walker, p)
     try:
         walker.robot.check_push("push_impulse", float(p["push_impulse"]))
@@ -142,6 +158,7 @@ def check_strategy(walker: Walker, p: dict) -> list[tuple[str, str]]:
     """The strategy's own problems (thruster, thrust limits, schedule, knots), found before
     any point runs."""
     try:
+        walker = on_slope(walker, p)
         if p.get("strategy") == "control" and p.get("max_thrust") is not None:
             robot = walker.robot
             if robot.thrusters:
@@ -170,6 +187,7 @@ def _reduced_walk_point(walker: Walker, p: dict, start: dict | None) -> PointRes
     from ..resilience.strategy import from_parameters
     from ..resilience.uncertainty import controlled_sample, fixed_sample
 
+    walker = on_slope(walker, p)
     s = from_parameters(p)
     mu = walker.gait.mu if p.get("mu") is None else float(p["mu"])
     eps = float(p["min_vertical_force"])
