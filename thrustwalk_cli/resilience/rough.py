@@ -20,14 +20,15 @@ reverses), ``scuffed`` (an early strike, or the trailing foot does not lift at i
 (stance force or impact impulse outside the friction cone ``mu``), ``missed_footing`` (no
 touchdown by ``s_max``); ``error`` is a step that could not be computed (no verdict).
 
-**The reduced state** of the chain is the *level-equivalent* ``zeta^-``: ``zeta^+ /
-delta_zero^2``, with ``zeta^+ = (sigma_N^+)^2 / 2`` just after the impact. It is the ``zeta^-``
-of the start on Z (:class:`~thrustwalk_cli.simulation.full_order.Start`) with the same
-post-impact angular momentum, and equals ``zeta^-`` on level ground; on a step the impact
-happens away from the gait's ``q^-``, so ``zeta^+ != delta_zero^2 zeta^-``, and the label keeps
-what the next step's zero dynamics start from. The outputs' post-impact error is dropped: a
-chain state restarts on Z (:func:`reduction_residual` measures what that costs). The
-``control`` strategy's QP is given this label as its measured ``zeta^-``. Units SI.
+**The reduced state** of the chain is the pre-impact one: ``(zeta^-, h)``, the zero dynamics'
+``zeta^-`` [kg^2 m^4/s^2] at an impact and the height [m] of the ground it happened on. Once the
+outputs have converged within a step (the closed loop drives them to zero; what is left at the
+impact is measured and reported, :attr:`StepMap.output_error`), the pre-impact state is on Z
+(continued past ``s = 1`` for a step down) at the ``alpha`` where the swing foot is at ``h``
+(:meth:`RoughRunner.impact_start`), so ``(zeta^-, h)`` fixes it, the impact map gives the
+post-impact state (off Z: the outputs jump) and the next step depends on the state and the next
+height only. The ``control`` strategy's QP is given the measured ``zeta^-`` (as in the push
+trials). Units SI.
 """
 
 from __future__ import annotations
@@ -75,13 +76,13 @@ def trial_terrain(distribution: str, sigma: float, seed: int, trial: int,
 
 @dataclass(frozen=True)
 class StepOutcome:
-    """One step: ``kind`` "" (completed) or a failure/``error``; ``label`` the level-equivalent
-    zeta^- after it [kg^2 m^4/s^2] (None when it failed); ``x`` the post-impact state and ``t``
-    [s] the impact time."""
+    """One step: ``kind`` "" (completed) or a failure/``error``; ``zeta`` the zeta^- of its
+    impact [kg^2 m^4/s^2] (None when it failed); ``x`` the post-impact state and ``t`` [s] the
+    impact time."""
 
     kind: str
     reason: str
-    label: float | None
+    zeta: float | None
     x: np.ndarray | None
     t: float
     record: np.ndarray
@@ -91,14 +92,14 @@ class StepOutcome:
 class Walk:
     """One run on rough ground: ``steps_completed``; ``outcome`` ``censored`` (every step up to
     the cap), a failure kind or ``error``; ``step`` the failing step and ``height`` [m] its
-    ground; ``labels`` min and max of the level-equivalent zeta^- over the run."""
+    ground; ``zeta_range`` min and max of zeta^- over the run [kg^2 m^4/s^2]."""
 
     steps_completed: int
     outcome: str
     step: int | None
     height: float | None
     reason: str
-    label_range: tuple[float, float] | None
+    zeta_range: tuple[float, float] | None
 
     @property
     def failed(self) -> bool:
@@ -113,8 +114,8 @@ class Walk:
         return {"outcome": self.outcome, "steps_completed": self.steps_completed,
                 "attempted": self.attempted, "failed_step": self.step,
                 "failed_height": self.height, "reason": self.reason,
-                "label_min": None if self.label_range is None else self.label_range[0],
-                "label_max": None if self.label_range is None else self.label_range[1]}
+                "zeta_min": None if self.zeta_range is None else self.zeta_range[0],
+                "zeta_max": None if self.zeta_range is None else self.zeta_range[1]}
 
 
 class RoughRunner:
@@ -135,29 +136,86 @@ class RoughRunner:
         self.stepper = Stepper(self.cl, self.t_max, dense=False)
         self.seg_int = (segment_intervals(self.cl, realized.knots, zd)
                         if realized.planner is not None else None)
-        self.d2 = float(zd.delta_zero_sq)
         self.N, self.m, self.nz = self.model.n, self.model.n_thrusters, realized.thrust.n_states
-        self._starts: dict[float, np.ndarray] = {}
+        self._starts: dict[tuple[float, float], np.ndarray | None] = {}
+        self._alpha: dict[float, float | None] = {}
 
-    def start(self, label: float) -> np.ndarray:
-        """The post-impact state on Z whose (level-equivalent) zeta^- is ``label`` (the last
-        few kept: a mesh label starts many steps)."""
-        label = float(label)
-        x = self._starts.get(label)
-        if x is None:
-            if len(self._starts) > 64:
-                self._starts.clear()
-            x = self._starts[label] = initial_state(self.zd, self.r.thrust,
-                                                    Start(zeta_minus=label))
-        return x.copy()
+    def alpha_at(self, h: float) -> float | None:
+        """The ``alpha`` [rad] past ``min_impact_s`` (up to ``s_max``) at which the swing foot on
+        Z is at height ``h`` [m] (the gait continued past s = 1 for h < 0); None when it
+        never is."""
+        from scipy.optimize import brentq
 
-    def step(self, k: int, t: float, x: np.ndarray, label: float, h: float,
+        h = float(h)
+        if h in self._alpha:
+            return self._alpha[h]
+        maps, model = self.zd.maps, self.model
+
+        def height(s: float) -> float:
+            q = maps.q_Z(np.array(maps.alpha_i + s * maps.span))
+            return float(np.asarray(model.p_swing(q), float)[1]) - h
+
+        from scipy.optimize import minimize_scalar
+
+        s0, s1 = self.config.min_impact_s, self.config.max_s
+        top = minimize_scalar(lambda v: -height(v), bounds=(s0, 1.0), method="bounded",
+                              options={"xatol": 1e-10})
+        s_top = float(top.x) if -top.fun >= height(s0) else s0
+        out = None
+        if height(s_top) >= 0.0:  # the swing foot gets above h: its first descent through h
+            grid = np.linspace(s_top, s1, 41)
+            vals = np.array([height(v) for v in grid])
+            i = int(np.argmax(vals <= 0.0)) if np.any(vals <= 0.0) else None
+            if i is None:  # maybe a dip between the grid points: its lowest point
+                low = minimize_scalar(height, bounds=(s_top, s1), method="bounded",
+                                      options={"xatol": 1e-10})
+                if low.fun <= 0.0:
+                    grid = np.linspace(s_top, float(low.x), 41)
+                    vals = np.array([height(v) for v in grid])
+                    i = int(np.argmax(vals <= 0.0))
+            if i is not None and i > 0:
+                sv = brentq(height, grid[i - 1], grid[i], xtol=1e-14)
+                out = float(maps.alpha_i + sv * maps.span)
+        if h == 0.0:
+            out = float(maps.alpha_f)
+        self._alpha[h] = out
+        return out
+
+    def impact_start(self, zeta: float, h: float = 0.0) -> np.ndarray | None:
+        """The post-impact state ``[q; q'; z]`` of an impact with ``zeta^- = zeta`` on ground
+        ``h`` [m]: the impact map (SPEC 5) applied to the state on Z at :meth:`alpha_at` ``h``
+        with ``alpha' = kappa_1 sigma_N``, ``sigma_N^2 / 2 = zeta`` (``h = 0``: the gait's
+        ``q^-``, :func:`~thrustwalk_cli.simulation.full_order.initial_state`). None when no
+        such impact exists. The last few are kept (a mesh state starts many steps)."""
+        key = (float(zeta), float(h))
+        if key in self._starts:
+            x = self._starts[key]
+            return None if x is None else x.copy()
+        if len(self._starts) > 256:
+            self._starts.clear()
+        if h == 0.0:
+            x = initial_state(self.zd, self.r.thrust, Start(zeta_minus=float(zeta)))
+        else:
+            a = self.alpha_at(h)
+            x = None
+            if a is not None:
+                zd = self.zd
+                t = zd.terms(np.array([a]))
+                sigma = zd.sigma_sign * np.sqrt(2.0 * float(zeta))
+                q = zd.maps.q_Z(np.array(a))
+                imp = self.model.impact(q, t["Phi"][0] * t["kappa1"][0] * sigma)
+                x = np.concatenate([imp.q_plus, imp.dq_plus, self.r.thrust.initial_states()])
+        self._starts[key] = x
+        return None if x is None else x.copy()
+
+    def step(self, k: int, t: float, x: np.ndarray, zeta: float, h: float,
              behind: float = 0.0) -> StepOutcome:
-        """Step ``k`` from the post-impact state ``x`` at ``t`` [s] whose label is ``label``
-        (the controller's measurement) onto ground ``h`` [m] (``behind``: module docstring)."""
+        """Step ``k`` from the post-impact state ``x`` at ``t`` [s] after an impact of
+        ``zeta^- = zeta`` (the controller's measurement) onto ground ``h`` [m] (``behind``:
+        module docstring)."""
         r = self.r
         if r.planner is not None:
-            plan = r.planner.plan(float(label), r.zeta_ref, np.zeros(r.planner.nu))
+            plan = r.planner.plan(float(zeta), r.zeta_ref, np.zeros(r.planner.nu))
             per = plan.u.reshape(-1, len(r.driven))
             seg_force = np.zeros((len(self.seg_int), self.m))
             seg_force[:, r.driven] = per[self.seg_int]
@@ -197,8 +255,7 @@ class RoughRunner:
             _, _, what, why = min(events, key=lambda e: (e[0], e[1]))
             return StepOutcome(what, f"step {k} (ground {h:+.4g} m): {why}", None, None,
                                float(res.outcome[K.O_T]), res.record)
-        label_next = 0.5 * rec.sigma_plus ** 2 / self.d2
-        return StepOutcome("", "", float(label_next), res.x_next, rec.t_impact, res.record)
+        return StepOutcome("", "", float(rec.zeta_minus), res.x_next, rec.t_impact, res.record)
 
     def walk(self, heights: Sequence[float], cap: int) -> Walk:
         """From the strategy's fixed point (``zeta^- = zeta_ref`` on Z) over ``heights`` until
@@ -206,24 +263,32 @@ class RoughRunner:
         r = self.r
         if r.zeta_ref is None:
             return Walk(0, "error", None, None, f"no orbit to start on: {r.cycle.reason}", None)
-        label = float(r.zeta_ref)
-        x, t = self.start(label), 0.0
-        lo = hi = label
+        zeta = float(r.zeta_ref)
+        x, t = self.impact_start(zeta), 0.0
+        lo = hi = zeta
         for k in range(1, int(cap) + 1):
             h = float(heights[k - 1])
-            res = self.step(k, t, x, label, h, behind_level(heights, k))
+            res = self.step(k, t, x, zeta, h, behind_level(heights, k))
             if res.kind:
                 return Walk(k - 1, res.kind, k, h, res.reason, (lo, hi))
-            label, x, t = res.label, res.x, res.t
-            lo, hi = min(lo, label), max(hi, label)
+            zeta, x, t = res.zeta, res.x, res.t
+            lo, hi = min(lo, zeta), max(hi, zeta)
         return Walk(int(cap), "censored", None, None, f"no failure in {int(cap)} steps (the cap)",
                     (lo, hi))
 
-    def transition(self, label: float, h: float) -> tuple[str, float | None]:
-        """One step from the start on Z of ``label`` onto ground ``h`` [m]: ``(kind, label
-        after)`` (kind "" when it completed)."""
-        res = self.step(1, 0.0, self.start(label), label, h)
-        return res.kind, res.label
+    def transition(self, zeta: float, h_prev: float, h: float
+                   ) -> tuple[str, float | None, float | None]:
+        """One step from the impact of ``zeta^- = zeta`` on ground ``h_prev`` [m] onto ground
+        ``h`` [m]: ``(kind, zeta^- after, max |y| at that impact [rad])`` (kind "" when it
+        completed; ``error`` when no impact on ``h_prev`` exists)."""
+        x = self.impact_start(zeta, h_prev)
+        if x is None:
+            return "error", None, None
+        res = self.step(2, 0.0, x, zeta, h, min(0.0, -float(h_prev)))
+        if res.kind:
+            return res.kind, None, None
+        q = np.asarray(step_record(res.record, self.N, self.nz, self.m).q_minus)
+        return "", res.zeta, self.output_error(q)
 
     def output_error(self, q: np.ndarray) -> float:
         """``max |y|`` [rad] of the outputs ``y = (H (q - q_Z(alpha)))_{1..N-1}`` at ``q``."""
@@ -234,85 +299,129 @@ class RoughRunner:
 
 
 # ----------------------------------------------------------------------------- the mesh
+BISECT_TOL = 1e-5  # [m] failure edges of the one-step map located to this
+
+
 @dataclass(frozen=True)
 class StepMap:
-    """The one-step map on a mesh: for each mesh label ``z[i]`` [kg^2 m^4/s^2] the sorted
-    heights ``h[i]`` [m] it was evaluated at (the grid ``grid_h``, and the pairs of points
-    bracketing each failure edge to ``BISECT_TOL``; ``on_grid[i]`` marks the grid's), the label
-    after the step (NaN: failed) and the failure kinds at the grid points (counts)."""
+    """The one-step map on the mesh of states ``(z[i], hp[j])`` (zeta^- [kg^2 m^4/s^2] of an
+    impact on ground ``hp[j]`` [m]): per state the sorted next heights ``h[i][j]`` [m] it was
+    evaluated at (the terrain grid ``grid_h`` and the points bracketing each failure edge to
+    ``BISECT_TOL``; ``on_grid`` marks the grid's), the zeta^- after the step (NaN: failed); the
+    failure kinds at the grid points (counts), the largest output error ``max |y|`` [rad] left
+    at an impact over the completed steps (what the reduction to ``(zeta^-, h)`` drops), the
+    number of simulations."""
 
     z: np.ndarray
+    hp: np.ndarray
     grid_h: np.ndarray
-    h: tuple[np.ndarray, ...]
-    label: tuple[np.ndarray, ...]
-    on_grid: tuple[np.ndarray, ...]
+    h: tuple
+    zeta: tuple
+    on_grid: tuple
     kinds: dict
+    output_error: float
     simulations: int
 
 
-def build_step_map(runner: RoughRunner, z: np.ndarray, grid_h: np.ndarray,
+def build_step_map(runner: RoughRunner, z: np.ndarray, hp: np.ndarray, grid_h: np.ndarray,
                    progress: Callable[[int], None] | None = None) -> StepMap:
-    """One full-order step from each mesh label over the heights ``grid_h`` [m], each failure
-    edge between grid points located by bisection to ``BISECT_TOL``."""
-    hs, labs, grids = [], [], []
+    """One full-order step from each mesh state ``(z[i], hp[j])`` onto every height of
+    ``grid_h`` [m], each failure edge between grid points located by bisection to
+    ``BISECT_TOL`` (``progress(1)`` per ``z[i]``)."""
+    H, Z, G = [], [], []
     kinds: dict[str, int] = {}
-    sims = 0
+    sims, yerr = 0, 0.0
+    gset = set(float(v) for v in grid_h)
     for zi in np.asarray(z, float):
-        pts: dict[float, float] = {}
-        for h in grid_h:
-            kind, lab = runner.transition(zi, float(h))
-            sims += 1
-            pts[float(h)] = np.nan if kind else float(lab)
-            if kind:
-                kinds[kind] = kinds.get(kind, 0) + 1
-        grid = sorted(pts)
-        for a, b in zip(grid[:-1], grid[1:]):
-            fa, fb = np.isnan(pts[a]), np.isnan(pts[b])
-            if fa == fb:
-                continue
-            lo, hi = a, b
-            while hi - lo > BISECT_TOL:
-                mid = 0.5 * (lo + hi)
-                kind, lab = runner.transition(zi, mid)
+        hr, zr, gr = [], [], []
+        for hj in np.asarray(hp, float):
+            pts: dict[float, float] = {}
+            for h in grid_h:
+                kind, zn, y = runner.transition(zi, hj, float(h))
                 sims += 1
-                pts[mid] = np.nan if kind else float(lab)
-                if bool(kind) == fa:
-                    lo = mid
+                pts[float(h)] = np.nan if kind else float(zn)
+                if kind:
+                    kinds[kind] = kinds.get(kind, 0) + 1
                 else:
-                    hi = mid
-        order = sorted(pts)
-        hs.append(np.array(order))
-        labs.append(np.array([pts[h] for h in order]))
-        gset = set(float(v) for v in grid_h)
-        grids.append(np.array([h in gset for h in order]))
+                    yerr = max(yerr, y)
+            grid = sorted(pts)
+            for a, b in zip(grid[:-1], grid[1:]):
+                fa = bool(np.isnan(pts[a]))
+                if fa == bool(np.isnan(pts[b])):
+                    continue
+                lo, hi = a, b
+                while hi - lo > BISECT_TOL:
+                    mid = 0.5 * (lo + hi)
+                    kind, zn, _ = runner.transition(zi, hj, mid)
+                    sims += 1
+                    pts[mid] = np.nan if kind else float(zn)
+                    if bool(kind) == fa:
+                        lo = mid
+                    else:
+                        hi = mid
+            order = sorted(pts)
+            hr.append(np.array(order))
+            zr.append(np.array([pts[v] for v in order]))
+            gr.append(np.array([v in gset for v in order]))
+        H.append(tuple(hr))
+        Z.append(tuple(zr))
+        G.append(tuple(gr))
         if progress is not None:
             progress(1)
-    return StepMap(np.asarray(z, float), np.asarray(grid_h, float), tuple(hs), tuple(labs),
-                   tuple(grids), kinds, sims)
+    return StepMap(np.asarray(z, float), np.asarray(hp, float), np.asarray(grid_h, float),
+                   tuple(H), tuple(Z), tuple(G), kinds, float(yerr), sims)
 
 
-def reachable_range(runner: RoughRunner, label: float, heights: Sequence[float],
-                                    most: int = 20) -> tuple[float, float]:
-    """The labels [kg^2 m^4/s^2] the walker reaches from ``label`` on the ``heights`` [m]: the
-    lowest (highest) label one step takes the current lowest (highest) to, iterated until it
-    moves less than 1 % of the range (at most ``most`` times): the fixed points of the
-    extreme one-step maps, the range the mesh must cover."""
-    lo = hi = float(label)
-    for _ in range(most):
-        new_lo, new_hi = lo, hi
-        for z0, pick in ((lo, min), (hi, max)):
-            labs = [lab for h in heights for kind, lab in [runner.transition(z0, float(h))]
-                    if not kind]
-            if labs:
-                if pick is min:
-                    new_lo = min(new_lo, min(labs))
-                else:
-                    new_hi = max(new_hi, max(labs))
-        moved = max(lo - new_lo, new_hi - hi)
-        lo, hi = new_lo, new_hi
-        if moved <= 1e-2 * (hi - lo + 1e-12 * label):
-            break
+def visited_range(runner: RoughRunner, zeta: float, heights: Sequence[float]
+                  ) -> tuple[float, float]:
+    """The range of zeta^- [kg^2 m^4/s^2] a walk from the level impact of ``zeta`` visits on
+    the ``heights`` [m] in turn (a failed step restarts it from ``zeta``): where the walker
+    spends its time, the range the mesh must cover (what lies beyond it is reported by the
+    chain as clipped probability)."""
+    lo = hi = z = float(zeta)
+    x, t, hp = runner.impact_start(z), 0.0, 0.0
+    for k, h in enumerate(heights, start=1):
+        res = runner.step(k, t, x, z, float(h), min(0.0, -hp))
+        if res.kind:
+            z, hp = float(zeta), 0.0
+            x, t = runner.impact_start(z), 0.0
+            continue
+        z, x, t, hp = res.zeta, res.x, res.t, float(h)
+        lo, hi = min(lo, z), max(hi, z)
     return lo, hi
+
+
+def success_interval(runner: RoughRunner, zeta: float, grid_h: Sequence[float]
+                     ) -> tuple[float, float] | None:
+    """The heights [m] a step from the level impact of ``zeta`` completes on: the ends of the
+    run of completed grid heights around 0, each refined by bisection to ``BISECT_TOL``
+    towards the failing neighbour; None when none completes."""
+    g = np.sort(np.asarray(grid_h, float))
+    ok = np.array([not runner.transition(zeta, 0.0, float(h))[0] for h in g])
+    if not ok.any():
+        return None
+    i0 = int(np.argmin(np.abs(g)))
+    if not ok[i0]:
+        i0 = int(np.flatnonzero(ok)[np.argmin(np.abs(g[ok]))])
+    lo_i, hi_i = i0, i0
+    while lo_i > 0 and ok[lo_i - 1]:
+        lo_i -= 1
+    while hi_i < g.size - 1 and ok[hi_i + 1]:
+        hi_i += 1
+    ends = []
+    for i, j in ((lo_i, lo_i - 1), (hi_i, hi_i + 1)):
+        if j < 0 or j >= g.size:
+            ends.append(float(g[i]))
+            continue
+        good, bad = float(g[i]), float(g[j])
+        while abs(bad - good) > BISECT_TOL:
+            mid = 0.5 * (good + bad)
+            if runner.transition(zeta, 0.0, mid)[0]:
+                bad = mid
+            else:
+                good = mid
+        ends.append(good)
+    return ends[0], ends[1]
 
 
 def _pdf(u: float) -> float:
@@ -333,9 +442,9 @@ def _cell(distribution: str, spread: float, a: float, b: float) -> tuple[float, 
         if mass <= 0.0:
             return 0.0, 0.0
         return mass, spread * (_pdf(ua) - _pdf(ub)) / mass
-    lo, hi = max(a, -spread), min(b, spread)
     if spread <= 0:
         return (1.0, 0.0) if a < 0.0 <= b else (0.0, 0.0)
+    lo, hi = max(a, -spread), min(b, spread)
     if hi <= lo:
         return 0.0, 0.0
     return (hi - lo) / (2.0 * spread), 0.5 * (lo + hi)
@@ -343,14 +452,24 @@ def _cell(distribution: str, spread: float, a: float, b: float) -> tuple[float, 
 
 @dataclass(frozen=True)
 class Chain:
-    """The mesh chain of one sigma: ``Q`` over the mesh labels ``z``, the failure probability
-    per state ``fail`` [1], the probability of a next label beyond the mesh's ends per state
-    (``clipped``: it was put on the end point)."""
+    """The mesh chain of one sigma: ``Q`` over the states ``(z[i], hp[j])`` (flattened, ``j``
+    fastest), the failure probability per state ``fail`` [1], the probability per state of a
+    next state beyond the mesh's ends (``clipped``: it was put on the nearest end)."""
 
     z: np.ndarray
+    hp: np.ndarray
     Q: np.ndarray
     fail: np.ndarray
     clipped: np.ndarray
+
+    def weights(self, zeta: float, h: float) -> np.ndarray:
+        """The distribution over the states of ``(zeta, h)`` (bilinear weights)."""
+        from .mfpt import interpolation_weights
+
+        w = np.zeros(self.z.size * self.hp.size)
+        _bilinear(w, self.z, self.hp, np.array([zeta]), np.array([h]), np.ones(1),
+                  interpolation_weights)
+        return w
 
     def quasi_stationary(self) -> np.ndarray:
         """The quasi-stationary distribution over the states (the left eigenvector of ``Q``
@@ -360,93 +479,82 @@ class Chain:
         return v / v.sum() if v.sum() > 0 else np.full(v.size, 1.0 / v.size)
 
 
+def _bilinear(row: np.ndarray, z: np.ndarray, hp: np.ndarray, zs: np.ndarray, hs: np.ndarray,
+              mass: np.ndarray, weights) -> np.ndarray:
+    """Add ``mass`` at the points ``(zs, hs)`` to ``row`` over the grid ``z x hp`` (bilinear;
+    a single ``hp`` takes it all); returns the points clipped at the grid's ends."""
+    i, ti, ci = weights(z, zs)
+    nh = hp.size
+    if nh == 1:
+        j, tj, cj = np.zeros(zs.size, int), np.zeros(zs.size), np.zeros(zs.size, bool)
+        for di, wi in ((0, 1.0 - ti), (1, ti)):
+            np.add.at(row, (i + di) * nh, mass * wi)
+        return ci
+    j, tj, cj = weights(hp, hs)
+    for di, wi in ((0, 1.0 - ti), (1, ti)):
+        for dj, wj in ((0, 1.0 - tj), (1, tj)):
+            np.add.at(row, (i + di) * nh + (j + dj), mass * wi * wj)
+    return ci | cj
+
+
 def transition_matrix(smap: StepMap, distribution: str, sigma: float, z_every: int = 1,
                       h_every: int = 1) -> Chain:
     """The chain's transition matrix for heights of standard deviation ``sigma`` [m] (SPEC 14):
-    row ``i`` integrates the one-step map of ``z[i]`` over the height's density cell by cell
-    between the evaluated heights (every ``h_every``-th grid point and every bisection point):
-    a cell whose ends completed goes, with its probability, to the label interpolated at the
-    cell's conditional mean height, itself spread over the two neighbouring mesh labels
-    (linear weights); a cell whose ends failed is failure; a cell across an edge is split at
-    its middle (at most ``BISECT_TOL`` wide); beyond the outer points, the outer point's
-    outcome. ``z_every``: every ``z_every``-th mesh label (the coarser mesh of the
-    refinement)."""
+    the row of state ``(z_i, hp_j)`` integrates its one-step map over the next height's
+    density cell by cell between the evaluated heights (every ``h_every``-th grid point and
+    every bisection point): a cell whose ends completed goes, with its probability, to the
+    state ``(zeta^-, h)`` at the cell's conditional mean height ``h`` (``zeta^-`` interpolated
+    there), spread bilinearly over the four neighbouring mesh states; a cell whose ends failed
+    is failure; a cell across an edge (at most ``BISECT_TOL`` wide) is split at its middle;
+    beyond the outer points, the outer point's outcome. ``z_every``, ``h_every``: every
+    ``k``-th mesh zeta^- and grid height (the coarser meshes of the refinement; the states'
+    heights are then the kept grid heights among ``hp`` and those off the grid)."""
     from .mfpt import interpolation_weights
 
     spread = half_width(distribution, sigma)
-    rows = list(range(0, smap.z.size, z_every))
-    z = smap.z[rows]
-    n = z.size
+    zi_keep = list(range(0, smap.z.size, z_every))
+    keep_grid = set(float(v) for v in smap.grid_h[::h_every])
+    on_grid = set(float(v) for v in smap.grid_h)
+    hj_keep = [j for j, v in enumerate(smap.hp)
+               if float(v) in keep_grid or float(v) not in on_grid] or [0]
+    z, hp = smap.z[zi_keep], smap.hp[hj_keep]
+    n = z.size * hp.size
     Q = np.zeros((n, n))
     fail = np.zeros(n)
     clipped = np.zeros(n)
-    keep_grid = set(float(v) for v in smap.grid_h[::h_every])
-    for ii, i in enumerate(rows):
-        h, lab, g = smap.h[i], smap.label[i], smap.on_grid[i]
-        sel = np.array([(not gi) or float(hv) in keep_grid for hv, gi in zip(h, g)])
-        h, lab = h[sel], lab[sel]
-        edges = np.concatenate([[-np.inf], h, [np.inf]])
-        out_mass, out_lab = [], []
-        for c in range(edges.size - 1):
-            a, b = edges[c], edges[c + 1]
-            la = lab[c - 1] if c >= 1 else lab[0]
-            lb = lab[c] if c < lab.size else lab[-1]
-            ha = a if np.isfinite(a) else h[0]
-            hb = b if np.isfinite(b) else h[-1]
-            pieces = []
-            if np.isnan(la) == np.isnan(lb):
-                pieces.append((a, b, la, lb))
-            else:
-                mid = 0.5 * (ha + hb)
-                pieces += [(a, mid, la, la), (mid, b, lb, lb)]
-            for pa, pb, va, vb in pieces:
-                mass, mean = _cell(distribution, spread, pa, pb)
-                if mass <= 0.0:
-                    continue
-                if np.isnan(va):
-                    fail[ii] += mass
-                    continue
-                if va == vb or hb == ha:
-                    v = va
-                else:
-                    v = va + (vb - va) * (min(max(mean, ha), hb) - ha) / (hb - ha)
-                out_mass.append(mass)
-                out_lab.append(v)
-        if out_mass:
-            j, t, clip = interpolation_weights(z, np.array(out_lab))
-            m = np.array(out_mass)
-            np.add.at(Q[ii], j, m * (1.0 - t))
-            np.add.at(Q[ii], j + 1, m * t)
-            clipped[ii] = float(np.sum(m[clip]))
-    return Chain(z, Q, fail, clipped)
-
-
-def reduction_residual(runner: RoughRunner, label: float, heights: Sequence[float]) -> dict:
-    """What restarting on Z costs (SPEC 14's residual): from the start of ``label`` one step
-    onto each height [m] of ``heights`` (those completed), then one level step from the true
-    post-impact state (off Z) and one from the start on Z with the same label. Returns the
-    largest relative difference of the labels after that level step [1], the outputs' error
-    ``max |y|`` [rad] just after the rough step's impact and at the next impact, and the
-    heights used."""
-    rel, y_plus, y_next, used = [], [], [], []
-    N = runner.N
-    for h in heights:
-        first = runner.step(1, 0.0, runner.start(label), label, float(h))
-        if first.kind:
-            continue
-        true = runner.step(2, first.t, first.x, first.label, 0.0, min(0.0, -float(h)))
-        red = runner.step(2, 0.0, runner.start(first.label), first.label, 0.0)
-        if true.kind or red.kind:
-            continue
-        used.append(float(h))
-        rel.append(abs(true.label - red.label) / red.label)
-        y_plus.append(runner.output_error(first.x[:N]))
-        q_next = np.asarray(step_record(true.record, N, runner.nz, runner.m).q_minus)
-        y_next.append(runner.output_error(q_next))
-    if not used:
-        return {"heights": [], "relative_label_error": None, "output_error_after_impact": None,
-                "output_error_next_impact": None,
-                "reason": "no step from the fixed point completed on the heights tried"}
-    return {"heights": used, "relative_label_error": float(max(rel)),
-            "output_error_after_impact": float(max(y_plus)),
-            "output_error_next_impact": float(max(y_next)), "reason": ""}
+    for a_i, i in enumerate(zi_keep):
+        for a_j, j in enumerate(hj_keep):
+            s_idx = a_i * hp.size + a_j
+            h, zn, g = smap.h[i][j], smap.zeta[i][j], smap.on_grid[i][j]
+            sel = np.array([(not gi) or float(hv) in keep_grid for hv, gi in zip(h, g)])
+            h, zn = h[sel], zn[sel]
+            edges = np.concatenate([[-np.inf], h, [np.inf]])
+            masses, zs, hs = [], [], []
+            for c in range(edges.size - 1):
+                a, b = edges[c], edges[c + 1]
+                va = zn[c - 1] if c >= 1 else zn[0]
+                vb = zn[c] if c < zn.size else zn[-1]
+                ha = a if np.isfinite(a) else h[0]
+                hb = b if np.isfinite(b) else h[-1]
+                pieces = [(a, b, va, vb)]
+                if np.isnan(va) != np.isnan(vb):
+                    mid = 0.5 * (ha + hb)
+                    pieces = [(a, mid, va, va), (mid, b, vb, vb)]
+                for pa, pb, ua, ub in pieces:
+                    mass, mean = _cell(distribution, spread, pa, pb)
+                    if mass <= 0.0:
+                        continue
+                    if np.isnan(ua):
+                        fail[s_idx] += mass
+                        continue
+                    x = min(max(mean, ha), hb)
+                    v = ua if (ua == ub or hb == ha) else ua + (ub - ua) * (x - ha) / (hb - ha)
+                    masses.append(mass)
+                    zs.append(v)
+                    hs.append(x)
+            if masses:
+                m = np.array(masses)
+                clip = _bilinear(Q[s_idx], z, hp, np.array(zs), np.array(hs), m,
+                                 interpolation_weights)
+                clipped[s_idx] = float(np.sum(m[clip]))
+    return Chain(z, hp, Q, fail, clipped)

@@ -40,15 +40,15 @@ from ..errors import (
     check_text,
 )
 from ..files.sweep_file import STUDY_PARAMETERS
-from ..resilience.mfpt import chain_mfpt, interpolation_weights, mc_estimate
+from ..resilience.mfpt import chain_mfpt, mc_estimate
 from ..resilience.rough import (
     DISTRIBUTIONS,
     FAILURES,
     build_step_map,
     half_width,
-    reachable_range,
-    reduction_residual,
+    success_interval,
     transition_matrix,
+    visited_range,
 )
 from ..resilience.strategy import Strategy, labels_unique
 from ..sweep.runner import RunCounts, chunk_size, run_tasks
@@ -64,6 +64,7 @@ MAX_TRIALS = 100_000
 MAX_CAP = 1_000_000
 TARGET = 1000.0  # [steps] the headline's MFPT
 HEIGHT_RANGE = 6.0  # the mesh's heights span +- this many sigma_max (normal)
+VISIT_STEPS = 400  # the walk whose visited zeta^- the mesh covers
 UNITS = units("zeta", sigma="m", mfpt="steps", height="m", output_y="rad")
 DEFINITIONS = {
     "mfpt": "mean first passage time: expected steps attempted up to and including the one "
@@ -84,12 +85,13 @@ DEFINITIONS = {
     },
     "monte_carlo": "geometric MLE T/F (F failures, T steps attempted by every run, censored "
                    "ones included) with the Clopper-Pearson 95 % interval of p = F/T inverted",
-    "mesh": "Markov chain on the level-equivalent zeta^- (zeta^+/delta_zero^2 after an impact: "
-            "the zeta^- of the start on Z with the same post-impact angular momentum), its "
-            "transitions from one-step full-order simulations integrated over the height's "
-            "density; mfpt = 1/(1 - lambda_2), lambda_2 the largest eigenvalue of the "
-            "transition matrix among the non-failed states; from_fixed_point = (I - Q)^-1 1 at "
-            "the fixed point",
+    "mesh": "Markov chain on the pre-impact state reduced to (zeta^-, h): zeta^- at an impact "
+            "and the height of its ground (the state on Z there; output_error_at_impact: the "
+            "largest max |y| left at an impact, what the reduction drops), its transitions "
+            "from one-step full-order simulations integrated over the next height's density; "
+            "mfpt = 1/(1 - lambda_2), lambda_2 the largest eigenvalue of the transition matrix "
+            "among the non-failed states; from_fixed_point = (I - Q)^-1 1 from the level "
+            "impact at the fixed point",
     "uncertainty": "the larger |change| of the mesh mfpt with half the mesh points or half the "
                    "terrain samples",
     "agreement": "agree: the mesh's from_fixed_point lies inside the Monte-Carlo 95 % interval "
@@ -123,7 +125,7 @@ class RoughGroundPlan:
 def plan_rough_ground(walker: Walker, *, sigma: Sequence[float],
                       strategy: Sequence[str | Strategy] | None = None, trials: int = 50,
                       cap: int = 1000, seed: int = 0, distribution: str = "normal",
-                      mesh: int = 40, terrain_samples: int = 48, s_max: float = 1.3,
+                      mesh: int = 20, terrain_samples: int = 24, s_max: float = 1.3,
                       mu: float | None = None, min_vertical_force: float = 0.0,
                       thruster: str | None = None, knots: Sequence[float] = (0.0, 0.5, 1.0),
                       max_thrust: float | None = None, target: float = TARGET,
@@ -226,7 +228,13 @@ def plan_rough_ground(walker: Walker, *, sigma: Sequence[float],
 # ------------------------------------------------------------------------------ the mesh
 def mesh_chain(plan: RoughGroundPlan, k: int,
                progress: Callable[[int], None] | None = None) -> dict:
-    """The mesh chain of strategy ``k`` for every sigma of the plan (module docstring)."""
+    """The mesh chain of strategy ``k`` for every sigma of the plan (module docstring): the
+    heights span +-6 sigma_max (uniform: the support) cut to the heights a step from the fixed
+    point completes on, widened by a quarter on each side; the states' impact heights are the
+    grid heights inside that success interval and its two ends (where an impact exists);
+    the zeta^- mesh covers the range a walk of ``VISIT_STEPS`` steps on heights of
+    sigma_max (cut to the success interval) visits, widened by 25 % of it and 2 % of zeta*
+    on each side (the probability of leaving it is reported)."""
     p, real = plan.params[k], plan.realized[k]
     st = plan.settings
     if real.zeta_ref is None:
@@ -235,46 +243,56 @@ def mesh_chain(plan: RoughGroundPlan, k: int,
     dist, smax = st["distribution"], max(plan.sigmas)
     M, n = st["mesh"]["terrain_samples"] - 1, st["mesh"]["points"] - 1
     H = (HEIGHT_RANGE * smax if dist == "normal" else half_width(dist, smax)) or 1e-6
-    grid_h = np.linspace(-H, H, M + 1)
     zs = float(real.zeta_ref)
-    near = grid_h[np.abs(grid_h) <= (4.0 * smax if dist == "normal" else H)]
-    near = near[np.unique(np.linspace(0, near.size - 1, min(near.size, 9)).round().astype(int))] \
-        if near.size else np.zeros(1)
-    lo, hi = reachable_range(runner, zs, near)
-    pad = 0.2 * (hi - lo) + 0.02 * zs
-    z = np.linspace(max(lo - pad, 1e-3 * zs), hi + pad, n + 1)
-    smap = build_step_map(runner, z, grid_h, progress)
-    residual = reduction_residual(runner, zs, [v for v in (-2 * smax, -smax, smax, 2 * smax)
-                                               if v != 0.0])
+    ok = success_interval(runner, zs, np.linspace(-H, H, 25))
+    if ok is None:
+        return {"computed": False, "reason": "no step from the fixed point completes on any "
+                                             f"height in +-{H:.3g} m", "sigmas": []}
+    lo_h, hi_h = max(-H, ok[0] - 0.25 * (ok[1] - ok[0])), min(H, ok[1] + 0.25 * (ok[1] - ok[0]))
+    if hi_h - lo_h < 1e-9:
+        lo_h, hi_h = -H, H
+    grid_h = np.linspace(lo_h, hi_h, M + 1)
+    if not lo_h < 0.0 < hi_h:
+        grid_h = np.unique(np.append(grid_h, 0.0))
+    hp = np.unique(np.concatenate([grid_h[(grid_h > ok[0]) & (grid_h < ok[1])], ok]))
+    hp = np.array([v for v in hp if runner.alpha_at(float(v)) is not None])
+    from ..resilience.rough import trial_terrain
+
+    walk = np.clip(trial_terrain(dist, smax, st["seed"], -1 % (2 ** 31), st["s_max"]
+                                 ).heights(VISIT_STEPS), ok[0], ok[1])
+    z_lo, z_hi = visited_range(runner, zs, walk)
+    pad = 0.25 * (z_hi - z_lo) + 0.02 * zs
+    z = np.linspace(max(z_lo - pad, 1e-3 * zs), z_hi + pad, n + 1)
+    smap = build_step_map(runner, z, hp, grid_h, progress)
     rows = []
     for sg in plan.sigmas:
         out = {}
         for name, ze, he in (("full", 1, 1), ("half_mesh", 2, 1), ("half_samples", 1, 2)):
             ch = transition_matrix(smap, dist, sg, ze, he)
-            j, t, _ = interpolation_weights(ch.z, np.array([zs]))
-            w = np.zeros(ch.z.size)
-            w[j[0]] += 1.0 - t[0]
-            w[j[0] + 1] += t[0]
-            out[name] = (chain_mfpt(ch.Q, w), ch)
+            out[name] = (chain_mfpt(ch.Q, ch.weights(zs, 0.0)), ch)
         c, ch = out["full"]
         diffs = [abs(out[nm][0].mfpt - c.mfpt) for nm in ("half_mesh", "half_samples")
                  if c.mfpt is not None and out[nm][0].mfpt is not None]
         unc = max(diffs) if len(diffs) == 2 else None
+        qs = ch.quasi_stationary()
         rows.append({
             "sigma": float(sg), "mfpt": c.mfpt, "from_fixed_point": c.from_start,
             "lambda2": c.lambda2, "one_minus_lambda2": 1.0 - c.lambda2,
             "uncertainty": unc,
             "half_mesh_mfpt": out["half_mesh"][0].mfpt,
             "half_samples_mfpt": out["half_samples"][0].mfpt,
-            "failure_probability_at_fixed_point": float(np.interp(zs, ch.z, ch.fail)),
-            "clipped_mass": float(ch.quasi_stationary() @ ch.clipped),
+            "failure_probability_at_fixed_point": float(ch.weights(zs, 0.0) @ ch.fail),
+            "clipped_mass": float(qs @ ch.clipped),
             "reason": c.reason or ("" if unc is not None else
                                    "no uncertainty: a refined chain reaches no failure")})
     return {"computed": True, "reason": "", "zeta_range": [float(z[0]), float(z[-1])],
-            "reachable": [lo, hi], "points": int(z.size), "heights": [float(-H), float(H)],
-            "terrain_samples": int(grid_h.size), "simulations": smap.simulations,
+            "visited": [z_lo, z_hi], "zeta_points": int(z.size),
+            "impact_heights": [float(v) for v in hp], "heights": [float(lo_h), float(hi_h)],
+            "success_interval_at_fixed_point": [float(ok[0]), float(ok[1])],
+            "terrain_samples": int(grid_h.size), "states": int(z.size * hp.size),
+            "simulations": smap.simulations,
             "failure_kinds_on_grid": dict(sorted(smap.kinds.items())),
-            "residual": residual, "sigmas": rows}
+            "output_error_at_impact": smap.output_error, "sigmas": rows}
 
 
 # ------------------------------------------------------------------------------ running
@@ -283,12 +301,14 @@ def run_rough_ground(plan: RoughGroundPlan, *, workers: int | None = None,
                      finished: Mapping[str, dict] | None = None,
                      on_record: Callable[[dict], None] | None = None,
                      chunk: int | None = None,
-                     mesh_progress: Callable[[int], None] | None = None) -> RoughGroundResult:
+                     mesh_progress: Callable[[int], None] | None = None,
+                     meshes: Sequence[dict] | None = None) -> RoughGroundResult:
     """Run every trial of ``plan`` without a record in ``finished`` (key -> record) on
     ``executor`` (default: ``workers`` local processes or the Dask cluster of ``scheduler``),
     ``on_record(record)`` as each finishes, then the mesh chains in this process
-    (``mesh_progress(1)`` per mesh label simulated). ``chunk``: trials per engine task
-    (default from the cap: about 320 steps of work at most); the records do not depend on it."""
+    (:func:`mesh_chain`, ``mesh_progress(1)`` per mesh label simulated) unless ``meshes``
+    gives them. ``chunk``: trials per engine task (default from the cap: about 320 steps of
+    work at most); the records do not depend on it."""
     from .sweep import check_executor, task_executor
 
     check_instance("plan", plan, RoughGroundPlan, "a RoughGroundPlan (plan_rough_ground)")
@@ -316,9 +336,14 @@ def run_rough_ground(plan: RoughGroundPlan, *, workers: int | None = None,
             executor.close()
     desc = executor.describe() if executor is not None else {"kind": "none", "workers": 0}
     t_mc = time.perf_counter() - t0
-    meshes = tuple(mesh_chain(plan, k, mesh_progress) for k in range(len(plan.strategies)))
+    t1 = time.perf_counter()
+    if meshes is None:
+        meshes = tuple(mesh_chain(plan, k, mesh_progress) for k in range(len(plan.strategies)))
+    elif len(meshes) != len(plan.strategies):
+        raise InputError.param("meshes", f"one mesh chain per strategy ({len(plan.strategies)}"
+                                         f"), got {len(meshes)}")
     return RoughGroundResult(plan, tuple(done.get(t.key) for t in plan.tasks), counts, desc,
-                             meshes, t_mc, time.perf_counter() - t0 - t_mc)
+                             tuple(meshes), t_mc, time.perf_counter() - t1)
 
 
 def rough_ground(walker: Walker, *, sigma: Sequence[float], workers: int | None = None,
@@ -358,11 +383,11 @@ def crossing(sigmas: Sequence[float], mfpt: Sequence[float | None], target: floa
             a, b = np.log(v0), np.log(v1)
             return float(s0 + (np.log(target) - a) / (b - a) * (s1 - s0)), ""
     if pts and all(v >= target for _, v in pts):
-        return None, f"not reached: the MFPT stays at or above {target:g} steps up to sigma = " \
-                     f"{pts[-1][0]:g} m"
+        return None, f"not reached (the MFPT stays above {target:g} steps up to sigma = " \
+                     f"{1e3 * pts[-1][0]:g} mm)"
     if pts and pts[0][1] < target:
-        return None, f"not reached: the MFPT is already below {target:g} steps at sigma = " \
-                     f"{pts[0][0]:g} m"
+        return None, f"not reached (the MFPT is already below {target:g} steps at sigma = " \
+                     f"{1e3 * pts[0][0]:g} mm)"
     return None, "not reached"
 
 
@@ -460,17 +485,23 @@ class RoughGroundResult:
             per.append({"label": s.label, "sigma": sig, "reason": why})
         base = next((h for h in per if h["label"] == "none"), None)
         lines = []
-
-        def mm(h):
-            return f"{1e3 * h['sigma']:.3g} mm" if h["sigma"] is not None else h["reason"]
-
+        head = f"at MFPT = {target:,.0f} steps"
         for h in per:
             if base is None or h is base:
                 continue
-            lines.append(f"at MFPT = {target:,.0f} steps, {h['label']} tolerates sigma = "
-                         f"{mm(h)} vs {mm(base)} without thrust")
-        if base is not None and not lines:
-            lines.append(f"at MFPT = {target:,.0f} steps, no thrust tolerates sigma = {mm(base)}")
+            if h["sigma"] is not None and base["sigma"] is not None:
+                lines.append(f"{head}, {h['label']} tolerates sigma = {1e3 * h['sigma']:.3g} mm "
+                             f"vs {1e3 * base['sigma']:.3g} mm without thrust")
+            else:
+                lines.append(f"{head}: {h['label']} " + (
+                    f"tolerates sigma = {1e3 * h['sigma']:.3g} mm" if h["sigma"] is not None
+                    else h["reason"]) + "; without thrust " + (
+                    f"sigma = {1e3 * base['sigma']:.3g} mm" if base["sigma"] is not None
+                    else base["reason"]))
+        if not lines:
+            lines += [f"{head}: {h['label']} " + (
+                f"tolerates sigma = {1e3 * h['sigma']:.3g} mm" if h["sigma"] is not None
+                else h["reason"]) for h in per]
         return {"target_mfpt": target, "curve": "mesh chain 1/(1 - lambda_2), log-linear in "
                                                   "sigma between grid values",
                 "strategies": per, "text": lines}
