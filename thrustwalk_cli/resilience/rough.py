@@ -323,17 +323,24 @@ class StepMap:
     simulations: int
 
 
-def build_step_map(runner: RoughRunner, z: np.ndarray, hp: np.ndarray, grid_h: np.ndarray,
+def build_step_map(runners: RoughRunner | Sequence[RoughRunner], z: np.ndarray,
+                   hp: np.ndarray, grid_h: np.ndarray,
                    progress: Callable[[int], None] | None = None) -> StepMap:
     """One full-order step from each mesh state ``(z[i], hp[j])`` onto every height of
     ``grid_h`` [m], each failure edge between grid points located by bisection to
-    ``BISECT_TOL`` (``progress(1)`` per ``z[i]``)."""
-    H, Z, G = [], [], []
-    kinds: dict[str, int] = {}
-    sims, yerr = 0, 0.0
+    ``BISECT_TOL`` (``progress(1)`` per ``z[i]``). ``runners``: one per thread (the compiled
+    kernel releases the GIL), each taking whole rows of ``z``; the map does not depend on
+    how many."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    pool = [runners] if isinstance(runners, RoughRunner) else list(runners)
     gset = set(float(v) for v in grid_h)
-    for zi in np.asarray(z, float):
+    rows: list = [None] * len(z)
+
+    def row(runner: RoughRunner, zi: float) -> tuple:
         hr, zr, gr = [], [], []
+        kinds: dict[str, int] = {}
+        sims, yerr = 0, 0.0
         for hj in np.asarray(hp, float):
             pts: dict[float, float] = {}
             for h in grid_h:
@@ -363,13 +370,27 @@ def build_step_map(runner: RoughRunner, z: np.ndarray, hp: np.ndarray, grid_h: n
             hr.append(np.array(order))
             zr.append(np.array([pts[v] for v in order]))
             gr.append(np.array([v in gset for v in order]))
-        H.append(tuple(hr))
-        Z.append(tuple(zr))
-        G.append(tuple(gr))
-        if progress is not None:
-            progress(1)
+        return tuple(hr), tuple(zr), tuple(gr), kinds, sims, yerr
+
+    def share(w: int) -> None:
+        for i in range(w, len(z), len(pool)):
+            rows[i] = row(pool[w], float(z[i]))
+            if progress is not None:
+                progress(1)
+
+    if len(pool) == 1:
+        share(0)
+    else:
+        with ThreadPoolExecutor(max_workers=len(pool)) as ex:
+            list(ex.map(share, range(len(pool))))
+    kinds: dict[str, int] = {}
+    for r in rows:
+        for k, v in r[3].items():
+            kinds[k] = kinds.get(k, 0) + v
     return StepMap(np.asarray(z, float), np.asarray(hp, float), np.asarray(grid_h, float),
-                   tuple(H), tuple(Z), tuple(G), kinds, float(yerr), sims)
+                   tuple(r[0] for r in rows), tuple(r[1] for r in rows),
+                   tuple(r[2] for r in rows), kinds, float(max(r[5] for r in rows)),
+                   int(sum(r[4] for r in rows)))
 
 
 def visited_range(runner: RoughRunner, zeta: float, heights: Sequence[float]

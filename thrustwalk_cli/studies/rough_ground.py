@@ -65,6 +65,8 @@ MAX_CAP = 1_000_000
 TARGET = 1000.0  # [steps] the headline's MFPT
 HEIGHT_RANGE = 6.0  # the mesh's heights span +- this many sigma_max (normal)
 VISIT_STEPS = 400  # the walk whose visited zeta^- the mesh covers
+TRIALS_PER_CHUNK = 8  # Monte-Carlo trials per engine task at most
+MESH_THREADS = 2  # threads of the mesh's one-step simulations (the kernel releases the GIL)
 UNITS = units("zeta", sigma="m", mfpt="steps", height="m", output_y="rad")
 DEFINITIONS = {
     "mfpt": "mean first passage time: expected steps attempted up to and including the one "
@@ -263,7 +265,12 @@ def mesh_chain(plan: RoughGroundPlan, k: int,
     z_lo, z_hi = visited_range(runner, zs, walk)
     pad = 0.25 * (z_hi - z_lo) + 0.02 * zs
     z = np.linspace(max(z_lo - pad, 1e-3 * zs), z_hi + pad, n + 1)
-    smap = build_step_map(runner, z, hp, grid_h, progress)
+    from ..resilience.rough import RoughRunner
+
+    extra = [RoughRunner(plan.walker.zd, real, s_max=st["s_max"], mu=st["mu"],
+                         eps=st["min_vertical_force"], rtol=st["integrator"]["rtol"],
+                         atol=st["integrator"]["atol"]) for _ in range(MESH_THREADS - 1)]
+    smap = build_step_map([runner, *extra], z, hp, grid_h, progress)
     rows = []
     for sg in plan.sigmas:
         out = {}
@@ -307,8 +314,10 @@ def run_rough_ground(plan: RoughGroundPlan, *, workers: int | None = None,
     ``executor`` (default: ``workers`` local processes or the Dask cluster of ``scheduler``),
     ``on_record(record)`` as each finishes, then the mesh chains in this process
     (:func:`mesh_chain`, ``mesh_progress(1)`` per mesh label simulated) unless ``meshes``
-    gives them. ``chunk``: trials per engine task (default from the cap: about 320 steps of
-    work at most); the records do not depend on it."""
+    gives them. ``chunk``: trials per engine task (default
+    :func:`~thrustwalk_cli.sweep.runner.chunk_size` with at most ``TRIALS_PER_CHUNK``: a
+    trial walks until it fails, often a few tens of milliseconds, about the engine's cost per
+    task); the records do not depend on it."""
     from .sweep import check_executor, task_executor
 
     check_instance("plan", plan, RoughGroundPlan, "a RoughGroundPlan (plan_rough_ground)")
@@ -325,8 +334,7 @@ def run_rough_ground(plan: RoughGroundPlan, *, workers: int | None = None,
         executor = task_executor(plan.tasks, STUDIES["rough-trial"], {}, workers, scheduler,
                                  todo)
     if chunk is None:
-        chunk = chunk_size(todo, getattr(executor, "workers", 1),
-                           most=max(1, 320 // plan.settings["cap"]))
+        chunk = chunk_size(todo, getattr(executor, "workers", 1), most=TRIALS_PER_CHUNK)
     try:
         counts = (run_tasks(plan.tasks, run_point, executor, done,
                             on_record or (lambda r: None), chunk={"rough-trial": int(chunk)})
