@@ -55,7 +55,7 @@ from ..sweep.runner import RunCounts, chunk_size, run_tasks
 from ..sweep.tasks import PointTask, identity, task_key
 from ..walker import Walker, check_walker
 from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
-from .robustness import _texts, parse_strategy
+from .robustness import parse_strategy, walker_texts
 from .sweep_studies import STUDIES, run_point
 from .trial_studies import check_strategy, realized_strategy, rough_runner
 
@@ -171,6 +171,8 @@ def plan_rough_ground(walker: Walker, *, sigma: Sequence[float],
         raise InputError.param("trials", f"{len(sigmas) * trials} trials per strategy: the "
                                          f"limit is {MAX_TRIALS}")
     zd, robot = walker.zd, walker.robot
+    if max_thrust is not None and robot.thrusters:
+        robot.check_thrust_bound("max_thrust", max_thrust, [robot.thruster_index(thruster)])
     if not zd.valid:
         raise InputError.param("gait", f"the gait has no walking orbit: {zd.invalid_reason}")
     if strategy is None:
@@ -179,7 +181,7 @@ def plan_rough_ground(walker: Walker, *, sigma: Sequence[float],
     if not strategies:
         raise InputError.param("strategy", "no strategy")
     labels_unique(strategies)
-    robot_text, gait_text = _texts(walker)
+    robot_text, gait_text = walker_texts(walker)
     common = {"cap": int(cap), "seed": int(seed), "distribution": distribution,
               "s_max": float(s_max), "mu": mu, "min_vertical_force": float(min_vertical_force),
               "rtol": float(rtol), "atol": float(atol)}
