@@ -37,7 +37,7 @@ def main(trials: int = 240) -> None:
     for workers in (1, 2):
         t0 = time.perf_counter()
         res = run_rough_ground(plan, workers=workers, meshes=[mesh])
-        dt = time.perf_counter() - t0 - res.mesh_time
+        dt = time.perf_counter() - t0  # the mesh is given: trials only
         steps = sum(r["fields"]["attempted"] for r in res.records)
         rates[workers] = trials / dt
         print(f"Monte-Carlo, {workers} worker(s): {trials} trials ({steps} steps) in {dt:.2f} s "

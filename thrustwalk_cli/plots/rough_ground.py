@@ -13,13 +13,19 @@ from .style import COLUMN, corner_note, style
 
 STRATEGY_COLOURS = ("k", "tab:blue", "tab:red", "tab:green", "tab:purple", "tab:orange",
                     "tab:brown", "tab:pink")
+STRATEGY_LINES = ("-", "--", "-.", ":")  # curves that coincide stay visible
 
 
 def mfpt(d: dict, title: str = ""):
     """MFPT [steps] (log axis) against sigma [mm]: per strategy (colour) the mesh chain's
     ``1/(1 - lambda_2)`` (solid line; an infinite value is left out) and the Monte-Carlo
     estimate (circles with their 95 % interval; a run without a failure: an open triangle at
-    the interval's lower end, the MFPT above it). Dotted: the headline's target MFPT."""
+    the interval's lower end, the MFPT above it), the strategies' points side by side around
+    their sigma and their lines in their own dash pattern (coinciding curves stay visible).
+    Dotted grey: the headline's target MFPT."""
+    sig = sorted({sg for s in d["strategies"] for sg, _ in s["mesh"]})
+    step = 1e3 * (min(np.diff(sig)) if len(sig) > 1 else max(sig[0], 1e-3) if sig else 1e-3)
+    n = len(d["strategies"])
     with style():
         fig = Figure(figsize=(COLUMN, 2.8))
         ax = fig.subplots()
@@ -27,14 +33,16 @@ def mfpt(d: dict, title: str = ""):
         infinite = []
         for k, s in enumerate(d["strategies"]):
             c = STRATEGY_COLOURS[k % len(STRATEGY_COLOURS)]
+            ls = STRATEGY_LINES[k % len(STRATEGY_LINES)]
+            dodge = (k - 0.5 * (n - 1)) * 0.12 * step / max(n, 1)
             mesh = [(1e3 * sg, v) for sg, v in s["mesh"] if v is not None]
             if len(mesh) < len(s["mesh"]):
                 infinite.append(s["label"])
             if mesh:
                 x, y = np.array(mesh).T
-                ax.plot(x, y, "-", color=c, lw=1.0)
+                ax.plot(x, y, ls, color=c, lw=1.0)
             for sg, v, lo, hi in s["mc"]:
-                x = 1e3 * sg
+                x = 1e3 * sg + dodge
                 if v is None:
                     if lo is not None:
                         ax.plot([x], [lo], "^", mfc="none", color=c, ms=4)
@@ -42,8 +50,8 @@ def mfpt(d: dict, title: str = ""):
                 top = hi if hi is not None else v
                 ax.errorbar([x], [v], yerr=[[v - lo], [top - v]], fmt="o", color=c, ms=3,
                             mfc="white", capsize=2, lw=0.7)
-            handles.append(Line2D([], [], color=c, lw=1.0, label=s["label"]))
-        handles += [Line2D([], [], color="0.3", lw=1.0, label="mesh chain"),
+            handles.append(Line2D([], [], color=c, ls=ls, lw=1.0, label=s["label"]))
+        handles += [Line2D([], [], color="0.3", lw=1.0, label="mesh chain (lines)"),
                     Line2D([], [], color="0.3", marker="o", mfc="white", ms=3, lw=0.7,
                            label="Monte-Carlo, 95 % CI"),
                     Line2D([], [], color="0.3", marker="^", mfc="none", ms=4, lw=0,

@@ -66,7 +66,8 @@ TARGET = 1000.0  # [steps] the headline's MFPT
 HEIGHT_RANGE = 6.0  # the mesh's heights span +- this many sigma_max (normal)
 VISIT_STEPS = 400  # the walk whose visited zeta^- the mesh covers
 TRIALS_PER_CHUNK = 8  # Monte-Carlo trials per engine task at most
-MESH_THREADS = 2  # threads of the mesh's one-step simulations (the kernel releases the GIL)
+MESH_THREADS = 2  # threads of the mesh's one-step simulations (the kernel releases the GIL;
+#                   control: 1, its planner is not shared between threads)
 UNITS = units("zeta", sigma="m", mfpt="steps", height="m", output_y="rad")
 DEFINITIONS = {
     "mfpt": "mean first passage time: expected steps attempted up to and including the one "
@@ -239,6 +240,7 @@ def mesh_chain(plan: RoughGroundPlan, k: int,
     the zeta^- mesh covers the range a walk of ``VISIT_STEPS`` steps on heights of
     sigma_max (cut to the success interval) visits, widened by 25 % of it and 2 % of zeta*
     on each side (the probability of leaving it is reported)."""
+    t0 = time.perf_counter()
     p, real = plan.params[k], plan.realized[k]
     st = plan.settings
     if real.zeta_ref is None:
@@ -271,7 +273,8 @@ def mesh_chain(plan: RoughGroundPlan, k: int,
 
     extra = [RoughRunner(plan.walker.zd, real, s_max=st["s_max"], mu=st["mu"],
                          eps=st["min_vertical_force"], rtol=st["integrator"]["rtol"],
-                         atol=st["integrator"]["atol"]) for _ in range(MESH_THREADS - 1)]
+                         atol=st["integrator"]["atol"])
+             for _ in range(MESH_THREADS - 1 if real.planner is None else 0)]  # one QP
     smap = build_step_map([runner, *extra], z, hp, grid_h, progress)
     rows = []
     for sg in plan.sigmas:
@@ -301,7 +304,8 @@ def mesh_chain(plan: RoughGroundPlan, k: int,
             "terrain_samples": int(grid_h.size), "states": int(z.size * hp.size),
             "simulations": smap.simulations,
             "failure_kinds_on_grid": dict(sorted(smap.kinds.items())),
-            "output_error_at_impact": smap.output_error, "sigmas": rows}
+            "output_error_at_impact": smap.output_error,
+            "seconds": time.perf_counter() - t0, "sigmas": rows}
 
 
 # ------------------------------------------------------------------------------ running
@@ -346,14 +350,13 @@ def run_rough_ground(plan: RoughGroundPlan, *, workers: int | None = None,
             executor.close()
     desc = executor.describe() if executor is not None else {"kind": "none", "workers": 0}
     t_mc = time.perf_counter() - t0
-    t1 = time.perf_counter()
     if meshes is None:
         meshes = tuple(mesh_chain(plan, k, mesh_progress) for k in range(len(plan.strategies)))
     elif len(meshes) != len(plan.strategies):
         raise InputError.param("meshes", f"one mesh chain per strategy ({len(plan.strategies)}"
                                          f"), got {len(meshes)}")
     return RoughGroundResult(plan, tuple(done.get(t.key) for t in plan.tasks), counts, desc,
-                             tuple(meshes), t_mc, time.perf_counter() - t1)
+                             tuple(meshes), t_mc, sum(m.get("seconds", 0.0) for m in meshes))
 
 
 def rough_ground(walker: Walker, *, sigma: Sequence[float], workers: int | None = None,
@@ -480,7 +483,8 @@ class RoughGroundResult:
             rows.append({"sigma": sg, "monte_carlo": mc, "mesh": m,
                          "agreement": self.agreement(mc, m)})
         return {"label": s.label, "strategy": s.parameters(), "zeta_ref": real.zeta_ref,
-                "mesh": {kk: v for kk, v in mesh.items() if kk != "sigmas"}, "sigmas": rows}
+                "mesh": {kk: v for kk, v in mesh.items() if kk not in ("sigmas", "seconds")},
+                "sigmas": rows}
 
     def headline(self) -> dict:
         p = self.plan
