@@ -121,6 +121,17 @@ STUDIES = {
         "samples": POS_COUNT, "rtol": NUMBER, "atol": NUMBER, "bogus": [1.0],
         "slope": NUMBER + [1.6, -2.0]},
         {"push_impulse": [1.0], "push_phase": [0.5], "strategy": ["none"], "basin_grid": 0}),
+    "rough_ground": (lambda w, **kw: tw.rough_ground(**{"walker": w, **kw}), {
+        "walker": WALKER, "workers": POS_COUNT + [10**6], "scheduler": [5, "x"],
+        "progress": CALLBACK, "sigma": NUMBERS + [[-0.001], [2.0]],
+        "strategy": ["none", 5, [5], ["fly"]], "trials": POS_COUNT, "cap": POS_COUNT,
+        "seed": COUNT, "distribution": CHOICE, "mesh": POS_COUNT + [5, 2], "terrain_samples":
+        POS_COUNT + [7], "s_max": POSITIVE + [1.0, 5.0], "mu": POSITIVE,
+        "min_vertical_force": NONNEG, "thruster": TEXT, "knots": NUMBERS,
+        "max_thrust": POSITIVE + [1e6], "target": NUMBER + [0.5], "rtol": NUMBER,
+        "atol": NUMBER, "bogus": [1.0]},
+        {"sigma": [0.004], "strategy": ["none"], "trials": 1, "cap": 5, "mesh": 4,
+         "terrain_samples": 4}),
     "design_gait": (lambda w, model, **kw: tw.design_gait(**{"robot": model, **kw}), {
         "robot": ["walker5", 5], "spec": ["x", {"speed": 0.6}], "compare": ["x", 5],
         "progress": CALLBACK, "initial": [5], "slope": NUMBER + [1.6]}, {"spec": "SPEC"}),
@@ -424,6 +435,28 @@ for _opt, _v, _msg in (("--slope", "nan", ""), ("--slope", "1.6", "a slope is an
                        ("--library", str(DATA / "no_such_library"), ".* is not a folder")):
     cli_case(f"energy{_opt}={_v}", ["energy", *COMMANDS["energy"], _opt, _v, "--out", "{out}"],
              _opt, _msg)
+# the rough-ground command (SPEC 14), after the rotations above
+COMMANDS["rough-ground"] = [W5, W5T, "--sigma", "0.004", "--strategy", "none", "--trials", "2",
+                            "--cap", "10", "--mesh", "4", "--terrain-samples", "4"]
+FLOATS["rough-ground"] = ["--s-max", "--target", "--mu", "--min-vertical-force",
+                          "--max-thrust", "--rtol", "--atol"]
+INTS["rough-ground"] = [("--trials", ("0", "-1")), ("--cap", ("0", "-1")), ("--seed", ("-1",)),
+                        ("--mesh", ("0", "-1", "5")), ("--terrain-samples", ("0", "-1", "3")),
+                        ("--workers", ("0", "-1"))]
+for _i, _opt in enumerate(FLOATS["rough-ground"]):
+    _v = _BAD[_i % len(_BAD)]
+    cli_case(f"rough-ground{_opt}={_v}", ["rough-ground", *COMMANDS["rough-ground"], _opt, _v,
+                                          "--out", "{out}"], _opt)
+for _opt, _vals in INTS["rough-ground"]:
+    for _v in _vals:
+        cli_case(f"rough-ground{_opt}={_v}", ["rough-ground", *COMMANDS["rough-ground"], _opt,
+                                              _v, "--out", "{out}"], _opt)
+for _opt, _v, _msg in (("--sigma", "nan", ""), ("--sigma", "0,inf", ""),
+                       ("--sigma", "-0.001", ""), ("--sigma", "0:1:5e-324", ""),
+                       ("--sigma", "2", ""), ("--knots", "0,nan,1", ""),
+                       ("--distribution", "cauchy", ""), ("--strategy", "fly", "unknown")):
+    cli_case(f"rough-ground{_opt}={_v}", ["rough-ground", *COMMANDS["rough-ground"], _opt, _v,
+                                          "--out", "{out}"], _opt, _msg)
 # the full-order commands on a slope (SPEC 14)
 for _cmd in ("simulate", "stability", "control"):
     FLOATS[_cmd].append("--slope")

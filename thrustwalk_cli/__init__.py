@@ -60,6 +60,9 @@ Studies (one per command)
     robustness          push maps, survivable pushes, basins, uncertainty per thrust strategy
                         (SPEC 12; trials on the sweep engine) -> :class:`RobustnessResult`
     RobustnessResult    outcomes per trial, survivable impulses, basins, samples, figures
+    rough_ground        mean first passage time on rough ground against sigma per thrust
+                        strategy, Monte-Carlo and mesh chain (SPEC 14) -> :class:`RoughGroundResult`
+    RoughGroundResult   MFPT with its interval and the mesh's, agreement, headline, figure
     design_gait         design a stable, walkable gait for a robot (a Robot, its model or a
                         Walker) -> :class:`DesignGaitResult`
     DesignSpec          what a gait design asks for (speed, step length, margins, ...)
@@ -110,6 +113,7 @@ _HOMES = {
     "control": "studies.control", "ControlResult": "studies.control_result",
     "stability": "studies.stability", "StabilityResult": "studies.stability",
     "robustness": "studies.robustness", "RobustnessResult": "studies.robustness_result",
+    "rough_ground": "studies.rough_ground", "RoughGroundResult": "studies.rough_ground",
     "design_gait": "studies.design_gait", "DesignGaitResult": "studies.design_gait",
     "DesignSpec": "design.spec",
     "load_sweep": "studies.sweep", "Sweep": "studies.sweep", "run_sweep": "studies.sweep",

@@ -28,6 +28,7 @@ from .commands import (
     optimize,
     report,
     robustness,
+    rough_ground,
     shape,
     simulate,
     slope,
@@ -38,7 +39,7 @@ from .commands import (
 # Help lists the commands in this order.
 COMMANDS = (compile, import_urdf, export_mjcf, inspect, limit_cycle, shape, feasibility,
             slope, energy, optimize, simulate, mujoco, control, stability, robustness,
-            design_gait, sweep, report)
+            rough_ground, design_gait, sweep, report)
 
 class _OneLineErrors(TyperGroup):
     """The command group, with usage errors (an unknown option, a value of the wrong type, a

@@ -203,6 +203,23 @@ STUDY_PARAMETERS: dict[str, Kind] = {
                   "footing (the trial fell)", default=1.3))), "the ground the trial walks "
               "(SPEC 14; none: level)", default=None),
     ),
+    "rough-trial": mapping(
+        *_STRATEGY,
+        field("sigma", number("m", ge=0, le=1), "standard deviation of the step heights "
+              "(uniform: half width sqrt(3) sigma)", default=0.005),
+        field("distribution", choice("normal", "uniform"), "distribution of the step heights",
+              default="normal"),
+        field("trial", integer("1", ge=0), "the trial's index: its heights come from "
+              "SeedSequence([seed, trial])", default=0),
+        field("seed", integer("1", ge=0), "seed of the run's terrains", default=0),
+        field("cap", integer("1", ge=1, le=1_000_000), "steps at most (a run that reaches it "
+              "is censored)", default=1000),
+        field("s_max", number("1", gt=1, le=3), "missed footing past this phase s without a "
+              "touchdown", default=1.3),
+        field("rtol", number("1", gt=0, lt=0.1), "relative integration tolerance",
+              default=1e-9),
+        field("atol", number("1", gt=0, lt=0.1), "absolute integration tolerance", default=1e-9),
+    ),
     "reduced-walk": mapping(
         *_STRATEGY,
         _SLOPE,

@@ -266,7 +266,7 @@ def plan_robustness(walker: Walker, *, push_impulse: Sequence[float] | None = No
     if not strategies:
         raise InputError.param("strategy", "no strategy")
     labels_unique(strategies)
-    robot_text, gait_text = _texts(walker)
+    robot_text, gait_text = walker_texts(walker)
     mu_v = zd.gait.mu if mu is None else float(mu)
     common = {"steps": int(steps), "push_direction": [float(v) for v in push_direction],
               "push_link": push_link, "push_at": float(push_at),
@@ -364,7 +364,7 @@ def plan_robustness(walker: Walker, *, push_impulse: Sequence[float] | None = No
                           tuple(where), identity([t.key for t in tasks]), tuple(warnings))
 
 
-def _texts(walker: Walker) -> tuple[str, str]:
+def walker_texts(walker: Walker) -> tuple[str, str]:
     """The robot and gait files' texts (the tasks carry them: workers need no shared folder),
     checked to be the walker's own."""
     robot, gait = walker.robot, walker.gait

@@ -1,7 +1,9 @@
-"""The sweep studies of the robustness command (SPEC 12): ``push-trial`` (one full-order push
-or basin trial per point, several per engine task: :func:`trial_chunk`) and ``reduced-walk``
-(one Monte-Carlo sample of the robot's parameters on the reduced model), as entries of
-:data:`TRIAL_STUDIES`, which :data:`.sweep_studies.STUDIES` includes.
+"""The sweep studies of the robustness and rough-ground commands (SPEC 12, 14): ``push-trial``
+(one full-order push or basin trial per point, several per engine task: :func:`trial_chunk`),
+``rough-trial`` (one full-order run on seeded rough ground until failure or the cap,
+:mod:`thrustwalk_cli.resilience.rough`) and ``reduced-walk`` (one Monte-Carlo sample of the
+robot's parameters on the reduced model), as entries of :data:`TRIAL_STUDIES`, which
+:data:`.sweep_studies.STUDIES` includes.
 """
 
 from __future__ import annotations
@@ -170,6 +172,52 @@ def check_strategy(walker: Walker, p: dict) -> list[tuple[str, str]]:
     return []
 
 
+_ROUGH_KEYS = _STRATEGY_KEYS + ("s_max", "rtol", "atol")
+
+
+def rough_runner(walker: Walker, p: Mapping):
+    """The rough-ground runner of the point's strategy and settings (kept per process)."""
+    from ..resilience.rough import RoughRunner
+
+    real, mu = realized_strategy(walker, p)
+    key = ("rough", id(walker), canonical({k: p.get(k) for k in _ROUGH_KEYS}))
+
+    def make():
+        return walker, RoughRunner(walker.zd, real, s_max=float(p["s_max"]), mu=mu,
+                                   eps=float(p["min_vertical_force"]), rtol=float(p["rtol"]),
+                                   atol=float(p["atol"]))
+
+    return fresh(key, lambda v: v[0] is walker, make)[1]
+
+
+_RT_FIELDS = {
+    "outcome": ("", "censored (the cap reached), fell, stopped, scuffed, lifted, slipped, "
+                    "missed_footing or error"),
+    "failed": ("1", "the run failed before the cap (error: no)"),
+    "steps_completed": ("1", "steps completed"),
+    "attempted": ("1", "steps attempted: the completed ones and the failed one"),
+    "failed_step": ("1", "the step that failed (empty when none did)"),
+    "failed_height": ("m", "the ground height of the failed step"),
+    "terrain_seed": ("1", "the seed of the trial's terrain (a terrain file's rough: seed "
+                          "replays it)"),
+}
+
+
+def _rough_trial_point(walker: Walker, p: dict, start: dict | None) -> PointResult:
+    from ..resilience.rough import trial_terrain
+
+    runner = rough_runner(walker, p)
+    sigma, cap = float(p["sigma"]), int(p["cap"])
+    terrain = trial_terrain(p["distribution"], sigma, int(p["seed"]), int(p["trial"]),
+                            float(p["s_max"]))
+    walk = runner.walk(terrain.heights(cap), cap)
+    doc = {"strategy": runner.r.strategy.label, "sigma": sigma,
+           "distribution": p["distribution"], "trial": int(p["trial"]),
+           "terrain": terrain.record(), **walk.document()}
+    fields = {"failed": walk.failed, "terrain_seed": terrain.seed, **walk.document()}
+    return PointResult(doc, fields)
+
+
 _RW_FIELDS = {
     "walks": ("1", "the point's robot walks under the strategy (stable orbit in its reduced "
                    "basin, swing foot clear; control: the base robot's controller settles)"),
@@ -214,6 +262,8 @@ def _prepare_trials(walker: Walker, settings: dict) -> None:
 TRIAL_STUDIES: dict[str, SweepStudy] = {
     "push-trial": SweepStudy("push-trial", _PT_FIELDS, _push_trial_point,
                              check=_check_push_trial, prepare=_prepare_trials),
+    "rough-trial": SweepStudy("rough-trial", _RT_FIELDS, _rough_trial_point,
+                              check=check_strategy, prepare=_prepare_trials),
     "reduced-walk": SweepStudy("reduced-walk", _RW_FIELDS, _reduced_walk_point,
                                check=check_strategy),
 }
