@@ -42,6 +42,10 @@ epigraph variable per interval) are linear programmes solved by the HiGHS simple
 exact). The KKT residuals are those of the full problem: stationarity with the subgradient
 interval at ``x_j = 0`` (bounded least squares for the multipliers on the active rows),
 complementarity, primal feasibility.
+
+One idea in one file (above 600 lines): the energy objective of one thruster, its convex
+subproblem, the solver finished on its active set and the KKT check of the full problem read
+the same frozen-orbit data and are verified against each other.
 """
 
 from __future__ import annotations
