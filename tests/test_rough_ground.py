@@ -17,11 +17,11 @@ import pytest
 from thrustwalk_cli.resilience.mfpt import chain_mfpt, interpolation_weights, mc_estimate
 from thrustwalk_cli.resilience.rough import StepMap, transition_matrix
 from thrustwalk_cli.studies.rough_ground import (
-    crossing,
     plan_rough_ground,
     rough_ground,
     run_rough_ground,
 )
+from thrustwalk_cli.studies.rough_ground_result import crossing
 
 DATA = __import__("pathlib").Path(__file__).parent / "data"
 

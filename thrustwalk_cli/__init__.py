@@ -113,7 +113,7 @@ _HOMES = {
     "control": "studies.control", "ControlResult": "studies.control_result",
     "stability": "studies.stability", "StabilityResult": "studies.stability",
     "robustness": "studies.robustness", "RobustnessResult": "studies.robustness_result",
-    "rough_ground": "studies.rough_ground", "RoughGroundResult": "studies.rough_ground",
+    "rough_ground": "studies.rough_ground", "RoughGroundResult": "studies.rough_ground_result",
     "design_gait": "studies.design_gait", "DesignGaitResult": "studies.design_gait",
     "DesignSpec": "design.spec",
     "load_sweep": "studies.sweep", "Sweep": "studies.sweep", "run_sweep": "studies.sweep",

@@ -48,7 +48,7 @@ mass [kg]) under the same constraints: sequential convex programming on the orbi
 weights, each convex problem solved exactly; the energy is re-computed on the schedule's orbit
 and compared with the minimum-effort schedule's.
 
---slope GAMMA [rad, positive uphill] solves the problem on a slope (SPEC 14): the fixed point
+--slope GAMMA [rad, positive uphill] solves the problem on a slope: the fixed point
 and the contact terms of the slope frame, the target speed along the ground; the JSON gains
 the slope block and the climb rate, the gait file's header the slope.
 

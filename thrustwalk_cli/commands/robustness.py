@@ -59,7 +59,7 @@ and one output rate (--basin-grid, --basin-sigma, --basin-rate); with --uncertai
 --samples robots drawn from the file's distributions (reduced model): the fraction that walks
 and the spread of the converged speed.
 
-With --slope GAMMA [rad, positive uphill] everything is on a slope (SPEC 14): each strategy's
+With --slope GAMMA [rad, positive uphill] everything is on a slope: each strategy's
 orbit, reduced basin and controller, the trials (pushes given in the world frame, turned into
 the slope frame as simulate --slope turns them; ground forces tangential and normal to the
 slope) and the uncertainty samples; the JSON gains the slope block and each orbit its climb

@@ -1,5 +1,5 @@
 """The figure of ``thrustwalk rough-ground`` (SPEC 14), from the figure data of
-:meth:`thrustwalk_cli.studies.rough_ground.RoughGroundResult.figure_data`: the mean first
+:meth:`thrustwalk_cli.studies.rough_ground_result.RoughGroundResult.figure_data`: the mean first
 passage time against the roughness sigma, one colour per strategy, the Monte-Carlo estimate as
 points with their 95 % interval, the mesh chain as lines."""
 

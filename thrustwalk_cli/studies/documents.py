@@ -24,7 +24,7 @@ UNITS = {
     "torque": "N m", "alpha": "rad", "alpha_dot": "rad/s", "angle": "rad", "q": "rad",
     "q_dot": "rad/s", "sigma_N": "kg m^2/s", "zeta": "kg^2 m^4/s^2", "time": "s",
     "step_time": "s", "step_length": "m", "speed": "m/s", "height": "m", "length": "m",
-    "velocity": "m/s", "energy": "J", "mass": "kg", "gravity": "m/s^2",
+    "velocity": "m/s", "energy": "J", "power": "W", "mass": "kg", "gravity": "m/s^2",
     "inertia": "kg m^2", "friction_ratio": "1", "delta_zero_sq": "1", "output_y": "rad",
     "output_rate": "rad/s", "b_F": "kg m^2 rad", "Gamma_j": "kg m^3 rad", "T_j": "N m",
     "F_j": "N", "Lambda_0": "N", "Lambda_1": "N s^2/(kg^2 m^4)", "Lambda_2": "1",
