@@ -148,8 +148,8 @@ class Cluster:
             if p.poll() is None:
                 p.terminate()
         for p in self.procs:
-            try:
-                p.wait(timeout=15)
+            try:  # a worker whose scheduler is gone may retry for a while: 3 s, then kill
+                p.wait(timeout=3)
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait(timeout=5)
@@ -394,8 +394,8 @@ def _stop(procs: list[subprocess.Popen], pids: list[int]) -> None:
         if p.poll() is None:
             p.terminate()
     for p in reversed(procs):
-        try:
-            p.wait(timeout=20)
+        try:  # 3 s for a graceful stop, then kill
+            p.wait(timeout=3)
         except subprocess.TimeoutExpired:
             p.kill()
             p.wait(timeout=5)
