@@ -131,6 +131,9 @@ def whole() -> None:
 
 def main() -> None:
     whole()
+    import simulate_energy  # energy along a run (issue 28): its cost, printed as ratios
+
+    simulate_energy.main()
     import numba
 
     from thrustwalk_cli.hzd.zero_dynamics import limit_cycles, zero_dynamics
