@@ -17,18 +17,22 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from math import pi
+from pathlib import Path
 
 from .contact.terms import scuff_reason, swing_clearance
 from .description.gait import Gait
 from .description.robot import Robot
+from .description.terrain import Terrain
 from .errors import InputError, Where, check_instance, check_number_map, check_path
 from .files.bundled import bundled_names, resolve
 from .files.gait_file import GaitSource, bind_gait, load_gait, same_robot_file
 from .files.robot_file import load_robot
+from .files.terrain_file import load_terrain
 from .hzd.constraints import apply_invariance, gait_maps
 from .hzd.zero_dynamics import ZeroDynamics, zero_dynamics
 from .model.compiled import CompiledModel
 from .model.compiler import Progress, load_model
+from .model.slope import check_slope
 
 FOOT_TOL = 1e-6  # [m] the swing foot must be this close to the ground at impact
 DEFAULT_GAIT = "three_link_walk"
@@ -254,3 +258,20 @@ def assemble_walker(robot: Robot, gait: Gait, source: GaitSource, *,
     if g.invariance == "auto":
         g = apply_invariance(model, g)
     return Walker(robot, g, model, zero_dynamics(model, g), source.where)
+
+
+def check_ground(slope: object, terrain: object) -> tuple[float, Terrain | None]:
+    """The ground of a full-order run (SPEC 14): the slope [rad] (:func:`check_slope`) and the
+    terrain (None, a :class:`Terrain`, or a terrain file's path, loaded); a terrain file's own
+    slope is the slope, and giving another one as well is an :class:`InputError` naming both.
+    """
+    slope = check_slope(slope)
+    if terrain is not None and not isinstance(terrain, Terrain):
+        check_instance("terrain", terrain, (str, Path), "a terrain file's path or a Terrain")
+        terrain = load_terrain(terrain)
+    if terrain is not None and terrain.slope != 0.0:
+        if slope != 0.0 and slope != terrain.slope:
+            raise InputError.param(("slope", "terrain"), f"the terrain sets the slope "
+                                   f"({terrain.slope:g} rad): give the slope once")
+        slope = check_slope(terrain.slope)
+    return slope, terrain

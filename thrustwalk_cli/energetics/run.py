@@ -36,7 +36,6 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..hzd.constraints import bezier
 from .orbit import OrbitEnergy
 from .power import input_power, missing_models
 
@@ -177,40 +176,11 @@ def _rows_of(sol) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
 def _evaluate(cl, X: np.ndarray, seg: np.ndarray) -> dict:
     """The closed loop's torques ``u`` (K, N-1), ``q'``, thrust ``F`` (K, m), generalised force
     ``T`` (K,) and ``d_k . p_k' = (B_F^T q')_k`` (K, m) at states ``X`` in segments ``seg``
-    (the equations of ``ClosedLoop.details``, torque limits included)."""
-    N, nb, m, mod = cl.N, cl.nb, cl.m, cl.model
-    q, dq, z = X[:, :N], X[:, N:2 * N], X[:, 2 * N:]
-    if cl.thrust.piecewise:
-        F = np.asarray(cl._piece_force, float).reshape(len(cl._piece_force), m)[seg]
-        T = np.asarray(cl._piece_T, float)[seg]
-    else:
-        F = cl.thrust.dynamics.thrust_rows(z, cl.thrust._target)
-        T = np.zeros(len(X))
-    D = mod.D(q)
-    rhs = -mod.h(q, dq)
-    BF = mod.B_F(q) if m else None
-    if m:
-        rhs += np.einsum("kij,kj->ki", BF, F)
-    rhs[:, N - 1] += T
-    alpha, adot = q @ cl.c, dq @ cl.c
-    s = (alpha - cl.ai) / cl.span
-    A = cl.zd.maps.A
-    hd = bezier(A, s)
-    hd1 = bezier(A, s, 1) / cl.span
-    hd2 = bezier(A, s, 2) / cl.span ** 2
-    Jy = cl._Jy0[None] - hd1[:, :, None] * cl.c[None, None, :]
-    y = q[:, :nb] - hd
-    dy = np.einsum("kij,kj->ki", Jy, dq)
-    Mx = np.concatenate([Jy, D[:, N - 1:N, :]], axis=1)
-    b = np.concatenate([-cl.kp * y - cl.kd * dy + hd2 * adot[:, None] ** 2,
-                        rhs[:, N - 1:N]], axis=1)
-    ddq = np.linalg.solve(Mx, b[..., None])[..., 0]
-    u = (np.einsum("kij,kj->ki", D, ddq) - rhs)[:, :nb]
-    lim = cl.config.torque_limit
-    if lim is not None:
-        u = np.clip(u, -lim, lim)
-    bt = np.einsum("kn,knm->km", dq, BF) if m else np.zeros((len(X), 0))
-    return {"u": u, "dq": dq, "F": F, "T": T, "bt": bt}
+    (``ClosedLoop.law``, torque limits included)."""
+    w = cl.law(X, seg)
+    dq, BF = w["dq"], w["B_F"]
+    bt = np.einsum("kn,knm->km", dq, BF) if BF is not None else np.zeros((len(dq), 0))
+    return {"u": w["u"], "dq": dq, "F": w["F"], "T": w["T"], "bt": bt}
 
 
 class _Integrands:

@@ -413,10 +413,13 @@ class ClosedLoop:
         """Swing-foot height [m] at one state."""
         return self.model.p_swing_s(np.asarray(x)[: self.N].tolist())[1]
 
-    # -- batch details -------------------------------------------------------------------
-    def details(self, X: np.ndarray, seg: np.ndarray) -> dict[str, np.ndarray]:
-        """Vectorised evaluation at states ``X`` (K, dim) in segments ``seg`` (K,): q, dq,
-        ddq, u, y, dy, alpha, alpha_dot, sigma, F, T, F1, swing height, energy [SI]."""
+    # -- batch evaluation ----------------------------------------------------------------
+    def law(self, X: np.ndarray, seg: np.ndarray) -> dict[str, np.ndarray]:
+        """The closed loop's law at states ``X`` (K, dim) in segments ``seg`` (K,), vectorised
+        (SPEC 7): q, dq, z, the thrust F [N] and T [N m], D, the right-hand side ``-h + B_F F``
+        (with T on q_N), B_F [m] (None without thrusters), the outputs y, dy, alpha, its rate,
+        s, and ddq, u [N m] with the torque limit applied (``saturated`` rows solved again
+        with the clipped torques). What :meth:`details` and the energies of a run read."""
         X = np.atleast_2d(np.asarray(X, float))
         seg = np.broadcast_to(np.asarray(seg, int), X.shape[:1])
         N, nb, m, mod = self.N, self.nb, self.m, self.model
@@ -429,8 +432,9 @@ class ClosedLoop:
             T = np.zeros(len(X))
         D = mod.D(q)
         rhs = -mod.h(q, dq)
+        BF = mod.B_F(q) if m else None
         if m:
-            rhs += np.einsum("kij,kj->ki", mod.B_F(q), F)
+            rhs += np.einsum("kij,kj->ki", BF, F)
         rhs[:, N - 1] += T
         alpha, adot = q @ self.c, dq @ self.c
         s = (alpha - self.ai) / self.span
@@ -455,17 +459,30 @@ class ClosedLoop:
                 r2 = rhs[sat].copy()
                 r2[:, :nb] += u[sat]
                 ddq[sat] = np.linalg.solve(D[sat], r2[..., None])[..., 0]
-        dqu = np.concatenate([dq, np.zeros((len(X), 2))], axis=1)
-        ddqu = np.concatenate([ddq, np.zeros((len(X), 2))], axis=1)
+        return {"q": q, "dq": dq, "z": z, "F": F, "T": T, "D": D, "rhs": rhs, "B_F": BF,
+                "y": y, "dy": dy, "alpha": alpha, "alpha_dot": adot, "s": s, "ddq": ddq,
+                "u": u, "saturated": sat}
+
+    # -- batch details -------------------------------------------------------------------
+    def details(self, X: np.ndarray, seg: np.ndarray) -> dict[str, np.ndarray]:
+        """Vectorised evaluation at states ``X`` (K, dim) in segments ``seg`` (K,): q, dq,
+        ddq, u, y, dy, alpha, alpha_dot, sigma, F, T, F1, swing height, energy [SI]
+        (:meth:`law`, then the ground force and the energy)."""
+        w = self.law(X, seg)
+        N, m, mod = self.N, self.m, self.model
+        q, dq, ddq, F, D = w["q"], w["dq"], w["ddq"], w["F"], w["D"]
+        dqu = np.concatenate([dq, np.zeros((len(q), 2))], axis=1)
+        ddqu = np.concatenate([ddq, np.zeros((len(q), 2))], axis=1)
         gen = np.einsum("kij,kj->ki", mod.D_u(q), ddqu) + mod.h_u(q, dqu)
         if m:
             gen -= np.einsum("kij,kj->ki", mod.B_Fu(q), F)
         F1 = gen[:, N:N + 2]
         sigma = np.einsum("kj,kj->k", D[:, N - 1, :], dq)
-        return {"q": q, "dq": dq, "ddq": ddq, "u": u, "saturated": sat, "y": y, "dy": dy,
-                "alpha": alpha, "alpha_dot": adot, "s": s, "sigma": sigma, "F": F, "T": T,
-                "F1": F1, "swing_height": mod.p_swing(q)[:, 1], "energy": mod.energy(q, dq, D),
-                "z": z}
+        return {"q": q, "dq": dq, "ddq": ddq, "u": w["u"], "saturated": w["saturated"],
+                "y": w["y"], "dy": w["dy"], "alpha": w["alpha"], "alpha_dot": w["alpha_dot"],
+                "s": w["s"], "sigma": sigma, "F": F, "T": w["T"], "F1": F1,
+                "swing_height": mod.p_swing(q)[:, 1], "energy": mod.energy(q, dq, D),
+                "z": w["z"]}
 
 
 def _solve(rows: list[list[float]], b: list[float]) -> list[float]:

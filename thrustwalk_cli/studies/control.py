@@ -51,19 +51,16 @@ from ..errors import (
     check_choice,
     check_count,
     check_flag,
-    check_instance,
     check_number,
     check_number_map,
     check_numbers,
     check_pushes,
     check_texts,
 )
-from ..files.terrain_file import load_terrain
 from ..hzd.zero_dynamics import ZeroDynamics
-from ..model.slope import check_slope
 from ..simulation.closed_loop import MAX_STEPS, SimConfig, check_thruster_rate
 from ..thrust.dynamics import canonical, check_model, make, model_names
-from ..walker import Walker, check_walker, walker_from
+from ..walker import Walker, check_ground, check_walker, walker_from
 from .control_result import ControlResult
 from .documents import climb_rate
 
@@ -198,15 +195,7 @@ def control(walker: Walker, *, reference: str = "speed",
     measured zeta^-. Every step records its ``terrain_height``, the settings the terrain.
     """
     check_walker(walker)
-    slope = check_slope(slope)
-    if terrain is not None and not isinstance(terrain, Terrain):
-        check_instance("terrain", terrain, (str, Path), "a terrain file's path or a Terrain")
-        terrain = load_terrain(terrain)
-    if terrain is not None and terrain.slope != 0.0:
-        if slope != 0.0 and slope != terrain.slope:
-            raise InputError.param(("slope", "terrain"), f"the terrain sets the slope "
-                                   f"({terrain.slope:g} rad): give the slope once")
-        slope = check_slope(terrain.slope)
+    slope, terrain = check_ground(slope, terrain)
     walker = walker.on_slope(slope)
     check_choice("reference", reference, REFERENCES)
     profile = _check_profile_pairs(profile)

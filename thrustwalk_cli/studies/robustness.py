@@ -51,14 +51,12 @@ from ..errors import (
 from ..files.gait_file import load_gait
 from ..files.robot_file import load_robot_text
 from ..files.sweep_file import STUDY_PARAMETERS, keyed, read_source
-from ..files.terrain_file import load_terrain
 from ..files.uncertainty_file import load_uncertainty
-from ..model.slope import check_slope
 from ..resilience.strategy import KINDS, Strategy, labels_unique, schedule_of_file
 from ..sweep.points import draw
 from ..sweep.runner import RunCounts, run_tasks
 from ..sweep.tasks import PointTask, identity, task_key
-from ..walker import Walker, check_walker
+from ..walker import Walker, check_ground, check_walker
 from .robustness_result import DEFINITIONS, UNITS, RobustnessPlan, RobustnessResult
 from .sweep_studies import STUDIES, run_point
 from .trial_studies import realized_strategy, trial_chunk
@@ -114,6 +112,24 @@ def parse_strategy(text: str | Strategy, walker: Walker, thruster: str | None = 
                     max_thrust=max_thrust)
 
 
+def walker_strategies(walker: Walker, strategy: Sequence[str | Strategy] | None,
+                      thruster: str | None, knots: Sequence[float],
+                      max_thrust: float | None) -> list[Strategy]:
+    """The strategies of a robustness or rough-ground run made from their texts
+    (:func:`parse_strategy`; default none and control, only none without thrusters), with
+    distinct labels; :class:`InputError` for a gait without a walking orbit or no strategy."""
+    zd, robot = walker.zd, walker.robot
+    if not zd.valid:
+        raise InputError.param("gait", f"the gait has no walking orbit: {zd.invalid_reason}")
+    if strategy is None:
+        strategy = ["none", "control"] if robot.thrusters else ["none"]
+    strategies = [parse_strategy(s, walker, thruster, knots, max_thrust) for s in strategy]
+    if not strategies:
+        raise InputError.param("strategy", "no strategy")
+    labels_unique(strategies)
+    return strategies
+
+
 def _defaults(study: str) -> dict:
     """Every parameter of a sweep study with its default (the tasks carry them all)."""
     return {f.key: f.default for f in STUDY_PARAMETERS[study].fields}
@@ -163,15 +179,7 @@ def plan_robustness(walker: Walker, *, push_impulse: Sequence[float] | None = No
     controllers stay those of the plane ground (the reference the recovery is measured
     against); the uncertainty samples (reduced model) do not walk the terrain."""
     check_walker(walker)
-    slope = check_slope(slope)
-    if terrain is not None and not isinstance(terrain, Terrain):
-        check_instance("terrain", terrain, (str, Path), "a terrain file's path or a Terrain")
-        terrain = load_terrain(terrain)
-    if terrain is not None and terrain.slope != 0.0:
-        if slope != 0.0 and slope != terrain.slope:
-            raise InputError.param(("slope", "terrain"), f"the terrain sets the slope "
-                                   f"({terrain.slope:g} rad): give the slope once")
-        slope = check_slope(terrain.slope)
+    slope, terrain = check_ground(slope, terrain)
     walker = walker.on_slope(slope)
     push_impulse = check_numbers("push_impulse", push_impulse, optional=True, min_len=0,
                                  max_len=MAX_TRIALS)
@@ -258,14 +266,7 @@ def plan_robustness(walker: Walker, *, push_impulse: Sequence[float] | None = No
         bad("min_vertical_force", f"must be >= 0 N (got {min_vertical_force:g})")
     if problems:
         raise InputError(problems)
-    if not zd.valid:
-        raise InputError.param("gait", f"the gait has no walking orbit: {zd.invalid_reason}")
-    if strategy is None:
-        strategy = ["none", "control"] if robot.thrusters else ["none"]
-    strategies = [parse_strategy(s, walker, thruster, knots, max_thrust) for s in strategy]
-    if not strategies:
-        raise InputError.param("strategy", "no strategy")
-    labels_unique(strategies)
+    strategies = walker_strategies(walker, strategy, thruster, knots, max_thrust)
     robot_text, gait_text = walker_texts(walker)
     mu_v = zd.gait.mu if mu is None else float(mu)
     common = {"steps": int(steps), "push_direction": [float(v) for v in push_direction],

@@ -48,11 +48,11 @@ from ..resilience.rough import (
     transition_matrix,
     visited_range,
 )
-from ..resilience.strategy import Strategy, labels_unique
+from ..resilience.strategy import Strategy
 from ..sweep.runner import RunCounts, chunk_size, run_tasks
 from ..sweep.tasks import PointTask, identity, task_key
 from ..walker import Walker, check_walker
-from .robustness import parse_strategy, walker_texts
+from .robustness import walker_strategies, walker_texts
 from .rough_ground_result import (  # noqa: F401 - DEFINITIONS, UNITS: named here too
     DEFINITIONS,
     TARGET,
@@ -124,14 +124,7 @@ def plan_rough_ground(walker: Walker, *, sigma: Sequence[float],
     zd, robot = walker.zd, walker.robot
     if max_thrust is not None and robot.thrusters:
         robot.check_thrust_bound("max_thrust", max_thrust, [robot.thruster_index(thruster)])
-    if not zd.valid:
-        raise InputError.param("gait", f"the gait has no walking orbit: {zd.invalid_reason}")
-    if strategy is None:
-        strategy = ["none", "control"] if robot.thrusters else ["none"]
-    strategies = [parse_strategy(s, walker, thruster, knots, max_thrust) for s in strategy]
-    if not strategies:
-        raise InputError.param("strategy", "no strategy")
-    labels_unique(strategies)
+    strategies = walker_strategies(walker, strategy, thruster, knots, max_thrust)
     robot_text, gait_text = walker_texts(walker)
     common = {"cap": int(cap), "seed": int(seed), "distribution": distribution,
               "s_max": float(s_max), "mu": mu, "min_vertical_force": float(min_vertical_force),

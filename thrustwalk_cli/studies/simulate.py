@@ -24,8 +24,6 @@ from ..errors import (
     check_text,
     check_texts,
 )
-from ..files.terrain_file import load_terrain
-from ..model.slope import check_slope
 from ..simulation.closed_loop import (
     MAX_SAMPLES,
     MAX_STEPS,
@@ -37,7 +35,7 @@ from ..simulation.closed_loop import (
 from ..simulation.full_order import Start
 from ..simulation.scenario import make_scenario, run_scenario
 from ..thrust.dynamics import ThrusterDynamics
-from ..walker import Walker, check_walker
+from ..walker import Walker, check_ground, check_walker
 from .simulate_result import SimulationResult
 
 
@@ -118,15 +116,7 @@ def simulate(walker: Walker, *, steps: int = 30,
     impacts away from s = 1 are reported as deviations.
     """
     check_walker(walker)
-    slope = check_slope(slope)
-    if terrain is not None and not isinstance(terrain, Terrain):
-        check_instance("terrain", terrain, (str, Path), "a terrain file's path or a Terrain")
-        terrain = load_terrain(terrain)
-    if terrain is not None and terrain.slope != 0.0:
-        if slope != 0.0 and slope != terrain.slope:
-            raise InputError.param(("slope", "terrain"), f"the terrain sets the slope "
-                                   f"({terrain.slope:g} rad): give the slope once")
-        slope = check_slope(terrain.slope)
+    slope, terrain = check_ground(slope, terrain)
     steps = check_count("steps", steps, le=MAX_STEPS)
     thrust = check_numbers("thrust", thrust, optional=True, min_len=0)
     wn = check_number("wn", wn, gt=0, unit="rad/s")
