@@ -47,6 +47,7 @@ def _num(text: str) -> float | None:
     return None if text == "" else float(text)
 
 
+@pytest.mark.slow
 def test_cot_is_the_limit_cycle_energy_over_mgd_and_the_orbit_balances(cli, tmp_path,
                                                                        monkeypatch):
     """Per thrust: the CoTs equal E / (m g d) from limit-cycle's energy block of the same
@@ -266,6 +267,7 @@ def test_no_public_name_is_a_subpackage_or_module_of_the_package():
     assert not clash, clash
 
 
+@pytest.mark.slow
 def test_design_gait_reports_the_designed_gaits_cot(cli, tmp_path, monkeypatch):
     """The design-gait report's energy block: the CoT of the written gait, as limit-cycle
     computes it on that gait file at the design's thrust (an independent path)."""

@@ -259,6 +259,7 @@ def test_a_fixed_point_that_does_not_converge_is_never_called_optimal(w5, monkey
     assert r.files == ["optimal_schedule.json"] and r.attachments(doc) == {}
 
 
+@pytest.mark.slow
 def test_a_target_speed_reached_cheaper_by_the_effort_schedule_is_not_optimal(tmp_path):
     """No verdict better than the truth: on the kneed 4-link user robot, the energy schedule
     found along zeta* for 0.6 m/s spends more than the minimum-effort schedule for the same

@@ -146,6 +146,7 @@ def agree(walker3):
                         workers=1, mesh=8, terrain_samples=12, seed=0)
 
 
+@pytest.mark.slow
 def test_monte_carlo_and_the_mesh_chain_agree_on_three_sigmas(agree):
     """The mesh chain's expected steps from the fixed point lie inside the Monte-Carlo 95 %
     interval at each of three sigmas where failures come within tens of steps; the failures
@@ -238,6 +239,7 @@ def test_a_trial_is_the_same_on_a_dask_cluster(walker3, tmp_path):
 
 
 # ----------------------------------------------------------------------- the command
+@pytest.mark.slow
 def test_command_on_walker5_writes_every_output_and_resumes(tmp_path, cli, monkeypatch):
     """From a folder other than the robot's, on tests/data/walker5 with its thrust gait: the
     JSON, mfpt.csv (one row per strategy and sigma), trials.csv, the trial records and the
