@@ -231,3 +231,20 @@ def test_stability_of_a_model_object_equals_the_model_by_name(walker3):
     vb = sorted(abs(m.value) for m in b.cases[0].floquet.multipliers)
     assert va == vb
     assert a.document()["settings"]["thruster_dynamics"]["kind"] == "first-order"
+
+
+def test_control_takes_a_model_object(walker3):
+    """control with tw.thruster_dynamics(...) runs the same plant and controller as the model
+    by name (bit for bit); the document records the object's kind and poles."""
+    kw = dict(reference="nominal", steps=3, knots=[0.0, 1.0], compare=False)
+    dyn = tw.thruster_dynamics("first-order", 2, tau=0.1)
+    a = tw.control(walker3, thrust_model=dyn, **kw)
+    b = tw.control(walker3, thrust_model="first-order", tau=0.1, **kw)
+    da, db = a.document(), b.document()
+    za = [s["zeta_minus_end"] for s in da["steps"]]
+    zb = [s["zeta_minus_end"] for s in db["steps"]]
+    assert za == zb and len(za) == 3
+    td = da["settings"]["thruster_dynamics"]
+    assert td["kind"] == "first-order" and td["poles"] == [[-10.0, 0.0]] * 2
+    with pytest.raises(InputError, match="thrust_model: thruster dynamics for 3"):
+        tw.control(walker3, thrust_model=tw.thruster_dynamics("ideal", 3), **kw)

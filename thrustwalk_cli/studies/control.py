@@ -59,10 +59,11 @@ from ..errors import (
 )
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..simulation.closed_loop import MAX_STEPS, SimConfig, check_thruster_rate
-from ..thrust.dynamics import canonical, check_model, make, model_names
+from ..thrust.command import given_dynamics
+from ..thrust.dynamics import ThrusterDynamics, canonical, check_model, make, model_names
 from ..walker import Walker, check_ground, check_walker, walker_from
 from .control_result import ControlResult
-from .documents import climb_rate
+from .documents import climb_rate, dynamics_record
 
 REFERENCES = ("speed", "zeta", "nominal")
 TERMS = ("exact", "fitted")
@@ -153,7 +154,8 @@ def _plant(walker: Walker, plant_scale: dict[str, float]) -> tuple[ZeroDynamics,
 def control(walker: Walker, *, reference: str = "speed",
             profile: Sequence[tuple[float, float]] | None = None, ramp: bool = False,
             knots: Sequence[float] = (0.0, 0.5, 1.0), steps: int = 40,
-            thrust_model: str = "ideal", wn: float = 20.0, xi: float = 1.0, tau: float = 0.05,
+            thrust_model: str | ThrusterDynamics = "ideal", wn: float = 20.0, xi: float = 1.0,
+            tau: float = 0.05,
             thruster: Sequence[str] | None = None,
             push: Sequence[tuple[int, float, float, float]] = (),
             plant_scale: dict[str, float] | None = None, noise: float = 0.0, seed: int = 0,
@@ -171,10 +173,11 @@ def control(walker: Walker, *, reference: str = "speed",
     held or ``ramp``-ed) or ``nominal``. ``knots``: fractions of the step, 0 first, 1 last,
     increasing (slow thrusters: one setpoint per step, knots 0, 1). ``thrust_model``: ``ideal``
     (the thrust is the command), ``first-order`` (``tau`` [s]) or ``second-order`` (``wn``
-    [rad/s], ``xi``). ``thruster``: driven thrusters (default: the first). ``push``:
-    ``(step, phase s, P_x, P_y)`` [N s] at the hip. ``plant_scale``: robot parameter factors
-    of the plant. ``noise``: relative bound of the uniform error of the measured zeta^-
-    (seeded by ``seed``). ``mu`` (default: the gait's), ``min_vertical_force`` [N],
+    [rad/s], ``xi``), or a :class:`~thrustwalk_cli.thrust.dynamics.ThrusterDynamics` built
+    once (``tw.thruster_dynamics``; its own parameters hold). ``thruster``: driven thrusters
+    (default: the first). ``push``: ``(step, phase s, P_x, P_y)`` [N s] at the hip.
+    ``plant_scale``: robot parameter factors of the plant. ``noise``: relative bound of the
+    uniform error of the measured zeta^- (seeded by ``seed``). ``mu`` (default: the gait's), ``min_vertical_force`` [N],
     ``zeta_min`` (default 1 % of zeta*_0) [kg^2 m^4/s^2], ``max_thrust`` [N] (within the
     robot file's ``limits``), ``rate_limit`` [N per step]. Weights: see
     :mod:`thrustwalk_cli.controller.planner`. ``terms``: ``exact`` Lambdas or ``fitted``
@@ -202,7 +205,11 @@ def control(walker: Walker, *, reference: str = "speed",
     ramp = check_flag("ramp", ramp)
     knots = check_numbers("knots", knots, min_len=0)
     steps = check_count("steps", steps, le=MAX_STEPS)
-    thrust_model = check_model(thrust_model)  # the deprecated `constant` is `ideal`
+    given = given_dynamics(thrust_model, walker.model.n_thrusters)  # a model built once
+    if given is not None and given.n_states == 0:
+        given, thrust_model = None, "ideal"  # no thruster states: the thrust is the command
+    # the deprecated `constant` is `ideal`; a model given as an object is named by its kind
+    thrust_model = given.kind if given is not None else check_model(thrust_model)
     wn = check_number("wn", wn, gt=0, unit="rad/s")
     xi = check_number("xi", xi, gt=0)
     tau = check_number("tau", tau, gt=0, unit="s")
@@ -225,15 +232,16 @@ def control(walker: Walker, *, reference: str = "speed",
     zeta0 = check_number("zeta0", zeta0, gt=0, optional=True, unit="kg^2 m^4/s^2")
     compare = check_flag("compare", compare)
     check_callable("progress", progress)
-    if thrust_model != "ideal":
+    if thrust_model != "ideal" and given is None:
         check_thruster_rate(thrust_model, wn, xi, tau, walker.model.n_thrusters)
     zd, model, robot = walker.zd, walker.model, walker.robot
     problems = []
     if reference not in REFERENCES:
         raise InputError.param("reference", f"unknown reference {reference!r} (choose from "
                                             f"{', '.join(REFERENCES)})")
-    thrust_model = canonical(thrust_model)  # the deprecated `constant` is `ideal`
-    if thrust_model not in model_names():
+    if given is None:
+        thrust_model = canonical(thrust_model)  # the deprecated `constant` is `ideal`
+    if given is None and thrust_model not in model_names():
         raise InputError.param("thrust_model", f"unknown thrust model {thrust_model!r} "
                                                f"(choose from {', '.join(model_names())})")
     if terms not in TERMS:
@@ -299,8 +307,9 @@ def control(walker: Walker, *, reference: str = "speed",
     kn = zd.alpha_i + np.array(fr) * span
     fits = fit_terms(model, zd, tol=fit_tol) if terms == "fitted" else None
     tm = Terms(model, zd, fits)
-    dyn = (None if thrust_model == "ideal" else
-           make(thrust_model, model.n_thrusters, wn=wn, xi=xi, tau=tau))
+    dyn = given if given is not None else (
+        None if thrust_model == "ideal" else
+        make(thrust_model, model.n_thrusters, wn=wn, xi=xi, tau=tau))
     planner, lc0 = regulator(
         zd, kn, driven, mu=mu, eps=min_vertical_force, zeta_min=zeta_min,
         max_thrust=max_thrust, rate_limit=rate_limit, tracking_weight=tracking_weight,
@@ -357,8 +366,9 @@ def control(walker: Walker, *, reference: str = "speed",
         "reference": reference, "profile": [list(map(float, p)) for p in (profile or [])],
         "ramp": ramp, "knot_fractions": fr, "knots_alpha": list(map(float, kn)),
         "steps": steps, "thrust_model": thrust_model,
-        "thruster_dynamics": None if dyn is None else {"kind": dyn.kind, "wn": wn, "xi": xi,
-                                                       "tau": tau},
+        "thruster_dynamics": None if dyn is None else (
+            dynamics_record(dyn) if given is not None else
+            {"kind": dyn.kind, "wn": wn, "xi": xi, "tau": tau}),
         "slow_thrusters": None if dyn is None else (
             "the controller uses the thruster's linear response: the delivered thrust over "
             "the step is affine in the setpoint and the thruster state at impact, on the "
