@@ -173,14 +173,14 @@ def control(walker: Walker, *, reference: str = "speed",
     held or ``ramp``-ed) or ``nominal``. ``knots``: fractions of the step, 0 first, 1 last,
     increasing (slow thrusters: one setpoint per step, knots 0, 1). ``thrust_model``: ``ideal``
     (the thrust is the command), ``first-order`` (``tau`` [s]) or ``second-order`` (``wn``
-    [rad/s], ``xi``), or a :class:`~thrustwalk_cli.thrust.dynamics.ThrusterDynamics` built
-    once (``tw.thruster_dynamics``; its own parameters hold). ``thruster``: driven thrusters
+    [rad/s], ``xi``), or a :class:`~thrustwalk_cli.thrust.dynamics.ThrusterDynamics` built once
+    (``tw.thruster_dynamics``; its own parameters hold). ``thruster``: driven thrusters
     (default: the first). ``push``: ``(step, phase s, P_x, P_y)`` [N s] at the hip.
     ``plant_scale``: robot parameter factors of the plant. ``noise``: relative bound of the
-    uniform error of the measured zeta^- (seeded by ``seed``). ``mu`` (default: the gait's), ``min_vertical_force`` [N],
-    ``zeta_min`` (default 1 % of zeta*_0) [kg^2 m^4/s^2], ``max_thrust`` [N] (within the
-    robot file's ``limits``), ``rate_limit`` [N per step]. Weights: see
-    :mod:`thrustwalk_cli.controller.planner`. ``terms``: ``exact`` Lambdas or ``fitted``
+    uniform error of the measured zeta^- (seeded by ``seed``). ``mu`` (default: the gait's),
+    ``min_vertical_force`` [N], ``zeta_min`` (default 1 % of zeta*_0) [kg^2 m^4/s^2],
+    ``max_thrust`` [N] (within the robot file's ``limits``), ``rate_limit`` [N per step].
+    Weights: see :mod:`thrustwalk_cli.controller.planner`. ``terms``: ``exact`` Lambdas or ``fitted``
     polynomials (relative tolerance ``fit_tol``) with their error bound added to the margins.
     ``zeta0``: the start's zeta^- (default zeta*_0). ``compare``: also run the uncontrolled
     walker (and, for slow thrusters, the controller that ignores the lag). ``check_only``:
