@@ -180,8 +180,9 @@ def control(walker: Walker, *, reference: str = "speed",
     uniform error of the measured zeta^- (seeded by ``seed``). ``mu`` (default: the gait's),
     ``min_vertical_force`` [N], ``zeta_min`` (default 1 % of zeta*_0) [kg^2 m^4/s^2],
     ``max_thrust`` [N] (within the robot file's ``limits``), ``rate_limit`` [N per step].
-    Weights: see :mod:`thrustwalk_cli.controller.planner`. ``terms``: ``exact`` Lambdas or ``fitted``
-    polynomials (relative tolerance ``fit_tol``) with their error bound added to the margins.
+    Weights: see :mod:`thrustwalk_cli.controller.planner`. ``terms``: ``exact`` Lambdas or
+    ``fitted`` polynomials (relative tolerance ``fit_tol``) with their error bound added to the
+    margins.
     ``zeta0``: the start's zeta^- (default zeta*_0). ``compare``: also run the uncontrolled
     walker (and, for slow thrusters, the controller that ignores the lag). ``check_only``:
     check every argument, compute nothing and return None (a command checks its options before
