@@ -8,6 +8,7 @@ import itertools
 import json
 import math
 import textwrap
+import time
 from pathlib import Path
 
 import numpy as np
@@ -708,6 +709,110 @@ def test_a_chunk_lost_with_its_worker_runs_again_point_by_point(tmp_path):
     assert (tmp_path / "crashed").exists() and ex.restarts >= 1
     assert counts.resubmitted >= 4  # at least the crashed chunk's 4 points
     assert sorted(seen) == sorted(ref) and got == ref
+
+
+def _slow_or_crash(task) -> dict:
+    """Point 0 takes 1 s; point 1 kills its worker process the first time it runs (a marker
+    file in the folder setting); the others are :func:`_toy_point`."""
+    import os
+
+    x = dict(task.values)["x"]
+    marker = os.path.join(dict(task.settings)["folder"], "crashed")
+    if x == 0.0:
+        time.sleep(1.0)
+    if x == 1.0 and not os.path.exists(marker):
+        open(marker, "w").close()
+        time.sleep(0.2)  # point 0 is running on the other worker by now
+        os._exit(1)
+    return _toy_point(task)
+
+
+def test_a_dying_worker_loses_only_its_own_task(tmp_path):
+    """Two local workers: point 1 kills its worker while point 0 runs on the other. Only
+    point 1 runs again (before: the whole pool was broken and restarted, and point 0, in
+    flight on a worker that did not die, was lost and computed again too)."""
+    from thrustwalk_cli.sweep.executors import LocalProcesses
+    from thrustwalk_cli.sweep.runner import run_tasks
+
+    ex = LocalProcesses(2)
+    got: dict[str, dict] = {}
+    try:
+        counts = run_tasks(_toy_tasks(2, str(tmp_path)), _slow_or_crash, ex, got,
+                           lambda r: None)
+    finally:
+        ex.close()
+    assert (tmp_path / "crashed").exists()
+    assert counts.resubmitted == 1 and ex.restarts == 1 and counts.ok == 2
+
+
+def _toy_slow(task) -> dict:
+    time.sleep(0.005)
+    return _toy_point(task)
+
+
+def test_workers_killed_from_outside_again_and_again_never_hang(tmp_path):
+    """For 2 s every worker process of the pool is killed as soon as it appears, while the
+    runner submits and resubmits: the run ends (within 120 s, else it hung) either with
+    every point recorded or lost (never a failed record for a lost worker), or with the
+    one error that the workers die as they start. Then the same executor is closed at
+    once. (The standard library's process pool could hang here: a submit racing its
+    manager thread's clean-up of a broken pool.)"""
+    import threading
+
+    import psutil
+
+    from thrustwalk_cli.errors import ComputationError
+    from thrustwalk_cli.sweep.executors import LocalProcesses
+    from thrustwalk_cli.sweep.runner import run_tasks
+
+    me = psutil.Process()
+    before = {c.pid for c in me.children(recursive=True)}
+    outcome: dict = {}
+    stop = threading.Event()
+
+    def kill() -> None:
+        t0 = time.monotonic()
+        while not stop.is_set() and time.monotonic() - t0 < 2.0:
+            for c in me.children(recursive=True):
+                if c.pid not in before:
+                    try:
+                        c.kill()
+                        outcome["killed"] = outcome.get("killed", 0) + 1
+                    except psutil.NoSuchProcess:
+                        pass
+            time.sleep(0.002)
+
+    def run() -> None:
+        tasks = _toy_tasks(400)
+        got: dict[str, dict] = {}
+        try:
+            ex = LocalProcesses(2)
+        except ComputationError as exc:
+            outcome["error"] = str(exc)
+            return
+        try:
+            outcome["counts"] = run_tasks(tasks, _toy_slow, ex, got, lambda r: None, chunk=4)
+        except ComputationError as exc:
+            outcome["error"] = str(exc)
+        finally:
+            ex.close()
+            outcome["records"] = got
+
+    killer = threading.Thread(target=kill, daemon=True)
+    runner = threading.Thread(target=run, daemon=True)
+    killer.start()
+    runner.start()
+    runner.join(120)
+    stop.set()
+    killer.join(10)
+    assert not runner.is_alive(), "the run hung"
+    assert outcome.get("killed"), "no worker process was killed"
+    if "error" in outcome:
+        assert "died as they started" in outcome["error"], outcome["error"]
+    else:
+        counts, got = outcome["counts"], outcome["records"]
+        assert len(got) + len(counts.lost) == 400
+        assert all(r["status"] == "ok" for k, r in got.items() if k != "toy-key-003")
 
 
 @pytest.mark.slow

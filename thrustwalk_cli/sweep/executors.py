@@ -8,9 +8,10 @@ lost by the cluster; or the exception the task raised), and ``close()``. Results
 to the calling process, which alone writes files, so workers never need the result folder.
 
 * :class:`InProcess` (one worker): the tasks run here, one after the other.
-* :class:`LocalProcesses` (``workers`` > 1): a pool of worker processes on this machine; they
-  talk to this process through pipes (nothing listens on the network) and exit when this
-  process dies (even by ``kill -9``). A pool broken by a dying worker is restarted.
+* :class:`LocalProcesses` (``workers`` > 1): worker processes on this machine, each talking
+  to this process through a pipe of its own (nothing listens on the network, nothing is
+  shared between workers); they exit when this process dies (even by ``kill -9``). A worker
+  that dies loses only its task and is replaced.
 * :class:`DaskCluster`: a Dask distributed client connected to a running scheduler
   (``tcp://HOST:PORT`` or ``tls://HOST:PORT``); Dask is imported only here (the optional extra
   ``thrustwalk[cluster]``).
@@ -19,12 +20,13 @@ to the calling process, which alone writes files, so workers never need the resu
 from __future__ import annotations
 
 import os
-import queue
 import sys
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Iterable
 from concurrent import futures
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from .._version import __version__
@@ -80,88 +82,198 @@ def _watch_parent(parent: int) -> None:
     threading.Thread(target=watch, daemon=True, name="thrustwalk-parent-watch").start()
 
 
+def _serve(conn: Any, parent: int) -> None:
+    """A local worker process: say ``ready``, then run each ``(handle, fn, task)`` received
+    on ``conn`` and send back ``(handle, result, error)``, until ``None`` or the end of the
+    pipe. Ctrl-C is the calling process's to handle (it stops the workers)."""
+    import pickle
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _watch_parent(parent)
+    conn.send(("ready", os.getpid(), None))
+    while True:
+        try:
+            msg = conn.recv()
+        except (EOFError, OSError):
+            return
+        if msg is None:
+            return
+        handle, fn, task = msg
+        try:
+            out = (handle, fn(task), None)
+        except BaseException as exc:  # noqa: BLE001 - the task's error is its outcome
+            out = (handle, None, exc)
+        try:
+            conn.send(out)
+        except (pickle.PicklingError, TypeError, AttributeError) as exc:
+            conn.send((handle, None, RuntimeError(
+                f"the task's outcome cannot be sent back ({type(exc).__name__}: {exc})")))
+
+
+class _Worker:
+    """One worker process of :class:`LocalProcesses` and its end of their pipe;
+    ``sent``: the ``(handle, fn, task)`` sent to it, in order, whose outcome has not come
+    back (the first one runs); ``ready`` once it has answered."""
+
+    def __init__(self, ctx: Any, parent: int):
+        here, there = ctx.Pipe(duplex=True)
+        self.proc = ctx.Process(target=_serve, args=(there, parent), daemon=True,
+                                name="thrustwalk-worker")
+        self.proc.start()
+        there.close()
+        self.conn = here
+        self.sent: deque[tuple[int, Callable, Any]] = deque()
+        self.ready = False
+
+    def stop(self, timeout: float = 2.0) -> None:
+        """Stop the process: an idle one is asked to exit (and killed if it has not within
+        ``timeout`` [s]), a busy one (the run was stopped) is killed at once."""
+        if not self.sent:
+            try:
+                self.conn.send(None)
+            except (OSError, ValueError):
+                pass
+            self.proc.join(timeout)
+        if self.proc.is_alive():
+            self.proc.kill()
+            self.proc.join()
+        self.conn.close()
+
+
 class LocalProcesses:
-    """A pool of ``workers`` local processes (forked on Linux, spawned elsewhere)."""
+    """``workers`` local worker processes (forked on Linux, spawned elsewhere), each with a
+    pipe of its own to this process; each has up to ``QUEUED`` tasks sent (the next one
+    waits in its pipe while it computes).
+
+    Nothing is shared between workers (no common queue, no lock a killed process could
+    hold), and no thread runs here: a worker that dies (killed, out of memory, a task that
+    exits) loses only the task it runs (``BrokenProcessPool``, resubmitted by the runner; the
+    task waiting in its pipe, never started, goes to the next worker as it is) and is
+    replaced at once (``restarts``). Workers that die before they answer, ``STARTS`` per
+    worker in a row (killed from outside as they start), stop the run with
+    :class:`ComputationError` (the finished points are kept)."""
 
     kind = "local"
+    STARTS = 3  # workers in a row that die before answering, per worker slot, then give up
+    QUEUED = 2  # tasks sent to a worker at a time (one runs, one waits in its pipe)
 
     def __init__(self, workers: int):
-        self.workers = workers
-        self.restarts = 0
-        # finished futures, put by their done-callbacks: waiting costs O(1) per task (waiting
-        # on every future in flight each time costs O(tasks) per wait, O(tasks^2) a sweep)
-        self._done: queue.SimpleQueue = queue.SimpleQueue()
-        self._pools: dict[int, futures.ProcessPoolExecutor] = {}  # id(future) -> its pool
-        self._pool = self._start()
-
-    STARTS = 3  # attempts to start a pool whose processes die at once (killed from outside)
-
-    def _start(self) -> futures.ProcessPoolExecutor:
-        """A new pool, its processes started now (before a progress bar's thread); a pool
-        whose processes die while starting is started again, up to ``STARTS`` times, then
-        :class:`ComputationError` (the finished points are kept)."""
         import multiprocessing
 
+        self.workers = workers
+        self.restarts = 0
         method = "fork" if sys.platform.startswith("linux") else "spawn"
-        for _ in range(self.STARTS):
-            pool = futures.ProcessPoolExecutor(
-                max_workers=self.workers, mp_context=multiprocessing.get_context(method),
-                initializer=_watch_parent, initargs=(os.getpid(),))
-            try:
-                pool.submit(int).result()
-                return pool
-            except futures.process.BrokenProcessPool:
-                pool.shutdown(wait=False, cancel_futures=True)
-        raise ComputationError(f"the {self.workers} local worker processes died as they "
-                               f"started, {self.STARTS} times (killed, or out of memory?); the "
-                               "finished points are kept: run the sweep again to resume")
+        self._ctx = multiprocessing.get_context(method)
+        self._parent = os.getpid()
+        self._todo: deque[tuple[int, Callable, Any]] = deque()  # not yet sent
+        self._done: list[Outcome] = []
+        self._next = 0
+        self._dead_starts = 0  # workers in a row that died before answering
+        self._slots: list[_Worker] = []
+        try:
+            self._slots = [_Worker(self._ctx, self._parent) for _ in range(workers)]
+            # the processes answer now (before a progress bar's thread starts)
+            while not all(w.ready for w in self._slots):
+                self._poll()
+        except BaseException:
+            self.close()
+            raise
 
     def describe(self) -> dict:
         return {"kind": self.kind, "workers": self.workers, "restarts": self.restarts}
 
-    def submit(self, fn: Callable, task: Any) -> futures.Future:
-        """A future of ``fn(task)``; a pool broken since the last wait (a worker process
-        died) gives a future already failed with ``BrokenProcessPool``: the task is lost, as
-        those in flight, and the next wait restarts the pool."""
-        try:
-            f = self._pool.submit(fn, task)
-        except futures.process.BrokenProcessPool as exc:
-            f = futures.Future()
-            f.set_exception(exc)
-        self._pools[id(f)] = self._pool
-        f.add_done_callback(self._done.put)
-        return f
+    def submit(self, fn: Callable, task: Any) -> int:
+        """A handle of ``fn(task)``, sent to the first worker with room for it."""
+        self._next += 1
+        self._todo.append((self._next, fn, task))
+        self._dispatch()
+        return self._next
+
+    def _dispatch(self) -> None:
+        """Send waiting tasks to the ready workers, one each in turn, up to ``QUEUED``."""
+        for level in range(self.QUEUED):
+            for w in self._slots:
+                if not self._todo:
+                    return
+                if not w.ready or len(w.sent) > level:
+                    continue
+                item = self._todo.popleft()
+                w.sent.append(item)
+                try:
+                    w.conn.send(item)
+                except (OSError, ValueError):
+                    pass  # the worker died: its sentinel says so, and the task is lost
+                except Exception as exc:  # noqa: BLE001 - a task that cannot be pickled
+                    w.sent.pop()
+                    self._done.append((item[0], None, exc))
+
+    def _poll(self, timeout: float | None = None) -> None:
+        """Read every answer that has arrived and replace every worker that has died,
+        waiting up to ``timeout`` [s] (``None``: until something happens)."""
+        from multiprocessing.connection import wait
+
+        conns = {w.conn: w for w in self._slots}
+        sentinels = {w.proc.sentinel: w for w in self._slots}
+        for r in wait([*conns, *sentinels], timeout):
+            w = conns.get(r) or sentinels[r]
+            if w not in self._slots:  # its pipe and its sentinel were both ready: replaced
+                continue
+            while w.conn.poll():  # a result sent just before dying still counts
+                try:
+                    kind, value, err = w.conn.recv()
+                except (EOFError, OSError):
+                    break
+                if kind == "ready":
+                    w.ready, self._dead_starts = True, 0
+                else:
+                    self._done.append((kind, value, err))
+                    w.sent.popleft()
+            if r in sentinels or not w.proc.is_alive():
+                self._replace(w)
+        self._dispatch()
+
+    def _replace(self, w: _Worker) -> None:
+        """A new worker in the slot of ``w``, which has died; the task it ran is lost."""
+        if w not in self._slots:
+            return
+        w.proc.join()
+        code = w.proc.exitcode
+        how = f"killed by signal {-code}" if code is not None and code < 0 else \
+            f"exit code {code}"
+        if w.sent:  # the first task ran and is lost; the others never started
+            self._done.append((w.sent[0][0], None, BrokenProcessPool(
+                f"worker process {w.proc.pid} died ({how}) while running the task")))
+            self._todo.extendleft(reversed(list(w.sent)[1:]))
+        w.conn.close()
+        if not w.ready:
+            self._dead_starts += 1
+        if self._dead_starts >= self.STARTS * self.workers:
+            self._slots.remove(w)
+            raise ComputationError(
+                f"the local worker processes died as they started, {self._dead_starts} "
+                "times in a row (killed, or out of memory?); the finished points are kept: "
+                "run the sweep again to resume")
+        self._slots[self._slots.index(w)] = _Worker(self._ctx, self._parent)
+        self.restarts += 1
 
     def wait(self, handles: Iterable) -> list[Outcome]:
         """Every task submitted and not yet returned that has finished (at least one; the
         ``handles`` are all of those, as the runner keeps them)."""
-        done = [self._done.get()]
-        while True:
-            try:
-                done.append(self._done.get_nowait())
-            except queue.Empty:
-                break
-        out: list[Outcome] = []
-        broken = False
-        for f in done:
-            pool = self._pools.pop(id(f), None)
-            err = futures.CancelledError() if f.cancelled() else f.exception()
-            if err is None:
-                out.append((f, f.result(), None))
-            else:
-                # only a future of the current pool restarts it (the old pool's other futures
-                # may arrive in a later wait)
-                broken = broken or (isinstance(err, futures.process.BrokenProcessPool)
-                                    and pool is self._pool)
-                out.append((f, None, err))
-        if broken:  # a worker died: every task in flight is lost with the pool
-            self._pool.shutdown(wait=False, cancel_futures=True)
-            self._pool = self._start()
-            self.restarts += 1
+        if not self._done and not self._todo and not any(w.sent for w in self._slots):
+            raise RuntimeError("nothing to wait for")
+        while not self._done:
+            self._poll()
+        self._poll(0)
+        out, self._done = self._done, []
         return out
 
     def close(self) -> None:
-        self._pool.shutdown(wait=True, cancel_futures=True)
+        """Stop every worker process (:meth:`_Worker.stop`)."""
+        for w in self._slots:
+            w.stop()
+        self._slots = []
+        self._todo.clear()
 
 
 def worker_version() -> str:
