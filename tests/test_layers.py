@@ -51,7 +51,7 @@ ALLOWED = {
     "simulation": LOW | {"model", "hzd"},
     "energetics": LOW | {"model", "hzd", "contact", "simulation"},
     "optimize": LOW | {"model", "hzd", "contact", "simulation", "energetics"},
-    "design": LOW | {"model", "hzd", "contact", "simulation"},
+    "design": LOW | {"model", "hzd", "contact", "simulation", "energetics"},
     "floquet": LOW | {"model", "hzd", "contact", "simulation"},
     "walker": LOW | {"model", "hzd", "contact", "simulation", "files"},
     "interchange": LOW | {"files", "model", "hzd", "contact", "simulation"},

@@ -386,7 +386,9 @@ def register(app: typer.Typer) -> None:
             "--max-delta-sq", help="Upper bound on delta_zero^2 [1] (stability margin).")
         ] = 0.9,
         objective: Annotated[str, typer.Option(
-            "--objective", help="effort: (1/L) int |u|^2 dt [N^2 m s]; peak: max |u| [N m].")
+            "--objective", help="effort: (1/L) int |u|^2 dt [N^2 m s]; peak: max |u| [N m]; cot: "
+                               "mechanical cost of transport, joints' and thrusters' positive "
+                               "work over m g L [1].")
         ] = "effort",
         thrust_design: Annotated[bool, typer.Option(
             "--design-thrust", help="Co-design one constant thrust per thruster [N].")

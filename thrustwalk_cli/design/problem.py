@@ -27,7 +27,18 @@ from :func:`contact.terms.stance_terms`). Integrals use the nodes (Clenshaw-Curt
 Chebyshev); the constraints on F_1, u, the swing-foot height and the joint ranges use a dense
 uniform grid in ``s`` (the Lambdas and V_Z interpolated from the nodes). Objectives: ``effort``
 ``J = (1/L) int_0^T |u|^2 dt = (1/L) int |u|^2 / alpha' dalpha`` [N^2 m s] (plus
-``w_F |F_T|^2 T / L`` when thrust is designed), or ``peak`` ``max_{i, alpha} |u_i|`` [N m].
+``w_F |F_T|^2 T / L`` when thrust is designed), ``peak`` ``max_{i, alpha} |u_i|`` [N m], or
+``cot``, the mechanical cost of transport of SPEC 15 [1]:
+
+    CoT = (1 / (m g L)) int (sum_j max(0, u_j q_j') + sum_k max(0, F_k d_k . p_k')) dt
+        = (1 / (m g L)) int (sum_j max(0, s u_j Phi_j) + sum_k max(0, s F_k (B_F^T Phi)_k)) |dalpha|
+
+(``s = sign(alpha_f - alpha_i)``; no ``1/alpha'``: power times time is work per alpha), the
+powers interpolated from the nodes onto the dense grid and ``max(0, p)`` smoothed to
+``(p + sqrt(p^2 + e^2)) / 2`` with ``e = COT_SMOOTH u_scale`` (a bias below ``e |alpha_f -
+alpha_i| / 2`` per term) so that the solver's objective is differentiable; the re-check
+(:mod:`.verify`) reports the exact CoT of the periodic orbit
+(:mod:`thrustwalk_cli.energetics.orbit`).
 
 Constraint families (each normalised; the largest violation at the best point names the
 family that blocks an infeasible request): ``orbit`` (fixed point, zeta > 0 along the step,
@@ -81,6 +92,8 @@ FAMILIES = ("orbit", "stability", "speed", "step_length", "foot_placement", "cle
             "torque_limit")
 DIP = 0.0  # [m] dip allowed by the design constraint
 DENSE = 161  # uniform points in s for the height, range, stance-force and torque constraints
+COT_SMOOTH = 1e-2  # cot objective: smoothing of max(0, p), relative to u_scale [N m per rad]
+COT_SCALE = 0.01  # cot objective: its scale in the solver [1]
 
 
 # ------------------------------------------------------------------------- robot geometry
@@ -213,6 +226,8 @@ class Problem:
         self.mid = (n - 1) // 2
         self.s_dense = np.linspace(0.0, 1.0, DENSE)  # height, ranges, forces, torques
         self.P = ChebSeries.from_values(-1.0, 1.0, unit)(2.0 * self.s_dense - 1.0)  # nodes->grid
+        self.w_dense = np.full(DENSE, 1.0 / (DENSE - 1))  # trapezoid on s in [0, 1]
+        self.w_dense[[0, -1]] *= 0.5
         self.n_X = (N - 1) * (M - 2)  # free Bezier entries (columns 2 .. M-1)
         self.shapes: tuple[dict, dict] = ({}, {})  # constraint block sizes (fixed per start)
         self.sign_E = 1.0
@@ -393,6 +408,9 @@ class Problem:
             if self.m:
                 J = J + spec.thrust_weight * _dot(F, F) * T / Lpos
             scaled = J / self.J_scale
+        elif spec.objective == "cot":
+            J = self._cot(maps, a, u, F, span, Lpos)
+            scaled = J / COT_SCALE
         else:
             J = np.abs(u).reshape(B, -1).max(axis=1)
             scaled = tpk
@@ -490,6 +508,27 @@ class Problem:
                                   {k: v[b] for k, v in eqd.items()},
                                   {k: v[b] for k, v in iqd.items()}, ib))
         return out, finite
+
+    def _cot(self, maps: _Maps, a: np.ndarray, u: np.ndarray, F: np.ndarray, span: np.ndarray,
+             L: np.ndarray) -> np.ndarray:
+        """The smoothed mechanical cost of transport of each row [1] (module docstring, SPEC
+        15): the joints' powers ``s u_j Phi_j`` and the thrusters' ``s F_k (B_F^T Phi)_k`` per
+        ``|dalpha|`` at the nodes ``a`` (B, g), interpolated onto the dense grid, their smoothed
+        positive parts integrated by the trapezoid rule over ``|alpha_f - alpha_i|``, over
+        ``m g L`` (``L`` [m] the step length)."""
+        N, model = self.N, self.model
+        phi = maps.Phi(a)  # (B, g, N)
+        sgn = np.sign(span)[:, None, None]
+        power = u * phi[:, :, :N - 1] * sgn  # (B, g, N-1) [N m per rad]
+        if model.n_thrusters:
+            bf = model.B_F(maps.q_Z(a))  # (B, g, N, m)
+            bt = np.matmul(np.swapaxes(bf, -1, -2), phi[..., None])[..., 0]  # (B, g, m)
+            power = np.concatenate([power, bt * sgn * F[:, None, :]], axis=2)
+        dense = np.matmul(self.P, power)  # (B, DENSE, terms)
+        e = COT_SMOOTH * self.u_scale
+        pos = 0.5 * (dense + np.sqrt(dense * dense + e * e))
+        work = _dot(self.w_dense, pos.sum(axis=2)) * np.abs(span)  # [J]
+        return work / (self.weight * L)
 
     def _info(self, b: int, v: dict) -> dict:
         """The diagnostics of row ``b`` of :meth:`_evaluate_batch` (``v``: its batched

@@ -20,7 +20,7 @@ from ..errors import (
 )
 from ..model.compiled import CompiledModel
 
-OBJECTIVES = ("effort", "peak")
+OBJECTIVES = ("effort", "peak", "cot")
 
 
 FEAS_TOL = 1e-5  # normalised constraint violation accepted at the solver's point
@@ -47,8 +47,8 @@ class DesignSpec:
     foot must move down onto the ground at at least this speed just before impact [m/s] (a
     grazing touchdown, vertical velocity near 0, is a strike a full-order simulation can miss);
     min_zeta_ratio: ``zeta(alpha) >= ratio zeta^-`` (the walker keeps some momentum at
-    mid-stance); objective ``effort`` or
-    ``peak``; thrust_design: constant thrust per thruster as variables (within the robot's
+    mid-stance); objective ``effort``, ``peak`` or ``cot`` (the mechanical cost of transport,
+    SPEC 15); thrust_design: constant thrust per thruster as variables (within the robot's
     limits), costed ``thrust_weight |F|^2`` [m^2] in the effort objective; thrust_range
     ``(thruster, low, high)`` [N]: the orbit must exist and the stance, lift-off and torque
     constraints hold for every constant thrust of that thruster in the range (checked at the

@@ -10,6 +10,7 @@ import numpy as np
 from ..contact.evaluate import evaluate
 from ..contact.terms import impact_data, stance_terms, swing_clearance
 from ..description.gait import Gait
+from ..energetics.orbit import orbit_energy
 from ..hzd.quadrature import integrate, lobatto
 from ..hzd.zero_dynamics import limit_cycles, zero_dynamics
 from ..model.compiled import CompiledModel
@@ -95,6 +96,8 @@ def verify(model: CompiledModel, gait: Gait, spec: DesignSpec, thrust: np.ndarra
     tl = np.array([c.torque_limit for c in model.robot.coordinates if c.actuated])
     cost = orbit_cost(model, zd, sched, lc.zeta_plus,
                       spec.thrust_weight if spec.thrust_design else 0.0)
+    if spec.objective == "cot":  # exact, by quadrature on the orbit (SPEC 15)
+        cost["cot"] = orbit_energy(zd, sched, [lc])[0].cot()["mechanical"]
     umax = np.array(case.max_abs_torque)
     zmin = lc.min_zeta
     m.update({

@@ -28,8 +28,27 @@ from ..thrust.schedule import Schedule
 from ..walker import Walker, as_model, check_walker
 from .documents import SCHEMA_VERSION, Table, climb_rate, col, result_repr, slope_record, units
 
-
 # ------------------------------------------------------------------------------ records
+OBJECTIVE_UNITS = {"effort": "N^2 m s", "peak": "N m", "cot": "1"}
+
+
+def objective_definition(s, short: bool = False) -> str:
+    """What the design objective of the spec ``s`` is (the report's ``definition``)."""
+    if s.objective == "effort":
+        if short:
+            return "(1/L) int_0^T |u|^2 dt"
+        return ("(1/L) int_0^T |u|^2 dt over one step of the periodic orbit"
+                + (" + thrust_weight |F|^2 T / L" if s.thrust_design else ""))
+    if s.objective == "cot":
+        if short:
+            return "mechanical CoT"
+        return ("mechanical cost of transport (1/(m g L)) int (sum_j max(0, u_j q_j') + "
+                "sum_k max(0, F_k d_k . p_k')) dt over one step of the periodic orbit "
+                "(SPEC 15; the solver minimises it with max(0, p) smoothed, the value is "
+                "exact)")
+    return "max |u_i|" if short else "max_i,alpha |u_i|"
+
+
 def report_record(res: DesignResult) -> dict:
     """JSON body of ``NAME.report.json`` (provenance is added by the command)."""
     s = res.spec
@@ -41,11 +60,8 @@ def report_record(res: DesignResult) -> dict:
         "optimality": dict(res.optimality),
         "objective": {"name": s.objective, "value": res.objective,
                       "solver_value": res.solver_objective,
-                      "unit": "N^2 m s" if s.objective == "effort" else "N m",
-                      "definition": ("(1/L) int_0^T |u|^2 dt over one step of the periodic "
-                                     "orbit" + (" + thrust_weight |F|^2 T / L"
-                                                if s.thrust_design else "")
-                                     if s.objective == "effort" else "max_i,alpha |u_i|")},
+                      "unit": OBJECTIVE_UNITS[s.objective],
+                      "definition": objective_definition(s)},
         "spec": {"speed": s.speed, "step_length": s.step_length, "mu": s.mu,
                  "order": s.order, "clearance": s.clearance, "max_delta_sq": s.max_delta_sq,
                  "min_vertical_force": res.eps, "min_liftoff_velocity": s.min_liftoff,
@@ -112,15 +128,14 @@ def yaml_header(res: DesignResult, provenance: dict, report_name: str,
     s, chk = res.spec, res.check
     o, m = chk.get("orbit", {}), chk.get("margins", {})
     con, sw = chk.get("contact", {}), chk.get("swing", {})
-    obj_unit = "N^2 m s" if s.objective == "effort" else "N m"
+    obj_unit = OBJECTIVE_UNITS[s.objective]
     rng = {k: v for k, v in (m.get("joint_range") or {}).items() if v is not None}
     out = [
         f"Gait designed by thrustwalk design-gait (thrustwalk {provenance.get('version')}), "
         f"{provenance.get('created_utc')}.",
         *(f"WARNING: {render(w)}." for w in res.warnings),
         f"command: {provenance.get('command')}",
-        f"Objective ({s.objective}): "
-        + ("(1/L) int_0^T |u|^2 dt" if s.objective == "effort" else "max |u_i|")
+        f"Objective ({s.objective}): {objective_definition(s, short=True)}"
         + f" = {res.objective:.6g} {obj_unit} on the periodic orbit; peak torque "
         f"{chk['cost']['peak']:.4g} N m.",
         f"Variables: pre-impact posture q^-, Bezier columns 2..{s.order - 1} (order "
