@@ -46,6 +46,7 @@ from ..errors import InputError
 from ..hzd.extrema import golden_min, grid_miss, neighbours, peaks
 from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics
 from ..optimize.qp import ConvexQP, normalise_rows
+from .energy_plan import FEASIBLE_TOL, Bounds, energy_plan, energy_powers, predicted_energy
 from .step_model import (
     IdealThrust,
     ResponseThrust,
@@ -77,7 +78,10 @@ class Settings:
     dimensionless (``tracking`` None: tracking first), ``noise`` relative bound of the
     measurement error of zeta^- [1], ``points`` alpha grid size. ``continuous``: enforce and
     certify the contact conditions between the grid points too (polished worst points and
-    cutting planes, see :class:`Planner`); off, the plan holds them on the grid only."""
+    cutting planes, see :class:`Planner`); off, the plan holds them on the grid only.
+    ``objective``: ``effort`` (the QP above) or ``energy`` (tracking first, the driven
+    thrusters' input energy over the predicted step minimised under the same rows:
+    :mod:`.energy_plan`)."""
 
     mu: float
     eps: float
@@ -93,6 +97,7 @@ class Settings:
     zeta_scale: float
     force_scale: float
     continuous: bool = False
+    objective: str = "effort"
 
 
 @dataclass
@@ -104,7 +109,9 @@ class Plan:
     active constraint families, the time of its QP solves [s] and the model rows on the grid.
     With continuous constraints: ``margins`` (the polished predicted extremes, see
     :meth:`Planner.plan`), the cutting planes' ``cut_alpha`` [rad], the rounds it took and
-    ``polish_time`` [s] (polishing and the cutting planes' rows)."""
+    ``polish_time`` [s] (polishing and the cutting planes' rows). With the energy objective,
+    ``energy``: the predicted input energy of the plan [J] and how it was found
+    (:meth:`Planner.plan`)."""
 
     u: np.ndarray
     status: str
@@ -124,6 +131,7 @@ class Plan:
     cut_alpha: np.ndarray = field(default_factory=lambda: np.zeros(0))
     cut_rounds: int = 0
     polish_time: float = 0.0
+    energy: dict | None = None
 
 
 class Planner:
@@ -188,6 +196,10 @@ class Planner:
         self._series_n: int | None = None
         self._static_series: tuple | None = None
         self.nu = nu
+        self.powers = None if settings.objective != "energy" else energy_powers(
+            zd, thrust.driven, dynamic=thrust.dynamic, tracking_weight=settings.tracking,
+            rate_weight=settings.smooth)
+        self._energy_info: dict | None = None
 
     # ------------------------------------------------------------------ constraint rows
     def error_bound(self, rw: Rows, x_hi: float, fb: float | None = None) -> np.ndarray:
@@ -279,6 +291,7 @@ class Planner:
         is at alpha_f). ``steady``: the steady state ``x_{k+1} = x_k = x_ref`` with the least
         effort, no rate limit and no smoothing (u None, status ``unreachable`` without one)."""
         st = self.st
+        self._energy_info = None
         x_lo, x_hi = self.x_band(x_meas)
         A, b, fam = self.constraints(rw, x_lo, x_hi, u_prev, rate=not steady)
         cache = rw is self._static
@@ -314,6 +327,8 @@ class Planner:
                     u, active = u0, np.zeros(0, int)
                     target = float(base + g @ u0)
                 status = "saturated"
+            if self.powers is not None:
+                u, active = self._energy(A, b, g, float(target - base), u, active, x_meas)
         else:
             w = st.tracking / st.zeta_scale**2
             Ht = H + 2.0 * w * np.outer(g, g)
@@ -328,6 +343,31 @@ class Planner:
                 abs(x_ref), 1.0) else "tracking")
         act = sorted({str(f) for f in fam[active]})
         return u, status, float(target), act, 0.0
+
+    def _energy(self, A: np.ndarray, b: np.ndarray, g: np.ndarray, rhs: float,
+                u_eff: np.ndarray, active: np.ndarray, x_meas: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """The energy plan (:func:`.energy_plan.energy_plan`) under the effort plan's rows
+        ``A u <= b`` and its ``x_{k+1}`` target ``g u = rhs``, from the effort plan ``u_eff``;
+        the effort plan is kept (and said so in :attr:`_energy_info`) when no verified energy
+        plan is found or it would not use less energy. Returns ``(u, active rows)``."""
+        e_eff = predicted_energy(self.zd, self.thrust, self.powers, x_meas, u_eff)
+        u, es, words = energy_plan(self.zd, self.thrust, self.powers, x_meas, A, b, g, rhs,
+                                   u_eff, Bounds(self.lo, self.hi))
+        info = {"effort_plan_energy": e_eff, "solver": None if es is None else es.solver,
+                "iterations": None if es is None else es.iterations,
+                "kkt_stationarity": None if es is None else es.kkt["stationarity_relative"]}
+        if u is not None and e_eff is not None and es.energy > e_eff:
+            u, words = None, (f"the energy plan's KKT point ({es.energy:.6g}) uses more than the "
+                              f"effort plan ({e_eff:.6g}): the effort plan is applied")
+        if u is None:
+            self._energy_info = {**info, "status": "effort plan applied", "reason": words}
+            return u_eff, active
+        act = np.flatnonzero(b - A @ u <= FEASIBLE_TOL * (1.0 + np.abs(b)))
+        self._energy_info = {**info, "status": "optimal", "reason": (
+            "a KKT point of the predicted step's input energy (the orbit's dependence on the "
+            "thrust included), KKT conditions verified")}
+        return u, act
 
     def _extreme(self, A: np.ndarray, b: np.ndarray, cost_dir: np.ndarray) -> float:
         """``max cost_dir . u`` s.t. ``A u <= b`` (HiGHS)."""
@@ -653,13 +693,25 @@ class Planner:
          t_qp, t_pol) = self._run(x_meas, x_ref, u_prev, steady=False)
         lo, hi = self.x_band(x_meas)
         g = rw.Zu[-1]
+        energy = None
+        if self.powers is not None:
+            energy = self._energy_info or {
+                "status": "not planned", "reason": f"a step {status}: the least violation of its "
+                                                   "rows is applied, no energy plan",
+                "effort_plan_energy": None, "solver": None, "iterations": None,
+                "kkt_stationarity": None}
+            e = predicted_energy(self.zd, self.thrust, self.powers, x_meas, u)
+            energy = {"energy": e, **energy}
+            if e is None:
+                energy["reason"] += "; the predicted step comes to rest: no energy"
         xn = float(self.d2 * x_meas + rw.z0[-1] + g @ u)
         band = (float(self.d2 * lo + rw.z0[-1] + g @ u), float(self.d2 * hi + rw.z0[-1] + g @ u))
         return Plan(u=u, status=status, x_meas=float(x_meas), x_ref=float(x_ref),
                     x_target=float(target), x_next=xn, x_next_band=band, x_band=(lo, hi),
                     active=act, qp_time=t_qp, rows=rw, step_time=step_time,
                     iterations=iterations if self.thrust.dynamic else 1, violation=viol,
-                    margins=margins, cut_alpha=cut_a, cut_rounds=rounds, polish_time=t_pol)
+                    margins=margins, cut_alpha=cut_a, cut_rounds=rounds, polish_time=t_pol,
+                    energy=energy)
 
 
 def predicted_margins(plan: Plan, rw: Rows, mu: float, E: np.ndarray, eps: float = 0.0
@@ -689,15 +741,16 @@ def regulator(zd: ZeroDynamics, knots: np.ndarray, driven: list[int], *, mu: flo
               rate_limit: float | None = None, tracking_weight: float | None = None,
               effort_weight: float = 1.0, rate_weight: float = 0.0, noise: float = 0.0,
               points: int = 401, terms: Terms | None = None,
-              thrust: IdealThrust | ResponseThrust | None = None, continuous: bool = False
-              ) -> tuple[Planner, LimitCycle]:
+              thrust: IdealThrust | ResponseThrust | None = None, continuous: bool = False,
+              objective: str = "effort") -> tuple[Planner, LimitCycle]:
     """The SPEC 11 planner of ``thrustwalk control`` for thrust on ``knots`` [rad] (alpha
     values) of the ``driven`` thrusters, and the zero-thrust periodic orbit it is scaled by
     (and regulates to with the reference ``nominal``). Thrust bounds: the robot file's
     ``limits`` of each driven thruster, within ``max_thrust`` [N]; they must include 0 N.
     ``zeta_min`` default: 1 % of the nominal zeta*. ``thrust`` default: ideal thrust on the
     knots; ``terms`` default: the exact Lambda terms. ``continuous``: hold and certify the
-    contact conditions between the grid points too (:class:`Planner`)."""
+    contact conditions between the grid points too (:class:`Planner`). ``objective``:
+    ``effort`` or ``energy`` (:class:`Settings`)."""
     model, robot = zd.model, zd.model.robot
     if not zd.valid:
         raise InputError.param("gait", f"the gait has no walking orbit to control: "
@@ -719,7 +772,8 @@ def regulator(zd: ZeroDynamics, knots: np.ndarray, driven: list[int], *, mu: flo
                   zeta_min=0.01 * zs0 if zeta_min is None else float(zeta_min), lo=lo, hi=hi,
                   rate=rate_limit, tracking=tracking_weight, effort=float(effort_weight),
                   smooth=float(rate_weight), noise=float(noise), points=int(points),
-                  zeta_scale=zs0, force_scale=force_scale, continuous=bool(continuous))
+                  zeta_scale=zs0, force_scale=force_scale, continuous=bool(continuous),
+                  objective=objective)
     terms = Terms(model, zd) if terms is None else terms
     thrust = IdealThrust(zd, np.asarray(knots, float), driven) if thrust is None else thrust
     return Planner(zd, terms, thrust, st), lc0

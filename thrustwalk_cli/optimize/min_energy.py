@@ -123,38 +123,61 @@ def freeze_orbit(prob: LinearProblem, zs: float, x: np.ndarray) -> FrozenOrbit:
     """The orbit of schedule ``x`` at fixed point ``zs`` (``zeta(alpha) = delta_zero^2 zs +
     V_0 + c(alpha) x``, the affine form of the constraint rows), nodes doubled per interval
     until the time and ``int |b|`` agree with the nested coarse rule to ``QUAD_RTOL``."""
-    spec = prob.spec
-    zd, model = spec.zd, spec.model
-    maps = zd.maps
+    zd = prob.spec.zd
     kn, n, k = prob.knots, prob.n, prob.thruster
-    d2, s = zd.delta_zero_sq, zd.direction
+    d2 = zd.delta_zero_sq
     cum_k = _cum_at(zd, prob.mode, k, kn)
     lo_k, hi_k = np.minimum(kn[:-1], kn[1:]), np.maximum(kn[:-1], kn[1:])
-    out = {name: [] for name in ("alpha", "w", "r", "b", "zeta", "C")}
-    for j in range(n):
+
+    def zeta_at(a: np.ndarray, j: int) -> tuple[np.ndarray, np.ndarray]:
+        C = np.zeros((len(a), n))
+        for ll in range(n):
+            C[:, ll] = _cum_at(zd, prob.mode, k, np.clip(a, lo_k[ll], hi_k[ll])) - cum_k[ll]
+        return d2 * zs + zd.V0(a) + C @ x, C
+
+    return sample_orbits(prob.spec.model, zd, kn, [k], zeta_at)[0]
+
+
+def sample_orbits(model: CompiledModel, zd: ZeroDynamics, knots: np.ndarray,
+                  thrusters: list[int], zeta_at) -> list[FrozenOrbit]:
+    """One step's orbit sampled per knot interval on Lobatto nodes, as seen by each of
+    ``thrusters`` (one :class:`FrozenOrbit` each: the same nodes, weights, ``r`` and ``zeta``;
+    each thruster's own ``b``). ``zeta_at(alpha, j)`` -> ``(zeta, C)``: zeta [kg^2 m^4/s^2] at
+    the nodes of interval ``j`` and its derivative ``C`` (g, n_var) in the decision variables.
+    Nodes are doubled per interval until the time and every ``int |b|`` agree with the nested
+    coarse rule to ``QUAD_RTOL`` (:class:`OrbitAtRest` when zeta <= 0 at a node)."""
+    maps = zd.maps
+    kn = np.asarray(knots, float)
+    s = zd.direction
+    lo_k, hi_k = np.minimum(kn[:-1], kn[1:]), np.maximum(kn[:-1], kn[1:])
+    names = ("alpha", "w", "r", "b", "zeta", "C")
+    out = [{name: [] for name in names} for _ in thrusters]
+    for j in range(len(kn) - 1):
         lo, hi = lo_k[j], hi_k[j]
         half = 0.5 * (hi - lo)
         for m in NODES:
             a = lobatto(lo, hi, m)
-            C = np.zeros((m, n))
-            for ll in range(n):
-                C[:, ll] = _cum_at(zd, prob.mode, k, np.clip(a, lo_k[ll], hi_k[ll])) - cum_k[ll]
-            zeta = d2 * zs + zd.V0(a) + C @ x
+            zeta, C = zeta_at(a, j)
             if np.any(zeta <= 0.0):
                 raise OrbitAtRest(f"the orbit of the schedule comes to rest (zeta <= 0 at "
                                        f"alpha = {a[np.argmin(zeta)]:.6g} rad)")
             st = stance_terms(model, maps, a)
             r = 1.0 / (np.abs(st.AT) * np.sqrt(2.0 * zeta))
-            b = s * np.einsum("gnm,gn->gm", model.B_F(maps.q_Z(a)), maps.Phi(a))[:, k]
+            BtP = s * np.einsum("gnm,gn->gm", model.B_F(maps.q_Z(a)), maps.Phi(a))
+            bs = [BtP[:, k] for k in thrusters]
             w = _cc_weights(m) * half
             wc = _cc_weights((m - 1) // 2 + 1) * half
-            err = max(abs(w @ r - wc @ r[::2]) / max(abs(w @ r), 1e-300),
-                      abs(w @ np.abs(b) - wc @ np.abs(b[::2])) / max(w @ np.abs(b), 1e-300))
+            err = abs(w @ r - wc @ r[::2]) / max(abs(w @ r), 1e-300)
+            for b in bs:
+                err = max(err, abs(w @ np.abs(b) - wc @ np.abs(b[::2]))
+                          / max(w @ np.abs(b), 1e-300))
             if err <= QUAD_RTOL or m == NODES[-1]:
                 break
-        for name, v in (("alpha", a), ("w", w), ("r", r), ("b", b), ("zeta", zeta), ("C", C)):
-            out[name].append(v)
-    return FrozenOrbit(**{name: tuple(v) for name, v in out.items()})
+        for o, b in zip(out, bs):
+            for name, v in (("alpha", a), ("w", w), ("r", r), ("b", b), ("zeta", zeta),
+                            ("C", C)):
+                o[name].append(v)
+    return [FrozenOrbit(**{name: tuple(v) for name, v in o.items()}) for o in out]
 
 
 class EnergyObjective:
@@ -251,7 +274,7 @@ class EnergyObjective:
         """``sum_j int (d/dr)(P dt) (dr/dzeta) C(alpha) d|alpha|`` at ``x`` [J/N]: the energy's
         change through the orbit (``r = 1/|alpha'|``, ``dr/dzeta = -r / (2 zeta)``)."""
         o = self.orbit
-        g = np.zeros(self.n)
+        g = np.zeros(o.C[0].shape[1])  # every decision variable (the orbit depends on all)
         for j, v in enumerate(np.asarray(x, float)):
             w, r, b, z, C = o.w[j], o.r[j], o.b[j], o.zeta[j], o.C[j]
             t = abs(v)
@@ -573,21 +596,32 @@ def solve_energy(prob: LinearProblem, zs: float, power, x0: np.ndarray) -> Energ
     rows = constraint_rows(prob, zs)
     if rows is None:
         return None
+    return sequential_convex(lambda x: EnergyObjective(power, freeze_orbit(prob, zs, x)), rows,
+                             prob, x0)
+
+
+def sequential_convex(objective_at, rows, bounds, x0: np.ndarray) -> EnergySolve:
+    """The module docstring's iteration from the feasible ``x0`` under the normalised
+    ``rows``: ``objective_at(x)`` freezes the orbit of ``x`` (an :class:`EnergyObjective` or
+    any separable objective with its methods), :func:`convex_solve` solves the convex problem
+    with the orbit's gradient term, until the relative change is below ``TOL_SCP`` (at most
+    ``MAX_SCP``); the KKT residuals of the full problem at the end. ``bounds``: ``lo``/``hi``
+    per variable [N] (a table's epigraph LP)."""
     x = np.asarray(x0, float).copy()
     change, history, solver = np.inf, [], ""
     it = 0
     for it in range(1, MAX_SCP + 1):  # noqa: B007 (reported)
-        obj = EnergyObjective(power, freeze_orbit(prob, zs, x))
+        obj = objective_at(x)
         history.append(obj.value(x))
         g = obj.orbit_gradient(x)
-        xn, solver = convex_solve(obj, g, rows, prob, x)
+        xn, solver = convex_solve(obj, g, rows, bounds, x)
         size = max(np.abs(xn).max(initial=0.0), np.abs(x).max(initial=0.0))
         diff = np.abs(xn - x).max(initial=0.0)
         change = 0.0 if diff == 0.0 else diff / max(size, 1e-300)
         x = xn
         if change < TOL_SCP:
             break
-    obj = EnergyObjective(power, freeze_orbit(prob, zs, x))
+    obj = objective_at(x)
     k = energy_kkt(obj, obj.orbit_gradient(x), rows, x)
     return EnergySolve(x, obj.value(x), obj.dt, it, float(change), bool(change < TOL_SCP), k,
                        solver, tuple(history), obj)
