@@ -133,7 +133,8 @@ def run_control(robot: str | None, gait: str | None, *, reference: str, profile:
                 rate_weight: float, terms: str, fit_tol: float, points: int, out: Path,
                 quiet: bool, export: Path | None = None, json: str | None = None,
                 formats: set[str] | None = None, titles: bool = False,
-                slope: float = 0.0, terrain: Path | None = None) -> dict:
+                slope: float = 0.0, terrain: Path | None = None,
+                objective: str = "effort") -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
     from ..files import output
     from ..studies.control import control
@@ -157,7 +158,7 @@ def run_control(robot: str | None, gait: str | None, *, reference: str, profile:
                 max_thrust=max_thrust, rate_limit=rate_limit, tracking_weight=tracking_weight,
                 effort_weight=effort_weight, rate_weight=rate_weight, terms=terms,
                 fit_tol=fit_tol, points=points, slope=slope,
-                terrain=None if terrain is None else str(terrain))
+                terrain=None if terrain is None else str(terrain), objective=objective)
     control(walker, **args, check_only=True)  # every option before the kernel is compiled
     ensure_kernel(quiet)
     with progress("controlled steps", runs * steps, quiet) as advance:
@@ -197,8 +198,13 @@ def _table(doc: dict) -> None:
                      fmt(lag["speed"][-1] if lag["speed"] else None), "—",
                      "ok" if lag["success"] else lag["failure"]])
     on = f", on the slope {doc['slope']['angle']:.4g} rad" if doc.get("slope") else ""
+    obj = ""
+    if doc["settings"].get("objective") == "energy":
+        e = s["planned_input_energy"]
+        obj = ", least input energy" + (f": {e:.4g} J planned" if e is not None else "")
     show_table(f"control: {doc['robot']['name']} / {doc['gait']['name']}{on} "
-               f"({doc['settings']['reference']}, {doc['settings']['thrust_model']} thrust)",
+               f"({doc['settings']['reference']}, {doc['settings']['thrust_model']} thrust"
+               f"{obj})",
                [("walker", False), ("steps", True), ("final error\n[-]", True),
                 ("final speed\n[m/s]", True), ("QP median\n[us]", True), ("status", False)],
                rows)
@@ -267,6 +273,10 @@ def register(app: typer.Typer) -> None:
             "--fit-tol", help="Relative max error of the fitted L_k [1].")] = 1e-3,
         points: Annotated[int, typer.Option(
             "--points", help="Alpha grid points of the contact constraints.")] = 401,
+        objective: Annotated[str, typer.Option(
+            "--objective", help="effort: least thrust effort (the QP); energy: least input "
+                                "energy of the driven thrusters over the predicted step "
+                                "(their power: models), tracking first.")] = "effort",
         export: Annotated[Path | None, typer.Option(
             "--export", metavar="FILE", help="Also write the controller's data (knots, "
                                              "delta_zero^2, V_0(alpha_f), Gamma_j, L_k fits, "
@@ -292,7 +302,7 @@ def register(app: typer.Typer) -> None:
                 rate_weight=rate_weight, terms=terms, fit_tol=fit_tol, points=points,
                 out=out, quiet=quiet, export=export, json=json,
                 formats=parse_formats(formats), titles=titles, slope=slope,
-                terrain=terrain)
+                terrain=terrain, objective=objective)
         if doc["failure"] in ("integrator", "controller"):
             sys.stderr.write(f"error: an integrator or controller failure ended the run (see "
                              f"{out}/control.json)\n")

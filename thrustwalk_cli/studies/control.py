@@ -27,6 +27,7 @@ import numpy as np
 
 from ..contact.evaluate import check_contact_options
 from ..contact.terms import fit_terms, impact_data
+from ..controller.energy_plan import OBJECTIVES, energy_powers
 from ..controller.loop import (
     CONE_TOL,
     REALISED_POLISH,
@@ -66,6 +67,18 @@ from .control_result import ControlResult
 from .documents import climb_rate, dynamics_record
 
 REFERENCES = ("speed", "zeta", "nominal")
+ENERGY_WORDS = (
+    "each step's plan meets x_{k+1} = x_ref first (or the attainable x_{k+1} closest to it: "
+    "saturated) and minimises E(u) = sum over driven thrusters t and knot intervals j of int "
+    "P_t(u_jt, V_t) dt over the step predicted from the measured zeta^- (zeta_k(alpha) = "
+    "delta_zero^2 x_k + V_0(alpha) + Gamma(alpha) u, dt = d|alpha|/|alpha'|, V_t = sign(u_jt) "
+    "d_t . p_t', P_t the thruster's power: model) under the effort plan's constraints "
+    "(contact rows with their cutting planes, zeta_min, thrust bounds, rate limit); solved by "
+    "sequential convex programming (the orbit frozen at each iterate, the orbit's gradient "
+    "term included; interior point with an active-set finish, or HiGHS for piecewise-linear "
+    "models), the KKT conditions checked; where no verified energy plan using at most the "
+    "effort plan's energy is found, the effort plan is applied and the step says so "
+    "(qp.energy.status); the zeta^- of a speed reference is the least-effort steady state's")
 TERMS = ("exact", "fitted")
 
 
@@ -166,7 +179,8 @@ def control(walker: Walker, *, reference: str = "speed",
             fit_tol: float = 1e-3, points: int = 401, zeta0: float | None = None,
             compare: bool = True, progress: Callable[[int], None] | None = None,
             check_only: bool = False, slope: float = 0.0,
-            terrain: str | Path | Terrain | None = None) -> ControlResult | None:
+            terrain: str | Path | Terrain | None = None, objective: str = "effort"
+            ) -> ControlResult | None:
     """Step-to-step thrust control (SPEC 11) in closed loop with the full-order simulation.
 
     ``reference``: ``speed`` [m/s], ``zeta`` [kg^2 m^4/s^2] (``profile`` of ``(step, value)``,
@@ -197,11 +211,18 @@ def control(walker: Walker, *, reference: str = "speed",
     virtual constraints up to its ``s_max``, past it ``missed_footing``); the controller's step
     model is that of the plane (level or sloped) ground and meets the steps through the
     measured zeta^-. Every step records its ``terrain_height``, the settings the terrain.
+    ``objective``: ``effort`` (the QP of :mod:`thrustwalk_cli.controller.planner`) or
+    ``energy``: each plan puts tracking first and minimises the driven thrusters' input energy
+    over the predicted step under the same constraints (:mod:`thrustwalk_cli.controller.
+    energy_plan`; every driven thruster needs a ``power:`` model, ideal thrust, no
+    ``tracking_weight`` nor ``rate_weight``); a speed reference's zeta^- stays the least-effort
+    steady state's.
     """
     check_walker(walker)
     slope, terrain = check_ground(slope, terrain)
     walker = walker.on_slope(slope)
     check_choice("reference", reference, REFERENCES)
+    check_choice("objective", objective, OBJECTIVES)
     profile = _check_profile_pairs(profile)
     ramp = check_flag("ramp", ramp)
     knots = check_numbers("knots", knots, min_len=0)
@@ -257,6 +278,9 @@ def control(walker: Walker, *, reference: str = "speed",
         raise InputError.param("thruster", "a thruster is named twice")
     if max_thrust is not None:
         robot.check_thrust_bound("max_thrust", max_thrust, driven)
+    if objective == "energy":  # every driven thruster's power model, before anything runs
+        energy_powers(zd, driven, dynamic=thrust_model != "ideal",
+                      tracking_weight=tracking_weight, rate_weight=rate_weight)
     fr = [float(k) for k in knots]
     if len(fr) < 2 or fr[0] != 0.0 or fr[-1] != 1.0 or any(
             b <= a for a, b in zip(fr[:-1], fr[1:])):
@@ -316,7 +340,7 @@ def control(walker: Walker, *, reference: str = "speed",
         max_thrust=max_thrust, rate_limit=rate_limit, tracking_weight=tracking_weight,
         effort_weight=effort_weight, rate_weight=rate_weight, noise=noise, points=points,
         terms=tm, thrust=None if dyn is None else ResponseThrust(zd, dyn, driven),
-        continuous=True)
+        continuous=True, objective=objective)
     settings_qp = planner.st
     lo, hi, zs0 = settings_qp.lo, settings_qp.hi, settings_qp.zeta_scale
     # references
@@ -401,6 +425,8 @@ def control(walker: Walker, *, reference: str = "speed",
                         "steady_speed": r.steady_speed, "reachable": r.reachable,
                         "steady_thrust": list(r.thrust)} for r in speed_plan.values()]},
         "certificate": certificate_settings(planner),
+        **({"objective": "energy", "energy_objective": ENERGY_WORDS} if objective == "energy"
+           else {}),
     }
     return ControlResult(walker, settings, planner, refs, speed_refs, controlled, uncontrolled,
                          naive, plant_doc, tuple(warnings))

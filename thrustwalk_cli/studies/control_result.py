@@ -71,9 +71,17 @@ class ControlResult:
     def success(self) -> bool:
         return self.controlled.success
 
+    @property
+    def energy_objective(self) -> bool:
+        return self.settings.get("objective") == "energy"
+
     def findings(self) -> dict[str, list[int]]:
-        """Steps that make the run less than ``ok``, by kind."""
+        """Steps that make the run less than ``ok``, by kind (with the energy objective also
+        the steps whose plan is not a verified energy plan)."""
         mu = self.settings["mu"]
+        extra = {"energy plan not verified (effort plan applied)": self._steps_with(
+            lambda s: s.plan.energy["status"] == "effort plan applied")
+        } if self.energy_objective else {}
         return {
             "saturated": self._steps_with(lambda s: s.plan.status == "saturated"),
             "infeasible QP": self._steps_with(lambda s: s.plan.status == "infeasible"),
@@ -85,6 +93,7 @@ class ControlResult:
             "speed reference out of reach": self._steps_with(
                 lambda s: self.speed_refs is not None
                 and not self._speed_reachable(float(self.speed_refs[s.step - 1]))),
+            **extra,
         } if mu is not None else {}
 
     def _speed_reachable(self, v: float) -> bool:
@@ -108,7 +117,9 @@ class ControlResult:
             parts.append("impact inadmissible: " + "; ".join(self.planner.impact_reasons))
         if not parts:
             return (f"completed {len(self.controlled.steps)} steps: every step tracked its "
-                    "reference, certified and inside the prediction's error bound")
+                    "reference, certified and inside the prediction's error bound"
+                    + ("; every plan a verified least-input-energy plan"
+                       if self.energy_objective else ""))
         head = (f"completed {len(self.controlled.steps)} steps; " if self.success else "")
         return head + "; ".join(parts)
 
@@ -157,7 +168,8 @@ class ControlResult:
                    "time": p.qp_time, "iterations": p.iterations,
                    "violation": p.violation, "cut_rounds": p.cut_rounds,
                    "cutting_planes_alpha": [float(a) for a in p.cut_alpha],
-                   "polish_time": p.polish_time},
+                   "polish_time": p.polish_time,
+                   **({"energy": p.energy} if p.energy is not None else {})},
             "pushed": s.pushed,
             **({"terrain_height": s.terrain_height} if "terrain" in self.settings else {}),
             "predicted": {**{k: _finite(v) if isinstance(v, float) else v
@@ -210,12 +222,24 @@ class ControlResult:
                 "polish_time_max": float(np.max(pol_times)) if pol_times else None,
                 "cut_rounds_total": int(sum(s.plan.cut_rounds for s in self.controlled.steps)),
                 "energy": _run_energy_block(self.controlled),
+                **(self._planned_energy() if self.energy_objective else {}),
             },
             "uncontrolled": _run_summary(self.uncontrolled),
             "lag_ignored": _run_summary(self.naive, certificate=True),
             "steps": steps,
         }
         return out
+
+    def _planned_energy(self) -> dict:
+        """The objective and the plans' predicted input energy over the run [J] (None when a
+        step has none), beside the effort plans' of the same states."""
+        es = [s.plan.energy for s in self.controlled.steps]
+
+        def total(key):
+            v = [e[key] for e in es]
+            return None if any(x is None for x in v) else float(sum(v))
+        return {"objective": "energy", "planned_input_energy": total("energy"),
+                "effort_plan_input_energy": total("effort_plan_energy")}
 
     def tables(self) -> dict[str, Table]:
         names = self.walker.robot.thruster_names
@@ -233,6 +257,9 @@ class ControlResult:
         header += [col(f"mean_thrust_{n}", "N") for n in names]
         terrain = "terrain" in self.settings
         header += [col("terrain_height", "m")] if terrain else []
+        energy = self.energy_objective
+        header += [col("planned_input_energy", "J"), col("effort_plan_input_energy", "J"),
+                   "energy_status"] if energy else []
         rows = []
         for e, s in zip(self.document()["steps"], self.controlled.steps):
             rows.append([e["step"], e["t_start"], e["reference"]["zeta_minus"],
@@ -249,7 +276,9 @@ class ControlResult:
                          e["certificate"]["max_force_outside_bound"]]
                         + [float(v) for v in s.u]
                         + [e["thrust_delivered"]["mean"][n] for n in names]
-                        + ([e["terrain_height"]] if terrain else []))
+                        + ([e["terrain_height"]] if terrain else [])
+                        + ([e["qp"]["energy"]["energy"], e["qp"]["energy"]["effort_plan_energy"],
+                            e["qp"]["energy"]["status"]] if energy else []))
         return {"control_steps": Table(header, rows, [
             "thrustwalk control: one row per controlled step (zeta^- measured at the impact "
             "that starts it, zeta_minus_end at the impact that ends it)",
