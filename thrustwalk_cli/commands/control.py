@@ -51,7 +51,9 @@ points (the plan's worst points polished, cutting planes added until they hold t
 Lambda terms, or --terms fitted: the polynomials L_k with their error bound added to the
 margin), zeta(alpha) >= --zeta-min, the thrust limits of the robot file [N] and --rate-limit [N
 per step]. A reference beyond the limits is met as closely as the constraints allow and
-reported as saturated; a step whose constraints cannot hold is reported infeasible.
+reported as saturated; a step whose constraints cannot hold is reported infeasible. With
+--objective energy each plan, tracking first, minimises the driven thrusters' input energy
+[J] over the predicted step (their power: models) under the same constraints instead.
 
 References: --reference speed [m/s] or zeta [kg^2 m^4/s^2] with --profile step:value,... (held,
 or --ramp), or nominal (the zero-thrust orbit). A speed is tracked as a speed: its zeta^-
