@@ -357,6 +357,8 @@ class ControlResult:
                 "objective": "w ((x_{k+1} - x_ref)/zeta_scale)^2 + sum_j effort w_j "
                              "(u_j/force_scale)^2 + smooth |u - u_prev|^2/force_scale^2 "
                              "(w = null: x_{k+1} = x_ref first, as an equality)",
+                **({"energy_objective": self.settings["energy_objective"]}
+                   if self.energy_objective else {}),
                 "tracking_weight": pl.st.tracking, "effort_weight": pl.st.effort,
                 "rate_weight": pl.st.smooth, "zeta_scale": pl.st.zeta_scale,
                 "force_scale": pl.st.force_scale,
