@@ -185,6 +185,23 @@ def test_energy_run_tracks_like_the_effort_run_with_less_input_energy(kneed4):
     assert "objective" not in runs["effort"].document()["settings"]
 
 
+def test_a_run_that_needs_no_thrust_is_optimal_not_a_warning(kneed4):
+    """On the nominal reference the effort plans spend (to rounding) no input energy; the
+    input power is >= 0, so they are optimal energy plans: every step's plan is ``optimal``
+    and the run ``ok`` (before: the degenerate KKT check at zero thrust failed on a step,
+    the effort plan was applied and the run was called a warning)."""
+    from thrustwalk_cli.studies.control import control
+
+    r = control(kneed4, reference="nominal", steps=4, compare=False, objective="energy")
+    doc = r.document()
+    assert r.status == "ok", r.reason
+    assert [e["qp"]["energy"]["status"] for e in doc["steps"]] == ["optimal"] * 4
+    weight_length = kneed4.robot.weight * kneed4.zd.step_length
+    for e in doc["steps"]:
+        en = e["qp"]["energy"]
+        assert en["energy"] <= en["effort_plan_energy"] + 1e-12 * weight_length
+
+
 def test_cli_energy_without_a_power_model_exits_two(tmp_path, monkeypatch, cli):
     """(4) walker5's thruster has no `power:` model: one error line naming it, exit 2,
     nothing written (before anything is computed)."""

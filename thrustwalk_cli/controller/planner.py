@@ -352,6 +352,15 @@ class Planner:
         the effort plan is kept (and said so in :attr:`_energy_info`) when no verified energy
         plan is found or it would not use less energy. Returns ``(u, active rows)``."""
         e_eff = predicted_energy(self.zd, self.thrust, self.powers, x_meas, u_eff)
+        if e_eff is not None and e_eff <= self._zero_energy():
+            # input powers are >= 0, so E >= 0: a feasible plan that spends (to rounding) no
+            # energy is optimal; the solver's KKT check is degenerate at zero thrust
+            self._energy_info = {"effort_plan_energy": e_eff, "solver": "none needed",
+                                 "iterations": 0, "kkt_stationarity": None,
+                                 "status": "optimal", "reason": (
+                                     "the effort plan spends no input energy (to rounding) and "
+                                     "every thruster's input power is >= 0: it is optimal")}
+            return u_eff, active
         u, es, words = energy_plan(self.zd, self.thrust, self.powers, x_meas, A, b, g, rhs,
                                    u_eff, Bounds(self.lo, self.hi))
         info = {"effort_plan_energy": e_eff, "solver": None if es is None else es.solver,
@@ -368,6 +377,15 @@ class Planner:
             "a KKT point of the predicted step's input energy (the orbit's dependence on the "
             "thrust included), KKT conditions verified")}
         return u, act
+
+    def _zero_energy(self) -> float:
+        """What counts as no input energy over a step [J]: ``1e-12 m g l`` (``l`` the
+        nominal step length), or 0 when a thruster's power table has a negative entry (then
+        ``E >= 0`` is not known)."""
+        for p in self.powers:
+            if getattr(p, "kind", None) == "table" and np.min(p.power) < 0:
+                return 0.0
+        return 1e-12 * self.weight * abs(float(self.zd.step_length))
 
     def _extreme(self, A: np.ndarray, b: np.ndarray, cost_dir: np.ndarray) -> float:
         """``max cost_dir . u`` s.t. ``A u <= b`` (HiGHS)."""
