@@ -48,6 +48,12 @@ OPTIONS = "cache=True, nogil=True, error_model='numpy'"
 # a function must not allocate an array (numba refuses to compile it then). Where numba does
 # not know the option, they are compiled as the others.
 NRT_FREE_OPTION = "_nrt=False"
+# the signature that marks a function compiled only into its callers (numba's IR inlining,
+# ``inline='always'``): no library of its own, so its code is optimized and translated to
+# machine code once, in its caller's library, instead of once more at every level of the call
+# chain above it (numba links every callee's code into each caller and optimizes the whole);
+# for functions with one call site, or small wrappers. Never compiled when the module loads.
+INLINE = "inline"
 
 
 def _numba_version() -> str:
@@ -64,7 +70,8 @@ def _digest(tag: str, source: str, names: dict[str, str],
         return hit[2]
     h = hashlib.sha256()
     for part in (tag, source, repr(sorted(names.items())), OPTIONS, _numba_version(),
-                 sys.version, repr(sorted(nrt_free)), NRT_FREE_OPTION):
+                 sys.version, repr(sorted(nrt_free)), NRT_FREE_OPTION,
+                 _module_source("", names, nrt_free)):  # the footer: how they are compiled
         h.update(part.encode())
         h.update(b"\0")
     _DIGESTS[key] = (source, names, h.hexdigest())
@@ -98,7 +105,10 @@ def _module_source(source: str, names: dict[str, str],
         "          else {})  # (an option numba might rename: then reference counting)",
         "for _name, _sig in _JIT.items():",
         "    _kw = _NO_RC if _name in _NRT_FREE else {}",
-        f"    globals()[_name] = _numba.njit(_sig, {OPTIONS}, **_kw)(globals()[_name])", "",
+        f"    if _sig == {INLINE!r}:  # compiled into its callers only",
+        f"        globals()[_name] = _numba.njit(inline='always', {OPTIONS})(globals()[_name])",
+        "    else:",
+        f"        globals()[_name] = _numba.njit(_sig, {OPTIONS}, **_kw)(globals()[_name])", "",
     ]
     return source.rstrip() + "\n" + "\n".join(footer)
 
@@ -221,7 +231,8 @@ def load(tag: str, source: str | Callable[[], str], names: dict[str, str],
             sys.modules.pop(f"thrustwalk_jit_{path.stem.replace('-', '_')}", None)
         module = _import(path)
         seconds = time.perf_counter() - t0
-        misses = sum(sum(getattr(module, n).stats.cache_misses.values()) for n in names)
+        misses = sum(sum(getattr(module, n).stats.cache_misses.values())
+                     for n, sig in names.items() if sig != INLINE)
         hit = misses == 0
         meta_path = path.with_suffix(".json")
         if hit:

@@ -450,3 +450,8 @@ SIGNATURES = {
 }
 # every one allocation-free: compiled without reference counting (model/jit.py)
 NRT_FREE = frozenset(SIGNATURES) | frozenset(HELPERS)
+# compiled into their one caller, ``integrate``, only (numba's IR inlining, see
+# ``model/jit.py``): no library of their own, whose compile would optimize and translate the
+# problem's functions below them once more (the signatures above are the types they are
+# called with)
+INLINED = frozenset({"initial_step", "rk_step", "dense_coefficients"})

@@ -563,3 +563,9 @@ SIGNATURES = {
 }
 # every one allocation-free: compiled without reference counting (model/jit.py)
 NRT_FREE = frozenset(SIGNATURES)
+# compiled into their callers only (numba's IR inlining, see ``model/jit.py``): small wrappers
+# of :func:`evaluate` and ``event_list`` (one caller); each would otherwise be a library of its
+# own whose compile optimizes and translates ``evaluate`` and the interpreter once more. Their
+# callers are allocation-free too, but for the step (``step_core``), where they take no view.
+INLINED = frozenset({"rhs_eval", "rhs_node", "node_event_value", "vertical_force",
+                     "swing_height", "foot_velocity", "event_list"})

@@ -262,27 +262,13 @@ def add_call(calls, j, seg, first, last, t0, t1):
     return j + 1
 
 
-def sim_step(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
+def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
     """One walking step (``full_order._one_step`` and ``_impact_and_record``): from the
     post-impact state ``x0`` at ``t0`` to the next impact; ``x_next`` gets the relabelled
     post-impact state, ``rec`` the step record, ``out`` the outcome. ``calls`` lists the
     integration calls (restarts), whose steps are rows of ``buf``. ``push``: a push of this
     step when ``push[0] == k``. Returns (status, number of calls, rows of ``buf`` used).
-
-    A step that fails after it started to integrate still gets, in ``rec``, the first times
-    its stance force left the cone up to the failure (:func:`step_stats`) and its push's
-    time and state: what came first is for the caller to tell."""
-    for i in range(R_TLOW, R_TPUSH + 1):
-        rec[i] = np.nan
-    st, ncalls, nbuf = step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec,
-                                 out)
-    if st != OK and st != FAIL_BUFFER and ncalls > 0:
-        step_stats(calls, ncalls, buf, t0, out[O_T], fs, ip, par, w, rec)
-    return st, ncalls, nbuf
-
-
-def step_core(k, t0, x0, x_next, fs, ip, par, w, buf, calls, push, rec, out):
-    """:func:`sim_step` but for the statistics of a failed step."""
+    The statistics of a failed step are left to the caller (:func:`run`)."""
     N, m, nz, nbk = ip[I_N], ip[I_M], ip[I_NZ], ip[I_NBRK]
     n = 2 * N + nz
     x, xs, yend, xe = w[ip[W_X]:], w[ip[W_XS]:], w[ip[W_YE]:], w[ip[W_XE]:]
@@ -521,8 +507,17 @@ def run(X0, T0, K0, n_steps, fs, ip, PAR, GAINS, PUSH, recs, outs, done, XN, inf
         completed = 0
         for j in range(n_steps):
             k = K0[r] + j
-            st, nc, nbuf = sim_step(k, t, x, x_next, fsr, ip, PAR[r], w, buf, calls, PUSH[r],
-                                    recs[r, j], out)
+            rec = recs[r, j]
+            for i in range(R_TLOW, R_TPUSH + 1):
+                rec[i] = np.nan
+            st, nc, nbuf = step_core(k, t, x, x_next, fsr, ip, PAR[r], w, buf, calls, PUSH[r],
+                                     rec, out)
+            if st != OK and st != FAIL_BUFFER and nc > 0:
+                # a step that failed after it started to integrate still gets, in its
+                # record, the first times its stance force left the cone up to the failure
+                # (step_stats; its push's time and state are written by step_core): what
+                # came first is for the caller to tell
+                step_stats(calls, nc, buf, t, out[O_T], fsr, ip, PAR[r], w, rec)
             info[r, 0] = nc
             info[r, 1] = nbuf
             if st != OK:
@@ -550,11 +545,16 @@ SIGNATURES = {
     "push_or_fail": f"({_A}, {_A}, {_IA}, {_A}, {_A}, {_I}, {_F}, {_F})",
     "add_call": f"({_A2}, {_I}, {_I}, {_I}, {_I}, {_F}, {_F})",
     "step_core": f"({_I}, {_F}, {_A}, {_A}, {_CTX}, {_A2}, {_A2}, {_A}, {_A}, {_A})",
-    "sim_step": f"({_I}, {_F}, {_A}, {_A}, {_CTX}, {_A2}, {_A2}, {_A}, {_A}, {_A})",
     "run": f"({_A2}, {_A}, {_IA}, {_I}, {_A}, {_IA}, {_A2}, {_A2}, {_A2}, {_A3}, {_A2}, "
            f"{_IA}, {_A2}, {_IA2}, {_I}, {_I}, {_A2}, {_A2})",
 }
 # compiled without reference counting (model/jit.py): everything but the functions that
-# allocate arrays (``run``: the work array; ``step_core``: the events) or call one that does
-# (``sim_step``); the work array and every buffer belong to ``run`` and its caller
-NRT_FREE = frozenset(SIGNATURES) - {"run", "sim_step", "step_core"}
+# allocate arrays (``run``: the work array; ``step_core``: the events); the work array and
+# every buffer belong to ``run`` and its caller
+NRT_FREE = frozenset(SIGNATURES) - {"run", "step_core"}
+# compiled into their one caller only (numba's IR inlining, see ``model/jit.py``): the step
+# into ``run``, so that the whole closed loop below it is optimized and translated to machine
+# code once, in ``run``'s library, not once more for the step; ``apply_push`` into
+# ``push_or_fail``; ``impact`` into the step (under its reference counting: three views, once
+# a step)
+INLINED = frozenset({"step_core", "apply_push", "impact"})

@@ -239,3 +239,8 @@ SIGNATURES = {
 # compiled without reference counting (model/jit.py): all but step_stats (it allocates the
 # arrays of the step's states)
 NRT_FREE = frozenset(SIGNATURES) - {"step_stats"}
+# compiled into their one caller only (numba's IR inlining, see ``model/jit.py``):
+# ``cone_violated`` into ``first_violation``, both into ``step_stats`` with ``details_at``
+# (under its reference counting: they take no view per sample, ``first_violation`` one per
+# call, at most two calls a step)
+INLINED = frozenset({"details_at", "cone_violated", "first_violation"})

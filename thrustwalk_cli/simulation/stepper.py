@@ -87,8 +87,19 @@ def _names() -> dict[str, str]:
     """Every function to compile with its numba signature, callees first: the interpreter,
     the integrator's helpers, the closed loop (the integrator's problem), the integrator, the
     step's statistics, the step."""
-    return {**TAPE_SIGNATURES, **I.HELPERS, **K.SIGNATURES, **I.SIGNATURES, **SS.SIGNATURES,
+    sigs = {**TAPE_SIGNATURES, **I.HELPERS, **K.SIGNATURES, **I.SIGNATURES, **SS.SIGNATURES,
             **S.SIGNATURES}
+    return {k: jit.INLINE if k in INLINED else v for k, v in sigs.items()}
+
+
+# compiled into their callers only (``jit.INLINE``): numba compiles every other function as a
+# library of its own, into which it links the code of all its callees and optimizes and
+# translates the whole again, so a deep call chain pays for the code below it at every level
+# (issue 26: 54-60 s for the kernel). Functions with one call site and small wrappers are
+# inlined (``tape_batch``: into ``step_stats``, under reference counting as it allocates);
+# what Python calls (``run``; ``tape_run`` in the tests) keeps its signature, as does every
+# allocation-free function with an allocating caller where it is hot (``integrate``).
+INLINED = I.INLINED | K.INLINED | SS.INLINED | S.INLINED | {"tape_batch"}
 
 
 # compiled without reference counting (model/jit.py): the allocation-free functions of every
