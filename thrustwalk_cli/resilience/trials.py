@@ -35,6 +35,13 @@ force, failure, impact), with the step, the time and the phase s of the step in 
 * ``unsettled``: every step done, not yet within the tolerance (``converging`` says whether it
   is on its way: outputs settled, ``zeta^-_M`` inside the strategy's reduced basin and closer
   to the orbit than the step before; by SPEC 12 it then converges).
+
+Energy (SPEC 15, :func:`trial_energy`): over the trial's completed steps, from the dense
+output (:func:`~thrustwalk_cli.energetics.run.run_energy`, each step with the thrust it
+walked): the joints' positive mechanical work ``sum_j int max(0, u_j q_j') dt``, their
+electrical energy (None without a motor model), the thrusters' positive work on the walker
+and their input energy (None without a power model), and apart from these the mechanical
+energy the push itself added (``push_energy``, the jump of ``K + V`` at the push) [J].
 """
 
 from __future__ import annotations
@@ -46,13 +53,15 @@ import numpy as np
 from ..contact.terms import stance_terms
 from ..controller.loop import segment_intervals
 from ..controller.step_model import interval_of
+from ..energetics.run import run_energy
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..simulation import kernel as K
 from ..simulation.batch import FIELDS, push_row
-from ..simulation.closed_loop import ClosedLoop, SimConfig
+from ..simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel
 from ..simulation.full_order import Start, initial_state
 from ..simulation.records import EVENT_REASONS, behind_level, missed_footing
 from ..simulation.stepper import Stepper, failure_text, first_times, push_state, step_record
+from ..thrust.schedule import Schedule
 from .push import PushPoint, check_push, stance_impulse, world_to_slope
 from .strategy import Realized
 
@@ -60,6 +69,42 @@ OUTCOMES = ("recovered", "unsettled", "fell", "slipped", "lifted", "scuffed", "s
             "error")
 FAILED = ("fell", "slipped", "lifted", "scuffed", "stopped")
 LAST_PHASE = 1.0 - 1e-6  # a push at phase 1 is applied just before the impact
+#: the energy fields of a trial [J] (:func:`trial_energy`; None: a model missing or no step)
+ENERGY_FIELDS = ("energy_legs_mechanical", "energy_legs_electrical",
+                 "energy_thrust_mechanical", "energy_thrust_input", "energy_mechanical",
+                 "energy_total", "push_energy")
+
+
+def trial_energy(energies: list) -> dict:
+    """The energy a trial spent over its completed steps (``RunStepEnergy`` of each) [J]:
+    joints' positive mechanical work (``legs_mechanical``), electrical energy
+    (``legs_electrical``), thrusters' positive work on the walker (``thrust_mechanical``) and
+    input energy (``thrust_input``), ``mechanical`` = legs + thrust positive work, ``total`` =
+    legs electrical + thrust input, each summed over the steps (None when a step's is: a
+    model missing, said in ``energy_reason``), the push's own energy apart (``push_energy``,
+    SPEC 15) and ``energy_steps`` the steps counted (0: no energy, every value None)."""
+    out: dict = {"energy_steps": len(energies)}
+    if not energies:
+        out.update({k: None for k in ENERGY_FIELDS})
+        out["energy_reason"] = "no completed step: no energy"
+        return out
+
+    def total(name):
+        vals = [getattr(e, name) for e in energies]
+        return None if any(v is None for v in vals) else float(sum(vals))
+
+    lm, le = total("legs_mechanical"), total("legs_electrical")
+    tm, ti = total("thrust_mechanical"), total("thrust_input")
+    missing = []
+    for e in energies:
+        missing += [line for line in e.missing if line not in missing]
+    out.update({"energy_legs_mechanical": lm, "energy_legs_electrical": le,
+                "energy_thrust_mechanical": tm, "energy_thrust_input": ti,
+                "energy_mechanical": None if lm is None or tm is None else lm + tm,
+                "energy_total": None if le is None or ti is None else le + ti,
+                "push_energy": float(sum(e.push_energy for e in energies)),
+                "energy_reason": "; ".join(missing) or None})
+    return out
 
 
 @dataclass(frozen=True)
@@ -99,6 +144,7 @@ class TrialResult:
     qp: dict = field(default_factory=dict)
     time: float | None = None
     phase: float | None = None
+    energy: dict = field(default_factory=dict)
 
     @property
     def recovered(self) -> bool:
@@ -115,7 +161,8 @@ class TrialResult:
                 "min_vertical_force": self.min_vertical_force,
                 "push_friction_ratio": None if self.push is None else self.push["ratio"],
                 "push_vertical_impulse": None if self.push is None
-                or self.push["reaction"] is None else self.push["reaction"][1]}
+                or self.push["reaction"] is None else self.push["reaction"][1],
+                **self.energy}
 
     def document(self) -> dict:
         return {"outcome": self.outcome, "step": self.step, "time": self.time,
@@ -126,7 +173,7 @@ class TrialResult:
                 "max_friction_ratio": self.max_friction_ratio,
                 "min_vertical_force": self.min_vertical_force,
                 "max_abs_output_last_step": self.max_abs_output_last, "push": self.push,
-                "pushed": self.pushed, "qp": self.qp}
+                "pushed": self.pushed, "qp": self.qp, "energy": dict(self.energy)}
 
 
 def _failure_outcome(kind: str, text: str) -> str:
@@ -177,7 +224,7 @@ class TrialRunner:
         self.cl = ClosedLoop(zd, realized.thrust, self.config)
         ts = realized.cycle.step_time if realized.cycle.exists else None
         self.t_max = 10.0 * ts if ts else 10.0
-        self.stepper = Stepper(self.cl, self.t_max, dense=False)
+        self.stepper = Stepper(self.cl, self.t_max, dense=True)  # dense: the energies
         self.seg_int = (segment_intervals(self.cl, realized.knots, zd)
                         if realized.planner is not None else None)
 
@@ -254,10 +301,12 @@ class TrialRunner:
     # -- the run ---------------------------------------------------------------------------
     def run(self, trial: Trial) -> TrialResult:
         r, model = self.r, self.model
+        self._walked: list[tuple] = []
         if r.zeta_ref is None:
             return self._result("error", None, f"no orbit to start on: {r.cycle.reason}", [],
                                 None, None, False)
         push = None
+        self._walked = []  # (closed loop, (k, pieces, q^-, q'^-)) of every completed step
         N, m, nz = model.n, model.n_thrusters, r.thrust.n_states
         x = self.start_state(trial)
         row = None
@@ -270,6 +319,7 @@ class TrialRunner:
         qp: dict[str, int] = {}
         pushed = False
         for k in range(1, self.steps + 1):
+            step_cl = self.cl
             if r.planner is not None:
                 plan = r.planner.plan(x_true, r.zeta_ref, u_prev)
                 qp[plan.status] = qp.get(plan.status, 0) + 1
@@ -278,6 +328,7 @@ class TrialRunner:
                 seg_force[:, r.driven] = per[self.seg_int]
                 self.stepper.set_thrust(seg_force=seg_force)
                 u_prev = plan.u
+                step_cl = self._step_loop(per)
             h = 0.0 if self.heights is None else self.heights[k - 1]
             res = self.stepper.step(k, t, x, push=row if k == 1 else None, ground=h,
                                     behind=behind_level(self.heights, k))
@@ -311,6 +362,7 @@ class TrialRunner:
                                float(res.outcome[K.O_S])))
             else:
                 rec = step_record(res.record, N, nz, m)
+                self._walked.append((step_cl, (k, res.pieces, rec.q_minus, rec.dq_minus)))
                 if rec.impulse_friction_ratio > self.mu:
                     events.append((rec.t_impact, 4, "slipped", (
                         f"the impact impulse leaves the friction cone (|F_2^h|/F_2^v = "
@@ -346,6 +398,32 @@ class TrialRunner:
                 "settle it" if converging else "")
         return self._result("unsettled", None, f"not yet back after {self.steps} steps "
                             f"({what}){tail}", recs, push, converging, pushed, qp)
+
+    def _step_loop(self, per: np.ndarray) -> ClosedLoop:
+        """The closed loop of a controlled step: the strategy's knots with the values ``per``
+        (intervals x driven thrusters) [N] the controller set for it (what the step's energy
+        is integrated with, as ``controller.loop`` does)."""
+        m = self.model.n_thrusters
+        knots = np.asarray(self.r.knots, float)
+        force = np.zeros((1, len(knots) - 1, m))
+        force[0][:, self.r.driven] = per
+        th = ThrustModel("piecewise", np.zeros(m),
+                         schedule=Schedule(knots, force, np.zeros((1, len(knots) - 1))))
+        return ClosedLoop(self.zd, th, self.config)
+
+    def energy(self) -> dict:
+        """:func:`trial_energy` of the last trial run (its completed steps, each integrated
+        with its own closed loop; consecutive steps of one closed loop in one call)."""
+        energies: list = []
+        walked = getattr(self, "_walked", [])
+        i = 0
+        while i < len(walked):
+            j = i
+            while j < len(walked) and walked[j][0] is walked[i][0]:
+                j += 1
+            energies += run_energy(walked[i][0], [w[1] for w in walked[i:j]])
+            i = j
+        return trial_energy(energies)
 
     def _cone_events(self, raw: np.ndarray, completed: bool
                      ) -> list[tuple[float, int, str, str]]:
@@ -387,4 +465,5 @@ class TrialRunner:
             max(fr) if fr else None,
             min(rc.min_vertical_force for rc in recs) if recs else None,
             float(recs[-1].max_abs_output) if recs else None, push, pushed, dict(qp or {}),
-            None if when is None else float(when[0]), None if when is None else float(when[1]))
+            None if when is None else float(when[0]), None if when is None else float(when[1]),
+            self.energy())

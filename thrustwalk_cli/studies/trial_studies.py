@@ -111,6 +111,18 @@ _PT_FIELDS = {
                                                      "ground reaction"),
     "push_vertical_impulse": (UNITS["impulse"], "vertical part of the push's impulsive ground "
                                                 "reaction"),
+    "energy_steps": ("1", "completed steps the energies are summed over (SPEC 15)"),
+    "energy_legs_mechanical": ("J", "joints' positive mechanical work over the steps"),
+    "energy_legs_electrical": ("J", "joints' electrical energy over the steps (empty: a motor "
+                                    "model missing, energy_reason)"),
+    "energy_thrust_mechanical": ("J", "thrusters' positive work on the walker over the steps"),
+    "energy_thrust_input": ("J", "thrusters' input energy over the steps (empty: a power model "
+                                 "missing, energy_reason)"),
+    "energy_mechanical": ("J", "energy_legs_mechanical + energy_thrust_mechanical"),
+    "energy_total": ("J", "energy_legs_electrical + energy_thrust_input (empty: a model "
+                          "missing)"),
+    "push_energy": ("J", "the mechanical energy the push itself added (apart from the above)"),
+    "energy_reason": ("", "the models missing, when an energy is empty"),
 }
 
 
