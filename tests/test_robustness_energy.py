@@ -18,6 +18,7 @@ from thrustwalk_cli.resilience.push import push_point
 from thrustwalk_cli.resilience.strategy import Strategy, realize
 from thrustwalk_cli.resilience.trials import Trial, TrialRunner
 from thrustwalk_cli.simulation.closed_loop import SimConfig
+from thrustwalk_cli.studies.trial_studies import trial_energy
 
 DATA = Path(__file__).resolve().parent / "data"
 
@@ -40,7 +41,8 @@ def test_a_pushed_trials_energy_is_that_of_the_same_pushed_run(walker5):
     point = push_point(walker5.model, None, 1.0, (1.0, 0.0))
     runner = TrialRunner(walker5.zd, real, point, steps=4)
     res = runner.run(Trial(-2.0, 0.5))
-    assert res.outcome == "recovered" and res.energy["energy_steps"] == 4
+    energy = trial_energy(res)
+    assert res.outcome == "recovered" and energy["energy_steps"] == 4
     run = run_loop(walker5.zd, None, label="x", steps=4, x0=real.zeta_ref, refs=None,
                    knots=np.array([walker5.zd.alpha_i, walker5.zd.alpha_f]), driven=[0],
                    dynamics=None, pushes=(Push(1, 0.5, point.impulse(-2.0)),),
@@ -50,9 +52,9 @@ def test_a_pushed_trials_energy_is_that_of_the_same_pushed_run(walker5):
     legs = sum(sum(e.joint_positive_work) for e in es)
     push = sum(e.push_energy for e in es)
     assert push > 0.0  # the push did work on the walker
-    assert _rel(res.energy["energy_legs_mechanical"], legs) < 1e-9
-    assert _rel(res.energy["push_energy"], push) < 1e-9
-    assert res.energy["energy_thrust_mechanical"] == 0.0
+    assert _rel(energy["energy_legs_mechanical"], legs) < 1e-9
+    assert _rel(energy["push_energy"], push) < 1e-9
+    assert energy["energy_thrust_mechanical"] == 0.0
 
 
 def test_an_unpushed_constant_thrust_trial_is_simulate_and_missing_models_are_none(walker5):
@@ -63,18 +65,19 @@ def test_an_unpushed_constant_thrust_trial_is_simulate_and_missing_models_are_no
     real = realize(walker5.zd, Strategy("constant", thrust=-20.0), mu=0.7)
     point = push_point(walker5.model, None, 1.0, (1.0, 0.0))
     res = TrialRunner(walker5.zd, real, point, steps=3).run(Trial(0.0, 0.5))
+    energy = trial_energy(res)
     assert res.outcome == "recovered"
     sim = tw.simulate(walker5, steps=3, thrust=[-20.0], thrust_model="ideal",
                       zeta0=real.zeta_ref)
     es = simulation_energy(sim.outcomes[0].full)
     legs = sum(sum(e.joint_positive_work) for e in es)
     thrust = sum(sum(e.thrust_positive_work) for e in es)
-    assert _rel(res.energy["energy_legs_mechanical"], legs) < 1e-9
-    assert _rel(res.energy["energy_thrust_mechanical"], thrust) < 1e-9
-    assert _rel(res.energy["energy_mechanical"], legs + thrust) < 1e-9
+    assert _rel(energy["energy_legs_mechanical"], legs) < 1e-9
+    assert _rel(energy["energy_thrust_mechanical"], thrust) < 1e-9
+    assert _rel(energy["energy_mechanical"], legs + thrust) < 1e-9
     for key in ("energy_legs_electrical", "energy_thrust_input", "energy_total"):
-        assert res.energy[key] is None
-    why = res.energy["energy_reason"]
+        assert energy[key] is None
+    why = energy["energy_reason"]
     assert "no motor data" in why and "no power model for thruster back" in why
 
 
@@ -100,3 +103,21 @@ def test_the_mean_per_recovered_push_is_that_of_trials_csv(cli, tmp_path, monkey
         assert "no motor data" in e["reason"]
         zero = [float(r["energy_mechanical_J"]) for r in mine if float(r["push_impulse_Ns"]) == 0]
         assert _rel(e["extra_over_unpushed"]["energy_mechanical"] + zero[0], want) < 1e-12
+
+
+def test_a_controlled_trials_steps_carry_the_thrust_the_controller_set(walker5):
+    """control strategy: each step's energy is integrated with the thrust the controller set
+    for it, so the work-energy identity (SPEC 15) holds step by step (a step with thrust work
+    included), and the trial's thrust work is their sum."""
+    from thrustwalk_cli.energetics.run import run_energy
+
+    real = realize(walker5.zd, Strategy("control"), mu=0.7)
+    point = push_point(walker5.model, None, 1.0, (1.0, 0.0))
+    res = TrialRunner(walker5.zd, real, point, steps=4).run(Trial(-2.0, 0.5))
+    es = [run_energy(cl, [step])[0] for cl, step in res.energy_input]
+    assert len(es) == 4
+    assert max(abs(sum(e.thrust_work)) for e in es) > 1e-3  # the controller did thrust
+    for e in es:
+        assert abs(e.identity_residual) < 1e-8 * (e.kinetic_start + abs(e.potential_start))
+    thrust = sum(sum(e.thrust_positive_work) for e in es)
+    assert _rel(trial_energy(res)["energy_thrust_mechanical"], thrust) < 1e-12

@@ -53,7 +53,6 @@ import numpy as np
 from ..contact.terms import stance_terms
 from ..controller.loop import segment_intervals
 from ..controller.step_model import interval_of
-from ..energetics.run import run_energy
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..simulation import kernel as K
 from ..simulation.batch import FIELDS, push_row
@@ -69,42 +68,6 @@ OUTCOMES = ("recovered", "unsettled", "fell", "slipped", "lifted", "scuffed", "s
             "error")
 FAILED = ("fell", "slipped", "lifted", "scuffed", "stopped")
 LAST_PHASE = 1.0 - 1e-6  # a push at phase 1 is applied just before the impact
-#: the energy fields of a trial [J] (:func:`trial_energy`; None: a model missing or no step)
-ENERGY_FIELDS = ("energy_legs_mechanical", "energy_legs_electrical",
-                 "energy_thrust_mechanical", "energy_thrust_input", "energy_mechanical",
-                 "energy_total", "push_energy")
-
-
-def trial_energy(energies: list) -> dict:
-    """The energy a trial spent over its completed steps (``RunStepEnergy`` of each) [J]:
-    joints' positive mechanical work (``legs_mechanical``), electrical energy
-    (``legs_electrical``), thrusters' positive work on the walker (``thrust_mechanical``) and
-    input energy (``thrust_input``), ``mechanical`` = legs + thrust positive work, ``total`` =
-    legs electrical + thrust input, each summed over the steps (None when a step's is: a
-    model missing, said in ``energy_reason``), the push's own energy apart (``push_energy``,
-    SPEC 15) and ``energy_steps`` the steps counted (0: no energy, every value None)."""
-    out: dict = {"energy_steps": len(energies)}
-    if not energies:
-        out.update({k: None for k in ENERGY_FIELDS})
-        out["energy_reason"] = "no completed step: no energy"
-        return out
-
-    def total(name):
-        vals = [getattr(e, name) for e in energies]
-        return None if any(v is None for v in vals) else float(sum(vals))
-
-    lm, le = total("legs_mechanical"), total("legs_electrical")
-    tm, ti = total("thrust_mechanical"), total("thrust_input")
-    missing = []
-    for e in energies:
-        missing += [line for line in e.missing if line not in missing]
-    out.update({"energy_legs_mechanical": lm, "energy_legs_electrical": le,
-                "energy_thrust_mechanical": tm, "energy_thrust_input": ti,
-                "energy_mechanical": None if lm is None or tm is None else lm + tm,
-                "energy_total": None if le is None or ti is None else le + ti,
-                "push_energy": float(sum(e.push_energy for e in energies)),
-                "energy_reason": "; ".join(missing) or None})
-    return out
 
 
 @dataclass(frozen=True)
@@ -144,7 +107,9 @@ class TrialResult:
     qp: dict = field(default_factory=dict)
     time: float | None = None
     phase: float | None = None
-    energy: dict = field(default_factory=dict)
+    #: per completed step ``(closed loop, (k, pieces, q^-, q'^-))``: what its energies are
+    #: computed from (``energetics.run.run_energy``)
+    energy_input: tuple = field(default=(), repr=False, compare=False)
 
     @property
     def recovered(self) -> bool:
@@ -161,8 +126,7 @@ class TrialResult:
                 "min_vertical_force": self.min_vertical_force,
                 "push_friction_ratio": None if self.push is None else self.push["ratio"],
                 "push_vertical_impulse": None if self.push is None
-                or self.push["reaction"] is None else self.push["reaction"][1],
-                **self.energy}
+                or self.push["reaction"] is None else self.push["reaction"][1]}
 
     def document(self) -> dict:
         return {"outcome": self.outcome, "step": self.step, "time": self.time,
@@ -173,7 +137,7 @@ class TrialResult:
                 "max_friction_ratio": self.max_friction_ratio,
                 "min_vertical_force": self.min_vertical_force,
                 "max_abs_output_last_step": self.max_abs_output_last, "push": self.push,
-                "pushed": self.pushed, "qp": self.qp, "energy": dict(self.energy)}
+                "pushed": self.pushed, "qp": self.qp}
 
 
 def _failure_outcome(kind: str, text: str) -> str:
@@ -411,20 +375,6 @@ class TrialRunner:
                          schedule=Schedule(knots, force, np.zeros((1, len(knots) - 1))))
         return ClosedLoop(self.zd, th, self.config)
 
-    def energy(self) -> dict:
-        """:func:`trial_energy` of the last trial run (its completed steps, each integrated
-        with its own closed loop; consecutive steps of one closed loop in one call)."""
-        energies: list = []
-        walked = getattr(self, "_walked", [])
-        i = 0
-        while i < len(walked):
-            j = i
-            while j < len(walked) and walked[j][0] is walked[i][0]:
-                j += 1
-            energies += run_energy(walked[i][0], [w[1] for w in walked[i:j]])
-            i = j
-        return trial_energy(energies)
-
     def _cone_events(self, raw: np.ndarray, completed: bool
                      ) -> list[tuple[float, int, str, str]]:
         """The first times in a step (completed or not: up to its failure) that the stance
@@ -466,4 +416,4 @@ class TrialRunner:
             min(rc.min_vertical_force for rc in recs) if recs else None,
             float(recs[-1].max_abs_output) if recs else None, push, pushed, dict(qp or {}),
             None if when is None else float(when[0]), None if when is None else float(when[1]),
-            self.energy())
+            tuple(getattr(self, "_walked", ())))

@@ -23,7 +23,7 @@ from ..resilience.maps import (
     survivable,
 )
 from ..resilience.strategy import Realized, Strategy
-from ..resilience.trials import ENERGY_FIELDS, OUTCOMES
+from ..resilience.trials import OUTCOMES
 from ..sweep.runner import RunCounts
 from ..sweep.tasks import PointTask
 from ..walker import Walker
@@ -38,6 +38,7 @@ from .documents import (
     slope_record,
     units,
 )
+from .trial_studies import ENERGY_FIELDS
 
 UNITS = units("impulse", "zeta", "speed", "force", "friction_ratio", "sigma_N", "output_rate",
               "output_y", "step_time", "delta_zero_sq", "alpha", phase="1", duration="s")
