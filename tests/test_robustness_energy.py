@@ -121,3 +121,23 @@ def test_a_controlled_trials_steps_carry_the_thrust_the_controller_set(walker5):
         assert abs(e.identity_residual) < 1e-8 * (e.kinetic_start + abs(e.potential_start))
     thrust = sum(sum(e.thrust_positive_work) for e in es)
     assert _rel(trial_energy(res)["energy_thrust_mechanical"], thrust) < 1e-12
+
+
+def test_a_thruster_with_a_power_model_gives_its_input_energy(_cache_dir):
+    """kneed4's thruster has a momentum power model, its joints no motor: the trial's
+    thruster input energy is simulate's summed; the joints' electrical energy None, why said."""
+    import thrustwalk_cli as tw
+    from thrustwalk_cli.walker import load_walker
+
+    w = load_walker(str(DATA / "kneed4.yaml"), str(DATA / "kneed4_walk.yaml"))
+    real = realize(w.zd, Strategy("constant", thrust=-5.0), mu=0.7)
+    res = TrialRunner(w.zd, real, push_point(w.model, None, 1.0, (1.0, 0.0)),
+                      steps=3).run(Trial(0.0, 0.5))
+    energy = trial_energy(res)
+    sim = tw.simulate(w, steps=3, thrust=[-5.0], thrust_model="ideal", zeta0=real.zeta_ref)
+    es = simulation_energy(sim.outcomes[0].full)
+    assert energy["energy_thrust_input"] > 0.0
+    assert _rel(energy["energy_thrust_input"], sum(e.thrust_input for e in es)) < 1e-9
+    assert energy["energy_legs_electrical"] is None and energy["energy_total"] is None
+    assert "no motor data" in energy["energy_reason"]
+    assert "power model" not in energy["energy_reason"]
