@@ -11,12 +11,64 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from ..description.terrain import S_MAX
+from ..energetics.run import run_energy
 from ..errors import InputError
 from ..sweep.runner import chunk_size
 from ..sweep.tasks import canonical
 from ..walker import Walker
 from .documents import UNITS
 from .sweep_points import PointResult, SweepStudy, fresh, on_slope
+
+# ------------------------------------------------------------------- a trial's energy (SPEC 15)
+#: the energy fields of a push or basin trial [J] (:func:`trial_energy`; None: a model missing)
+ENERGY_FIELDS = ("energy_legs_mechanical", "energy_legs_electrical",
+                 "energy_thrust_mechanical", "energy_thrust_input", "energy_mechanical",
+                 "energy_total", "push_energy")
+
+
+def trial_energy(result) -> dict:
+    """The energy a trial (``resilience.trials.TrialResult``) spent over its completed steps
+    [J] (SPEC 15, :func:`~thrustwalk_cli.energetics.run.run_energy` on the dense output, each
+    step with the closed loop it walked, its thrust): the joints' positive mechanical work
+    ``sum_j int max(0, u_j q_j') dt`` (``energy_legs_mechanical``), their electrical energy
+    (``energy_legs_electrical``), the thrusters' positive work on the walker
+    (``energy_thrust_mechanical``) and input energy (``energy_thrust_input``),
+    ``energy_mechanical`` = legs + thrust positive work, ``energy_total`` = legs electrical +
+    thrust input, each summed over the steps (None when a step's is: a model missing, said in
+    ``energy_reason``), the push's own energy apart (``push_energy``: the jump of ``K + V`` at
+    the push) and ``energy_steps`` the steps counted (0: every value None)."""
+    walked = list(result.energy_input)
+    energies: list = []
+    i = 0
+    while i < len(walked):  # consecutive steps of one closed loop in one call
+        j = i
+        while j < len(walked) and walked[j][0] is walked[i][0]:
+            j += 1
+        energies += run_energy(walked[i][0], [w[1] for w in walked[i:j]])
+        i = j
+    out: dict = {"energy_steps": len(energies)}
+    if not energies:
+        out.update({k: None for k in ENERGY_FIELDS})
+        out["energy_reason"] = "no completed step: no energy"
+        return out
+
+    def total(name):
+        vals = [getattr(e, name) for e in energies]
+        return None if any(v is None for v in vals) else float(sum(vals))
+
+    lm, le = total("legs_mechanical"), total("legs_electrical")
+    tm, ti = total("thrust_mechanical"), total("thrust_input")
+    missing: list[str] = []
+    for e in energies:
+        missing += [line for line in e.missing if line not in missing]
+    out.update({"energy_legs_mechanical": lm, "energy_legs_electrical": le,
+                "energy_thrust_mechanical": tm, "energy_thrust_input": ti,
+                "energy_mechanical": None if lm is None or tm is None else lm + tm,
+                "energy_total": None if le is None or ti is None else le + ti,
+                "push_energy": float(sum(e.push_energy for e in energies)),
+                "energy_reason": "; ".join(missing) or None})
+    return out
+
 
 # ------------------------------------------------------------------- robustness (SPEC 12)
 _STRATEGY_KEYS = ("strategy", "strategy_label", "thruster", "thrust", "schedule", "knots",
@@ -111,6 +163,18 @@ _PT_FIELDS = {
                                                      "ground reaction"),
     "push_vertical_impulse": (UNITS["impulse"], "vertical part of the push's impulsive ground "
                                                 "reaction"),
+    "energy_steps": ("1", "completed steps the energies are summed over (SPEC 15)"),
+    "energy_legs_mechanical": ("J", "joints' positive mechanical work over the steps"),
+    "energy_legs_electrical": ("J", "joints' electrical energy over the steps (empty: a motor "
+                                    "model missing, energy_reason)"),
+    "energy_thrust_mechanical": ("J", "thrusters' positive work on the walker over the steps"),
+    "energy_thrust_input": ("J", "thrusters' input energy over the steps (empty: a power model "
+                                 "missing, energy_reason)"),
+    "energy_mechanical": ("J", "energy_legs_mechanical + energy_thrust_mechanical"),
+    "energy_total": ("J", "energy_legs_electrical + energy_thrust_input (empty: a model "
+                          "missing)"),
+    "push_energy": ("J", "the mechanical energy the push itself added (apart from the above)"),
+    "energy_reason": ("", "the models missing, when an energy is empty"),
 }
 
 
@@ -127,12 +191,13 @@ def _push_trial_point(walker: Walker, p: dict, start: dict | None) -> PointResul
     runner = _trial_runner(walker, p)
     trial = Trial(impulse, float(p["push_phase"]), sigma, rate)
     res = runner.run(trial)
+    energy = trial_energy(res)
     doc = {"strategy": runner.r.strategy.label,
            "trial": {"push_impulse": impulse, "push_phase": trial.phase,
                      "push_vector": runner.point.impulse(impulse).tolist(),
                      "start_sigma": sigma, "start_rate": rate},
-           **res.document()}
-    return PointResult(doc, res.fields())
+           **res.document(), "energy": energy}
+    return PointResult(doc, {**res.fields(), **energy})
 
 
 def _check_push_trial(walker: Walker, p: dict) -> list[tuple[str, str]]:
