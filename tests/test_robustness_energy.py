@@ -114,7 +114,7 @@ def test_a_controlled_trials_steps_carry_the_thrust_the_controller_set(walker5):
     real = realize(walker5.zd, Strategy("control"), mu=0.7)
     point = push_point(walker5.model, None, 1.0, (1.0, 0.0))
     res = TrialRunner(walker5.zd, real, point, steps=4).run(Trial(-2.0, 0.5))
-    es = [run_energy(cl, [step])[0] for cl, step in res.energy_input]
+    es = [run_energy(cl, [step], seg_force=[force])[0] for cl, force, step in res.energy_input]
     assert len(es) == 4
     assert max(abs(sum(e.thrust_work)) for e in es) > 1e-3  # the controller did thrust
     for e in es:
@@ -141,3 +141,72 @@ def test_a_thruster_with_a_power_model_gives_its_input_energy(_cache_dir):
     assert energy["energy_legs_electrical"] is None and energy["energy_total"] is None
     assert "no motor data" in energy["energy_reason"]
     assert "power model" not in energy["energy_reason"]
+
+
+def _per_trial(runner, res) -> dict:
+    """A trial's energies the slow way, independent of the batching: each step alone
+    (``run_energy`` with one step) on the closed loop of the thrust it walked, a controlled
+    step's built from the controller's values per knot interval (as ``controller.loop``
+    builds it), summed here per trial."""
+    from thrustwalk_cli.simulation.closed_loop import ClosedLoop, ThrustModel
+    from thrustwalk_cli.thrust.schedule import Schedule
+
+    es = []
+    for cl, force, step in res.energy_input:
+        if force is not None:
+            knots = np.asarray(runner.r.knots, float)
+            per = np.zeros((1, len(knots) - 1, cl.m))
+            for seg, interval in enumerate(runner.seg_int):
+                per[0, interval] = force[seg]
+            th = ThrustModel("piecewise", np.zeros(cl.m),
+                             schedule=Schedule(knots, per, np.zeros((1, len(knots) - 1))))
+            cl = ClosedLoop(runner.zd, th, cl.config)
+        es.append(run_energy(cl, [step])[0])
+
+    def total(get):
+        vals = [get(e) for e in es]
+        return None if not es or any(v is None for v in vals) else sum(vals)
+
+    return {"energy_steps": len(es),
+            "energy_legs_mechanical": total(lambda e: sum(e.joint_positive_work)),
+            "energy_legs_electrical": total(lambda e: e.legs_electrical),
+            "energy_thrust_mechanical": total(lambda e: sum(e.thrust_positive_work)),
+            "energy_thrust_input": total(lambda e: e.thrust_input),
+            "push_energy": total(lambda e: e.push_energy)}
+
+
+@pytest.mark.parametrize("robot", ["walker5", "walker3"])
+def test_batched_energies_equal_the_per_trial_path(robot, request):
+    """The energies of an engine task's trials computed together (``trial_energies``: the
+    steps of every trial of one closed loop in one ``run_energy`` call, a controlled step's
+    thrust as data) equal each trial's computed alone, step by step on the closed loop of the
+    thrust it walked (relative 1e-12); walker5 (no motor, no power model: None) and the
+    bundled 3-link walker (motors: the electrical energy)."""
+    from thrustwalk_cli.studies.trial_studies import trial_energies
+
+    w = request.getfixturevalue(robot)
+    point = push_point(w.model, None, 1.0, (1.0, 0.0))
+    big = 2.0
+    results, runners = [], []
+    for strategy in (Strategy("none"), Strategy("constant", thrust=-20.0 if robot == "walker5"
+                                                else -10.0), Strategy("control")):
+        runner = TrialRunner(w.zd, realize(w.zd, strategy, mu=0.7), point, steps=3)
+        for impulse in (-big, 0.0, big):
+            results.append(runner.run(Trial(impulse, 0.4)))
+            runners.append(runner)
+    batched = trial_energies(results)
+    controlled = [r for r, run in zip(results, runners) if run.seg_int is not None]
+    assert sum(len(r.energy_input) for r in controlled) >= 6  # several trials batched
+    assert any(r.energy_input[0][1] is not None for r in controlled)
+    for run, res, got in zip(runners, results, batched):
+        want = _per_trial(run, res)
+        for key, value in want.items():
+            if value is None:
+                assert got[key] is None, key
+            else:
+                assert _rel(got[key], value) < 1e-12 or abs(got[key] - value) < 1e-12, key
+        if want["energy_steps"]:
+            lm, tm = want["energy_legs_mechanical"], want["energy_thrust_mechanical"]
+            assert _rel(got["energy_mechanical"], lm + tm) < 1e-12
+    electrical = [g["energy_legs_electrical"] for g in batched if g["energy_steps"]]
+    assert electrical and all((v is None) == (robot == "walker5") for v in electrical)

@@ -56,11 +56,10 @@ from ..controller.step_model import interval_of
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..simulation import kernel as K
 from ..simulation.batch import FIELDS, push_row
-from ..simulation.closed_loop import ClosedLoop, SimConfig, ThrustModel
+from ..simulation.closed_loop import ClosedLoop, SimConfig
 from ..simulation.full_order import Start, initial_state
 from ..simulation.records import EVENT_REASONS, behind_level, missed_footing
 from ..simulation.stepper import Stepper, failure_text, first_times, push_state, step_record
-from ..thrust.schedule import Schedule
 from .push import PushPoint, check_push, stance_impulse, world_to_slope
 from .strategy import Realized
 
@@ -107,8 +106,9 @@ class TrialResult:
     qp: dict = field(default_factory=dict)
     time: float | None = None
     phase: float | None = None
-    #: per completed step ``(closed loop, (k, pieces, q^-, q'^-))``: what its energies are
-    #: computed from (``energetics.run.run_energy``)
+    #: per completed step ``(closed loop, thrust, (k, pieces, q^-, q'^-))``, ``thrust`` None
+    #: (the closed loop's) or the controller's per segment of the closed loop (segments x
+    #: thrusters) [N]: what its energies are computed from (``energetics.run.run_energy``)
     energy_input: tuple = field(default=(), repr=False, compare=False)
 
     @property
@@ -265,12 +265,11 @@ class TrialRunner:
     # -- the run ---------------------------------------------------------------------------
     def run(self, trial: Trial) -> TrialResult:
         r, model = self.r, self.model
-        self._walked: list[tuple] = []
+        self._walked: list[tuple] = []  # (closed loop, thrust, (k, pieces, q^-, q'^-))
         if r.zeta_ref is None:
             return self._result("error", None, f"no orbit to start on: {r.cycle.reason}", [],
                                 None, None, False)
         push = None
-        self._walked = []  # (closed loop, (k, pieces, q^-, q'^-)) of every completed step
         N, m, nz = model.n, model.n_thrusters, r.thrust.n_states
         x = self.start_state(trial)
         row = None
@@ -283,7 +282,7 @@ class TrialRunner:
         qp: dict[str, int] = {}
         pushed = False
         for k in range(1, self.steps + 1):
-            step_cl = self.cl
+            step_force = None
             if r.planner is not None:
                 plan = r.planner.plan(x_true, r.zeta_ref, u_prev)
                 qp[plan.status] = qp.get(plan.status, 0) + 1
@@ -292,7 +291,7 @@ class TrialRunner:
                 seg_force[:, r.driven] = per[self.seg_int]
                 self.stepper.set_thrust(seg_force=seg_force)
                 u_prev = plan.u
-                step_cl = self._step_loop(per)
+                step_force = seg_force
             h = 0.0 if self.heights is None else self.heights[k - 1]
             res = self.stepper.step(k, t, x, push=row if k == 1 else None, ground=h,
                                     behind=behind_level(self.heights, k))
@@ -326,7 +325,8 @@ class TrialRunner:
                                float(res.outcome[K.O_S])))
             else:
                 rec = step_record(res.record, N, nz, m)
-                self._walked.append((step_cl, (k, res.pieces, rec.q_minus, rec.dq_minus)))
+                self._walked.append((self.cl, step_force,
+                                     (k, res.pieces, rec.q_minus, rec.dq_minus)))
                 if rec.impulse_friction_ratio > self.mu:
                     events.append((rec.t_impact, 4, "slipped", (
                         f"the impact impulse leaves the friction cone (|F_2^h|/F_2^v = "
@@ -362,18 +362,6 @@ class TrialRunner:
                 "settle it" if converging else "")
         return self._result("unsettled", None, f"not yet back after {self.steps} steps "
                             f"({what}){tail}", recs, push, converging, pushed, qp)
-
-    def _step_loop(self, per: np.ndarray) -> ClosedLoop:
-        """The closed loop of a controlled step: the strategy's knots with the values ``per``
-        (intervals x driven thrusters) [N] the controller set for it (what the step's energy
-        is integrated with, as ``controller.loop`` does)."""
-        m = self.model.n_thrusters
-        knots = np.asarray(self.r.knots, float)
-        force = np.zeros((1, len(knots) - 1, m))
-        force[0][:, self.r.driven] = per
-        th = ThrustModel("piecewise", np.zeros(m),
-                         schedule=Schedule(knots, force, np.zeros((1, len(knots) - 1))))
-        return ClosedLoop(self.zd, th, self.config)
 
     def _cone_events(self, raw: np.ndarray, completed: bool
                      ) -> list[tuple[float, int, str, str]]:

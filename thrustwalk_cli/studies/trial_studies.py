@@ -9,6 +9,7 @@ robot's parameters on the reduced model), as entries of :data:`TRIAL_STUDIES`, w
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 
 from ..description.terrain import S_MAX
 from ..energetics.run import run_energy
@@ -29,7 +30,7 @@ ENERGY_FIELDS = ("energy_legs_mechanical", "energy_legs_electrical",
 def trial_energy(result) -> dict:
     """The energy a trial (``resilience.trials.TrialResult``) spent over its completed steps
     [J] (SPEC 15, :func:`~thrustwalk_cli.energetics.run.run_energy` on the dense output, each
-    step with the closed loop it walked, its thrust): the joints' positive mechanical work
+    step with the thrust it walked): the joints' positive mechanical work
     ``sum_j int max(0, u_j q_j') dt`` (``energy_legs_mechanical``), their electrical energy
     (``energy_legs_electrical``), the thrusters' positive work on the walker
     (``energy_thrust_mechanical``) and input energy (``energy_thrust_input``),
@@ -37,15 +38,35 @@ def trial_energy(result) -> dict:
     thrust input, each summed over the steps (None when a step's is: a model missing, said in
     ``energy_reason``), the push's own energy apart (``push_energy``: the jump of ``K + V`` at
     the push) and ``energy_steps`` the steps counted (0: every value None)."""
-    walked = list(result.energy_input)
-    energies: list = []
-    i = 0
-    while i < len(walked):  # consecutive steps of one closed loop in one call
-        j = i
-        while j < len(walked) and walked[j][0] is walked[i][0]:
-            j += 1
-        energies += run_energy(walked[i][0], [w[1] for w in walked[i:j]])
-        i = j
+    return trial_energies([result])[0]
+
+
+def trial_energies(results: list) -> list[dict]:
+    """:func:`trial_energy` of several trials at once (e.g. an engine task's chunk), the same
+    values: the steps of every trial walked on one closed loop go to one ``run_energy`` call
+    (a controlled step's thrust as data, ``seg_force``), so that its cost per call is paid
+    once per closed loop, not per trial and step; each step's energies are its own, summed
+    per trial in step order."""
+    groups: dict[tuple, list[tuple[int, int, tuple, object]]] = {}
+    loops: dict[tuple, object] = {}
+    per_trial: list[list] = []
+    for i, res in enumerate(results):
+        walked = list(res.energy_input)
+        per_trial.append([None] * len(walked))
+        for j, (cl, force, step) in enumerate(walked):
+            key = (id(cl), force is None)
+            loops[key] = cl
+            groups.setdefault(key, []).append((i, j, step, force))
+    for key, items in groups.items():
+        forces = None if key[1] else [f for _, _, _, f in items]
+        for (i, j, _, _), e in zip(items, run_energy(loops[key], [it[2] for it in items],
+                                                     seg_force=forces)):
+            per_trial[i][j] = e
+    return [_trial_sums(e) for e in per_trial]
+
+
+def _trial_sums(energies: list) -> dict:
+    """The fields of :func:`trial_energy` from a trial's step energies (in step order)."""
     out: dict = {"energy_steps": len(energies)}
     if not energies:
         out.update({k: None for k in ENERGY_FIELDS})
@@ -191,13 +212,20 @@ def _push_trial_point(walker: Walker, p: dict, start: dict | None) -> PointResul
     runner = _trial_runner(walker, p)
     trial = Trial(impulse, float(p["push_phase"]), sigma, rate)
     res = runner.run(trial)
-    energy = trial_energy(res)
     doc = {"strategy": runner.r.strategy.label,
            "trial": {"push_impulse": impulse, "push_phase": trial.phase,
                      "push_vector": runner.point.impulse(impulse).tolist(),
                      "start_sigma": sigma, "start_rate": rate},
-           **res.document(), "energy": energy}
-    return PointResult(doc, {**res.fields(), **energy})
+           **res.document()}
+    return PointResult(doc, res.fields(), pending=res)  # the energy: _finish_push_trials
+
+
+def _finish_push_trials(results: list[PointResult]) -> list[PointResult]:
+    """The push trials' energies (:func:`trial_energies`, the chunk's trials together) added
+    to their documents (``energy``) and fields."""
+    energies = trial_energies([r.pending for r in results])
+    return [replace(r, document={**r.document, "energy": e}, fields={**r.fields, **e},
+                    pending=None) for r, e in zip(results, energies)]
 
 
 def _check_push_trial(walker: Walker, p: dict) -> list[tuple[str, str]]:
@@ -326,7 +354,8 @@ def _prepare_trials(walker: Walker, settings: dict) -> None:
 
 TRIAL_STUDIES: dict[str, SweepStudy] = {
     "push-trial": SweepStudy("push-trial", _PT_FIELDS, _push_trial_point,
-                             check=_check_push_trial, prepare=_prepare_trials),
+                             check=_check_push_trial, prepare=_prepare_trials,
+                             finish=_finish_push_trials),
     "rough-trial": SweepStudy("rough-trial", _RT_FIELDS, _rough_trial_point,
                               check=check_strategy, prepare=_prepare_trials),
     "reduced-walk": SweepStudy("reduced-walk", _RW_FIELDS, _reduced_walk_point,
