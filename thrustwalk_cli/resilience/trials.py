@@ -36,12 +36,14 @@ force, failure, impact), with the step, the time and the phase s of the step in 
   is on its way: outputs settled, ``zeta^-_M`` inside the strategy's reduced basin and closer
   to the orbit than the step before; by SPEC 12 it then converges).
 
-Energy (SPEC 15, :func:`trial_energy`): over the trial's completed steps, from the dense
-output (:func:`~thrustwalk_cli.energetics.run.run_energy`, each step with the thrust it
-walked): the joints' positive mechanical work ``sum_j int max(0, u_j q_j') dt``, their
-electrical energy (None without a motor model), the thrusters' positive work on the walker
-and their input energy (None without a power model), and apart from these the mechanical
-energy the push itself added (``push_energy``, the jump of ``K + V`` at the push) [J].
+Energy (SPEC 15, ``studies.trial_studies.trial_energies``: this layer keeps per completed step
+its dense output and the thrust it walked, ``TrialResult.energy_input``; the studies layer
+integrates them, the trials of an engine task together): over the trial's completed steps,
+from the dense output (``energetics.run.run_energy``, each step with the thrust it walked):
+the joints' positive mechanical work ``sum_j int max(0, u_j q_j') dt``, their electrical
+energy (None without a motor model), the thrusters' positive work on the walker and their
+input energy (None without a power model), and apart from these the mechanical energy the
+push itself added (``push_energy``, the jump of ``K + V`` at the push) [J].
 """
 
 from __future__ import annotations

@@ -213,7 +213,7 @@ class RobustnessResult:
 
     def push_energies(self, k: int, key: str = "energy_mechanical"
                       ) -> list[list[float | None]]:
-        """The field ``key`` (an energy of ``resilience.trials.ENERGY_FIELDS``) [J] per
+        """The field ``key`` (an energy of ``trial_studies.ENERGY_FIELDS``) [J] per
         (phase, impulse) of strategy ``k``'s recovered push trials; None where not
         recovered (or the energy is missing)."""
         p = self.plan
@@ -225,7 +225,7 @@ class RobustnessResult:
 
     def _energy_summary(self, k: int) -> dict:
         """Per strategy: the mean over its recovered push trials of the energy each spent
-        (SPEC 15, ``resilience.trials.trial_energy``) [J], each part None when a model is
+        (SPEC 15, ``trial_studies.trial_energy``) [J], each part None when a model is
         missing (``reason``) or nothing recovered; and the same less the energy of the trial
         without a push (impulse 0 in the grid: ``extra_over_unpushed``; None without one)."""
         recs = [r for _, r in self._by_kind("push", k) if self._outcome(r) == "recovered"]
