@@ -383,3 +383,19 @@ def test_golden_search_on_local_interpolants_finds_the_exact_extrema():
         assert np.all((x >= lo) & (x <= hi))
         assert np.abs(x - x_ref).max() <= 1e-6 * 2e-3
         assert np.abs(obj(g(x)) - f_ref).max() <= 1e-12
+
+
+def test_bezier_derivatives_are_bezier_bit_for_bit():
+    """The closed loop's outputs and their derivatives from one set of powers equal three
+    ``bezier`` calls exactly (orders 0..8, s inside and outside [0, 1])."""
+    import numpy as np
+
+    from thrustwalk_cli.hzd.constraints import bezier, bezier_derivatives
+
+    rng = np.random.default_rng(3)
+    s = rng.uniform(-0.3, 1.3, size=(40, 3))
+    for cols in range(1, 10):
+        A = rng.normal(size=(4, cols))
+        for d, got in enumerate(bezier_derivatives(A, s)):
+            want = bezier(A, s, d)
+            assert got.shape == want.shape and np.array_equal(got, want), (cols, d)

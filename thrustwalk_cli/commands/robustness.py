@@ -72,7 +72,8 @@ Every trial is a point of the sweep engine (consecutive trials share a task): --
 processes (default: one per core) or the Dask cluster of --scheduler. DIR is written
 incrementally like a sweep's folder: each trial's record in DIR/trials/ as it finishes; run
 the same command again to resume. Writes DIR/robustness.json, DIR/trials.csv (and
-uncertainty.csv) and the figures push_map, survivable_push, basin (and uncertainty), PNG/PDF.
+uncertainty.csv) and the figures push_map, survivable_push, push_energy, basin (and
+uncertainty), PNG/PDF.
 """
 
 EPILOG = ("Example: thrustwalk robustness three_link three_link_walk --push-impulse -30:30:2 "

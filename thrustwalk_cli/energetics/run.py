@@ -97,42 +97,58 @@ class _Dense:
     the interpolant's evaluation at ``(row, t)`` for many points at once."""
 
     def __init__(self, steps: list[tuple]):
-        lo, hi, seg, owner, rows, call = [], [], [], [], [], []
-        self.piece_rows: list[tuple[int, int]] = []  # first and last row of every piece
-        self.piece_owner: list[int] = []
-        self.generic = False
-        n = None
-        for i, pieces in enumerate(steps):
-            for ta, tb, sg, sol in pieces:
-                t_old, t_new, R = _rows_of(sol)
-                if R is None:
-                    self.generic = True
-                    R = np.zeros((t_old.size, 0))
-                else:
-                    n = (R.shape[1] - 2) // 8
-                a = np.maximum(t_old, ta)
-                b = np.minimum(t_new, tb)
-                keep = b > a
-                first = len(lo)
-                lo.extend(a[keep].tolist())
-                hi.extend(b[keep].tolist())
-                seg.extend([sg] * int(keep.sum()))
-                owner.extend([i] * int(keep.sum()))
-                rows.append(R[keep])
-                call.extend([sol] * int(keep.sum()))
-                self.piece_rows.append((first, len(lo) - 1))
-                self.piece_owner.append(i)
+        pieces = [(i, piece) for i, ps in enumerate(steps) for piece in ps]
+        got = [_rows_of(piece[3]) for _, piece in pieces]
+        self.piece_owner: list[int] = [i for i, _ in pieces]
+        self.generic = any(R is None for _, _, R in got)
+        if self.generic:
+            self._generic(pieces, got)
+            return
+        # every piece has its rows: one table, the rows outside their piece dropped
+        count = np.array([R.shape[0] for _, _, R in got], int)
+        R = (np.concatenate([R for _, _, R in got]) if got
+             else np.zeros((0, 2)))
+        ta = np.repeat(np.array([pc[0] for _, pc in pieces], float), count)
+        tb = np.repeat(np.array([pc[1] for _, pc in pieces], float), count)
+        a = np.maximum(R[:, 0], ta)
+        b = np.minimum(R[:, 1], tb)
+        keep = b > a
+        self.lo, self.hi = a[keep], b[keep]
+        self.seg = np.repeat(np.array([pc[2] for _, pc in pieces], int), count)[keep]
+        self.owner = np.repeat(np.array(self.piece_owner, int), count)[keep]
+        bounds = np.r_[0, np.cumsum(count)]
+        cum = np.r_[0, np.cumsum(keep)]
+        kept = cum[bounds[1:]] - cum[bounds[:-1]]  # rows kept per piece
+        first = np.r_[0, np.cumsum(kept)[:-1]]
+        self.piece_rows = list(zip(first.tolist(), (first + kept - 1).tolist()))
+        self.call = []
+        R = R[keep]
+        n = (R.shape[1] - 2) // 8
+        self.n = n
+        self.t_old = R[:, 0]
+        self.h = R[:, 1] - R[:, 0]
+        self.y_old = R[:, 2:2 + n]
+        self.F = R[:, 2 + n:].reshape(-1, 7, n)
+
+    def _generic(self, pieces: list, got: list) -> None:
+        """The table of pieces of which some are evaluated through their solution."""
+        lo, hi, seg, owner, call = [], [], [], [], []
+        self.piece_rows = []
+        for (i, (ta, tb, sg, sol)), (t_old, t_new, _) in zip(pieces, got):
+            a = np.maximum(t_old, ta)
+            b = np.minimum(t_new, tb)
+            keep = b > a
+            first = len(lo)
+            lo.extend(a[keep].tolist())
+            hi.extend(b[keep].tolist())
+            seg.extend([sg] * int(keep.sum()))
+            owner.extend([i] * int(keep.sum()))
+            call.extend([sol] * int(keep.sum()))
+            self.piece_rows.append((first, len(lo) - 1))
         self.lo, self.hi = np.array(lo), np.array(hi)
         self.seg = np.array(seg, int)
         self.owner = np.array(owner, int)
         self.call = call
-        if not self.generic:
-            R = np.concatenate(rows)
-            self.n = n
-            self.t_old = R[:, 0]
-            self.h = R[:, 1] - R[:, 0]
-            self.y_old = R[:, 2:2 + n]
-            self.F = R[:, 2 + n:].reshape(-1, 7, n)
 
     def at(self, row: np.ndarray, t: np.ndarray) -> np.ndarray:
         """The states (K, n) at times ``t`` on rows ``row`` (DOP853 dense output)."""
@@ -152,6 +168,19 @@ class _Dense:
             y += F[:, j]
             y *= x if i % 2 == 0 else 1.0 - x
         return y + self.y_old[row]
+
+    def at_nodes(self, t: np.ndarray) -> np.ndarray:
+        """:meth:`at` for times ``t`` (rows, K) on every row, K each: the states (rows * K,
+        n), row by row (the same arithmetic, without gathering the rows K times)."""
+        if self.generic:
+            return self.at(np.repeat(np.arange(t.shape[0]), t.shape[1]), t.ravel())
+        x = ((t - self.t_old[:, None]) / self.h[:, None])[..., None]
+        y = np.zeros(t.shape + (self.n,))
+        F = self.F
+        for i, j in enumerate(range(6, -1, -1)):
+            y += F[:, None, j]
+            y *= x if i % 2 == 0 else 1.0 - x
+        return (y + self.y_old[:, None]).reshape(-1, self.n)
 
 
 def _rows_of(sol) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -173,11 +202,11 @@ def _rows_of(sol) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
 
 
 # ----------------------------------------------------------------------------- integrands
-def _evaluate(cl, X: np.ndarray, seg: np.ndarray) -> dict:
+def _evaluate(cl, X: np.ndarray, seg: np.ndarray, force: np.ndarray | None = None) -> dict:
     """The closed loop's torques ``u`` (K, N-1), ``q'``, thrust ``F`` (K, m), generalised force
     ``T`` (K,) and ``d_k . p_k' = (B_F^T q')_k`` (K, m) at states ``X`` in segments ``seg``
-    (``ClosedLoop.law``, torque limits included)."""
-    w = cl.law(X, seg)
+    (``ClosedLoop.law``, torque limits included; ``force``: the thrust per row instead)."""
+    w = cl.law(X, seg) if force is None else cl.law(X, seg, force)
     dq, BF = w["dq"], w["B_F"]
     bt = np.einsum("kn,knm->km", dq, BF) if BF is not None else np.zeros((len(dq), 0))
     return {"u": w["u"], "dq": dq, "F": w["F"], "T": w["T"], "bt": bt}
@@ -307,11 +336,18 @@ def _inverse_vandermonde(n: int) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- the run
-def run_energy(cl, steps: list[tuple], *, regenerate: bool = False) -> list[RunStepEnergy]:
+def run_energy(cl, steps: list[tuple], *, regenerate: bool = False,
+               seg_force: list | None = None) -> list[RunStepEnergy]:
     """The energies of completed steps of a full-order run on the closed loop ``cl``:
     ``steps`` a list of ``(step number, pieces, q^-, q'^-)``, ``pieces`` the step's
     integration pieces ``(t0, t1, segment, dense solution)`` in time order (module
-    docstring, SPEC 15). ``regenerate``: negative electrical power recovered."""
+    docstring, SPEC 15). ``regenerate``: negative electrical power recovered.
+
+    ``seg_force``: per step the thrust it walked as data, per segment of ``cl`` (segments x
+    thrusters) [N], T = 0, instead of ``cl``'s thrust (e.g. a controller's piecewise thrust,
+    set step by step): steps of one closed loop with different thrust in one call, each
+    step's energies the same as on its own closed loop. The steps may be those of several
+    runs (each step's energies are its own; a run's are summed by the caller)."""
     if not steps:
         return []
     model, robot = cl.model, cl.model.robot
@@ -324,8 +360,13 @@ def run_energy(cl, steps: list[tuple], *, regenerate: bool = False) -> list[RunS
     t = (0.5 * (dense.lo + dense.hi))[:, None] + half[:, None] * x[None]  # (R, NODES)
     R = t.shape[0]
     rows = np.repeat(np.arange(R), NODES)
-    X = dense.at(rows, t.ravel())
-    d = _evaluate(cl, X, dense.seg[rows])
+    X = dense.at_nodes(t)
+    force = None
+    if seg_force is not None:  # every step's table, stacked: row -> (its step, its segment)
+        nseg = len(cl.breaks) + 1
+        table = np.concatenate([np.asarray(f, float).reshape(nseg, m) for f in seg_force])
+        force = table[nseg * dense.owner[rows] + dense.seg[rows]]
+    d = _evaluate(cl, X, dense.seg[rows], force)
     W = (half[:, None] * w[None]).ravel()  # weights of every node (R * NODES)
 
     def per_step(v):  # node values (R*NODES, ...) -> integrals per walking step
@@ -374,41 +415,47 @@ def run_energy(cl, steps: list[tuple], *, regenerate: bool = False) -> list[RunS
     is_fuel = [p is not None and p.kind == "fuel" for p in powers]
     eta = np.array([motors[j].efficiency for j in ig.el])
     weight = robot.weight
+    # per step, the arrays of all steps at once (the same arithmetic as step by step)
+    ia_all = np.searchsorted(owner, np.arange(ns)).tolist()  # each step's first piece
+    same = owner[1:] == owner[:-1]  # the jumps between pieces within a step: the push
+    push_s = np.zeros(ns)
+    np.add.at(push_s, owner[1:][same], (Ea[1:] - Eb[:-1])[same])
+    pos_all = 0.5 * (k_net_step + k_abs)
+    el_all = None
+    if ig.el:
+        kink = (1.0 / eta - eta) * pos_all[:, :nb][:, ig.el]
+        el_all = (kink + eta * k_net_step[:, :nb][:, ig.el] + joule_s if regenerate
+                  else kink + pos_all[:, nb + m:]).tolist()
+    net_l, pos_l, abs_l = k_net_step.tolist(), pos_all.tolist(), k_abs.tolist()
+    pin_l, fuel_l, bad_l = pin_s.tolist(), fuel_s.tolist(), pin_bad.tolist()
+    gen_l, time_l, len_l = gen_s.tolist(), time_s.tolist(), length.tolist()
+    Ka_l, Va_l, Km_l, Vm_l, Kp_l = (Ka_all.tolist(), Va_all.tolist(), Km.tolist(), Vm.tolist(),
+                                    Kp.tolist())
+    push_l = push_s.tolist()
     out = []
     for i, (k, _, _, _) in enumerate(steps):
-        pw = owner == i
-        ia = int(np.nonzero(pw)[0][0])
-        push = float(np.sum(Ea[pw][1:] - Eb[pw][:-1]))
-        net = k_net_step[i]
-        ab = k_abs[i]
-        pos = 0.5 * (net + ab)
-        jw, jpos, jabs = net[:nb], pos[:nb], ab[:nb]
-        tw, tpos = net[nb:nb + m], pos[nb:nb + m]
+        ia = ia_all[i]
+        net, pos, ab = net_l[i], pos_l[i], abs_l[i]
         el: list[float | None] = [None] * nb
-        if ig.el:
-            kink = (1.0 / eta - eta) * jpos[ig.el]
-            if regenerate:
-                vals = kink + eta * jw[ig.el] + joule_s[i]
-            else:
-                vals = kink + pos[nb + m:]
-            for jj, v in zip(ig.el, vals.tolist()):
+        if el_all is not None:
+            for jj, v in zip(ig.el, el_all[i]):
                 el[jj] = v
+        bad = bad_l[i]
         extra = [f"step {k}: thruster {robot.thrusters[kk].name}: thrust outside its power "
                  "table's range: input energy not computed"
-                 for kk in range(m) if not tin_none[kk] and pin_bad[i, kk]]
+                 for kk in range(m) if not tin_none[kk] and bad[kk]]
         out.append(RunStepEnergy(
             True, "energies along the full-order run (Gauss-Lobatto on the dense output)",
-            tuple(jw.tolist()), tuple(jpos.tolist()), tuple(jabs.tolist()), tuple(el),
-            tuple(tw.tolist()), tuple(tpos.tolist()), float(gen_s[i]),
-            tuple(None if tin_none[kk] or pin_bad[i, kk] else float(pin_s[i, kk])
-                  for kk in range(m)),
-            tuple(float(fuel_s[i, kk]) if is_fuel[kk] else None for kk in range(m)),
-            kinetic_start=float(Ka_all[ia]), kinetic_end=float(Km[i]),
-            potential_start=float(Va_all[ia]), potential_end=float(Vm[i]),
-            step_time=float(time_s[i]), distance=float(length[i]), weight=weight,
+            tuple(net[:nb]), tuple(pos[:nb]), tuple(ab[:nb]), tuple(el),
+            tuple(net[nb:nb + m]), tuple(pos[nb:nb + m]), gen_l[i],
+            tuple(None if tin_none[kk] or bad[kk] else pin_l[i][kk] for kk in range(m)),
+            tuple(fuel_l[i][kk] if is_fuel[kk] else None for kk in range(m)),
+            kinetic_start=Ka_l[ia], kinetic_end=Km_l[i],
+            potential_start=Va_l[ia], potential_end=Vm_l[i],
+            step_time=time_l[i], distance=len_l[i], weight=weight,
             error_estimate=None, regenerate=regenerate,
-            missing=tuple(missing + extra), step=int(k), kinetic_after=float(Kp[i]),
-            push_energy=push))
+            missing=tuple(missing + extra), step=int(k), kinetic_after=Kp_l[i],
+            push_energy=push_l[i]))
     return out
 
 

@@ -35,6 +35,30 @@ def bezier(A: np.ndarray, s: np.ndarray, deriv: int = 0) -> np.ndarray:
     return basis @ A.T
 
 
+def bezier_derivatives(A: np.ndarray, s: np.ndarray, upto: int = 2) -> list[np.ndarray]:
+    """``[bezier(A, s, d) for d in 0..upto]``, bit for bit, with the powers ``s^k`` and
+    ``(1 - s)^k`` computed once for all of them (the costly part for many ``s``)."""
+    A = np.asarray(A, float)
+    s = np.asarray(s, float)
+    M0 = A.shape[1] - 1
+    k0 = np.arange(M0 + 1)
+    P = s[..., None] ** k0
+    Q = (1.0 - s[..., None]) ** k0
+    out = []
+    for d in range(upto + 1):
+        if d:
+            M = A.shape[1] - 1
+            A = M * np.diff(A, axis=1) if M > 0 else np.zeros((A.shape[0], 1))
+        M = A.shape[1] - 1
+        if M > M0:  # (a constant's derivative: one column, as bezier makes it)
+            out.append(bezier(A, s))
+            continue
+        binom = np.array([comb(M, j) for j in range(M + 1)], float)
+        basis = binom * P[..., :M + 1] * Q[..., M::-1]
+        out.append(basis @ A.T)
+    return out
+
+
 @dataclass(frozen=True)
 class GaitMaps:
     """Numeric gait geometry for one model: ``H``, boundary states and invariance residuals."""

@@ -74,6 +74,44 @@ def push_map(d: dict, title: str = ""):
     return fig
 
 
+def push_energy(d: dict, title: str = ""):
+    """Energy spent per recovered push trial [J] over phase s [1] (x) and impulse [N s] (y),
+    one panel per strategy on one colour scale (colour bar in J): the total energy (joints'
+    electrical + thrusters' input) when every model is given, else the mechanical one
+    (positive work of joints and thrusters), SPEC 15; blank where the trial did not recover
+    (the push map says why). The panel's title gives the mean per recovered push."""
+    n = len(d["labels"])
+    grids = [np.array([[np.nan if v is None else v for v in row] for row in g], float)
+             .reshape(len(d["phases"]), len(d["impulses"])) for g in d["push_energy"]]
+    finite = np.concatenate([g[np.isfinite(g)] for g in grids]) if grids else np.zeros(0)
+    lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
+    if hi <= lo:
+        lo, hi = lo - 0.5, hi + 0.5
+    with style():
+        fig = Figure(figsize=(COLUMN if n == 1 else PAGE, 2.7))
+        axes = fig.subplots(1, n, sharey=True, squeeze=False)
+        mesh = None
+        for k, ax in enumerate(axes[0]):
+            mesh = ax.pcolormesh(_edges(d["phases"]), _edges(d["impulses"]),
+                                 np.ma.masked_invalid(grids[k]).T, cmap="viridis", vmin=lo,
+                                 vmax=hi, shading="flat", edgecolors="face", lw=0)
+            ax.axhline(0.0, color="k", lw=0.4)
+            ax.set_xlabel("push phase $s$ [1]")
+            e = d["energy_mean"][k]
+            ax.set_title(f"{d['labels'][k]}" + (f" (mean {e:.3g} J)" if e is not None
+                                                 else " (none recovered)"), fontsize=7)
+            if not np.isfinite(grids[k]).any():
+                corner_note(ax, "no recovered push")
+        axes[0][0].set_ylabel("impulse [N s]")
+        if title:
+            fig.suptitle(title)
+        fig.tight_layout(rect=(0, 0, 0.88, 1))
+        if mesh is not None:
+            bar = fig.colorbar(mesh, cax=fig.add_axes((0.9, 0.2, 0.015, 0.65)))
+            bar.set_label(f"{d['energy_kind']} energy per recovered push [J]")
+    return fig
+
+
 def survivable_push(d: dict, title: str = ""):
     """Largest survivable push [N s] against phase [1], forward (above 0) and backward (below,
     as a negative impulse), one colour per strategy; open triangles where the value is only a

@@ -35,6 +35,15 @@ force, failure, impact), with the step, the time and the phase s of the step in 
 * ``unsettled``: every step done, not yet within the tolerance (``converging`` says whether it
   is on its way: outputs settled, ``zeta^-_M`` inside the strategy's reduced basin and closer
   to the orbit than the step before; by SPEC 12 it then converges).
+
+Energy (SPEC 15, ``studies.trial_studies.trial_energies``: this layer keeps per completed step
+its dense output and the thrust it walked, ``TrialResult.energy_input``; the studies layer
+integrates them, the trials of an engine task together): over the trial's completed steps,
+from the dense output (``energetics.run.run_energy``, each step with the thrust it walked):
+the joints' positive mechanical work ``sum_j int max(0, u_j q_j') dt``, their electrical
+energy (None without a motor model), the thrusters' positive work on the walker and their
+input energy (None without a power model), and apart from these the mechanical energy the
+push itself added (``push_energy``, the jump of ``K + V`` at the push) [J].
 """
 
 from __future__ import annotations
@@ -99,6 +108,10 @@ class TrialResult:
     qp: dict = field(default_factory=dict)
     time: float | None = None
     phase: float | None = None
+    #: per completed step ``(closed loop, thrust, (k, pieces, q^-, q'^-))``, ``thrust`` None
+    #: (the closed loop's) or the controller's per segment of the closed loop (segments x
+    #: thrusters) [N]: what its energies are computed from (``energetics.run.run_energy``)
+    energy_input: tuple = field(default=(), repr=False, compare=False)
 
     @property
     def recovered(self) -> bool:
@@ -177,7 +190,7 @@ class TrialRunner:
         self.cl = ClosedLoop(zd, realized.thrust, self.config)
         ts = realized.cycle.step_time if realized.cycle.exists else None
         self.t_max = 10.0 * ts if ts else 10.0
-        self.stepper = Stepper(self.cl, self.t_max, dense=False)
+        self.stepper = Stepper(self.cl, self.t_max, dense=True)  # dense: the energies
         self.seg_int = (segment_intervals(self.cl, realized.knots, zd)
                         if realized.planner is not None else None)
 
@@ -254,6 +267,7 @@ class TrialRunner:
     # -- the run ---------------------------------------------------------------------------
     def run(self, trial: Trial) -> TrialResult:
         r, model = self.r, self.model
+        self._walked: list[tuple] = []  # (closed loop, thrust, (k, pieces, q^-, q'^-))
         if r.zeta_ref is None:
             return self._result("error", None, f"no orbit to start on: {r.cycle.reason}", [],
                                 None, None, False)
@@ -270,6 +284,7 @@ class TrialRunner:
         qp: dict[str, int] = {}
         pushed = False
         for k in range(1, self.steps + 1):
+            step_force = None
             if r.planner is not None:
                 plan = r.planner.plan(x_true, r.zeta_ref, u_prev)
                 qp[plan.status] = qp.get(plan.status, 0) + 1
@@ -278,6 +293,7 @@ class TrialRunner:
                 seg_force[:, r.driven] = per[self.seg_int]
                 self.stepper.set_thrust(seg_force=seg_force)
                 u_prev = plan.u
+                step_force = seg_force
             h = 0.0 if self.heights is None else self.heights[k - 1]
             res = self.stepper.step(k, t, x, push=row if k == 1 else None, ground=h,
                                     behind=behind_level(self.heights, k))
@@ -311,6 +327,8 @@ class TrialRunner:
                                float(res.outcome[K.O_S])))
             else:
                 rec = step_record(res.record, N, nz, m)
+                self._walked.append((self.cl, step_force,
+                                     (k, res.pieces, rec.q_minus, rec.dq_minus)))
                 if rec.impulse_friction_ratio > self.mu:
                     events.append((rec.t_impact, 4, "slipped", (
                         f"the impact impulse leaves the friction cone (|F_2^h|/F_2^v = "
@@ -387,4 +405,5 @@ class TrialRunner:
             max(fr) if fr else None,
             min(rc.min_vertical_force for rc in recs) if recs else None,
             float(recs[-1].max_abs_output) if recs else None, push, pushed, dict(qp or {}),
-            None if when is None else float(when[0]), None if when is None else float(when[1]))
+            None if when is None else float(when[0]), None if when is None else float(when[1]),
+            tuple(getattr(self, "_walked", ())))

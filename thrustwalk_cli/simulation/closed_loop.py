@@ -34,7 +34,7 @@ from operator import mul
 import numpy as np
 
 from ..errors import InputError, param_problem
-from ..hzd.constraints import bezier
+from ..hzd.constraints import bezier_derivatives
 from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, limit_cycles
 from ..thrust.command import MAX_THRUSTER_RATE as MAX_THRUSTER_RATE
 from ..thrust.command import PIECEWISE as PIECEWISE
@@ -414,17 +414,23 @@ class ClosedLoop:
         return self.model.p_swing_s(np.asarray(x)[: self.N].tolist())[1]
 
     # -- batch evaluation ----------------------------------------------------------------
-    def law(self, X: np.ndarray, seg: np.ndarray) -> dict[str, np.ndarray]:
+    def law(self, X: np.ndarray, seg: np.ndarray, force: np.ndarray | None = None
+            ) -> dict[str, np.ndarray]:
         """The closed loop's law at states ``X`` (K, dim) in segments ``seg`` (K,), vectorised
         (SPEC 7): q, dq, z, the thrust F [N] and T [N m], D, the right-hand side ``-h + B_F F``
         (with T on q_N), B_F [m] (None without thrusters), the outputs y, dy, alpha, its rate,
         s, and ddq, u [N m] with the torque limit applied (``saturated`` rows solved again
-        with the clipped torques). What :meth:`details` and the energies of a run read."""
+        with the clipped torques). What :meth:`details` and the energies of a run read.
+        ``force``: the thrust per row (K, m) [N] instead of the thrust model's, T = 0 (a step
+        walked with thrust set as data, e.g. a controller's per-step piecewise thrust)."""
         X = np.atleast_2d(np.asarray(X, float))
         seg = np.broadcast_to(np.asarray(seg, int), X.shape[:1])
         N, nb, m, mod = self.N, self.nb, self.m, self.model
         q, dq, z = X[:, :N], X[:, N:2 * N], X[:, 2 * N:]
-        if self.thrust.piecewise:  # per segment, as :meth:`force` and :meth:`generalized`
+        if force is not None:
+            F = np.asarray(force, float).reshape(len(X), m)
+            T = np.zeros(len(X))
+        elif self.thrust.piecewise:  # per segment, as :meth:`force` and :meth:`generalized`
             F = np.asarray(self._piece_force, float).reshape(len(self._piece_force), m)[seg]
             T = np.asarray(self._piece_T, float)[seg]
         else:
@@ -439,9 +445,9 @@ class ClosedLoop:
         alpha, adot = q @ self.c, dq @ self.c
         s = (alpha - self.ai) / self.span
         A = self.zd.maps.A
-        hd = bezier(A, s)
-        hd1 = bezier(A, s, 1) / self.span
-        hd2 = bezier(A, s, 2) / self.span**2
+        hd, hd1, hd2 = bezier_derivatives(A, s)  # bit for bit bezier(A, s, 0, 1, 2)
+        hd1 = hd1 / self.span
+        hd2 = hd2 / self.span**2
         Jy = self._Jy0[None] - hd1[:, :, None] * self.c[None, None, :]
         y = q[:, :nb] - hd
         dy = np.einsum("kij,kj->ki", Jy, dq)

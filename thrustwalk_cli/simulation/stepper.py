@@ -282,8 +282,8 @@ class DenseSolution:
     Made for every piece of every step, evaluated for few: it keeps one copy of the rows and
     takes its parts from it when first asked."""
 
-    def __init__(self, rows: np.ndarray, t0: float, t1: float, n: int):
-        self.rows = rows[:, :2 + 8 * n].copy()
+    def __init__(self, rows: np.ndarray, t0: float, t1: float, n: int, copy: bool = True):
+        self.rows = rows[:, :2 + 8 * n].copy() if copy else rows[:, :2 + 8 * n]
         self.t0, self.t1, self.n = t0, t1, n
 
     @functools.cached_property
@@ -400,12 +400,13 @@ class Stepper:
             self._calls = np.zeros((4 * self._calls.shape[0], K.N_CALL))
         status, ncalls = int(outs[0, K.O_STATUS]), int(info[0, 0])
         pieces = []
-        if self.dense:
-            for j in range(ncalls):
-                seg, first, last, ta, tb = self._calls[j]
-                rows = self._buf[int(first):int(last)]
-                pieces.append((float(ta), float(tb), int(seg),
-                               DenseSolution(rows, float(ta), float(tb), self.n)))
+        if self.dense and ncalls:
+            calls = self._calls[:ncalls].tolist()
+            # one copy of the step's rows (the buffer is reused), each piece a view of it
+            block = self._buf[:int(max(c[2] for c in calls)), :2 + 8 * self.n].copy()
+            for seg, first, last, ta, tb in calls:
+                pieces.append((ta, tb, int(seg), DenseSolution(block[int(first):int(last)], ta,
+                                                               tb, self.n, copy=False)))
         return StepOutcome(status, recs[0, 0].copy(), outs[0].copy(), XN[0].copy(), pieces)
 
 

@@ -58,7 +58,7 @@ from ..sweep.runner import RunCounts, run_tasks
 from ..sweep.tasks import PointTask, identity, task_key
 from ..walker import Walker, check_ground, check_walker
 from .robustness_result import DEFINITIONS, UNITS, RobustnessPlan, RobustnessResult
-from .sweep_studies import STUDIES, run_point
+from .sweep_studies import STUDIES, run_point, run_points
 from .trial_studies import realized_strategy, trial_chunk
 
 __all__ = ["DEFINITIONS", "UNITS", "RobustnessPlan", "RobustnessResult", "plan_robustness",
@@ -429,7 +429,8 @@ def run_robustness(plan: RobustnessPlan, *, workers: int | None = None,
         chunk = trial_chunk(trials, getattr(executor, "workers", 1), plan.settings["steps"])
     try:
         counts = (run_tasks(plan.tasks, run_point, executor, done,
-                            on_record or (lambda r: None), chunk={"push-trial": int(chunk)})
+                            on_record or (lambda r: None), chunk={"push-trial": int(chunk)},
+                            many=run_points)
                   if todo else RunCounts(skipped=len(plan.tasks)))
     finally:
         if own:

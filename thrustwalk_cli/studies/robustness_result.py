@@ -38,6 +38,7 @@ from .documents import (
     slope_record,
     units,
 )
+from .trial_studies import ENERGY_FIELDS
 
 UNITS = units("impulse", "zeta", "speed", "force", "friction_ratio", "sigma_N", "output_rate",
               "output_y", "step_time", "delta_zero_sq", "alpha", phase="1", duration="s")
@@ -203,11 +204,60 @@ class RobustnessResult:
                      "mean_backward": mean_of(bwd), "summary": summary_impulse(fwd, bwd),
                      "single_outcome": single},
         }
+        out["push"]["energy"] = self._energy_summary(k)
         if p.sigmas:
             out["basin_slice"] = self._slice_summary(k)
         if p.uncertainty is not None:
             out["uncertainty"] = self._sample_summary(k)
         return out
+
+    def push_energies(self, k: int, key: str = "energy_mechanical"
+                      ) -> list[list[float | None]]:
+        """The field ``key`` (an energy of ``trial_studies.ENERGY_FIELDS``) [J] per
+        (phase, impulse) of strategy ``k``'s recovered push trials; None where not
+        recovered (or the energy is missing)."""
+        p = self.plan
+        grid: list[list[float | None]] = [[None] * len(p.impulses) for _ in p.phases]
+        for (i, j), r in self._by_kind("push", k):
+            if self._outcome(r) == "recovered":
+                grid[i][j] = r["fields"].get(key)
+        return grid
+
+    def _energy_summary(self, k: int) -> dict:
+        """Per strategy: the mean over its recovered push trials of the energy each spent
+        (SPEC 15, ``trial_studies.trial_energy``) [J], each part None when a model is
+        missing (``reason``) or nothing recovered; and the same less the energy of the trial
+        without a push (impulse 0 in the grid: ``extra_over_unpushed``; None without one)."""
+        recs = [r for _, r in self._by_kind("push", k) if self._outcome(r) == "recovered"]
+        keys = ("energy_mechanical", "energy_total", "energy_legs_mechanical",
+                "energy_legs_electrical", "energy_thrust_mechanical", "energy_thrust_input",
+                "push_energy")
+
+        def mean(rows, key):
+            vals = [r["fields"].get(key) for r in rows]
+            if not vals or any(v is None for v in vals):
+                return None
+            return float(np.mean(vals))
+
+        means = {key: mean(recs, key) for key in keys}
+        reasons = []
+        for r in recs:
+            why = r["fields"].get("energy_reason")
+            if why and why not in reasons:
+                reasons.append(why)
+        if not recs:
+            reasons.append("no push trial recovered: no energy per recovered push")
+        zero = [r for (i, j), r in self._by_kind("push", k)
+                if self.plan.impulses[j] == 0.0 and self._outcome(r) == "recovered"]
+        extra = None
+        if zero and recs:
+            extra = {key: (None if means[key] is None or mean(zero[:1], key) is None
+                           else means[key] - mean(zero[:1], key)) for key in keys[:6]}
+        elif recs:
+            reasons.append("no recovered trial without a push (impulse 0 in the grid): no "
+                           "extra energy")
+        return {"recovered_pushes": len(recs), "mean_per_recovered_push": means,
+                "extra_over_unpushed": extra, "reason": "; ".join(reasons) or None}
 
     def _slice_summary(self, k: int) -> dict:
         p, real = self.plan, self.plan.realized[k]
@@ -373,7 +423,9 @@ class RobustnessResult:
                   "steps_completed", col("final_zeta_minus", UNITS["zeta"]), "relative_error",
                   col("zeta_ref", UNITS["zeta"]), col("speed", "m/s"), "max_friction_ratio",
                   col("min_vertical_force", "N"), "push_friction_ratio",
-                  col("push_vertical_impulse", "N s"), "reason"]
+                  col("push_vertical_impulse", "N s")] + [
+                  col(e, "J") for e in ENERGY_FIELDS] + ["energy_steps", "energy_reason",
+                                                         "reason"]
         rows = []
         for t, kd, wh, r in zip(p.tasks, p.kinds, p.where, self.records):
             if kd == "sample" or r is None:
@@ -389,8 +441,10 @@ class RobustnessResult:
                          f.get("steps_completed"), f.get("final_zeta_minus"),
                          f.get("relative_error"), f.get("zeta_ref"), f.get("speed"),
                          f.get("max_friction_ratio"), f.get("min_vertical_force"),
-                         f.get("push_friction_ratio"), f.get("push_vertical_impulse"),
-                         doc.get("reason") or r["reason"]])
+                         f.get("push_friction_ratio"), f.get("push_vertical_impulse")]
+                        + [f.get(e) for e in ENERGY_FIELDS]
+                        + [f.get("energy_steps"), f.get("energy_reason"),
+                           doc.get("reason") or r["reason"]])
         out = {"trials": Table(header, rows, [
             "one row per trial: push trials (pushed in step 1 on the strategy's orbit) and "
             "basin trials (started off the orbit); the full record is trials/KEY.json"])}
@@ -418,12 +472,21 @@ class RobustnessResult:
     def figure_data(self) -> dict:
         p = self.plan
         sums = [self.strategy_summary(k) for k in range(len(p.strategies))]
+        # the total energy when every strategy has it (every model given), else mechanical
+        ekind = ("total" if sums and all(s["push"]["energy"]["mean_per_recovered_push"]
+                                         ["energy_total"] is not None for s in sums)
+                 else "mechanical")
+        ekey = f"energy_{ekind}"
         data = {
             "labels": p.labels, "phases": list(p.phases), "impulses": list(p.impulses),
             "outcomes": list(OUTCOMES), "push_maps": [self.push_grid(k)
                                                        for k in range(len(p.strategies))],
             "survivable": [s["push"]["survivable"] for s in sums],
             "summary": [s["push"]["summary"] for s in sums],
+            "energy_kind": ekind,
+            "push_energy": [self.push_energies(k, ekey) for k in range(len(p.strategies))],
+            "energy_mean": [s["push"]["energy"]["mean_per_recovered_push"][ekey]
+                            for s in sums],
             "reduced": [{"label": s["label"], **s["reduced_basin"]} for s in sums],
             "sigmas": list(p.sigmas), "rates": list(p.rates),
             "joint": p.settings["basin_slice"]["joint"], "slices": [], "uncertainty": None,
@@ -462,7 +525,8 @@ class RobustnessResult:
             return head + what if head else ""
 
         out = {"push_map": plots.push_map(d, t("push outcomes")),
-               "survivable_push": plots.survivable_push(d, t("largest survivable push"))}
+               "survivable_push": plots.survivable_push(d, t("largest survivable push")),
+               "push_energy": plots.push_energy(d, t("energy per recovered push"))}
         out["basin"] = plots.basin(d, t("basins of attraction"))
         if d["uncertainty"] is not None:
             out["uncertainty"] = plots.uncertainty(d, t("parameter uncertainty"))

@@ -31,6 +31,8 @@ class PointResult:
     fields: dict[str, object]
     extra: dict = field(default_factory=dict)
     next_start: dict | None = None
+    #: what the study's ``finish`` still computes from (never written; None once finished)
+    pending: object = field(default=None, repr=False, compare=False)
 
 
 @dataclass(frozen=True)
@@ -42,7 +44,10 @@ class SweepStudy:
     ``uses_gait`` is false); check(base, params): problems with the parameters of a point,
     ``(parameter, message)`` pairs, found before any work; prepare(base, settings): once in
     the calling process before local workers start (e.g. compile a kernel once, not in every
-    worker); continuation: points start from their finished neighbour's result.
+    worker); continuation: points start from their finished neighbour's result;
+    finish(results): completes the :class:`PointResult` of several points of one task
+    together (their ``pending`` parts, e.g. the push trials' energies batched), returning
+    them in order, each the same as if finished alone.
     """
 
     name: str
@@ -52,6 +57,7 @@ class SweepStudy:
     check: Callable[[object, dict], list[tuple[str, str]]] | None = None
     prepare: Callable[[object, dict], None] | None = None
     continuation: bool = False
+    finish: Callable[[list[PointResult]], list[PointResult]] | None = None
 
 
 # ------------------------------------------------------------------------- worker side

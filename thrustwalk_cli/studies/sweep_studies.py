@@ -415,14 +415,19 @@ STUDIES: dict[str, SweepStudy] = {
 
 
 
-def run_point(task: PointTask) -> dict:
-    """Compute one point (the task every worker runs) and return its record: ``key``,
-    ``index``, ``values``, ``status`` (``ok`` or ``failed``), ``reason``, ``fields``,
-    ``document`` (the study's JSON), ``extra``, ``next_start`` and ``seconds`` (wall time
-    of the point [s]). Never raises for the point's own problems: they are its result."""
-    t0 = time.perf_counter()
+def _failure(exc: Exception) -> str:
+    """A point's failure as its record's ``reason``."""
+    if isinstance(exc, InputError):
+        return "; ".join(str(p) for p in exc.problems)
+    if isinstance(exc, ComputationError):
+        return f"computation failed: {exc}"
+    return f"computation failed ({type(exc).__name__}: {exc})"
+
+
+def _compute(task: PointTask) -> tuple[PointResult | None, str]:
+    """The study's result of one point (its ``pending`` part not yet finished), or None and
+    the reason it failed."""
     study = STUDIES[task.study]
-    doc, fields, extra, nxt = None, {}, {}, task.start
     try:
         if task.version != __version__:
             raise ComputationError(f"this worker runs thrustwalk {__version__}, the sweep "
@@ -431,20 +436,75 @@ def run_point(task: PointTask) -> dict:
         params = task.parameters
         params.update(_label=task.label, _robot_ref=task.robot_ref, _gait_name=task.name,
                       _nominal=nominal_of(task) if task.overrides("robot") else None)
-        res = study.point(base, params, task.start)
-        doc = jsonable(res.document)
-        fields = jsonable({k: res.fields.get(k) for k in study.fields})
-        extra, nxt = res.extra, jsonable(res.next_start)
-        status, reason = "ok", ""
-    except InputError as exc:
-        status, reason = "failed", "; ".join(str(p) for p in exc.problems)
-    except ComputationError as exc:
-        status, reason = "failed", f"computation failed: {exc}"
+        return study.point(base, params, task.start), ""
     except Exception as exc:  # noqa: BLE001 - a point's failure never stops the sweep
-        status, reason = "failed", f"computation failed ({type(exc).__name__}: {exc})"
-    if status != "ok":
-        doc, fields, extra = None, dict.fromkeys(study.fields), {}
+        return None, _failure(exc)
+
+
+def _finish(study: SweepStudy, results: list[PointResult | None]
+            ) -> list[tuple[PointResult | None, str]]:
+    """``study.finish`` on the points computed (together; should that raise, point by point,
+    so that only a point whose own part fails is failed)."""
+    done: list[tuple[PointResult | None, str]] = [(r, "") for r in results]
+    todo = [i for i, r in enumerate(results) if r is not None]
+    if study.finish is None or not todo:
+        return done
+    try:
+        for i, r in zip(todo, study.finish([results[i] for i in todo])):
+            done[i] = (r, "")
+    except Exception:  # noqa: BLE001 - find the point that fails, alone
+        for i in todo:
+            try:
+                done[i] = (study.finish([results[i]])[0], "")
+            except Exception as exc:  # noqa: BLE001
+                done[i] = (None, _failure(exc))
+    return done
+
+
+def _record(task: PointTask, res: PointResult | None, reason: str, seconds: float) -> dict:
+    study = STUDIES[task.study]
+    doc, fields, extra, nxt = None, dict.fromkeys(study.fields), {}, task.start
+    status = "failed"
+    if res is not None:
+        try:
+            doc = jsonable(res.document)
+            fields = jsonable({k: res.fields.get(k) for k in study.fields})
+            extra, nxt = res.extra, jsonable(res.next_start)
+            status = "ok"
+        except Exception as exc:  # noqa: BLE001
+            doc, fields, extra, nxt = None, dict.fromkeys(study.fields), {}, task.start
+            reason = _failure(exc)
     return {"key": task.key, "index": task.index, "study": task.study,
             "values": dict(task.values), "status": status, "reason": reason,
             "fields": fields, "document": doc, "extra": extra, "next_start": nxt,
-            "seconds": time.perf_counter() - t0}
+            "seconds": seconds}
+
+
+def run_point(task: PointTask) -> dict:
+    """Compute one point (the task every worker runs) and return its record: ``key``,
+    ``index``, ``values``, ``status`` (``ok`` or ``failed``), ``reason``, ``fields``,
+    ``document`` (the study's JSON), ``extra``, ``next_start`` and ``seconds`` (wall time
+    of the point [s]). Never raises for the point's own problems: they are its result."""
+    return run_points([task])[0]
+
+
+def run_points(tasks: list[PointTask]) -> list[dict]:
+    """The records of several points (a chunk of one engine task, in order), each the same as
+    :func:`run_point`'s: the points are computed one by one, then a study's ``finish``
+    completes its points together (e.g. the push trials' energies in a few batched calls;
+    ``seconds``: the point's own time and its share of the batch)."""
+    out: list[tuple[PointResult | None, str]] = []
+    secs: list[float] = []
+    for task in tasks:
+        t0 = time.perf_counter()
+        out.append(_compute(task))
+        secs.append(time.perf_counter() - t0)
+    for name in dict.fromkeys(t.study for t in tasks):
+        idx = [i for i, t in enumerate(tasks) if t.study == name]
+        t0 = time.perf_counter()
+        fin = _finish(STUDIES[name], [out[i][0] for i in idx])
+        share = (time.perf_counter() - t0) / len(idx)
+        for i, (r, why) in zip(idx, fin):
+            out[i] = (r, why or out[i][1])
+            secs[i] += share
+    return [_record(t, r, why, s) for t, (r, why), s in zip(tasks, out, secs)]

@@ -9,14 +9,87 @@ robot's parameters on the reduced model), as entries of :data:`TRIAL_STUDIES`, w
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 
 from ..description.terrain import S_MAX
+from ..energetics.run import run_energy
 from ..errors import InputError
 from ..sweep.runner import chunk_size
 from ..sweep.tasks import canonical
 from ..walker import Walker
 from .documents import UNITS
 from .sweep_points import PointResult, SweepStudy, fresh, on_slope
+
+# ------------------------------------------------------------------- a trial's energy (SPEC 15)
+#: the energy fields of a push or basin trial [J] (:func:`trial_energy`; None: a model missing)
+ENERGY_FIELDS = ("energy_legs_mechanical", "energy_legs_electrical",
+                 "energy_thrust_mechanical", "energy_thrust_input", "energy_mechanical",
+                 "energy_total", "push_energy")
+
+
+def trial_energy(result) -> dict:
+    """The energy a trial (``resilience.trials.TrialResult``) spent over its completed steps
+    [J] (SPEC 15, :func:`~thrustwalk_cli.energetics.run.run_energy` on the dense output, each
+    step with the thrust it walked): the joints' positive mechanical work
+    ``sum_j int max(0, u_j q_j') dt`` (``energy_legs_mechanical``), their electrical energy
+    (``energy_legs_electrical``), the thrusters' positive work on the walker
+    (``energy_thrust_mechanical``) and input energy (``energy_thrust_input``),
+    ``energy_mechanical`` = legs + thrust positive work, ``energy_total`` = legs electrical +
+    thrust input, each summed over the steps (None when a step's is: a model missing, said in
+    ``energy_reason``), the push's own energy apart (``push_energy``: the jump of ``K + V`` at
+    the push) and ``energy_steps`` the steps counted (0: every value None)."""
+    return trial_energies([result])[0]
+
+
+def trial_energies(results: list) -> list[dict]:
+    """:func:`trial_energy` of several trials at once (e.g. an engine task's chunk), the same
+    values: the steps of every trial walked on one closed loop go to one ``run_energy`` call
+    (a controlled step's thrust as data, ``seg_force``), so that its cost per call is paid
+    once per closed loop, not per trial and step; each step's energies are its own, summed
+    per trial in step order."""
+    groups: dict[tuple, list[tuple[int, int, tuple, object]]] = {}
+    loops: dict[tuple, object] = {}
+    per_trial: list[list] = []
+    for i, res in enumerate(results):
+        walked = list(res.energy_input)
+        per_trial.append([None] * len(walked))
+        for j, (cl, force, step) in enumerate(walked):
+            key = (id(cl), force is None)
+            loops[key] = cl
+            groups.setdefault(key, []).append((i, j, step, force))
+    for key, items in groups.items():
+        forces = None if key[1] else [f for _, _, _, f in items]
+        for (i, j, _, _), e in zip(items, run_energy(loops[key], [it[2] for it in items],
+                                                     seg_force=forces)):
+            per_trial[i][j] = e
+    return [_trial_sums(e) for e in per_trial]
+
+
+def _trial_sums(energies: list) -> dict:
+    """The fields of :func:`trial_energy` from a trial's step energies (in step order)."""
+    out: dict = {"energy_steps": len(energies)}
+    if not energies:
+        out.update({k: None for k in ENERGY_FIELDS})
+        out["energy_reason"] = "no completed step: no energy"
+        return out
+
+    def total(name):
+        vals = [getattr(e, name) for e in energies]
+        return None if any(v is None for v in vals) else float(sum(vals))
+
+    lm, le = total("legs_mechanical"), total("legs_electrical")
+    tm, ti = total("thrust_mechanical"), total("thrust_input")
+    missing: list[str] = []
+    for e in energies:
+        missing += [line for line in e.missing if line not in missing]
+    out.update({"energy_legs_mechanical": lm, "energy_legs_electrical": le,
+                "energy_thrust_mechanical": tm, "energy_thrust_input": ti,
+                "energy_mechanical": None if lm is None or tm is None else lm + tm,
+                "energy_total": None if le is None or ti is None else le + ti,
+                "push_energy": float(sum(e.push_energy for e in energies)),
+                "energy_reason": "; ".join(missing) or None})
+    return out
+
 
 # ------------------------------------------------------------------- robustness (SPEC 12)
 _STRATEGY_KEYS = ("strategy", "strategy_label", "thruster", "thrust", "schedule", "knots",
@@ -111,6 +184,18 @@ _PT_FIELDS = {
                                                      "ground reaction"),
     "push_vertical_impulse": (UNITS["impulse"], "vertical part of the push's impulsive ground "
                                                 "reaction"),
+    "energy_steps": ("1", "completed steps the energies are summed over (SPEC 15)"),
+    "energy_legs_mechanical": ("J", "joints' positive mechanical work over the steps"),
+    "energy_legs_electrical": ("J", "joints' electrical energy over the steps (empty: a motor "
+                                    "model missing, energy_reason)"),
+    "energy_thrust_mechanical": ("J", "thrusters' positive work on the walker over the steps"),
+    "energy_thrust_input": ("J", "thrusters' input energy over the steps (empty: a power model "
+                                 "missing, energy_reason)"),
+    "energy_mechanical": ("J", "energy_legs_mechanical + energy_thrust_mechanical"),
+    "energy_total": ("J", "energy_legs_electrical + energy_thrust_input (empty: a model "
+                          "missing)"),
+    "push_energy": ("J", "the mechanical energy the push itself added (apart from the above)"),
+    "energy_reason": ("", "the models missing, when an energy is empty"),
 }
 
 
@@ -132,7 +217,15 @@ def _push_trial_point(walker: Walker, p: dict, start: dict | None) -> PointResul
                      "push_vector": runner.point.impulse(impulse).tolist(),
                      "start_sigma": sigma, "start_rate": rate},
            **res.document()}
-    return PointResult(doc, res.fields())
+    return PointResult(doc, res.fields(), pending=res)  # the energy: _finish_push_trials
+
+
+def _finish_push_trials(results: list[PointResult]) -> list[PointResult]:
+    """The push trials' energies (:func:`trial_energies`, the chunk's trials together) added
+    to their documents (``energy``) and fields."""
+    energies = trial_energies([r.pending for r in results])
+    return [replace(r, document={**r.document, "energy": e}, fields={**r.fields, **e},
+                    pending=None) for r, e in zip(results, energies)]
 
 
 def _check_push_trial(walker: Walker, p: dict) -> list[tuple[str, str]]:
@@ -261,7 +354,8 @@ def _prepare_trials(walker: Walker, settings: dict) -> None:
 
 TRIAL_STUDIES: dict[str, SweepStudy] = {
     "push-trial": SweepStudy("push-trial", _PT_FIELDS, _push_trial_point,
-                             check=_check_push_trial, prepare=_prepare_trials),
+                             check=_check_push_trial, prepare=_prepare_trials,
+                             finish=_finish_push_trials),
     "rough-trial": SweepStudy("rough-trial", _RT_FIELDS, _rough_trial_point,
                               check=check_strategy, prepare=_prepare_trials),
     "reduced-walk": SweepStudy("reduced-walk", _RW_FIELDS, _reduced_walk_point,

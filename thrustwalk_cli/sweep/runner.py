@@ -118,20 +118,23 @@ def run_chunk(fn: Callable[[PointTask], dict], tasks: Sequence[PointTask]) -> li
 
 def run_tasks(tasks: Sequence[PointTask], fn: Callable[[PointTask], dict], executor,
               finished: dict[str, dict], on_record: Callable[[dict], None],
-              attempts: int = ATTEMPTS, chunk: int | Mapping[str, int] = 1) -> RunCounts:
+              attempts: int = ATTEMPTS, chunk: int | Mapping[str, int] = 1,
+              many: Callable[[Sequence[PointTask]], list[dict]] | None = None) -> RunCounts:
     """Run the ``tasks`` without a record in ``finished`` (key -> record) on ``executor``;
     ``on_record(record)`` for each new record as soon as it arrives (``finished`` is updated).
     A task with ``after`` waits for that point's record and gets its ``next_start``. ``chunk``:
     points per task, for every study or by study name (a study not named: 1); up to that many
     consecutive points to run (in ``tasks`` order, of one study, without ``after``) share a
-    task (module docstring). The records are the same as with ``chunk`` 1."""
+    task (module docstring). The records are the same as with ``chunk`` 1. ``many``: the task
+    of a chunk, its points' records in order, the same as ``fn``'s one by one (default
+    :func:`run_chunk` of ``fn``; e.g. one that batches part of the points' work)."""
     t0 = time.perf_counter()
     counts = RunCounts(skipped=sum(t.key in finished for t in tasks))
     todo = [t for t in tasks if t.key not in finished]
     waiting: dict[str, list[PointTask]] = {}
     inflight: dict = {}
     tries: dict[str, int] = {}
-    many = partial(run_chunk, fn)
+    many = many or partial(run_chunk, fn)
 
     def submit(group: tuple[PointTask, ...]) -> None:
         if len(group) == 1:
