@@ -19,10 +19,12 @@ test's child, so their CPU time is counted as the test's.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 
@@ -73,22 +75,18 @@ class Zygote:
             self._proc.wait()
 
 
-def _child(req: dict) -> None:
-    """In the forked process: the run's files, directory, environment and command line; then
-    the command as ``python -m thrustwalk_cli`` runs it. Never returns."""
+def _command(argv: list[str], env: dict[str, str], cwd: str, prelude: str = "") -> int:
+    """In the forked process (standard streams in place): the run's directory, environment
+    and command line; then the command as ``python -m thrustwalk_cli`` runs it. Its exit
+    code."""
     code = 1
     try:
-        for fd, path in ((1, req["stdout"]), (2, req["stderr"])):
-            f = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-            os.dup2(f, fd)
-            os.close(f)
-        os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
-        os.chdir(req["cwd"])
+        os.chdir(cwd)
         os.environ.clear()
-        os.environ.update(req["env"])
-        sys.argv = ["thrustwalk", *req["argv"]]
-        if req["prelude"]:
-            exec(compile(req["prelude"], "<prelude>", "exec"), {"__name__": "__prelude__"})
+        os.environ.update(env)
+        sys.argv = ["thrustwalk", *argv]
+        if prelude:
+            exec(compile(prelude, "<prelude>", "exec"), {"__name__": "__prelude__"})
         import runpy
 
         try:
@@ -103,12 +101,27 @@ def _child(req: dict) -> None:
 
         traceback.print_exc()
         code = 1
+    try:
+        sys.stdout.flush()
+        sys.stderr.flush()
+    except BaseException:  # pragma: no cover
+        pass
+    return code
+
+
+def _child(req: dict) -> None:
+    """In the forked process: standard output and error to the run's files, then the
+    command. Never returns."""
+    code = 1
+    try:
+        for fd, path in ((1, req["stdout"]), (2, req["stderr"])):
+            f = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+            os.dup2(f, fd)
+            os.close(f)
+        os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
+        code = _command(req["argv"], req["env"], req["cwd"], req["prelude"])
     finally:
-        try:
-            sys.stdout.flush()
-            sys.stderr.flush()
-        finally:
-            os._exit(code)
+        os._exit(code)
 
 
 def _serve(modules: list[str]) -> None:
@@ -134,5 +147,105 @@ def _serve(modules: list[str]) -> None:
         sys.stdout.flush()
 
 
+# ---------------------------------------------------------- for programs that run commands
+@contextlib.contextmanager
+def command_server(modules: list[str]) -> Iterator[str]:
+    """A forking process serving a command line: yields ``TW``, a command that runs as
+    ``python -m thrustwalk_cli`` would (``TW ARGS...``: the same arguments, standard streams,
+    working directory, environment and exit code) in a process forked from it, for a program
+    that starts commands itself (``make``; several at once). Each server is a process of its
+    own, with its own hash seed and address layout: two servers differ as two fresh
+    interpreters do."""
+    import shlex
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(prefix="tw-fork-"))  # short: a socket's path is <= 107
+    sock = folder / "s"
+    proc = subprocess.Popen([sys.executable, __file__, "--serve", str(sock), *modules],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        if proc.stdout.readline().strip() != "ready":
+            raise RuntimeError(f"the command server did not start (exit {proc.wait()})")
+        yield shlex.join([sys.executable, __file__, "--client", str(sock)])
+    finally:
+        proc.stdin.close()  # the server waits for its runs, then ends
+        try:
+            proc.wait(timeout=120)
+        except subprocess.TimeoutExpired:  # pragma: no cover
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
+        sock.unlink(missing_ok=True)
+        folder.rmdir()
+
+
+def _serve_socket(path: str, modules: list[str]) -> None:
+    """The command server: forks a run for each client (its standard streams passed over
+    the socket), which sends its exit code back; reaps its runs; ends when its standard input
+    closes, once its runs have ended."""
+    import importlib
+    import select
+    import socket
+
+    for name in modules:
+        importlib.import_module(name)
+    srv = socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    srv.bind(path)
+    srv.listen(16)
+    sys.stdout.write("ready\n")
+    sys.stdout.flush()
+    runs: set[int] = set()
+    while True:
+        ready, _, _ = select.select([srv, sys.stdin], [], [], 0.2)
+        while runs:
+            pid, _ = os.waitpid(-1, os.WNOHANG)
+            if not pid:
+                break
+            runs.discard(pid)
+        if sys.stdin in ready and not sys.stdin.readline():
+            break
+        if srv not in ready:
+            continue
+        conn, _ = srv.accept()
+        msg, fds, _, _ = socket.recv_fds(conn, 1 << 20, 3)
+        req = json.loads(msg)
+        pid = os.fork()
+        if pid == 0:
+            code = 1
+            try:
+                srv.close()
+                for fd, target in zip(fds, (0, 1, 2)):
+                    os.dup2(fd, target)
+                code = _command(req["argv"], req["env"], req["cwd"])
+                conn.send(str(code).encode())
+            finally:
+                os._exit(code)
+        runs.add(pid)
+        conn.close()
+        for fd in fds:
+            os.close(fd)
+    srv.close()
+    for pid in runs:
+        os.waitpid(pid, 0)
+
+
+def _client(path: str, argv: list[str]) -> int:
+    """``TW ARGS...``: the run's arguments, directory, environment and standard streams to
+    the server; its exit code (1 if the run ended without one)."""
+    import socket
+
+    with socket.socket(socket.AF_UNIX, socket.SOCK_SEQPACKET) as sock:
+        sock.connect(path)
+        req = {"argv": argv, "env": dict(os.environ), "cwd": os.getcwd()}
+        socket.send_fds(sock, [json.dumps(req).encode()], [0, 1, 2])
+        answer = sock.recv(64)
+    return int(answer) if answer else 1
+
+
 if __name__ == "__main__":
-    _serve(sys.argv[1:])
+    if sys.argv[1:2] == ["--serve"]:
+        _serve_socket(sys.argv[2], sys.argv[3:])
+    elif sys.argv[1:2] == ["--client"]:
+        sys.exit(_client(sys.argv[2], sys.argv[3:]))
+    else:
+        _serve(sys.argv[1:])
