@@ -21,7 +21,10 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 GOLDEN = REPO / "tests" / "golden"
 
-# (name, command line without --out, the JSON file the command writes)
+# (name, command line without --out, the JSON file the command writes). `--formats` asks for
+# the files a document names (its CSV tables; robustness and sweep also list their figures, so
+# they draw PNGs) and no other figure: a document is the same with or without the figures
+# (the golden documents were made with every format), and drawing them cost half the time
 CASES: list[tuple[str, list[str], str]] = []
 # cases compared loosely unless bit for bit is asked for: name -> (rtol, keys left out)
 LOOSE: dict[str, tuple[float, frozenset[str]]] = {}
@@ -34,28 +37,32 @@ def _add(name: str, args: list[str], doc: str) -> None:
 for _robot, _gait, _thr in (("three_link", "three_link_walk", "hip_x"),
                             ("rabbit", "rabbit_walk", "torso_x")):
     _r = _robot.split("_")[0]
-    _add(f"limit_cycle_{_r}", ["limit-cycle", _robot, _gait, "--thrust", "0:-50:-10"],
+    _add(f"limit_cycle_{_r}", ["limit-cycle", _robot, _gait, "--thrust", "0:-50:-10",
+                               "--formats", "csv"],
          "limit_cycles.json")
     _add(f"shape_{_r}", ["shape", _robot, _gait, "--pattern", "k*(j-2)", "--k", "0:50:25",
-                         "--field-k", "30"], "shape.json")
+                         "--field-k", "30", "--formats", "csv"], "shape.json")
     _add(f"feasibility_{_r}", ["feasibility", _robot, _gait, "--thrust", "0:-40:-20",
-                               "--mu", "0.7"], "feasibility.json")
+                               "--mu", "0.7", "--formats", "none"], "feasibility.json")
     _add(f"optimize_{_r}", ["optimize", _robot, _gait, "--knots", "0:1:0.25",
                             "--target-speed", "0.9" if _r == "three" else "0.6",
                             "--max-thrust", "40"], "optimal_schedule.json")
     _add(f"simulate_{_r}", ["simulate", _robot, _gait, "--steps", "4", "--thrust-model",
                             "second-order", "--thrust", "0,-20", "--wn", "2", "--xi", "1",
-                            "--samples", "20"], "simulation.json")
+                            "--samples", "20", "--formats", "csv"], "simulation.json")
     _add(f"control_{_r}", ["control", _robot, _gait, "--reference", "speed", "--profile",
                            "0:0.8,4:1.0" if _r == "three" else "0:0.53,4:0.6",
-                           "--knots", "0,0.5,1", "--steps", "8", "--push", "6:0.5:-10"],
+                           "--knots", "0,0.5,1", "--steps", "8", "--push", "6:0.5:-10",
+                           "--formats", "csv"],
          "control.json")
     _add(f"stability_{_r}", ["stability", _robot, _gait, "--thrust-model", "second-order",
-                             "--wn", "2", "--xi", "0.7", "--thrust", "-10"], "stability.json")
+                             "--wn", "2", "--xi", "0.7", "--thrust", "-10", "--formats", "csv"],
+         "stability.json")
     _add(f"robustness_{_r}", ["robustness", _robot, _gait, "--push-impulse", "-20:20:20",
                               "--push-phase", "0.2:0.8:0.3", "--strategy",
                               "none,constant:-10,control", "--steps", "4",
-                              "--basin-sigma", "-0.5:0.5", "--workers", "1"],
+                              "--basin-sigma", "-0.5:0.5", "--workers", "1",
+                              "--formats", "csv,png"],
          "robustness.json")
 # an optimiser's end point: reproducible bit for bit on one machine, to about 1e-5 where the
 # BLAS (thread count, CPU kernels) sums in another order (SLSQP follows its rounding); the
@@ -70,7 +77,8 @@ _add("design_gait_rabbit", ["design-gait", "rabbit", "--target-speed", "0.53", "
 for _name in ("design_gait_three", "design_gait_rabbit"):
     LOOSE[_name] = (1e-3, frozenset({"evaluations", "iterations", "optimality", "starts",
                                      "warnings", "status", "solver_value", "reason"}))
-_add("sweep_thrust_torso_mass", ["sweep", "sweeps/thrust_torso_mass.yaml", "--workers", "1"],
+_add("sweep_thrust_torso_mass", ["sweep", "sweeps/thrust_torso_mass.yaml", "--workers", "1",
+                                 "--formats", "csv,png"],
      "sweep.json")
 
 # keys whose values are not results: wall-clock times and where things ran

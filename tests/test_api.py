@@ -59,7 +59,7 @@ def _without_provenance(doc: dict) -> dict:
 @pytest.mark.slow
 def test_python_result_is_the_document_the_command_writes(walker3, tmp_path, cli, command,
                                                           study, json_name):
-    res = cli(*command, "--out", tmp_path, "-q")
+    res = cli(*command, "--out", tmp_path, "--formats", "none", "-q")  # the JSON alone
     assert res.exit_code == 0, res.output
     written = json.loads((tmp_path / json_name).read_text())
     from thrustwalk_cli.files.output import jsonable

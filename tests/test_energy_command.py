@@ -58,7 +58,8 @@ def test_cot_is_the_limit_cycle_energy_over_mgd_and_the_orbit_balances(cli, tmp_
     thrust = "0,-20,-40"
     r = cli("energy", robot, str(W5T), "--thrust", thrust, "--out", "e", "-q")
     assert r.exit_code == 0, r.output
-    r = cli("limit-cycle", robot, str(W5T), "--thrust", thrust, "--out", "lc", "-q")
+    r = cli("limit-cycle", robot, str(W5T), "--thrust", thrust, "--formats", "csv", "--out",
+            "lc", "-q")
     assert r.exit_code == 0, r.output
     doc = json.loads(Path("e/energy.json").read_text())
     lc = json.loads(Path("lc/limit_cycles.json").read_text())
@@ -161,7 +162,7 @@ def test_the_cheapest_strategy_is_the_least_of_the_two_interpolated_curves(cli, 
     least of the two curves interpolated here from energy.csv and library_energy.csv."""
     monkeypatch.chdir(tmp_path)
     Path("lib.yaml").write_text(textwrap.dedent(LIBRARY))
-    r = cli("sweep", "lib.yaml", "--out", "lib", "--workers", "1", "-q")
+    r = cli("sweep", "lib.yaml", "--out", "lib", "--workers", "1", "--formats", "csv", "-q")
     assert r.exit_code == 0, r.output
     r = cli("energy", "three_link", "three_link_walk", "--thrust", "6:-8:-1", "--library", "lib",
             "--out", "e")
@@ -273,12 +274,13 @@ def test_design_gait_reports_the_designed_gaits_cot(cli, tmp_path, monkeypatch):
     computes it on that gait file at the design's thrust (an independent path)."""
     monkeypatch.chdir(tmp_path)
     r = cli("design-gait", "three_link", "--target-speed", "0.8", "--clearance", "0",
-            "--starts", "1", "--max-iter", "80", "--out", "g", "--name", "w")
+            "--starts", "1", "--max-iter", "80", "--formats", "none", "--out", "g", "--name", "w")
     assert r.exit_code == 0, r.output
     rep = json.loads(Path("g/w.report.json").read_text())
     en = rep["energy"]
     assert en["exists"] and en["thrust"] == [0.0, 0.0] and not en["missing"]
-    r2 = cli("limit-cycle", "three_link", "g/w.yaml", "--thrust", "0", "--out", "lc", "-q")
+    r2 = cli("limit-cycle", "three_link", "g/w.yaml", "--thrust", "0", "--formats", "csv",
+             "--out", "lc", "-q")
     assert r2.exit_code == 0, r2.output
     lc = json.loads(Path("lc/limit_cycles.json").read_text())["cycles"][0]
     e = lc["energy"]["per_step"]

@@ -171,7 +171,7 @@ def test_cli_walker5_reported_energy_is_the_written_gaits(cli, tmp_path, monkeyp
     monkeypatch.chdir(tmp_path)
     robot = _walker5_with(tmp_path, MOMENTUM).name
     r = cli("optimize", robot, str(W5T), "--target-zeta", "400", "--objective", "energy",
-            "--out", "o")
+            "--formats", "none", "--out", "o")
     assert r.exit_code == 0, r.output
     doc = json.loads(Path("o/optimal_schedule.json").read_text())
     det = doc["objective_details"]
@@ -198,7 +198,7 @@ def test_cli_three_link_bundled_rotor_target_zeta(cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     r = cli("optimize", "three_link", "three_link_walk", "--knots", "0,0.5,1",
             "--target-zeta", "924.5084746351356", "--max-thrust", "30", "--mu", "0.7",
-            "--objective", "energy", "--out", "o", "-q")
+            "--objective", "energy", "--formats", "none", "--out", "o", "-q")
     assert r.exit_code == 0, r.output
     doc = json.loads(Path("o/optimal_schedule.json").read_text())
     assert doc["status"] == "optimal", doc["reason"]

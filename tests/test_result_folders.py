@@ -42,12 +42,13 @@ def _leftovers(parent: Path, name: str) -> list[str]:
     return sorted(p.name for p in parent.iterdir() if p.name.startswith(f".{name}."))
 
 
-# A child that runs the command and kills itself (SIGKILL: no cleanup at all) at the K-th call
-# of one function of the writer: each file write, the manifest, either rename of the swap.
+# A hook run in the child before the command (tests/preforked.py: a process of its own, forked
+# with the package imported) that kills it (SIGKILL: no cleanup at all) at the K-th call of one
+# function of the writer: each file write, the manifest, either rename of the swap.
 KILLER = textwrap.dedent("""
-    import os, signal, sys
+    import os, signal
     from thrustwalk_cli.files import output
-    what, k = sys.argv[1], int(sys.argv[2])
+    what, k = {what!r}, {k!r}
     calls = [0]
     def hit():
         calls[0] += 1
@@ -65,22 +66,30 @@ KILLER = textwrap.dedent("""
             hit()
             return orig(*a, **kw)
         setattr(output, what, wrapped)
-    sys.argv = ["thrustwalk", *sys.argv[3:]]
-    from thrustwalk_cli.cli import main
-    main()
 """)
 
 
-def _run(args, env=None, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "thrustwalk_cli", *map(str, args)],
-                          capture_output=True, text=True, timeout=300, env=env, **kw)
+@pytest.fixture(scope="module")
+def forked(_cache_dir):
+    """Runs of the command in processes of their own, forked from one that imported the
+    package, matplotlib, scipy and numba once (tests/preforked.py): the runs killed at a
+    writer's call and the runs after them skip 2 s of imports each."""
+    from preforked import Zygote
+
+    zygote = Zygote(["thrustwalk_cli.cli", "thrustwalk_cli.commands.limit_cycle",
+                     "thrustwalk_cli.studies.limit_cycle", "thrustwalk_cli.plots.limit_cycle",
+                     "thrustwalk_cli.files.output", "matplotlib.backends.backend_agg",
+                     "matplotlib.backends.backend_pdf", "scipy.integrate", "scipy.optimize",
+                     "numba"])
+    yield zygote
+    zygote.close()
 
 
 @pytest.fixture(scope="module")
-def previous(tmp_path_factory, _cache_dir):
-    """A complete previous run (thrust 0 and -10 N) to be replaced; and the env to use."""
+def previous(tmp_path_factory, forked):
+    """A complete previous run (thrust 0 and -10 N) to be replaced."""
     base = tmp_path_factory.mktemp("previous")
-    res = _run([*ARGS, "--thrust", "0,-10", "--out", base / "run"])
+    res = forked.run([*ARGS, "--thrust", "0,-10", "--out", base / "run"], folder=base / "io")
     assert res.returncode == 0, res.stderr
     return base / "run"
 
@@ -93,13 +102,12 @@ KILL_POINTS = [("write_bytes_atomic", k) for k in (1, 2, 3, 4, 6)] + \
 
 @pytest.mark.parametrize("what, k", KILL_POINTS, ids=[f"{w}-{k}" for w, k in KILL_POINTS])
 @pytest.mark.slow
-def test_killed_while_writing_leaves_one_whole_run(what, k, tmp_path, previous):
+def test_killed_while_writing_leaves_one_whole_run(what, k, tmp_path, previous, forked):
     out = tmp_path / "run"
     os.system(f"cp -a '{previous}' '{out}'")
     old = _complete(out)
-    child = subprocess.run([sys.executable, "-c", KILLER, what, str(k), *ARGS,
-                            "--thrust", "-20,-30,-40", "--out", str(out)],
-                           capture_output=True, text=True, timeout=300)
+    child = forked.run([*ARGS, "--thrust", "-20,-30,-40", "--out", out],
+                       prelude=KILLER.format(what=what, k=k), folder=tmp_path / "io")
     killed = child.returncode == -signal.SIGKILL
     if out.exists():  # the previous run or the new one, whole: never a mix
         _complete(out)
@@ -112,7 +120,7 @@ def test_killed_while_writing_leaves_one_whole_run(what, k, tmp_path, previous):
     # the next run tidies up: the target is whole and no temporary of the dead run is left
     # (a real next run at the swap and at the first write; the tidying step alone elsewhere)
     if what == "rename" or (what, k) == ("write_bytes_atomic", 1):
-        res = _run([*ARGS, "--thrust", "0", "--out", out])
+        res = forked.run([*ARGS, "--thrust", "0", "--out", out], folder=tmp_path / "io2")
         assert res.returncode == 0, res.stderr
         assert _thrust_of(out) == [0.0]
     else:
@@ -123,15 +131,14 @@ def test_killed_while_writing_leaves_one_whole_run(what, k, tmp_path, previous):
 
 
 @pytest.mark.slow
-def test_a_killed_swap_is_restored_before_anything_else(tmp_path, previous):
+def test_a_killed_swap_is_restored_before_anything_else(tmp_path, previous, forked):
     """Killed between moving the previous folder aside and moving the new one in: the next
     run's first step (``clean_stale``) puts the newest whole run back (here the new one, whose
     manifest exists) before anything else."""
     out = tmp_path / "run"
     os.system(f"cp -a '{previous}' '{out}'")
-    child = subprocess.run([sys.executable, "-c", KILLER, "rename", "2", *ARGS,
-                            "--thrust", "-20,-30", "--out", str(out)],
-                           capture_output=True, text=True, timeout=300)
+    child = forked.run([*ARGS, "--thrust", "-20,-30", "--out", out],
+                       prelude=KILLER.format(what="rename", k=2), folder=tmp_path / "io")
     assert child.returncode == -signal.SIGKILL and not out.exists()
     output.clean_stale(out)
     _complete(out)

@@ -146,7 +146,8 @@ def test_robot_without_thrusters_through_every_analysis(tmp_path, walk3, cli):
     """compile, inspect, limit-cycle, feasibility, shape (generalised mode), optimize
     (generalised mode) and simulate run on a robot with `thrusters: []`; thrust options refer
     to no thruster and default to 0. Thrusters do not enter D, C, G or the impact, so every
-    zero-thrust number equals the bundled 3-link robot's (an independent reference)."""
+    zero-thrust number equals the bundled 3-link robot's (an independent reference). Each
+    command draws its figures once (as PNG: the PDF of a figure is the same figure)."""
     model3, _, zd3 = walk3
     ref = limit_cycles(zd3, Schedule.constant(zd3, np.zeros((1, model3.n_thrusters))))[0]
     res = cli("compile", BARE)
@@ -154,7 +155,7 @@ def test_robot_without_thrusters_through_every_analysis(tmp_path, walk3, cli):
     res = cli("inspect", BARE, "--q", "0.1,0.2,0.1", "--json", tmp_path / "state.json")
     assert res.exit_code == 0, res.output
     assert _json(tmp_path / "state.json")["B_F"] == [[], [], []]
-    for args in ([], ["--thrust", "0"]):
+    for args in (["--formats", "csv,png"], ["--thrust", "0", "--formats", "csv"]):
         res = cli("limit-cycle", BARE, BARE_WALK, *args, "-q", "--out", tmp_path / "lc")
         assert res.exit_code == 0, res.output
         doc = _json(tmp_path / "lc" / "limit_cycles.json")
@@ -163,20 +164,21 @@ def test_robot_without_thrusters_through_every_analysis(tmp_path, walk3, cli):
         assert c["thrust"] == 0.0 and c["stable"]
         assert c["zeta_star"] == pytest.approx(ref.zeta_star, rel=1e-12)
         assert c["touchdown_velocity"] == pytest.approx(ref.touchdown_velocity, rel=1e-12)
-    res = cli("feasibility", BARE, BARE_WALK, "-q", "--out", tmp_path / "fe")
+    res = cli("feasibility", BARE, BARE_WALK, "-q", "--formats", "png", "--out", tmp_path / "fe")
     assert res.exit_code == 0, res.output
     doc = _json(tmp_path / "fe" / "feasibility.json")
     assert doc["verdict"] == "feasible" and [c["thrust"] for c in doc["cases"]] == [0.0]
     assert (tmp_path / "fe" / "feasible_region.png").stat().st_size > 0
-    res = cli("shape", BARE, BARE_WALK, "--k", "0:10:5", "-q", "--out", tmp_path / "sh")
+    res = cli("shape", BARE, BARE_WALK, "--k", "0:10:5", "-q", "--formats", "csv,png", "--out",
+              tmp_path / "sh")
     assert res.exit_code == 0, res.output
     assert _json(tmp_path / "sh" / "shape.json")["mode"] == "generalized"
     res = cli("optimize", BARE, BARE_WALK, "--mode", "generalized", "--max-thrust", "20",
-              "--target-speed", "0.9", "-q", "--out", tmp_path / "op")
+              "--target-speed", "0.9", "-q", "--formats", "png", "--out", tmp_path / "op")
     assert res.exit_code == 0, res.output
     assert _json(tmp_path / "op" / "optimal_schedule.json")["feasible"]
     res = cli("simulate", BARE, BARE_WALK, "--steps", "2", "--samples", "10", "-q",
-              "--out", tmp_path / "sim")
+              "--formats", "csv,png", "--out", tmp_path / "sim")
     assert res.exit_code == 0, res.output
     doc = _json(tmp_path / "sim" / "simulation.json")
     (run,) = doc["runs"]

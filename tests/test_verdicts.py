@@ -83,7 +83,7 @@ def test_corpus_of_user_mistakes_first_lines(tmp_path, cli):
          "(got '0:-50:10'; use e.g. 0:-50:-10 or 0,-10)"),
     ]
     for args, code, first in cases:
-        res = cli(*args, "--out", tmp_path / "out", "-q")
+        res = cli(*args, "--out", tmp_path / "out", "--formats", "csv", "-q")
         assert res.exit_code == code, (args, res.output)
         assert res.stderr.splitlines()[0] == first, (args, res.stderr)
         assert "Traceback" not in res.output
@@ -107,13 +107,14 @@ def test_degrees_below_the_ground_point_at_the_coefficient(tmp_path):
 def test_not_invariant_gait_has_no_walking_orbit_anywhere(tmp_path, cli):
     ni = _write(tmp_path, "not_invariant", NOT_INVARIANT)
     res = cli("limit-cycle", "three_link", ni, "--thrust", "0,-10", "--out", tmp_path / "lc",
-              "-q")
+              "--formats", "csv", "-q")
     assert res.exit_code == 0
     doc = json.loads((tmp_path / "lc" / "limit_cycles.json").read_text())
     assert not doc["success"] and doc["zero_dynamics"]["hybrid_invariant"] is False
     for c in doc["cycles"]:
         assert not c["exists"] and not c["walkable"] and "invariance: auto" in c["reason"]
-    res = cli("feasibility", "three_link", ni, "--thrust", "0", "--out", tmp_path / "fe", "-q")
+    res = cli("feasibility", "three_link", ni, "--thrust", "0", "--out", tmp_path / "fe",
+              "--formats", "none", "-q")
     fe = json.loads((tmp_path / "fe" / "feasibility.json").read_text())
     assert fe["verdict"] == "infeasible" and "hybrid-invariant" in fe["cases"][0]["reason"]
 
@@ -121,13 +122,15 @@ def test_not_invariant_gait_has_no_walking_orbit_anywhere(tmp_path, cli):
 @pytest.mark.slow
 def test_scuffing_is_part_of_every_verdict(tmp_path, cli):
     sc = _write(tmp_path, "scuffing", SCUFFING)
-    cli("limit-cycle", "three_link", sc, "--thrust", "0", "--out", tmp_path / "lc", "-q")
+    cli("limit-cycle", "three_link", sc, "--thrust", "0", "--out", tmp_path / "lc",
+        "--formats", "csv", "-q")
     lc = json.loads((tmp_path / "lc" / "limit_cycles.json").read_text())
     c = lc["cycles"][0]
     assert c["exists"] and c["stable"] and not c["walkable"]
     assert c["verdict"].startswith("not walkable: the swing foot goes 1.494 mm below")
     assert lc["swing_foot"]["scuffs"] and lc["swing_foot"]["deepest"] < -1e-3
-    cli("feasibility", "three_link", sc, "--thrust", "0", "--out", tmp_path / "fe", "-q")
+    cli("feasibility", "three_link", sc, "--thrust", "0", "--out", tmp_path / "fe",
+        "--formats", "md", "-q")
     fe = json.loads((tmp_path / "fe" / "feasibility.json").read_text())
     assert not fe["cases"][0]["feasible"] and "scuffing" in fe["cases"][0]["reason"]
     md = (tmp_path / "fe" / "feasibility.md").read_text()
@@ -145,7 +148,7 @@ def test_walkable_means_contact_feasible_on_a_users_robot(tmp_path, cli, monkeyp
     lifted from -6 N. Now the two commands give the same verdict case by case, and the
     limit-cycle numbers are the feasibility command's."""
     monkeypatch.chdir(tmp_path)
-    args = [WALKER5, WALKER5_WALK, "--thrust", "0:-12:-2"]
+    args = [WALKER5, WALKER5_WALK, "--thrust", "0:-12:-2", "--formats", "none"]
     assert cli("limit-cycle", *args, "--out", "lc", "-q").exit_code == 0
     assert cli("feasibility", *args, "--out", "fe", "-q").exit_code == 0
     lc = json.loads((tmp_path / "lc" / "limit_cycles.json").read_text())
@@ -192,7 +195,7 @@ def test_walkable_in_a_limit_cycle_sweep_is_the_feasibility_verdict(tmp_path, cl
 @pytest.mark.slow
 def test_simulate_never_plain_ok_when_the_cone_is_left(tmp_path, cli):
     res = cli("simulate", "--steps", "2", "--thrust", "0", "--thrust-model", "constant",
-              "--mu", "0.3", "--samples", "10", "--out", tmp_path, "-q")
+              "--mu", "0.3", "--samples", "10", "--formats", "csv", "--out", tmp_path, "-q")
     assert res.exit_code == 0, res.output
     doc = json.loads((tmp_path / "simulation.json").read_text())
     run = doc["runs"][0]
@@ -200,7 +203,7 @@ def test_simulate_never_plain_ok_when_the_cone_is_left(tmp_path, cli):
     assert "warning: run 0 (F_ss = 0.0): warning: " in res.stderr
     assert "(slips at steps 1-2" in res.stderr
     res = cli("simulate", "--steps", "2", "--thrust", "0", "--thrust-model", "constant",
-              "--samples", "10", "--out", tmp_path / "b", "-q")
+              "--samples", "10", "--formats", "csv", "--out", tmp_path / "b", "-q")
     assert json.loads((tmp_path / "b" / "simulation.json").read_text())["runs"][0][
         "status"] == "ok"
 
@@ -218,7 +221,7 @@ def test_animate_with_nothing_to_animate_writes_results_and_says_so(tmp_path, cl
 @pytest.mark.slow
 def test_gait_thrust_is_the_default_everywhere(tmp_path, cli, walker3):
     g = _write(tmp_path, "thrusted", THRUSTED)
-    res = cli("limit-cycle", "three_link", g, "--out", tmp_path / "lc")
+    res = cli("limit-cycle", "three_link", g, "--formats", "csv", "--out", tmp_path / "lc")
     assert "the gait's own thrust: schedule is analysed" in res.stderr
     lc = json.loads((tmp_path / "lc" / "limit_cycles.json").read_text())
     assert lc["source"] == "gait" and lc["thruster"] == "hip_x"
@@ -227,16 +230,17 @@ def test_gait_thrust_is_the_default_everywhere(tmp_path, cli, walker3):
 
     ref = limit_cycle(walker3, [-12.5]).cycles[0]  # the same thrust, given explicitly
     assert lc["cycles"][0]["zeta_star"] == pytest.approx(ref.zeta_star, rel=1e-12)
-    cli("feasibility", "three_link", g, "--out", tmp_path / "fe", "-q")
+    cli("feasibility", "three_link", g, "--formats", "none", "--out", tmp_path / "fe", "-q")
     fe = json.loads((tmp_path / "fe" / "feasibility.json").read_text())
     assert fe["mode"] == "schedule" and fe["cases"][0]["thrust"]["values"] == {"hip_x": [-12.5]}
     assert fe["cases"][0]["zeta_star"] == pytest.approx(ref.zeta_star, rel=1e-12)
-    res = cli("simulate", "three_link", g, "--steps", "2", "--samples", "10", "--out",
-              tmp_path / "si", "-q")
+    res = cli("simulate", "three_link", g, "--steps", "2", "--samples", "10", "--formats",
+              "csv", "--out", tmp_path / "si", "-q")
     si = json.loads((tmp_path / "si" / "simulation.json").read_text())
     assert si["settings"]["thrust_model"] == "piecewise"
     assert si["steps"][0]["zeta_minus"] == pytest.approx(ref.zeta_star, rel=1e-7)
-    cli("shape", "three_link", g, "--k", "0,10", "--out", tmp_path / "sh", "-q")
+    cli("shape", "three_link", g, "--k", "0,10", "--formats", "csv", "--out", tmp_path / "sh",
+        "-q")
     sh = json.loads((tmp_path / "sh" / "shape.json").read_text())
     assert sh["base_thrust"]["force"]["hip_x"] == -12.5
     assert sh["nominal"]["zeta_star"] == pytest.approx(ref.zeta_star, rel=1e-9)
@@ -247,7 +251,8 @@ def test_gait_thrust_is_the_default_everywhere(tmp_path, cli, walker3):
 
 @pytest.mark.slow
 def test_robot_alone_picks_its_bundled_gait(tmp_path, cli):
-    res = cli("limit-cycle", "rabbit", "--thrust", "0", "--out", tmp_path, "-q")
+    res = cli("limit-cycle", "rabbit", "--thrust", "0", "--formats", "csv", "--out", tmp_path,
+              "-q")
     assert res.exit_code == 0, res.output
     assert json.loads((tmp_path / "limit_cycles.json").read_text())["gait"]["name"] == \
         "rabbit_walk"
@@ -256,7 +261,8 @@ def test_robot_alone_picks_its_bundled_gait(tmp_path, cli):
 # --------------------------------------------------------------------------- outputs that fit
 @pytest.fixture(scope="module")
 def outputs(tmp_path_factory, cli):
-    """One run of every command that writes files, into one folder per command."""
+    """One run of every command that writes files, into one folder per command (its JSON
+    and CSV files: the tests of this module read no figure)."""
     root = tmp_path_factory.mktemp("outputs")
     runs = {
         "limit_cycle": ["limit-cycle", "--thrust", "0,-20,40"],
@@ -266,7 +272,8 @@ def outputs(tmp_path_factory, cli):
         "simulate": ["simulate", "--steps", "2", "--thrust", "0,-10", "--samples", "20"],
     }
     for name, args in runs.items():
-        res = cli(*args, "--out", root / name, "-q")
+        res = cli(*args, "--out", root / name, "--formats",
+                  "none" if name in ("feasibility", "optimize") else "csv", "-q")
         assert res.exit_code == 0, (name, res.output)
     res = cli("inspect", "three_link", "--q", "0.1,0.2,-0.3", "--dq", "0,1,-1", "--json",
               root / "inspect.json", "-q")
@@ -315,7 +322,8 @@ def test_every_json_has_units_and_a_schema_version(outputs):
 
 @pytest.mark.slow
 def test_json_to_stdout_is_the_document(tmp_path, cli):
-    res = cli("limit-cycle", "--thrust", "0", "--out", tmp_path, "--json", "-")
+    res = cli("limit-cycle", "--thrust", "0", "--formats", "csv", "--out", tmp_path, "--json",
+              "-")
     assert res.exit_code == 0
     piped = json.loads(res.stdout)
     written = json.loads((tmp_path / "limit_cycles.json").read_text())
@@ -347,7 +355,8 @@ def test_max_output_refuses_huge_sweeps_before_any_work(tmp_path, cli):
 def test_tables_never_split_a_number(tmp_path, cli, monkeypatch):
     """At a narrow terminal every number of the table is still whole on its line."""
     monkeypatch.setenv("COLUMNS", "50")
-    res = cli("limit-cycle", "--thrust", "0,-12.345678,40", "--out", tmp_path)
+    res = cli("limit-cycle", "--thrust", "0,-12.345678,40", "--formats", "csv", "--out",
+              tmp_path)
     assert res.exit_code == 0
     doc = json.loads((tmp_path / "limit_cycles.json").read_text())
     from thrustwalk_cli.studies.documents import fmt
@@ -361,7 +370,8 @@ def test_tables_never_split_a_number(tmp_path, cli, monkeypatch):
 
 @pytest.mark.slow
 def test_progress_lines_when_standard_error_is_not_a_terminal(tmp_path, cli):
-    res = cli("simulate", "--steps", "2", "--thrust", "0", "--samples", "10", "--out", tmp_path)
+    res = cli("simulate", "--steps", "2", "--thrust", "0", "--samples", "10", "--formats", "csv",
+              "--out", tmp_path)
     lines = [ln for ln in res.stderr.splitlines() if ln.startswith("simulating steps:")]
     assert [ln.split(" (")[0] for ln in lines] == ["simulating steps: 1/2",
                                                     "simulating steps: 2/2"]
@@ -406,7 +416,7 @@ def test_shape_is_not_a_success_when_a_shaped_schedule_has_no_orbit(tmp_path, cl
     """k = -500 N m (generalized) stops the walker before the end of the step: the study says
     so in the JSON (success false, the reason naming the schedule) and on standard error, and
     still writes the orbits it has."""
-    res = cli("shape", "--k", "0,-500", "--out", tmp_path, "-q")
+    res = cli("shape", "--k", "0,-500", "--formats", "csv", "--out", tmp_path, "-q")
     assert res.exit_code == 0, res.output
     doc = json.loads((tmp_path / "shape.json").read_text())
     assert doc["success"] is False
@@ -414,7 +424,7 @@ def test_shape_is_not_a_success_when_a_shaped_schedule_has_no_orbit(tmp_path, cl
     assert "walker stops" in doc["reason"]
     assert "warning: no stable shaped orbit for 1 of 2" in res.stderr
     assert (tmp_path / "shape.csv").exists()
-    ok = cli("shape", "--k", "0,10", "--out", tmp_path / "ok", "-q")
+    ok = cli("shape", "--k", "0,10", "--formats", "csv", "--out", tmp_path / "ok", "-q")
     assert json.loads((tmp_path / "ok" / "shape.json").read_text())["success"] is True, ok.output
 
 
