@@ -370,7 +370,11 @@ def test_the_corpus_is_large_enough():
     assert len(CASES) >= 150, len(CASES)
 
 
-@pytest.mark.parametrize("name", sorted(CASES))
+SLOW_CASES = {"robot-alias-bomb"}  # seconds each (the others: milliseconds)
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_CASES
+                                  else n for n in sorted(CASES)])
 def test_bad_input(name, tmp_path, cli):
     check_case(name, CASES[name], tmp_path, cli)
 
@@ -527,8 +531,10 @@ def _run_limited(args, tmp_path, timeout: float = 60):
                           preexec_fn=limit, env=dict(os.environ, MPLBACKEND="Agg"))
 
 
-@pytest.mark.parametrize("what", ["sweep-dev-zero", "sweep-fifo", "uncertainty-dev-zero",
-                                  "uncertainty-fifo", "gait-fifo-in-sweep"])
+@pytest.mark.parametrize("what", ["sweep-dev-zero", "sweep-fifo",
+                                  pytest.param("uncertainty-dev-zero", marks=pytest.mark.slow),
+                                  pytest.param("uncertainty-fifo", marks=pytest.mark.slow),
+                                  "gait-fifo-in-sweep"])
 def test_special_files_are_refused_unread(what, tmp_path):
     """Issue 30 item 9: ``/dev/zero`` (read until memory ran out) and a FIFO (an open that
     blocked for ever) as the sweep file, the uncertainty file, or a gait a sweep file names:

@@ -314,6 +314,7 @@ SMALL_JIT_NAMES = {"g": "float64(float64[:])", "h": "float64[:](float64[:])",
                    "f": "float64(float64)"}
 
 
+@pytest.mark.slow
 def test_three_processes_compiling_one_jit_module_compile_it_once(tmp_path, fresh_cache):
     """The numba modules (the simulation kernel) are built under the same lock: three
     processes loading a new small jit module at once: numba compiles it in one, the others

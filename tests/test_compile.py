@@ -7,6 +7,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 
 def test_compile_summary(cli):
     res = cli("compile", "three_link")
@@ -31,6 +33,7 @@ def test_warm_compile_reports_the_cached_kernel_without_importing_numba(cli, _ca
     assert res.stdout.split() == ["True", "True", "False", "False"], res.stdout
 
 
+@pytest.mark.slow
 def test_commands_that_draw_nothing_import_neither_matplotlib_nor_numba(_cache_dir, tmp_path):
     """``--formats none`` writes the JSON only and never imports matplotlib; a warm
     ``inspect`` imports neither matplotlib, numba nor SymPy (issue 13: warm commands)."""

@@ -442,6 +442,7 @@ def test_orbit_energies_equal_a_steady_full_order_run(tmp_path, _cache_dir):
     assert rec.energy_minus - rec.energy_plus == pytest.approx(e.impact_loss, rel=1e-6)
 
 
+@pytest.mark.slow
 def test_an_orbit_that_comes_to_rest_says_so_instead_of_zero_times(orbit5):
     """Where alpha' = 0 at a quadrature node (zeta^+ lowered until zeta touches 0 inside the
     step: the walker comes to rest), the step time and the time-based energies are not

@@ -99,6 +99,7 @@ def test_cot_is_the_limit_cycle_energy_over_mgd_and_the_orbit_balances(cli, tmp_
         assert Path(f"e/{fig}.png").is_file() and Path(f"e/{fig}.pdf").is_file()
 
 
+@pytest.mark.slow
 def test_a_robot_without_motor_or_power_data_says_so(cli, tmp_path, monkeypatch):
     """walker5 has no motor: nor power: the total CoT is None in the JSON with the reason,
     empty in the CSV with a note line, and said on the console; the mechanical CoT is there."""
@@ -242,6 +243,7 @@ def test_thrust_that_is_not_a_number_is_one_line_exit_2(cli, tmp_path, monkeypat
     assert not Path("e").exists()
 
 
+@pytest.mark.slow
 def test_python_energy_is_the_document_the_command_writes(cli, tmp_path, monkeypatch):
     """tw.energy(...) renders the document the command writes; tw.energy stays the study
     once the energy models are imported (no subpackage shadows it)."""

@@ -372,6 +372,7 @@ def test_cli_schedule_without_thrust_section_exits_two(walk3, tmp_path, cli):
     assert "no `thrust:` section" in res.output
 
 
+@pytest.mark.slow
 def test_max_abs_torque_and_swing_extremes_are_polished(walk3):
     """max |u_i| per joint equals the maximum of the affine torque over 40001 points per knot
     interval (to 1e-8 relative, never below it), also for a piecewise schedule whose torque jumps at

@@ -40,6 +40,7 @@ def _gaps(result) -> list[float]:
     return [e["zeta_minus"]["relative"] for e in result.step_entries()]
 
 
+@pytest.mark.slow
 def test_stiff_contact_approaches_the_rigid_prediction(mj, walker3):
     """With stiff contact (solref 1 ms, timestep 0.1 ms) the 3-link gait's zeta^- stays within
     2 % of the rigid prediction, at the last step and at the steady value the Poincare map
@@ -60,6 +61,7 @@ def test_stiff_contact_approaches_the_rigid_prediction(mj, walker3):
                for e in stiff.step_entries())
 
 
+@pytest.mark.slow
 def test_walker5_first_step_follows_the_zero_dynamics(mj, walker5):
     """The knee walker (not bundled; point feet as 0.1 mm spheres): started on the predicted
     orbit, MuJoCo's first step (a stance phase, no MuJoCo impact yet) ends within 0.5 % of
@@ -105,6 +107,7 @@ def test_infeasible_friction_slips_in_mujoco(mj, walker3):
     assert grip.rigid_contact[0]["feasible"] is True
 
 
+@pytest.mark.slow
 def test_thrust_speeds_the_walker_up_as_predicted(mj, walker5_thrust):
     """walker5 on its thrust gait, stiff contact: a constant -20 N on the torso thruster makes
     MuJoCo's walker faster by the factor the zero dynamics predict (speed and zeta^- ratios
@@ -144,6 +147,7 @@ def test_push_and_thruster_dynamics(mj, walker3):
         mujoco_run(walker3, steps=1, thrust_model="piecewise")
 
 
+@pytest.mark.slow
 def test_cli_writes_everything_from_another_folder(mj, cli, tmp_path, monkeypatch):
     """thrustwalk mujoco on the user robot: JSON (each step's quantity beside the rigid
     prediction and the difference), CSV, the model that ran, the phase portraits; the video is

@@ -104,6 +104,7 @@ CHAINS = [("chain4", 1), ("chain7", 2),
 over = pytest.mark.parametrize("name, seed", [(n, s) for n in GAITS for s in SEEDS] + CHAINS)
 
 
+@pytest.mark.slow
 @over
 def test_every_generated_function_equals_the_folded_model(name, seed, _cache_dir):
     robot, model, ref = _pair(name, seed)
@@ -237,6 +238,7 @@ def test_bad_numbers_are_reported_with_the_file_and_key(_cache_dir):
     assert load_model(robot).cache_hit
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(GAITS))
 def test_limit_cycle_equals_the_folded_model(name, _cache_dir, monkeypatch):
     """zeta*, speed and delta_zero^2 of the gait on a robot with new numbers."""

@@ -81,6 +81,7 @@ def test_an_unpushed_constant_thrust_trial_is_simulate_and_missing_models_are_no
     assert "no motor data" in why and "no power model for thruster back" in why
 
 
+@pytest.mark.slow
 def test_the_mean_per_recovered_push_is_that_of_trials_csv(cli, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     out = tmp_path / "out"

@@ -134,6 +134,7 @@ def test_compiled_and_scipy_agree_with_a_lagging_thruster(walker5):
         assert ea.impact_loss == pytest.approx(eb.impact_loss, rel=1e-7)
 
 
+@pytest.mark.slow
 def test_missing_models_are_said_in_json_and_csv(cli, tmp_path, monkeypatch):
     """walker5 has no motor and no power model: the electrical and input energies and the
     total CoT are None (JSON) / empty (CSV) with the reason in the run's ``missing`` list and
@@ -169,6 +170,7 @@ def test_a_failed_step_has_no_energy(walker5):
     assert len(simulation_energy(res)) == len(res.steps)
 
 
+@pytest.mark.slow
 def test_control_steps_carry_their_energy_and_the_push(cli, tmp_path, monkeypatch):
     """control (controlled and uncontrolled runs): every step has its energies; the work-energy
     balance closes with the push's energy at the pushed step only (zero elsewhere), the impact

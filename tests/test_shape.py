@@ -283,6 +283,7 @@ def test_min_norm_hits_target_and_equals_lstsq(walk3, mode):
     assert np.linalg.norm(sol.values + 3.0 * null) > np.linalg.norm(sol.values)
 
 
+@pytest.mark.slow
 def test_target_speed_reached_and_checked_by_integration(walk3):
     """Brent on zeta*: the speed of the solved orbit equals the target; the step time from
     time integration agrees; unreachable speeds fail with a reason."""

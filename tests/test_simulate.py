@@ -412,6 +412,7 @@ def test_cli_writes_every_output(tmp_path, cli):
     assert (out / "walker.gif").read_bytes()[:6] == b"GIF89a"
 
 
+@pytest.mark.slow
 def test_cli_falling_walker_exit_0_with_reason(tmp_path, cli):
     res = cli("simulate", "--thrust-model", "constant", "--thrust", "100",
                               "--start", "nominal", "--steps", "3", "--quiet", "--out",
@@ -478,6 +479,7 @@ def test_cli_tangential_touchdown_is_a_physical_failure(tmp_path, walker_rabbit,
     assert "warning: run 0" in res.output
 
 
+@pytest.mark.slow
 def test_cli_one_value_without_orbit_does_not_spoil_the_list(tmp_path, cli):
     """F_ss = 20 N pushes the 3-link walker backwards: no periodic orbit (zeta* < 0). The other
     value still runs; the bad one is a failed run ``no-orbit`` with its reason; exit 0."""

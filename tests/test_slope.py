@@ -213,6 +213,7 @@ def test_cli_slope(command, cli, tmp_path, monkeypatch):
 
 
 # ------------------------------------------------------------------------- the slope map
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["three_link", "walker5"])
 def test_map_cells_equal_single_limit_cycle_calls(name, walker3, walker5):
     """Every sampled cell of the map (explicit in cos/sin of the slope, affine in thrust)

@@ -259,6 +259,7 @@ def test_shape_on_a_slope_equals_the_turned_robot(walker5):
 
 
 # ------------------------------------------------------------------------------ design-gait
+@pytest.mark.slow
 def test_design_gait_on_a_slope_walks_that_slope(cli, tmp_path, monkeypatch):
     """design-gait --slope (bundled 3-link walker, from another folder): the report and the
     gait file's header say the slope; limit-cycle --slope on the written gait file finds it
@@ -338,6 +339,7 @@ def test_sweep_over_slope_equals_limit_cycle_runs(cli, tmp_path, monkeypatch, wa
 
 
 # ------------------------------------------------------------------------------ optimize
+@pytest.mark.slow
 def test_optimize_on_a_slope_reaches_the_target_on_the_turned_robot(walker5):
     """optimize --slope (uphill, world-frame thruster): the minimum-effort schedule, put on
     the turned robot on level ground (its gravity thrusters held at m_i g sin(slope)), walks at

@@ -240,6 +240,7 @@ def test_cli_simulate_on_a_slope(cli, tmp_path, monkeypatch):
         run["predicted"]["speed"] * math.sin(gamma), rel=1e-12)
 
 
+@pytest.mark.slow
 def test_stability_on_a_slope(walker5):
     """Floquet analysis on a slope: the zero dynamics' fixed point on the slope is a fixed
     point of the compiled full-order map (Newton's residual at the prediction, two independent

@@ -329,6 +329,7 @@ def _skew_variational(monkeypatch, factor: float) -> None:
     monkeypatch.setattr(fm, "variational_jacobian", skewed)
 
 
+@pytest.mark.slow
 def test_disagreement_beyond_the_tolerance_stays_undetermined_with_advice(cli, tmp_path,
                                                                           monkeypatch):
     """Multipliers 1e-4 apart (relative) against a tolerance of 1e-6: undetermined although

@@ -341,6 +341,7 @@ def test_a_failed_point_is_recorded_and_the_sweep_goes_on(cli, tmp_path, _cache_
     assert json.loads((out / "sweep.json").read_text())["counts"]["computed"] == 0
 
 
+@pytest.mark.slow
 def test_the_sweep_folder_belongs_to_its_sweep(cli, tmp_path, _cache_dir):
     path = sweep_file(tmp_path, SMALL.replace("values: [8, 12]", "values: [8]"))
     out = tmp_path / "out"
@@ -750,6 +751,7 @@ def _toy_slow(task) -> dict:
     return _toy_point(task)
 
 
+@pytest.mark.slow
 def test_workers_killed_from_outside_again_and_again_never_hang(tmp_path):
     """For 2 s every worker process of the pool is killed as soon as it appears, while the
     runner submits and resubmits: the run ends (within 120 s, else it hung) either with

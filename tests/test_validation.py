@@ -606,6 +606,7 @@ def walker5_thrust(_cache_dir):
 
 
 # -- a slow thruster whose step nearly stops (item 7) ------------------------------------------
+@pytest.mark.slow
 def test_slow_thruster_towards_a_stop_is_an_outcome_not_a_traceback(walker5_thrust):
     """A zeta reference far below the orbit's under a second-order thruster: the controller's
     step prediction (its time map) reaches zeta = 0 where the walker would stop. The run is a
