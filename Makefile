@@ -16,19 +16,27 @@ TEST_WORKERS ?= $(shell echo $$(( $$(nproc 2>/dev/null || echo 1) + 1 )))
 
 .PHONY: demo test bench lint docs figures golden clean
 
-$(BASE): pyproject.toml
+# what the simulation kernel needs to compile (the specifiers of pyproject.toml's dependencies;
+# tests/test_packaging.py checks that they are the same)
+KERNEL_DEPS := "numpy>=1.24" "scipy>=1.10" "numba>=0.59" "pyyaml>=6.0"
+
+$(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
+
+$(BASE): pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e .
 	touch $(BASE)
 
-# while pip installs the test dependencies, the simulation kernel compiles for the tests
-# (once per checkout, into .pytest_cache/thrustwalk-kernel; tests/kernel_cache.py says so)
-$(STAMP): $(BASE)
-	$(BIN)/python tests/kernel_cache.py & kernel=$$!; \
+# the kernel's own dependencies first; then, while pip installs the package and the test
+# dependencies, the simulation kernel compiles for the tests from the source tree (once per
+# checkout, into .pytest_cache/thrustwalk-kernel; tests/kernel_cache.py says so)
+$(STAMP): pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet $(KERNEL_DEPS)
+	PYTHONPATH=$(CURDIR) $(BIN)/python tests/kernel_cache.py & kernel=$$!; \
 	$(BIN)/python -m pip install --quiet -e '.[test,mujoco]'; status=$$?; \
 	wait $$kernel; exit $$status
-	touch $(STAMP)
+	touch $(BASE) $(STAMP)
 
 # `thrustwalk compile` compiles the simulation kernel into the user's cache if this machine
 # has not (saying so, ~30 s), so that the first `thrustwalk simulate` starts at once
