@@ -277,6 +277,7 @@ def test_shipped_rabbit_gait_meets_the_design_constraints(rabbit):
         assert lo <= q[:, j].min() and q[:, j].max() <= hi, c.name
 
 
+@pytest.mark.slow
 def test_simulated_rabbit_gait_settles_on_the_predicted_fixed_point(rabbit):
     """Full-order closed loop (SPEC 7), started 10 % off the fixed point: 20 steps, zeta^-
     converges to zeta* with the Poincare eigenvalue delta_zero^2."""

@@ -129,6 +129,7 @@ def test_a_robot_without_motor_or_power_data_says_so(cli, tmp_path, monkeypatch)
     assert "total CoT not computed" in doc["headline"]
 
 
+@pytest.mark.slow
 def test_an_orbit_without_energies_says_why(cli, tmp_path, monkeypatch):
     """A thrust value whose orbit does not exist: energies None with the reason, empty
     cells, never NaN or 0; the case still has its row."""
@@ -205,6 +206,7 @@ def test_the_cheapest_strategy_is_the_least_of_the_two_interpolated_curves(cli, 
     assert g["energy"]["cot"]["total"] == pytest.approx(lc.energy[0].cot()["total"], rel=1e-12)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["missing", "result-folder", "other-sweep", "file"])
 def test_library_that_is_not_a_library_is_one_line_exit_2_nothing_written(cli, tmp_path,
                                                                           monkeypatch, kind):

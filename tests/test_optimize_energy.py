@@ -94,6 +94,7 @@ def test_kkt_of_the_full_problem_from_the_problem_data(w5, scale, max_thrust):
         assert np.isclose(np.abs(x).max(), 1.5, rtol=1e-9)
 
 
+@pytest.mark.slow
 def test_two_intervals_brute_force_finds_nothing_cheaper(w5):
     """Two knot intervals: the fixed-point equation leaves one degree of freedom; a grid of
     200 feasible points and bounded scalar searches from the best ones (orbit_energy on each

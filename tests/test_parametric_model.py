@@ -128,6 +128,7 @@ def test_every_generated_function_equals_the_folded_model(name, seed, _cache_dir
     _close(f"{name}/{seed}: energy", model.energy(q, dq), ref.energy(q, dq))
 
 
+@pytest.mark.slow
 @over
 def test_every_tape_program_equals_the_folded_model(name, seed, _cache_dir):
     _, model, ref = _pair(name, seed)
@@ -261,6 +262,7 @@ def test_limit_cycle_equals_the_folded_model(name, _cache_dir, monkeypatch):
             _close(f"{name}: speed", a.speed, b.speed)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(GAITS))
 def test_compiled_simulation_equals_the_folded_model(name, _cache_dir, monkeypatch):
     """zeta^- of every step of a compiled run (the numba kernel reads the bound numbers

@@ -176,6 +176,7 @@ def _per_trial(runner, res) -> dict:
             "push_energy": total(lambda e: e.push_energy)}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("robot", ["walker5", "walker3"])
 def test_batched_energies_equal_the_per_trial_path(robot, request):
     """The energies of an engine task's trials computed together (``trial_energies``: the

@@ -136,6 +136,7 @@ def test_shift_formulas_two_ways(walk3):
 
 
 # ----------------------------------------------------------------- fixed point vs iteration
+@pytest.mark.slow
 def test_shaped_fixed_point_equals_iterated_poincare_map(walk3):
     """zeta*_0 + sum b_F T_j / (1 - delta_zero^2) is the fixed point of the time-integrated
     piecewise Poincare map, and the paper's one-step value is not (SPEC 4 erratum)."""

@@ -436,6 +436,7 @@ def test_cli_reduced_preview_and_npz(tmp_path, cli):
     assert {"alpha_rad", "sigma_kgm2_s", "thrust_hip_x_N"} <= set(data.files)
 
 
+@pytest.mark.slow
 def test_cli_integrator_failure_exit_1(tmp_path, monkeypatch, cli):
     real = ClosedLoop.rhs
     monkeypatch.setattr(ClosedLoop, "rhs", lambda self, t, x, seg: (
@@ -465,6 +466,7 @@ def test_cli_bad_input_one_line_exit_2(tmp_path, args, words, cli):
     assert len(lines) == 1 and lines[0].startswith("error:") and words in lines[0], res.output
 
 
+@pytest.mark.slow
 def test_cli_tangential_touchdown_is_a_physical_failure(tmp_path, walker_rabbit, cli):
     """The swing foot of tests/data/rabbit_tangent.yaml reaches the ground at vertical velocity
     0: there is no strike to find. The run ends as a physical ``no-impact`` failure naming
@@ -499,6 +501,7 @@ def test_cli_one_value_without_orbit_does_not_spoil_the_list(tmp_path, cli):
         assert (tmp_path / name).stat().st_size > 0, name
 
 
+@pytest.mark.slow
 def test_deviation_from_the_prediction_is_a_warning_with_reason(walker3, tmp_path, cli):
     """Started off the zero-dynamics manifold (outputs not zero), the first step's zeta^-
     misses the prediction by 0.7 %: the run completes but its status is ``warning`` and the

@@ -115,6 +115,7 @@ def world_frame_run(walker, gamma: float, F, x0, steps: int, min_impact_s: float
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["walker5", "rabbit", "three_link"])
 def test_independent_world_frame_simulation(name, walker3, walker5, walker_rabbit):
     """zeta^- per step of the compiled kernel on the slope equals that of the world-frame
@@ -194,6 +195,7 @@ def test_slope_zero_is_level_ground_bit_for_bit(walker5):
     assert "slope" not in base
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["walker5", "rabbit"])
 def test_compiled_matches_scipy_on_a_slope(name, walker3, walker5, walker_rabbit):
     """Per step, the compiled kernel (level-ground tape at the turned posture) and the SciPy
@@ -264,6 +266,7 @@ def test_stability_on_a_slope(walker5):
         walker5.zd.delta_zero_sq, abs=1e-8)
 
 
+@pytest.mark.slow
 def test_control_on_a_slope(walker5):
     """Step-to-step control on a downhill slope: the full-order walker on the slope (the
     compiled kernel at the turned posture) walks at the reference speed along the ground, the

@@ -283,6 +283,7 @@ def test_gait_parameters_and_gains_reach_the_point(tmp_path, _cache_dir):
 
 
 # --------------------------------------------------------------------- running, outputs
+@pytest.mark.slow
 def test_outputs_of_a_sweep(cli, tmp_path, _cache_dir):
     path = sweep_file(tmp_path, SMALL)
     out = tmp_path / "out"
@@ -388,6 +389,7 @@ def test_a_half_written_point_file_is_never_read(tmp_path, _cache_dir):
     assert [r["fields"] for r in rerun.records] == [r["fields"] for r in res.records]
 
 
+@pytest.mark.slow
 def test_resume_verifies_every_point_file(cli, tmp_path, _cache_dir, monkeypatch):
     """Issue 30 item 11: a folder in place of a point file, a truncated point file and a
     hand-edited one (same key, another value, the JSON still valid) are each recomputed on
