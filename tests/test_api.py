@@ -145,12 +145,36 @@ def walker5(_cache_dir):
 
 
 @pytest.mark.parametrize("old, new", [("ShapeStudy", "ShapeResult"),
-                                      ("limit_cycles", "zd_limit_cycles")])
+                                      ("limit_cycles", "zd_limit_cycles"),
+                                      ("ThrustSchedule", "WrittenSchedule")])
 def test_a_renamed_name_still_loads_with_a_deprecation_warning_naming_the_new_one(old, new):
     with pytest.warns(DeprecationWarning, match=rf"{old} is deprecated .*tw\.{new}"):
         value = getattr(tw, old)
     assert value is getattr(tw, new)
     assert old not in tw.__all__ and old not in dir(tw)
+
+
+@pytest.mark.parametrize("module", ["thrustwalk_cli.description.gait",
+                                    "thrustwalk_cli.thrust.schedule"])
+def test_the_old_thrust_schedule_name_imports_from_its_old_homes_with_a_warning(module):
+    """CHANGELOG (issue 25): ``description.gait.ThrustSchedule`` stays a deprecated alias of
+    the written form of a schedule, the type a gait's ``thrust:`` section reads into."""
+    import importlib
+
+    from thrustwalk_cli.thrust.schedule import WrittenSchedule
+
+    namespace: dict = {}
+    with pytest.warns(DeprecationWarning, match=r"ThrustSchedule is deprecated .*WrittenSchedule"):
+        exec(f"from {module} import ThrustSchedule as old", namespace)
+    assert namespace["old"] is WrittenSchedule
+    with pytest.raises(AttributeError):
+        importlib.import_module(module).NoSuchName  # noqa: B018
+    from thrustwalk_cli.files.gait_file import load_gait_text
+
+    text = (DATA / "walker5_thrust.yaml").read_text() + (
+        "thrust:\n  knots: [0, 1]\n  values:\n    back: [-10]\n")
+    gait, _ = load_gait_text(text, str(DATA / "walker5_thrust.yaml"))
+    assert isinstance(gait.thrust, tw.WrittenSchedule)  # what a gait's thrust: reads into
 
 
 def test_every_study_result_is_named_result():

@@ -17,7 +17,9 @@ Loading
     robot_to_mjcf       :class:`Robot` -> MuJoCo MJCF text (SPEC 16; the export-mjcf command)
     Robot               an immutable robot description (links, coordinates, thrusters)
     Gait                an immutable gait description (Bezier virtual constraints)
-    ThrustSchedule      a piecewise-constant thrust schedule as written in a gait file
+    WrittenSchedule     a piecewise-constant thrust schedule as written in a gait file (its
+                        ``thrust:`` section, ``gait.thrust``); ``.resolve(zd, robot, where)``
+                        -> :class:`Schedule` (SPEC 4)
     ThrusterDynamics    the linear dynamics of a robot's thrusters, (A, B, C, D) per thruster
                         (SPEC 7, 13; ``.matrices()``, ``.layout``)
     thruster_dynamics   build one: ``tw.thruster_dynamics("second-order", m, wn=2.0, xi=1.0)``,
@@ -78,6 +80,7 @@ Sweeps (one study at many points; resumable; local processes or a Dask cluster)
 
 Renamed (the old names work for one release, with a DeprecationWarning)
     ``ShapeStudy`` -> ``ShapeResult``; ``limit_cycles`` -> ``zd_limit_cycles``;
+    ``ThrustSchedule`` -> ``WrittenSchedule``;
     ``ShapeRequest`` and ``shape(walker, req)`` -> ``shape(walker, pattern=..., k=...)``
     (``ks`` is ``k``).
 
@@ -98,7 +101,7 @@ _HOMES = {
     "import_urdf": "studies.import_urdf", "robot_to_urdf": "interchange.urdf",
     "robot_to_mjcf": "interchange.mjcf", "mujoco_run": "studies.mujoco",
     "Robot": "description.robot", "Gait": "description.gait",
-    "ThrustSchedule": "thrust.schedule", "CompiledModel": "model.compiled",
+    "WrittenSchedule": "thrust.schedule", "CompiledModel": "model.compiled",
     "ZeroDynamics": "hzd.zero_dynamics", "Schedule": "thrust.schedule",
     "zd_limit_cycles": "hzd.zero_dynamics:limit_cycles", "LimitCycle": "hzd.zero_dynamics",
     "ThrusterDynamics": "thrust.dynamics", "thruster_dynamics": "thrust.dynamics",
@@ -128,6 +131,7 @@ _DEPRECATED = {
     "ShapeRequest": ("studies.shape:ShapeRequest",
                      "the keywords of tw.shape(walker, pattern=..., k=[...], ...)"),
     "limit_cycles": ("hzd.zero_dynamics:limit_cycles", "tw.zd_limit_cycles"),
+    "ThrustSchedule": ("thrust.schedule:WrittenSchedule", "tw.WrittenSchedule"),
 }
 
 __all__ = ["__version__", *_HOMES]

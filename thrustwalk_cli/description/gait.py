@@ -43,3 +43,17 @@ class Gait:
     @property
     def coefficients(self) -> np.ndarray:
         return np.array(self.A, dtype=float)
+
+
+def __getattr__(name: str):
+    """``ThrustSchedule``: the old name of a gait's ``thrust:`` section as written, now
+    :class:`~thrustwalk_cli.thrust.schedule.WrittenSchedule`; a deprecated alias (one release;
+    a DeprecationWarning on every use, PEP 562)."""
+    if name == "ThrustSchedule":
+        import warnings
+
+        warnings.warn(f"{__name__}.ThrustSchedule is deprecated (kept for one release): use "
+                      "thrustwalk_cli.thrust.schedule.WrittenSchedule (tw.WrittenSchedule)",
+                      DeprecationWarning, stacklevel=2)
+        return WrittenSchedule
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

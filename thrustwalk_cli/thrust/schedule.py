@@ -216,7 +216,16 @@ class WrittenSchedule:
         return Schedule(knots_alpha(step, np.array(s)), force, gen), [float(v) for v in s]
 
 
-ThrustSchedule = WrittenSchedule  # deprecated alias (one release): the written form's old name
+def __getattr__(name: str):
+    """``ThrustSchedule``: the written form's old name, a deprecated alias of
+    :class:`WrittenSchedule` (one release; a DeprecationWarning on every use, PEP 562)."""
+    if name == "ThrustSchedule":
+        import warnings
+
+        warnings.warn(f"{__name__}.ThrustSchedule is deprecated (kept for one release): use "
+                      "WrittenSchedule (tw.WrittenSchedule)", DeprecationWarning, stacklevel=2)
+        return WrittenSchedule
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # ------------------------------------------------------------------------------ knots
