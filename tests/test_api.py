@@ -225,6 +225,37 @@ def test_design_gait_takes_a_robot_a_model_or_a_walker(walker5, which):
     assert [p for pr in exc.value.problems for p in pr.params] == ["spec"]
 
 
+def _params(exc) -> list[str]:
+    return [p for pr in exc.value.problems for p in pr.params]
+
+
+def test_design_gait_and_inspect_state_name_their_first_parameter_robot_or_walker(walker5):
+    """The first parameter takes a Robot, a model or a Walker: ``robot_or_walker``; the old
+    keywords (``robot=`` of design_gait, ``model=`` of inspect_state) work with a warning."""
+    with pytest.raises(tw.InputError) as exc:  # the keyword accepted: the spec is refused
+        tw.design_gait(robot_or_walker=walker5, spec="x")
+    assert _params(exc) == ["spec"]
+    with pytest.warns(DeprecationWarning, match=r"design_gait\(robot=.*robot_or_walker"), \
+            pytest.raises(tw.InputError) as exc:
+        tw.design_gait(robot=walker5.robot, spec="x")
+    assert _params(exc) == ["spec"]
+    with pytest.raises(tw.InputError) as exc:
+        tw.design_gait(walker5, "x", robot=walker5.robot)
+    assert _params(exc) == ["robot_or_walker", "robot"]
+    with pytest.raises(tw.InputError) as exc:
+        tw.design_gait(spec="x")
+    assert _params(exc) == ["robot_or_walker"]
+
+    q = [0.1, 0.2, 0.3, -0.2, 0.1]
+    new = tw.inspect_state(robot_or_walker=walker5.robot, q=q)
+    with pytest.warns(DeprecationWarning, match=r"inspect_state\(model=.*robot_or_walker"):
+        old = tw.inspect_state(model=walker5.model, q=q)
+    assert dict(old) == dict(new)  # the robot's model either way (its dynamics: tests above)
+    with pytest.raises(tw.InputError) as exc:
+        tw.inspect_state(walker5, q, model=walker5.model)
+    assert _params(exc) == ["robot_or_walker", "model"]
+
+
 def test_thruster_dynamics_builds_the_models_of_the_simulation():
     import numpy as np
     from scipy.linalg import expm

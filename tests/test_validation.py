@@ -132,8 +132,8 @@ STUDIES = {
         "atol": NUMBER, "bogus": [1.0]},
         {"sigma": [0.004], "strategy": ["none"], "trials": 1, "cap": 5, "mesh": 4,
          "terrain_samples": 4}),
-    "design_gait": (lambda w, model, **kw: tw.design_gait(**{"robot": model, **kw}), {
-        "robot": ["walker5", 5], "spec": ["x", {"speed": 0.6}], "compare": ["x", 5],
+    "design_gait": (lambda w, model, **kw: tw.design_gait(**{"robot_or_walker": model, **kw}), {
+        "robot_or_walker": ["walker5", 5], "spec": ["x", {"speed": 0.6}], "compare": ["x", 5],
         "progress": CALLBACK, "initial": [5], "slope": NUMBER + [1.6]}, {"spec": "SPEC"}),
     "DesignSpec": (lambda w, model, **kw: tw.design_gait(model, tw.DesignSpec(**kw)), {
         "speed": POSITIVE, "step_length": POSITIVE, "mu": POSITIVE, "order": POS_COUNT,
@@ -143,8 +143,9 @@ STUDIES = {
         "thrust_range": ["back:0:1", ("back", NAN, 1.0), (5, 0.0, 1.0), ("back", 0.0)],
         "thrust": NUMBERS, "alpha_c": NUMBERS, "starts": POS_COUNT, "seed": COUNT,
         "max_iter": POS_COUNT, "nodes": POS_COUNT, "name": TEXT}, {"speed": 0.6}),
-    "inspect_state": (lambda w, model, **kw: tw.inspect_state(**{"model": model, **kw}), {
-        "model": ["walker5", 5, None], "q": ["a,b", 5, [NAN, 0, 0, 0, 0], [1.0]],
+    "inspect_state": (lambda w, model, **kw: tw.inspect_state(
+        **{"robot_or_walker": model, **kw}), {
+        "robot_or_walker": ["walker5", 5, None], "q": ["a,b", 5, [NAN, 0, 0, 0, 0], [1.0]],
         "dq": ["a", 5, [INF, 0, 0, 0, 0]], "thrust": ["x", 5, [NAN]]},
         {"q": [0.1, 0.2, 0.3, -0.2, 0.1]}),
     "load_walker": (lambda w, **kw: tw.load_walker(**kw), {
@@ -241,7 +242,7 @@ def _outcome(api, study: str, name: str, value) -> str | None:
              "inspect_state": {"model": model}, "run_sweep": {"sweep": sweep}}.get(study, {})
     if study == "run_sweep" and name == "sweep":
         extra = {"sweep": kwargs.pop("sweep")}
-    if study in ("design_gait", "inspect_state") and name in ("robot", "model"):
+    if study in ("design_gait", "inspect_state") and name == "robot_or_walker":
         extra = {"model": kwargs.pop(name)}
     try:
         call(walker, **extra, **kwargs)

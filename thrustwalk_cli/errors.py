@@ -271,3 +271,20 @@ def check_pushes(name: str, push: object, robot, steps: int
         robot.check_push(name, float(math.hypot(px, py)))
         out.append((stp, s, px, py))
     return out
+
+
+def renamed_keyword(function: str, new: str, value: object, old: str, old_value: object
+                    ) -> object:
+    """The value of ``function``'s parameter ``new``, formerly named ``old`` (the old keyword
+    works for one release): ``old_value`` with a DeprecationWarning naming ``new`` when only
+    the old keyword is given (None: not given), an :class:`InputError` naming both when both
+    are, else ``value``."""
+    if old_value is None:
+        return value
+    if value is not None:
+        raise InputError.param((new, old), f"`{old}` is the old name of `{new}`: give one")
+    import warnings
+
+    warnings.warn(f"{function}({old}=...) is deprecated (kept for one release): use "
+                  f"{function}({new}=...)", DeprecationWarning, stacklevel=3)
+    return old_value

@@ -18,7 +18,13 @@ from ..design.solver import DesignResult, WarmStart, solve_design
 from ..design.spec import DesignSpec
 from ..design.verify import check_gait
 from ..energetics.orbit import OrbitEnergy, orbit_energy
-from ..errors import ComputationError, InputError, check_callable, check_instance
+from ..errors import (
+    ComputationError,
+    InputError,
+    check_callable,
+    check_instance,
+    renamed_keyword,
+)
 from ..files.gait_file import bind_gait, gait_text, load_gait_text, same_robot_file
 from ..hzd.constraints import apply_invariance
 from ..hzd.zero_dynamics import limit_cycles, zero_dynamics
@@ -378,23 +384,27 @@ def stick_frames(model: CompiledModel, gait: Gait, instants: int = 10,
             "link_names": list(model.robot.link_names)}
 
 
-def design_gait(robot: Robot | CompiledModel | Walker, spec: DesignSpec, *,
-                compare: Walker | None = None,
+def design_gait(robot_or_walker: Robot | CompiledModel | Walker | None = None,
+                spec: DesignSpec | None = None, *, compare: Walker | None = None,
                 progress: Callable[[int, int, str], None] | None = None,
-                initial: WarmStart | None = None, slope: float = 0.0) -> DesignGaitResult:
-    """Design a gait for ``robot`` (:func:`solve_design`, SPEC 2, 3, 5) and optionally
-    evaluate an existing gait (``compare``) with the same objective and constraints.
-    ``robot``: a :class:`Robot` (compiled by :func:`load_model`, cached by structure), its
+                initial: WarmStart | None = None, slope: float = 0.0,
+                robot: Robot | CompiledModel | Walker | None = None) -> DesignGaitResult:
+    """Design a gait for a robot (:func:`solve_design`, SPEC 2, 3, 5) and optionally evaluate an
+    existing gait (``compare``) with the same objective and constraints. ``robot_or_walker``: a
+    :class:`Robot` (compiled by :func:`load_model`, cached by structure), its
     :class:`CompiledModel`, or a :class:`Walker` (its robot; its gait is not a start: pass it
-    as ``compare`` to evaluate it). ``progress(done, total, message)`` after every solver
-    start. ``initial``: a finished neighbouring design to start from (continuation; replaces
-    the default start). ``slope`` [rad, positive uphill, |slope| < pi/2]: design for that
-    ground (SPEC 14): the design problem's gravity terms, world-frame thrusters and contact
-    terms are those of the slope frame (:func:`~thrustwalk_cli.model.slope.slope_model`; the
-    kinematics, the impact and the guard do not change), so the designed orbit walks the slope
-    at the target speed along the ground; the report gains the ``slope`` block and the fixed
-    point its climb rate, the gait file's header the slope. 0: level ground, bit for bit."""
-    robot = as_model(robot, "robot")
+    as ``compare`` to evaluate it); ``robot=`` is its deprecated old name (one release, a
+    DeprecationWarning). ``spec``: a :class:`DesignSpec`. ``progress(done, total, message)``
+    after every solver start. ``initial``: a finished neighbouring design to start from
+    (continuation; replaces the default start). ``slope`` [rad, positive uphill, |slope| <
+    pi/2]: design for that ground (SPEC 14): the design problem's gravity terms, world-frame
+    thrusters and contact terms are those of the slope frame
+    (:func:`~thrustwalk_cli.model.slope.slope_model`; the kinematics, the impact and the guard
+    do not change), so the designed orbit walks the slope at the target speed along the ground;
+    the report gains the ``slope`` block and the fixed point its climb rate, the gait file's
+    header the slope. 0: level ground, bit for bit."""
+    robot = as_model(renamed_keyword("design_gait", "robot_or_walker", robot_or_walker,
+                                     "robot", robot), "robot_or_walker")
     slope = check_slope(slope)
     if slope != 0.0:
         robot = slope_model(robot, slope)

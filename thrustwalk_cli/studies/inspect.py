@@ -6,9 +6,10 @@ import math
 from collections.abc import Iterator, Mapping, Sequence
 from typing import Any
 
-from ..errors import InputError, check_numbers
+from ..description.robot import Robot
+from ..errors import InputError, check_numbers, renamed_keyword
 from ..model.compiled import CompiledModel
-from ..walker import as_model
+from ..walker import Walker, as_model
 from .documents import SCHEMA_VERSION, Table, units
 
 
@@ -88,16 +89,22 @@ def _vector(value: str | Sequence[float], param: str, n: int, names: list[str]) 
     return vals
 
 
-def inspect_state(model: CompiledModel, q: str | Sequence[float],
+def inspect_state(robot_or_walker: Robot | CompiledModel | Walker | None = None,
+                  q: str | Sequence[float] | None = None,
                   dq: str | Sequence[float] | None = None,
-                  thrust: str | Sequence[float] | None = None) -> InspectResult:
+                  thrust: str | Sequence[float] | None = None, *,
+                  model: Robot | CompiledModel | Walker | None = None) -> InspectResult:
     """D [kg m^2], C q' [N m], G [N m], B_F [m], the swing foot [m] at ``q`` [rad] and, with
     ``dq`` [rad/s], the impact map; with ``thrust`` [N] per thruster, ``B_F F_T`` (keys fixed
-    by the robot-model issue), as an :class:`InspectResult`. ``model``: a
+    by the robot-model issue), as an :class:`InspectResult`. ``robot_or_walker``: a
     :class:`CompiledModel`, a :class:`~thrustwalk_cli.description.robot.Robot` (compiled by
     :func:`~thrustwalk_cli.model.compiler.load_model`) or a walker (its model:
-    :func:`~thrustwalk_cli.walker.as_model`)."""
-    model = as_model(model, "model")
+    :func:`~thrustwalk_cli.walker.as_model`); ``model=`` is its deprecated old name (one
+    release, a DeprecationWarning)."""
+    model = as_model(renamed_keyword("inspect_state", "robot_or_walker", robot_or_walker,
+                                     "model", model), "robot_or_walker")
+    if q is None:
+        raise InputError.param("q", "the state's coordinates are required (rad)")
     names = model.robot.coordinate_names
     if thrust is not None and not model.robot.thrusters:
         raise InputError.param("thrust", f"robot {model.robot.name} has no thruster: there is "
