@@ -40,12 +40,6 @@ CALLBACK = [5, "print"]
 WALKER = ["walker5", 5, None]
 
 
-def _slope_map():
-    from thrustwalk_cli.studies.slope import slope_map
-
-    return slope_map
-
-
 def _cases(table: dict[str, list]) -> list[tuple[str, object]]:
     return [(name, v) for name, values in table.items() for v in values]
 
@@ -69,7 +63,7 @@ STUDIES = {
         "fit_tol": POSITIVE + [1.0, 2.0],
         "region_shape": ["11", (11,), (0, 11), (NAN, 11), (2.5, 11), (11, 10**9)],
         "slope": NUMBER + [math.pi / 2]}, {}),
-    "slope_map": (lambda w, **kw: _slope_map()(**{"walker": w, **kw}), {
+    "slope_map": (lambda w, **kw: tw.slope_map(**{"walker": w, **kw}), {
         "walker": WALKER, "slopes": NUMBERS + [[0.0, 1.6], []], "thrust": NUMBERS + [[500.0]],
         "thruster": TEXT, "mu": POSITIVE, "min_vertical_force": NONNEG}, {}),
     "optimize_schedule": (lambda w, **kw: tw.optimize_schedule(**{"walker": w, **kw}), {

@@ -12,7 +12,8 @@ Loading
     load_model          :class:`Robot` -> :class:`CompiledModel` (cached by structure)
     compile_robot       a robot file or bundled name -> :class:`CompiledModel`
     import_urdf         a URDF (+ side file) -> a commented robot YAML and its :class:`Robot`
-                        (SPEC 16; the import-urdf command)
+                        (SPEC 16; the import-urdf command) -> :class:`ImportResult`
+    ImportResult        the imported robot: ``yaml``, ``robot``, notes, document
     robot_to_urdf       :class:`Robot` -> planar URDF text (SPEC 16)
     robot_to_mjcf       :class:`Robot` -> MuJoCo MJCF text (SPEC 16; the export-mjcf command)
     Robot               an immutable robot description (links, coordinates, thrusters)
@@ -41,6 +42,9 @@ Studies (one per command)
     ShapeResult         nominal and shaped cycles, shifts (true and the paper's), figures
     feasibility         ground-contact feasibility per thrust case -> :class:`FeasibilityResult`
     FeasibilityResult   verdicts, worst points, margins, feasible region, figures
+    slope_map           the walkability map over slope x constant thrust (SPEC 14; the slope
+                        command) -> :class:`SlopeMapResult`
+    SlopeMapResult      first failing condition, zeta*, speed, climb rate per pair, figures
     energy              cost of transport and power over constant thrust, and with a gait
                         library the cheapest way to each speed (SPEC 15) -> :class:`EnergyResult`
     EnergyResult        per-thrust energies and CoT, the library's Pareto table, figures
@@ -55,6 +59,8 @@ Studies (one per command)
                         state); ``simulate(walker, start=...)`` reuses one
     mujoco_run          the gait's controller on MuJoCo's soft contact, each step beside the
                         rigid model (SPEC 16; needs ``pip install 'thrustwalk[mujoco]'``)
+                        -> :class:`MujocoResult`
+    MujocoResult        MuJoCo runs beside the rigid model's prediction, verdicts, figures
     control             step-to-step thrust control, certified contact -> :class:`ControlResult`
     ControlResult       controlled vs uncontrolled runs, certificate per step, export, figures
     stability           Floquet multipliers of the full-order loop -> :class:`StabilityResult`
@@ -98,8 +104,9 @@ _HOMES = {
     "load_walker": "walker", "Walker": "walker",
     "load_robot": "files.robot_file", "load_model": "model.compiler",
     "compile_robot": "studies.compile", "inspect_state": "studies.inspect",
-    "import_urdf": "studies.import_urdf", "robot_to_urdf": "interchange.urdf",
-    "robot_to_mjcf": "interchange.mjcf", "mujoco_run": "studies.mujoco",
+    "import_urdf": "studies.import_urdf", "ImportResult": "studies.import_urdf",
+    "robot_to_urdf": "interchange.urdf", "robot_to_mjcf": "interchange.mjcf",
+    "mujoco_run": "studies.mujoco", "MujocoResult": "studies.mujoco",
     "Robot": "description.robot", "Gait": "description.gait",
     "WrittenSchedule": "thrust.schedule", "CompiledModel": "model.compiled",
     "ZeroDynamics": "hzd.zero_dynamics", "Schedule": "thrust.schedule",
@@ -108,6 +115,7 @@ _HOMES = {
     "limit_cycle": "studies.limit_cycle", "LimitCycleResult": "studies.limit_cycle",
     "shape": "studies.shape", "ShapeResult": "studies.shape_result",
     "feasibility": "studies.feasibility", "FeasibilityResult": "studies.feasibility",
+    "slope_map": "studies.slope", "SlopeMapResult": "studies.slope",
     "energy": "studies.energy", "EnergyResult": "studies.energy",
     "optimize_schedule": "studies.optimize", "OptimizeResult": "studies.optimize",
     "simulate": "studies.simulate", "SimulationResult": "studies.simulate_result",
