@@ -386,6 +386,46 @@ def test_slow_thruster_linear_response_vs_ignoring_the_lag(walker3):
     assert "linear response" in doc["settings"]["slow_thrusters"]
 
 
+def test_control_takes_a_sim_config_and_a_start_built_once(walker5):
+    """``config=SimConfig(...)`` and ``start=Start(...)`` as in ``simulate``: the same runs as
+    the keywords bit for bit (wall-clock times aside); a Start perturbed by 5 % starts at
+    1.05 zeta*_0 (zeta*_0 from limit_cycles, not the planner); a config's tolerance reaches
+    the plant's integrator; conflicting pairs are InputErrors naming the object."""
+    import json
+
+    from golden_cases import normalise
+
+    from thrustwalk_cli.errors import InputError
+    from thrustwalk_cli.files.output import jsonable
+    from thrustwalk_cli.simulation.closed_loop import SimConfig
+    from thrustwalk_cli.simulation.full_order import Start
+
+    w = walker5["walker5_thrust"]
+    zs = _nominal(w.zd).zeta_star
+    kw = dict(reference="nominal", knots=(0.0, 1.0), compare=False)
+
+    def doc(res):
+        return normalise(json.loads(json.dumps(jsonable(res.document()))), "")
+
+    config, start = SimConfig(steps=2), Start(zeta_minus=zs, perturb=0.05)
+    built = control(w, config=config, start=start, **kw)
+    assert doc(built) == doc(control(w, steps=2, zeta0=1.05 * zs, **kw))
+    assert built.controlled.steps[0].x_true == zs * 1.05 and len(built.controlled.steps) == 2
+    loose = control(w, config=SimConfig(steps=1, rtol=1e-7, scuff_tol=2e-4), **kw)
+    integ = loose.document()["settings"]["integrator"]
+    assert integ["rtol"] == 1e-7 and integ["scuff_tol"] == 2e-4
+    for bad, named in [(dict(config=config, steps=3), "config"),
+                       (dict(config=SimConfig(method="scipy")), "config"),
+                       (dict(config=SimConfig(steps=0)), "steps"),
+                       (dict(start=start, zeta0=zs), "start"),
+                       (dict(start=Start(q=[0.0] * 5, dq=[0.0] * 5)), "start"),
+                       (dict(start=Start(perturb=-2.0)), "start"),
+                       (dict(config="steps=2"), "config"), (dict(start="nominal"), "start")]:
+        with pytest.raises(InputError) as exc:
+            control(w, **{**kw, **bad}, check_only=True)
+        assert [p for pr in exc.value.problems for p in pr.params] == [named], bad
+
+
 @pytest.mark.slow
 def test_plant_with_heavier_torso(walker3):
     """+10 % torso mass in the plant: its robot is built from the file's parameters (total

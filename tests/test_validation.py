@@ -94,7 +94,8 @@ STUDIES = {
         "rate_limit": POSITIVE, "tracking_weight": POSITIVE, "effort_weight": NUMBER,
         "rate_weight": NUMBER, "terms": CHOICE, "fit_tol": POSITIVE + [1.0],
         "points": POS_COUNT + [20], "zeta0": POSITIVE, "compare": FLAG,
-        "progress": CALLBACK}, {"reference": "nominal", "steps": 3}),
+        "progress": CALLBACK, "config": [5, "steps=2"], "start": [5, "nominal"]},
+        {"reference": "nominal", "steps": 3}),
     "stability": (lambda w, **kw: tw.stability(**{"walker": w, **kw}), {
         "walker": WALKER, "thrust_model": CHOICE, "thrust": NUMBER, "thruster": TEXT,
         "wn": POSITIVE + [1e6], "xi": POSITIVE, "tau": POSITIVE, "kp": POSITIVE,

@@ -52,6 +52,7 @@ from ..errors import (
     check_choice,
     check_count,
     check_flag,
+    check_instance,
     check_number,
     check_number_map,
     check_numbers,
@@ -60,6 +61,7 @@ from ..errors import (
 )
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..simulation.closed_loop import MAX_STEPS, SimConfig, check_thruster_rate
+from ..simulation.full_order import Start
 from ..thrust.command import given_dynamics
 from ..thrust.dynamics import ThrusterDynamics, canonical, check_model, make, model_names
 from ..walker import Walker, check_ground, check_walker, walker_from
@@ -146,6 +148,61 @@ def _check_profile_pairs(profile) -> list[tuple[float, float]]:
     return out
 
 
+# a SimConfig's fields control's plant does not take (their defaults only): the closed loop
+# runs the compiled DOP853 kernel with its own samples, step-time bound and contact cone
+_NOT_TAKEN = ("method", "integrator", "samples_per_step", "guard_s", "ground_tol",
+              "max_step_time", "cone_mu", "cone_eps")
+# the fields it takes besides steps, recorded in settings.integrator where not the default
+_TAKEN = ("scuff_tol", "min_impact_s", "torque_limit", "max_s")
+_DEFAULT_STEPS = 40  # control's default number of steps (its signature)
+
+
+def _config_steps(config: SimConfig | None, steps: int) -> int:
+    """The number of steps: ``config.steps`` when a :class:`SimConfig` is given (``steps``
+    must then stay at its default, as in ``simulate``), else ``steps``; the config's fields
+    checked (:meth:`SimConfig.validate`) and those the plant does not take refused."""
+    check_instance("config", config, SimConfig, "a SimConfig (tw.SimConfig(steps=...))",
+                   optional=True)
+    if config is None:
+        return steps
+    if steps != _DEFAULT_STEPS:
+        raise InputError.param("config", "a SimConfig holds the run's settings: leave `steps` "
+                                         "unset")
+    default = SimConfig()
+    other = [f for f in _NOT_TAKEN if getattr(config, f) != getattr(default, f)]
+    if other:
+        raise InputError.param("config", f"control runs the compiled DOP853 kernel with its "
+                                         f"own samples, step-time bound and contact cone: "
+                                         f"leave {', '.join(other)} at their defaults")
+    config.validate()
+    return check_count("steps", config.steps, le=MAX_STEPS)
+
+
+def _config_record(cfg: SimConfig) -> dict:
+    """The plant's integration settings that differ from a default :class:`SimConfig`."""
+    default = SimConfig()
+    return {f: getattr(cfg, f) for f in _TAKEN if getattr(cfg, f) != getattr(default, f)}
+
+
+def _start(start: Start | None, zeta0: float | None) -> tuple[float | None, float]:
+    """``(zeta_minus, 1 + perturb)`` of the start: ``zeta0`` [kg^2 m^4/s^2] or a
+    :class:`Start` on Z (None: zeta*_0), not both."""
+    check_instance("start", start, Start, "a Start (tw.Start(zeta_minus=...))", optional=True)
+    if start is None:
+        return zeta0, 1.0
+    if zeta0 is not None:
+        raise InputError.param("start", "a Start holds the initial condition: leave `zeta0` "
+                                        "unset")
+    if start.q is not None or start.dq is not None:
+        raise InputError.param("start", "control starts just after an impact on the "
+                                        "zero-dynamics surface (it measures zeta^-): give the "
+                                        "Start a zeta_minus and/or perturb, not q and dq")
+    check_choice("start", start.orbit, ("predicted", "nominal"))
+    zeta = check_number("start", start.zeta_minus, gt=0, optional=True, unit="kg^2 m^4/s^2")
+    perturb = check_number("start", start.perturb, gt=-1)
+    return zeta, 1.0 + perturb
+
+
 def _plant(walker: Walker, plant_scale: dict[str, float]) -> tuple[ZeroDynamics, dict]:
     if not plant_scale:
         return walker.zd, {"same_as_model": True, "scale": {}}
@@ -179,7 +236,8 @@ def control(walker: Walker, *, reference: str = "speed",
             fit_tol: float = 1e-3, points: int = 401, zeta0: float | None = None,
             compare: bool = True, progress: Callable[[int], None] | None = None,
             check_only: bool = False, slope: float = 0.0,
-            terrain: str | Path | Terrain | None = None, objective: str = "effort"
+            terrain: str | Path | Terrain | None = None, objective: str = "effort",
+            config: SimConfig | None = None, start: Start | None = None
             ) -> ControlResult | None:
     """Step-to-step thrust control (SPEC 11) in closed loop with the full-order simulation.
 
@@ -217,6 +275,18 @@ def control(walker: Walker, *, reference: str = "speed",
     energy_plan`; every driven thruster needs a ``power:`` model, ideal thrust, no
     ``tracking_weight`` nor ``rate_weight``); a speed reference's zeta^- stays the least-effort
     steady state's.
+    Built once, reused (as ``simulate``'s): ``config`` a :class:`SimConfig` (``tw.SimConfig``)
+    replaces ``steps`` (which then stays at its default) and sets the plant's integration:
+    ``rtol``, ``atol``, ``scuff_tol`` [m], ``min_impact_s``, ``torque_limit`` [N m] and
+    ``max_s`` (a terrain's ``s_max`` replaces it, as in ``simulate``); the run is the compiled
+    DOP853 kernel with control's own samples, step-time bound and cone, so a SimConfig whose
+    ``method``, ``integrator``, ``samples_per_step``, ``guard_s``, ``ground_tol``,
+    ``max_step_time``, ``cone_mu`` or ``cone_eps`` differ from their defaults is refused.
+    ``start`` a :class:`Start` (``tw.Start``) replaces ``zeta0`` (which then stays unset): the
+    post-impact state on Z of ``zeta^- = (1 + perturb) zeta_minus`` [kg^2 m^4/s^2]
+    (``zeta_minus`` None: zeta*_0, the zero-thrust fixed point, which is also the predicted
+    orbit of the uncontrolled walker); a Start with an explicit state ``q``, ``dq`` is refused
+    (the step-to-step controller measures zeta^- on Z).
     """
     check_walker(walker)
     slope, terrain = check_ground(slope, terrain)
@@ -254,6 +324,8 @@ def control(walker: Walker, *, reference: str = "speed",
     zeta0 = check_number("zeta0", zeta0, gt=0, optional=True, unit="kg^2 m^4/s^2")
     compare = check_flag("compare", compare)
     check_callable("progress", progress)
+    steps = _config_steps(config, steps)
+    start_zeta, start_scale = _start(start, zeta0)
     if thrust_model != "ideal" and given is None:
         check_thruster_rate(thrust_model, wn, xi, tau, walker.model.n_thrusters)
     zd, model, robot = walker.zd, walker.model, walker.robot
@@ -360,13 +432,14 @@ def control(walker: Walker, *, reference: str = "speed",
             speed_plan = speed_references(steady, zd, vals, zs0)
             refs = np.array([speed_plan[float(v)].zeta_minus for v in vals])
     plant, plant_doc = _plant(walker, dict(plant_scale or {}))
-    cfg = SimConfig(steps=1)
+    cfg = SimConfig(steps=1) if config is None else replace(config, steps=1)
     heights = None
     if terrain is not None:
         cfg = replace(cfg, max_s=terrain.s_max)
         heights = tuple(float(h) for h in terrain.heights(steps))
     t_max = 10.0 * float(lc0.step_time)
-    common = dict(steps=steps, x0=zs0 if zeta0 is None else float(zeta0), knots=kn,
+    x0 = (zs0 if start_zeta is None else start_zeta) * start_scale
+    common = dict(steps=steps, x0=x0, knots=kn,
                   driven=driven, dynamics=dyn, pushes=tuple(pushes), config=cfg,
                   t_max=t_max, mu=mu, eps=float(min_vertical_force), progress=progress,
                   heights=heights)
@@ -412,7 +485,8 @@ def control(walker: Walker, *, reference: str = "speed",
         "nominal_speed": float(lc0.speed),
         **({"nominal_climb_rate": climb_rate(float(lc0.speed), walker.slope)}
            if walker.slope != 0.0 else {}),
-        "integrator": {"method": "compiled DOP853", "rtol": cfg.rtol, "atol": cfg.atol},
+        "integrator": {"method": "compiled DOP853", "rtol": cfg.rtol, "atol": cfg.atol,
+                       **_config_record(cfg)},
         **({"terrain": terrain.record()} if terrain is not None else {}),
         "tracked": "speed" if reference == "speed" else "zeta_minus",
         "speed_reference": None if speed_refs is None else {
