@@ -136,6 +136,16 @@ def walker_from(model: CompiledModel, gait: Gait, where: Where = "gait") -> Walk
     return Walker(model.robot, gait, model, zero_dynamics(model, gait), where)
 
 
+def plant_walker(walker: Walker, scale: Mapping[str, float]) -> Walker:
+    """``walker``'s gait as it is (bound, invariance applied: a controller's virtual
+    constraints, not fitted again) on its robot file read again with the named parameters
+    multiplied by ``scale`` (:func:`load_robot`'s ``scale``), compiled (:func:`load_model`)
+    and on the walker's slope (SPEC 14): the plant of a controller whose model is
+    ``walker``."""
+    robot = load_robot(walker.robot.source_file, scale=scale)
+    return walker_from(load_model(robot), walker.gait, walker.where).on_slope(walker.slope)
+
+
 def default_gait(robot: Robot | None) -> str:
     """The bundled gait for ``robot`` (the first, by name, whose ``robot:`` names its file),
     or the default gait when no robot is given."""
@@ -247,13 +257,17 @@ def gait_on_robot(robot: Robot, gait: str) -> Walker:
 
 
 def assemble_walker(robot: Robot, gait: Gait, source: GaitSource, *,
-                    progress: Progress | None = None) -> Walker:
+                    progress: Progress | None = None,
+                    model: CompiledModel | None = None) -> Walker:
     """A walker from a robot and a gait as loaded (:func:`load_gait`, not yet bound): check
     the gait against the robot, compile (or load) the model, check the impact posture, apply
     ``invariance: auto`` and precompute the zero dynamics. Problems name the gait file's
-    lines. ``progress``: as for :func:`load_walker`."""
+    lines. ``progress``: as for :func:`load_walker`. ``model``: ``robot``'s compiled model when
+    the caller holds it already (e.g. a slope-frame model, SPEC 14: the gait's invariance and
+    zero dynamics are then those of that model); default :func:`load_model`."""
     g = bind_gait(gait, source, robot)
-    model = load_model(robot, progress=progress)
+    if model is None:
+        model = load_model(robot, progress=progress)
     check_impact_posture(model, g, source)
     if g.invariance == "auto":
         g = apply_invariance(model, g)

@@ -64,7 +64,7 @@ from ..simulation.closed_loop import MAX_STEPS, SimConfig, check_thruster_rate
 from ..simulation.full_order import Start
 from ..thrust.command import given_dynamics
 from ..thrust.dynamics import ThrusterDynamics, canonical, check_model, make, model_names
-from ..walker import Walker, check_ground, check_walker, walker_from
+from ..walker import Walker, check_ground, check_walker, plant_walker
 from .control_result import ControlResult
 from .documents import climb_rate, dynamics_record
 
@@ -206,19 +206,14 @@ def _start(start: Start | None, zeta0: float | None) -> tuple[float | None, floa
 def _plant(walker: Walker, plant_scale: dict[str, float]) -> tuple[ZeroDynamics, dict]:
     if not plant_scale:
         return walker.zd, {"same_as_model": True, "scale": {}}
-    from ..files.robot_file import load_robot
-    from ..model.compiler import load_model
-
     for name, f in plant_scale.items():
         if not (np.isfinite(f) and f > 0):
             raise InputError.param("plant_scale", f"factor of {name} must be > 0 (got {f:g})")
-    robot = load_robot(walker.robot.source_file, scale=plant_scale)
-    model = load_model(robot)
-    plant = walker_from(model, walker.gait).zd.on_slope(walker.slope)
-    return plant, {"same_as_model": False, "scale": dict(plant_scale),
-                   "parameters": dict(robot.parameters),
-                   "note": "the plant's robot file parameters scaled; the controller keeps "
-                           "the model's virtual constraints and step map"}
+    plant = plant_walker(walker, plant_scale)
+    return plant.zd, {"same_as_model": False, "scale": dict(plant_scale),
+                      "parameters": dict(plant.robot.parameters),
+                      "note": "the plant's robot file parameters scaled; the controller keeps "
+                              "the model's virtual constraints and step map"}
 
 
 def control(walker: Walker, *, reference: str = "speed",

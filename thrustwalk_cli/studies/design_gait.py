@@ -25,13 +25,12 @@ from ..errors import (
     check_instance,
     renamed_keyword,
 )
-from ..files.gait_file import bind_gait, gait_text, load_gait_text, same_robot_file
-from ..hzd.constraints import apply_invariance
+from ..files.gait_file import gait_text, load_gait_text, same_robot_file
 from ..hzd.zero_dynamics import limit_cycles, zero_dynamics
 from ..model.compiled import CompiledModel
 from ..model.slope import check_slope, slope_model
 from ..thrust.schedule import Schedule
-from ..walker import Walker, as_model, check_walker
+from ..walker import Walker, as_model, assemble_walker, check_walker
 from .documents import SCHEMA_VERSION, Table, climb_rate, col, result_repr, slope_record, units
 
 # ------------------------------------------------------------------------------ records
@@ -187,15 +186,13 @@ def reload_check(model: CompiledModel, text: str, file: str, res: DesignResult) 
     if not same_robot_file(robot, g.robot):
         raise ComputationError(f"the written gait names robot {g.robot!r}, which is not the "
                                f"robot file {robot.source_file}")
-    g = bind_gait(g, source, robot)
-    if g.invariance == "auto":
-        g = apply_invariance(model, g)
-    zd = zero_dynamics(model, g)
-    F = np.zeros(model.n_thrusters)
-    if g.thrust is not None:
-        for nm, vals in g.thrust.values:
-            F[robot.thruster_names.index(nm)] = vals[0]
-    lc = limit_cycles(zd, Schedule.constant(zd, F[None, :]))[0]
+    # as load_walker reads it (bound, the impact posture checked, invariance applied), on the
+    # design's own model (a slope-frame one for a slope design)
+    walker = assemble_walker(robot, g, source, model=model)
+    g, zd = walker.gait, walker.zd
+    schedule = (walker.gait_schedule("the reload check") if g.thrust is not None
+                else Schedule.constant(zd, np.zeros((1, model.n_thrusters))))
+    lc = limit_cycles(zd, schedule)[0]
     ref = res.check["orbit"]["zeta_star"]
     got = lc.zeta_star if lc.exists else None
     err = abs(got - ref) / abs(ref) if got is not None else float("inf")
