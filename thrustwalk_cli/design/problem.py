@@ -460,7 +460,14 @@ class Problem:
         range_zeta = []
         for Fk in self.range_cases(F):
             Vk = V + _mv(self.Q, _mv(zt["beta"], Fk - F) * E) * half
-            zs_k = Vk[:, -1] / np.maximum(1.0 - d2, 1e-3)  # zeta* on that thrust's orbit
+            # zeta* = V_Z(alpha_f) / (1 - delta_zero^2) on that thrust's orbit (SPEC 3, 4),
+            # inline rather than ZeroDynamics.fixed_point_of: delta_zero^2 (d2) and V_Z are
+            # functions of the decision variables here, one row per candidate of the batch,
+            # with no ZeroDynamics of a fixed gait behind them; and the floor 1e-3 keeps the
+            # constraint finite (and its finite-difference Jacobian defined) at an iterate
+            # with delta_zero^2 >= 1, which the max_delta_sq constraint rules out at the
+            # solution, where fixed_point_of would give inf or NaN
+            zs_k = Vk[:, -1] / np.maximum(1.0 - d2, 1e-3)
             zk = (d2 * zs_k)[:, None] + Vk
             range_zeta += [zs_k / self.zeta_ref - 1e-3,
                            (zk - (spec.min_zeta_ratio * zs_k)[:, None]) / self.zeta_ref]
