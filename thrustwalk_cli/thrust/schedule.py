@@ -216,18 +216,6 @@ class WrittenSchedule:
         return Schedule(knots_alpha(step, np.array(s)), force, gen), [float(v) for v in s]
 
 
-def __getattr__(name: str):
-    """``ThrustSchedule``: the written form's old name, a deprecated alias of
-    :class:`WrittenSchedule` (one release; a DeprecationWarning on every use, PEP 562)."""
-    if name == "ThrustSchedule":
-        import warnings
-
-        warnings.warn(f"{__name__}.ThrustSchedule is deprecated (kept for one release): use "
-                      "WrittenSchedule (tw.WrittenSchedule)", DeprecationWarning, stacklevel=2)
-        return WrittenSchedule
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
 # ------------------------------------------------------------------------------ knots
 def check_knots(step: Step, knots: Sequence[float | None], *, fractions: bool,
                 where: Where = "knots", key: tuple = (),
