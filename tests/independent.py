@@ -1,8 +1,8 @@
 """Independent plain-NumPy kinematics and dynamics of a ``Robot`` description (tests only).
 
-Written from the conventions of ``thrustwalk_cli/robot.py`` alone (SPEC 1), without the
-SymPy derivation, the code generator or the compiled model, so that tests can compare two
-computations of the same quantity (SPEC 10):
+Written from the conventions of ``thrustwalk_cli/description/robot.py`` alone (SPEC 1),
+without the SymPy derivation, the code generator or the compiled model, so that tests can
+compare two computations of the same quantity (SPEC 10):
 
 * absolute link angles ``theta = T q`` (counter-clockwise from the world frame);
 * the root link is pinned at the stance foot, placed at ``foot`` (default the origin); every

@@ -1,2 +1,2 @@
-"""SPEC 2-4: virtual constraints, hybrid zero dynamics, limit cycles, thrust schedules and
-center-manifold shaping."""
+"""SPEC 2-4: virtual constraints, hybrid zero dynamics, limit cycles and center-manifold
+shaping (thrust schedules live in ``thrust/``)."""

@@ -1,2 +1,3 @@
 """SPEC 1: robot description -> SymPy derivation -> generated code -> cached compiled model.
-SymPy is imported only by ``derive`` and ``codegen``, and only when compiling."""
+SymPy is imported only by ``derive``, ``derive_reference`` and ``codegen``, and only when
+compiling."""
