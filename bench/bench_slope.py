@@ -4,7 +4,7 @@ limit-cycle call (the issue's target: the map well under a second).
 The map is explicit in (cos, sin) of the slope and affine in the thrust: the level-ground
 and along-the-ground series are computed once per gait, each pair then costs a few
 multiply-adds per grid point, its step time a nested quadrature and, near a contact limit,
-a golden-section polish (studies/slope.py).
+a golden-section polish (contact/slope_map.py, called by studies/slope.py).
 """
 
 from __future__ import annotations

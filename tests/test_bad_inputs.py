@@ -236,6 +236,23 @@ for _spec in ("inf:0:-1", "0:-inf:-1", "0:-10:nan", "1e308:0:-1e307", "0:1e300:1
     add(f"range-limit-cycle--thrust={_spec}", ["limit-cycle", "--thrust", _spec, "--out",
                                                "{out}", "-q"], "error: option --thrust: ")
 
+# -- slopes and terrain files (issue 27, SPEC 14) --------------------------------------------
+for _cmd, _extra in (("shape", ["--k", "0,10"]), ("optimize", ["--target-speed", "0.9"]),
+                     ("robustness", ["--push-impulse", "1"]),
+                     ("rough-ground", ["--sigma", "0.004"])):
+    for _value in ("1.6", "nan", "-1.5708"):
+        add(f"slope-{_cmd}={_value}", [_cmd, *_extra, "--slope", _value, "--out", "{out}",
+                                       "-q"], "error: option --slope: ")
+for _cmd, _extra in (("control", ["--reference", "nominal"]),
+                     ("robustness", ["--push-impulse", "1"])):
+    add(f"terrain-{_cmd}-nan-height", [_cmd, *_extra, "--terrain", "{file}", "--out", "{out}",
+                                       "-q"], _file_error(r"steps\[1\]", "finite"),
+        text="steps: [0.01, .nan]\n")
+    add(f"terrain-{_cmd}-unknown-distribution",
+        [_cmd, *_extra, "--terrain", "{file}", "--out", "{out}", "-q"],
+        _file_error(r"rough\.distribution", "cauchy"),
+        text="rough: {distribution: cauchy, sigma: 0.01}\n")
+
 # -- thrust outside the thruster's limits (100 N) ---------------------------------------------
 for _cmd in ("limit-cycle", "feasibility", "simulate"):
     for _value in ("-1e6", "150", "0,-20,-101"):

@@ -278,6 +278,9 @@ def test_command_on_walker5_writes_every_output_and_resumes(tmp_path, cli, monke
     (["--strategy", "hover"], "option --strategy: unknown strategy 'hover'"),
     (["--mesh", "5"], "option --mesh: must be even"),
     (["--cap", "0"], "option --cap:"),
+    (["--slope", "1.6"], "option --slope:"),
+    (["--slope", "nan"], "option --slope:"),
+    (["--slope", "-1.5708"], "option --slope:"),
 ])
 def test_bad_input_is_one_line_exit_two_and_writes_nothing(tmp_path, cli, monkeypatch, args,
                                                            message):

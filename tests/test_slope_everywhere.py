@@ -18,6 +18,7 @@ from test_slope import turned_robot
 
 from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
 from thrustwalk_cli.model.compiler import load_model
+from thrustwalk_cli.studies.rough_ground import plan_rough_ground, run_rough_ground
 from thrustwalk_cli.thrust.schedule import Schedule
 from thrustwalk_cli.walker import load_walker, walker_from
 
@@ -141,7 +142,8 @@ def test_robustness_cli_on_a_slope(cli, tmp_path, monkeypatch):
 def test_robustness_on_a_terrain_equals_simulate_on_it(walker5):
     """robustness --terrain: an unpushed trial walks zeta^- per step as simulate --terrain of
     the same strategy from the same orbit (1e-10); a terrain of zero heights gives the level
-    trials bit for bit; a drop past s_max is a fall by missed footing."""
+    trials bit for bit (but for the failed step's height: 0, not None); a drop past s_max is
+    a fall by missed footing."""
     from thrustwalk_cli.description.terrain import Terrain
     from thrustwalk_cli.studies.robustness import plan_robustness, run_robustness
     from thrustwalk_cli.studies.simulate import simulate
@@ -159,12 +161,60 @@ def test_robustness_on_a_terrain_equals_simulate_on_it(walker5):
     level = run_robustness(plan_robustness(walker5, **kw), workers=1)
     zero = run_robustness(plan_robustness(walker5, terrain=Terrain(steps=(0.0,)), **kw),
                           workers=1)
-    for a, b in zip(level.records, zero.records):
-        assert a["document"] == b["document"]
+    for a, b in zip(level.records, zero.records):  # but the failed step's height: level
+        da, db = dict(a["document"]), dict(b["document"])  # ground has no terrain to say it
+        assert da.pop("failed_height_reason") == "no terrain: level ground"
+        assert da.pop("failed_height") is None
+        assert db.pop("failed_height") == (None if db["step"] is None else 0.0)
+        db.pop("failed_height_reason")
+        assert da == db
     drop = run_robustness(plan_robustness(walker5, terrain=Terrain(steps=(-0.2,), s_max=1.02),
                                           **{**kw, "push_impulse": [0.0]}), workers=1)
     d = drop.records[0]["document"]
     assert d["outcome"] == "fell" and "missed its footing" in d["reason"]
+
+
+def test_robustness_terrain_trials_carry_the_failed_steps_height(cli, tmp_path, monkeypatch):
+    """robustness --terrain FILE: each trial's record and trials.csv carry the height of the
+    step it failed on (the file's height at its failed step: a drop past s_max missed at step
+    2, a push that lifts the foot on the 4 mm step up of step 1), and None with the reason when
+    every step was walked; level ground has no such column (as before)."""
+    import csv
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "drop.yaml").write_text("steps: [0.004, -0.2]\ns_max: 1.02\n")
+    (tmp_path / "up.yaml").write_text("steps: [0.004]\n")
+    base = ["robustness", ROBOT5, GAIT5, "--push-impulse", "0,1", "--push-phase", "0.5",
+            "--strategy", "none", "--basin-grid", "0", "--steps", "3", "--mu", "2",
+            "--workers", "1", "-q", "--formats", "csv"]
+    heights = {"drop.yaml": [0.004, -0.2], "up.yaml": [0.004]}
+    for name in heights:
+        r = cli(*base, "--terrain", name, "--out", name[:-5])
+        assert r.exit_code == 0, r.output
+        out = tmp_path / name[:-5]
+        recs = [json.loads(p.read_text()) for p in (out / "trials").glob("*.json")]
+        rows = list(csv.DictReader(ln for ln in (out / "trials.csv").read_text().splitlines()
+                                   if not ln.startswith("#")))
+        assert len(recs) == len(rows) == 2
+        seen = set()
+        for rec, row in zip(sorted(recs, key=lambda d: d["key"]),
+                            sorted(rows, key=lambda d: d["key"])):
+            d = rec["document"]
+            if d["outcome"] in ("recovered", "unsettled"):
+                assert d["failed_height"] is None and "no failure" in d["failed_height_reason"]
+                assert row["failed_height_m"] == ""
+                seen.add("walked")
+            else:
+                want = (heights[name] + [0.0] * 3)[d["step"] - 1]
+                assert d["failed_height"] == want and d["failed_height_reason"] is None
+                assert float(row["failed_height_m"]) == want
+                seen.add((d["outcome"], d["step"]))
+        # the unpushed trial: misses the drop of step 2, or walks past the step up
+        assert (("fell", 2) if name == "drop.yaml" else "walked") in seen, seen
+        assert ("lifted", 1) in seen, seen  # the push of 1 N s, on the step up
+    r = cli(*base, "--out", "level")
+    assert r.exit_code == 0, r.output
+    assert "failed_height" not in (tmp_path / "level" / "trials.csv").read_text()
 
 
 # ------------------------------------------------------------------------- control --terrain
@@ -338,6 +388,40 @@ def test_sweep_over_slope_equals_limit_cycle_runs(cli, tmp_path, monkeypatch, wa
     assert "slope" not in dict(flat.spec.settings)
 
 
+def test_gait_library_over_slopes(cli, tmp_path, monkeypatch):
+    """A design-gait sweep with a `slope` axis [0, 0.03] (bundled 3-link, from another
+    folder): library.csv has the slope column, each gait file's header names its slope, and
+    limit-cycle --slope on each written gait file finds it walkable at the speed along the
+    ground and the zeta* the library reports (1e-9)."""
+    import csv
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "lib.yaml").write_text(
+        "name: slope_library\nstudy: design-gait\nrobot: three_link\n"
+        "settings:\n  target_speed: 0.8\n  clearance: 0\n  starts: 1\n  max_iter: 100\n"
+        "grid:\n  slope: {values: [0, 0.03]}\ncollect: [feasible, effort]\n")
+    r = cli("sweep", "lib.yaml", "--out", "out", "--workers", "1", "-q", "--formats", "csv")
+    assert r.exit_code == 0, r.output
+    rows = list(csv.DictReader(ln for ln in (tmp_path / "out" / "library.csv").read_text()
+                               .splitlines() if not ln.startswith("#")))
+    assert [float(row["slope_rad"]) for row in rows] == [0.0, 0.03]
+    for row in rows:
+        assert row["feasible"] == "true"
+        gamma, file = float(row["slope_rad"]), tmp_path / "out" / row["file"]
+        head = [ln for ln in file.read_text().splitlines() if ln.startswith("#")]
+        said = (f"# Designed for the slope {gamma!r} rad" if gamma else
+                "# Designed for level ground (slope 0 rad)")
+        assert any(ln.startswith(said) for ln in head), head
+        out = tmp_path / f"lc{gamma}"
+        r = cli("limit-cycle", "three_link", str(file), "--slope", str(gamma), "--thrust", "0",
+                "--out", out, "--formats", "", "-q")
+        assert r.exit_code == 0, r.output
+        c = json.loads((out / "limit_cycles.json").read_text())["cycles"][0]
+        assert c["walkable"], c["verdict"]
+        assert c["speed"] == pytest.approx(float(row["speed_m_s"]), rel=1e-9)
+        assert c["zeta_star"] == pytest.approx(float(row["zeta_star_kg2m4_s2"]), rel=1e-9)
+
+
 # ------------------------------------------------------------------------------ optimize
 @pytest.mark.slow
 def test_optimize_on_a_slope_reaches_the_target_on_the_turned_robot(walker5):
@@ -370,3 +454,107 @@ def test_optimize_on_a_slope_reaches_the_target_on_the_turned_robot(walker5):
     a = optimize_schedule(walker5, target_speed=v, knots=[0, 0.5, 1])
     b = optimize_schedule(walker5, target_speed=v, knots=[0, 0.5, 1], slope=0.0)
     assert a.document() == b.document() and "slope" not in a.document()
+
+
+# ------------------------------------------------------------------------------ rough-ground
+_NO_MESH = {"computed": False, "reason": "not asked", "sigmas": []}
+
+
+def test_rough_ground_on_a_slope_walks_as_simulate_on_it(walker3):
+    """rough-ground --slope (the 3-link walker, downhill): a Monte-Carlo trial at sigma 0 is
+    ``simulate --slope`` of the same steps from the same fixed point (zeta^- over the run: its
+    min and max equal the simulation's, 1e-12), or its failure: with a friction cone the
+    slope's stance force leaves, the trial slips on the first step whose simulated friction
+    ratio passes mu. The mesh chain is on the slope too: the zeta^- its walk visits brackets
+    the slope's simulated zeta^-, far from the level ground's."""
+    from thrustwalk_cli.studies.simulate import simulate
+
+    gamma, cap = -0.03, 12
+    plan = plan_rough_ground(walker3, sigma=[0.0, 0.0005], strategy=["none"], trials=1,
+                             cap=cap, mesh=4, terrain_samples=4, slope=gamma)
+    assert plan.settings["slope"] == gamma
+    assert all(dict(t.settings)["slope"] == gamma for t in plan.tasks)
+    res = run_rough_ground(plan, workers=1)
+    doc = res.document()
+    assert doc["slope"]["angle"] == gamma and doc["units"]["slope"] == "rad"
+    trial = res.records[0]["document"]
+    assert trial["sigma"] == 0.0 and trial["outcome"] == "censored", trial["reason"]
+    zs = plan.realized[0].zeta_ref
+    sim = simulate(walker3, steps=cap, thrust=[0.0], thrust_model="ideal", slope=gamma,
+                   zeta0=zs).document()
+    assert sim["success"]
+    z = [zs] + [st["zeta_minus"] for st in sim["steps"]]
+    assert trial["zeta_min"] == pytest.approx(min(z), rel=1e-12)
+    assert trial["zeta_max"] == pytest.approx(max(z), rel=1e-12)
+    level = simulate(walker3, steps=1, thrust=[0.0], thrust_model="ideal").document()
+    z_level = level["steps"][0]["zeta_minus"]
+    lo, hi = doc["strategies"][0]["mesh"]["visited"]
+    assert lo <= sim["steps"][-1]["zeta_minus"] <= hi and not lo <= z_level <= hi
+    # a failure: the cone mu = 0.2 on the steeper slope
+    gamma, mu = -0.1, 0.2
+    plan = plan_rough_ground(walker3, sigma=[0.0], strategy=["none"], trials=1, cap=cap,
+                             mu=mu, slope=gamma, mesh=4, terrain_samples=4)
+    trial = run_rough_ground(plan, workers=1, meshes=[_NO_MESH]).records[0]["document"]
+    sim = simulate(walker3, steps=cap, thrust=[0.0], thrust_model="ideal", slope=gamma,
+                   mu=mu, zeta0=plan.realized[0].zeta_ref).document()
+    first = next(st["step"] for st in sim["steps"] if max(
+        st["max_friction_ratio"], st["impulse_friction_ratio"]) > mu)
+    assert trial["outcome"] == "slipped" and trial["failed_step"] == first, trial["reason"]
+    assert trial["failed_height"] == 0.0
+
+
+def test_rough_ground_slope_zero_is_level_ground(walker3):
+    """slope 0: the same trials, keys, settings and identity as without the option (no run),
+    and no slope block; a slope changes the identity."""
+    kw = dict(sigma=[0.003, 0.005], strategy=["none", "constant:-10"], trials=3, cap=50)
+    a, b = plan_rough_ground(walker3, **kw), plan_rough_ground(walker3, slope=0.0, **kw)
+    assert a.identity == b.identity and a.settings == b.settings
+    assert [t.key for t in a.tasks] == [t.key for t in b.tasks]
+    assert "slope" not in a.settings and all("slope" not in dict(t.settings) for t in a.tasks)
+    c = plan_rough_ground(walker3, slope=0.02, **kw)
+    assert c.identity != a.identity and c.settings["slope"] == 0.02
+
+
+def test_rough_trial_sweep_on_a_slope_equals_rough_ground(cli, tmp_path, monkeypatch,
+                                                          walker3):
+    """A rough-trial sweep file with `slope` (bundled 3-link, from another folder): each
+    point's record is the rough-ground run's trial of the same (sigma, trial) on the same
+    slope, document for document."""
+    monkeypatch.chdir(tmp_path)
+    gamma, sigma = -0.03, 0.004
+    (tmp_path / "s.yaml").write_text(
+        "name: rough_slope\nstudy: rough-trial\nrobot: three_link\ngait: three_link_walk\n"
+        f"settings:\n  strategy: none\n  sigma: {sigma}\n  cap: 30\n  slope: {gamma}\n"
+        "grid:\n  trial: {values: [0, 1]}\n"
+        "collect: [outcome, steps_completed, failed_height]\n")
+    r = cli("sweep", "s.yaml", "--out", "out", "--workers", "1", "-q", "--formats", "")
+    assert r.exit_code == 0, r.output
+    recs = sorted((json.loads(p.read_text()) for p in (tmp_path / "out" / "points").glob(
+        "*.json")), key=lambda d: d["index"])
+    plan = plan_rough_ground(walker3, sigma=[sigma], strategy=["none"], trials=2, cap=30,
+                             slope=gamma)
+    ref = run_rough_ground(plan, workers=1, meshes=[_NO_MESH])
+    assert len(recs) == 2
+    for rec, want in zip(recs, ref.records):
+        assert rec["values"]["trial"] == want["document"]["trial"]
+        assert rec["document"] == want["document"]
+        assert rec["fields"] == want["fields"]
+
+
+def test_rough_ground_cli_on_a_slope(cli, tmp_path, monkeypatch, walker3):
+    """rough-ground --slope from another folder: the slope block and settings, and each trial
+    record is the study's on that slope."""
+    monkeypatch.chdir(tmp_path)
+    r = cli("rough-ground", "three_link", "--sigma", "0.004", "--strategy", "none", "--trials",
+            "2", "--cap", "20", "--mesh", "4", "--terrain-samples", "4", "--slope", "-0.03",
+            "--workers", "1", "--out", "out", "-q", "--formats", "csv")
+    assert r.exit_code == 0, r.output
+    doc = json.loads((tmp_path / "out" / "rough_ground.json").read_text())
+    assert doc["slope"]["angle"] == -0.03 and doc["settings"]["slope"] == -0.03
+    plan = plan_rough_ground(walker3, sigma=[0.004], strategy=["none"], trials=2, cap=20,
+                             mesh=4, terrain_samples=4, slope=-0.03)
+    assert doc["identity"] == plan.identity
+    ref = run_rough_ground(plan, workers=1, meshes=[_NO_MESH])
+    for t, want in zip(plan.tasks, ref.records):
+        got = json.loads((tmp_path / "out" / "trials" / f"{t.key[:20]}.json").read_text())
+        assert got["document"] == want["document"]

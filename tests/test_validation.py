@@ -435,7 +435,7 @@ for _opt, _v, _msg in (("--slope", "nan", ""), ("--slope", "1.6", "a slope is an
 COMMANDS["rough-ground"] = [W5, W5T, "--sigma", "0.004", "--strategy", "none", "--trials", "2",
                             "--cap", "10", "--mesh", "4", "--terrain-samples", "4"]
 FLOATS["rough-ground"] = ["--s-max", "--target", "--mu", "--min-vertical-force",
-                          "--max-thrust", "--rtol", "--atol"]
+                          "--max-thrust", "--rtol", "--atol", "--slope"]
 INTS["rough-ground"] = [("--trials", ("0", "-1")), ("--cap", ("0", "-1")), ("--seed", ("-1",)),
                         ("--mesh", ("0", "-1", "5")), ("--terrain-samples", ("0", "-1", "3")),
                         ("--workers", ("0", "-1"))]

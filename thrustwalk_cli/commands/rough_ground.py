@@ -33,6 +33,7 @@ from .options import (
     MuOpt,
     QuietOpt,
     RobotArg,
+    SlopeOpt,
     ThrusterOpt,
     TitlesOpt,
 )
@@ -57,6 +58,10 @@ and an uncertainty from half the mesh or half the samples. Agreement: the mesh's
 the Monte-Carlo interval. Headline: the sigma each strategy tolerates at an MFPT of --target
 steps against none.
 
+With --slope GAMMA [rad, positive uphill] every run and the mesh chain walk the slope (as
+simulate --slope: the slope frame, gravity and world-frame thrusters turned); the step heights
+are on top of it, normal to the slope. The JSON gains the slope block.
+
 Every trial is a point of the sweep engine: --workers local processes (default: one per core)
 or the Dask cluster of --scheduler. DIR is written incrementally (each trial's record in
 DIR/trials/); run the same command again to resume. Writes DIR/rough_ground.json, mfpt.csv,
@@ -74,8 +79,8 @@ def run_rough_ground_command(
         s_max: float, target: float, mu: float | None, min_vertical_force: float,
         thruster: str | None, knots: str, max_thrust: float | None, rtol: float, atol: float,
         workers: int | None, scheduler: str | None, out: Path, quiet: bool,
-        json: str | None = None, formats: set[str] | None = None, titles: bool = False
-) -> dict:
+        json: str | None = None, formats: set[str] | None = None, titles: bool = False,
+        slope: float = 0.0) -> dict:
     """Plain function behind the command; returns the ``rough_ground.json`` document."""
     from ..files import output
     from ..studies.rough_ground import mesh_chain, plan_rough_ground, run_rough_ground
@@ -99,7 +104,7 @@ def run_rough_ground_command(
         walker, sigma=sigmas, strategy=strategies, trials=trials, cap=cap, seed=seed,
         distribution=distribution, mesh=mesh, terrain_samples=terrain_samples, s_max=s_max,
         mu=mu, min_vertical_force=min_vertical_force, thruster=thruster, knots=kn,
-        max_thrust=max_thrust, target=target, rtol=rtol, atol=atol)
+        max_thrust=max_thrust, target=target, rtol=rtol, atol=atol, slope=slope)
     warn(plan.warnings)
     folder = output.SweepFolder(out, {"identity": plan.identity, "sweep": "rough-ground",
                                       "file": f"{walker.robot.name} / {walker.gait.name}",
@@ -195,6 +200,7 @@ def register(app: typer.Typer) -> None:
             "--target", help="The headline's MFPT [steps].")] = 1000.0,
         mu: MuOpt = None,
         min_vertical_force: MinVerticalForceOpt = 0.0,
+        slope: SlopeOpt = 0.0,
         thruster: ThrusterOpt = None,
         knots: Annotated[str, typer.Option(
             "--knots", help="Control: knots as fractions of the step, 0 first, 1 last.")
@@ -228,6 +234,6 @@ def register(app: typer.Typer) -> None:
                 min_vertical_force=min_vertical_force, thruster=thruster, knots=knots,
                 max_thrust=max_thrust, rtol=rtol, atol=atol, workers=workers,
                 scheduler=scheduler, out=out, quiet=quiet, json=json,
-                formats=parse_formats(formats), titles=titles)
+                formats=parse_formats(formats), titles=titles, slope=slope)
             if doc["counts"]["not_run"]:
                 raise typer.Exit(1)

@@ -219,6 +219,7 @@ STUDY_PARAMETERS: dict[str, Kind] = {
         field("rtol", number("1", gt=0, lt=0.1), "relative integration tolerance",
               default=1e-9),
         field("atol", number("1", gt=0, lt=0.1), "absolute integration tolerance", default=1e-9),
+        _SLOPE,
     ),
     "reduced-walk": mapping(
         *_STRATEGY,

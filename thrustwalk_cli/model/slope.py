@@ -174,7 +174,7 @@ def gravity_frame_model(flat: CompiledModel, c: float, s: float,
     """``flat`` with gravity ``g (-s, -c)`` and world thrusters turned by ``(c, s)`` (module
     docstring with ``c = cos(gamma)``, ``s = sin(gamma)``); ``c = 0, s = 1`` is the part of
     every quantity that multiplies ``sin(gamma)`` (gravity along the ground only), which the
-    slope map (``studies/slope.py``) combines with the level-ground part."""
+    slope map (``contact/slope_map.py``) combines with the level-ground part."""
     parts = parts or SlopeParts(flat)
     if gamma is None:
         gamma = math.atan2(s, c)

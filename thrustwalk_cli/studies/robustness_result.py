@@ -426,6 +426,7 @@ class RobustnessResult:
                   col("push_vertical_impulse", "N s")] + [
                   col(e, "J") for e in ENERGY_FIELDS] + ["energy_steps", "energy_reason",
                                                          "reason"]
+        terrain = p.settings.get("terrain") is not None
         rows = []
         for t, kd, wh, r in zip(p.tasks, p.kinds, p.where, self.records):
             if kd == "sample" or r is None:
@@ -445,9 +446,15 @@ class RobustnessResult:
                         + [f.get(e) for e in ENERGY_FIELDS]
                         + [f.get("energy_steps"), f.get("energy_reason"),
                            doc.get("reason") or r["reason"]])
-        out = {"trials": Table(header, rows, [
-            "one row per trial: push trials (pushed in step 1 on the strategy's orbit) and "
-            "basin trials (started off the orbit); the full record is trials/KEY.json"])}
+            if terrain:  # SPEC 14: the ground of the failed step (empty: no failure)
+                rows[-1].insert(12, f.get("failed_height"))
+        notes = ["one row per trial: push trials (pushed in step 1 on the strategy's orbit) and "
+                 "basin trials (started off the orbit); the full record is trials/KEY.json"]
+        if terrain:
+            header.insert(12, col("failed_height", "m"))
+            notes.append("failed_height: the terrain height of the failed step (empty: every "
+                         "step walked)")
+        out = {"trials": Table(header, rows, notes)}
         if p.uncertainty is not None:
             names = list(p.draws)
             units_of = {a.name: a.unit for a in p.uncertainty.axes}

@@ -38,7 +38,8 @@ from ..errors import (
     check_numbers,
     check_text,
 )
-from ..files.sweep_file import STUDY_PARAMETERS
+from ..files.sweep_file import STUDY_PARAMETERS, keyed
+from ..model.slope import check_slope
 from ..resilience.mfpt import chain_mfpt
 from ..resilience.rough import (
     DISTRIBUTIONS,
@@ -82,7 +83,8 @@ def plan_rough_ground(walker: Walker, *, sigma: Sequence[float],
                       mu: float | None = None, min_vertical_force: float = 0.0,
                       thruster: str | None = None, knots: Sequence[float] = (0.0, 0.5, 1.0),
                       max_thrust: float | None = None, target: float = TARGET,
-                      rtol: float = 1e-9, atol: float = 1e-9) -> RoughGroundPlan:
+                      rtol: float = 1e-9, atol: float = 1e-9,
+                      slope: float = 0.0) -> RoughGroundPlan:
     """Check every option and key every Monte-Carlo trial (module docstring; SI units):
     ``sigma`` [m] standard deviations of the step heights (>= 0), ``strategy`` (default none
     and control; none alone for a robot without thrusters), ``trials`` per (strategy, sigma),
@@ -90,8 +92,13 @@ def plan_rough_ground(walker: Walker, *, sigma: Sequence[float],
     ``mesh`` and ``terrain_samples`` (even: their halves are the refinement), ``s_max`` [1]
     the missed-footing limit, the cone (``mu``, ``min_vertical_force`` [N]), the controller
     (``thruster``, ``knots``, ``max_thrust`` [N]), ``target`` [steps] the headline's MFPT and
-    the integrator tolerances."""
+    the integrator tolerances. ``slope`` [rad, positive uphill, |slope| < pi/2]: the ground
+    angle (SPEC 14, as ``simulate --slope`` and a terrain file's ``slope``,
+    :meth:`Walker.on_slope`): every trial and the mesh chain's one-step map walk the slope
+    frame, the step heights ``h_k`` on top of it (normal to the slope); the document gains the
+    ``slope`` block. 0: level ground, bit for bit (keys and identity as without it)."""
     check_walker(walker)
+    walker = walker.on_slope(check_slope(slope))
     sigmas = check_numbers("sigma", sigma, max_len=MAX_SIGMAS, ge=0, le=1, unit="m")
     if strategy is not None and (isinstance(strategy, (str, bytes)) or
                                  not hasattr(strategy, "__iter__")):
@@ -128,10 +135,11 @@ def plan_rough_ground(walker: Walker, *, sigma: Sequence[float],
     robot_text, gait_text = walker_texts(walker)
     common = {"cap": int(cap), "seed": int(seed), "distribution": distribution,
               "s_max": float(s_max), "mu": mu, "min_vertical_force": float(min_vertical_force),
-              "rtol": float(rtol), "atol": float(atol)}
+              "rtol": float(rtol), "atol": float(atol),
+              **({"slope": walker.slope} if walker.slope != 0.0 else {})}
     realized, params, warnings = [], [], []
     for s in strategies:
-        p = {**_defaults(), **common, **s.parameters()}
+        p = keyed({**_defaults(), **common, **s.parameters()})
         for _name, msg in check_strategy(walker, p):
             raise InputError.param("strategy", f"{s.label}: {msg}")
         real, _ = realized_strategy(walker, p)

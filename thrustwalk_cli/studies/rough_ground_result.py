@@ -20,7 +20,16 @@ from ..resilience.strategy import Strategy
 from ..sweep.runner import RunCounts
 from ..sweep.tasks import PointTask
 from ..walker import Walker
-from .documents import SCHEMA_VERSION, Table, col, gait_record, result_repr, robot_record, units
+from .documents import (
+    SCHEMA_VERSION,
+    Table,
+    col,
+    gait_record,
+    result_repr,
+    robot_record,
+    slope_record,
+    units,
+)
 
 TARGET = 1000.0  # [steps] the headline's MFPT
 
@@ -265,9 +274,12 @@ class RoughGroundResult:
     def document(self) -> dict:
         p, w = self.plan, self.plan.walker
         return {
-            "schema_version": SCHEMA_VERSION, "units": UNITS, "success": self.success,
-            "reason": self.reason, "warnings": self.warnings(),
-            "robot": robot_record(w.zd), "gait": gait_record(w.zd), "settings": p.settings,
+            "schema_version": SCHEMA_VERSION,
+            "units": {**UNITS, "slope": "rad"} if w.slope != 0.0 else UNITS,
+            "success": self.success, "reason": self.reason, "warnings": self.warnings(),
+            "robot": robot_record(w.zd), "gait": gait_record(w.zd),
+            **({"slope": slope_record(w.slope)} if w.slope != 0.0 else {}),
+            "settings": p.settings,
             "definitions": DEFINITIONS, "headline": self.headline(),
             "strategies": [self.strategy_summary(k) for k in range(len(p.strategies))],
             "counts": {"trials": len(p.tasks), "recorded": len(p.tasks) - self.missing,

@@ -377,6 +377,8 @@ def _design_point(model: CompiledModel, p: dict, start: dict | None) -> PointRes
             header.insert(1, f"Designed for the slope {_slope(p)!r} rad (positive uphill; "
                              f"SPEC 14): speed and step length along the ground, climb rate "
                              f"{o['climb_rate']:.4g} m/s.")
+        elif "slope" in p:  # a level point of a library over slopes says so too
+            header.insert(1, "Designed for level ground (slope 0 rad).")
         extra["gait_yaml"] = gait_yaml(res.design, model, p.get("_robot_ref") or
                                        model.robot.source_file, header)
         maps = gait_maps(model, res.design.gait)

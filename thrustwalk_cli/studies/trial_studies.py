@@ -196,7 +196,30 @@ _PT_FIELDS = {
                           "missing)"),
     "push_energy": ("J", "the mechanical energy the push itself added (apart from the above)"),
     "energy_reason": ("", "the models missing, when an energy is empty"),
+    "failed_height": ("m", "the terrain height of the failed step (empty: no failure, or no "
+                           "terrain)"),
 }
+
+
+#: the outcomes of a push trial that are not failures (every step walked)
+_WALKED = ("recovered", "unsettled")
+
+
+def failed_height(res, p: Mapping) -> dict:
+    """The ground height [m] of the step a push or basin trial failed on (SPEC 14), as
+    ``rough-trial``'s ``failed_height``: ``terrain.heights[failed_step - 1]`` of the point's
+    terrain (0 past the list: level ground); None with ``failed_height_reason`` when every
+    step was walked or the point has no terrain (level ground)."""
+    t = p.get("terrain")
+    if t is None:
+        return {"failed_height": None, "failed_height_reason": "no terrain: level ground"}
+    if res.outcome in _WALKED or res.step is None:
+        return {"failed_height": None,
+                "failed_height_reason": f"no failure: every step walked ({res.outcome})"}
+    heights = [float(h) for h in t["heights"]]
+    k = int(res.step)
+    return {"failed_height": heights[k - 1] if k <= len(heights) else 0.0,
+            "failed_height_reason": None}
 
 
 def _push_trial_point(walker: Walker, p: dict, start: dict | None) -> PointResult:
@@ -212,12 +235,14 @@ def _push_trial_point(walker: Walker, p: dict, start: dict | None) -> PointResul
     runner = _trial_runner(walker, p)
     trial = Trial(impulse, float(p["push_phase"]), sigma, rate)
     res = runner.run(trial)
+    height = failed_height(res, p)
     doc = {"strategy": runner.r.strategy.label,
            "trial": {"push_impulse": impulse, "push_phase": trial.phase,
                      "push_vector": runner.point.impulse(impulse).tolist(),
                      "start_sigma": sigma, "start_rate": rate},
-           **res.document()}
-    return PointResult(doc, res.fields(), pending=res)  # the energy: _finish_push_trials
+           **res.document(), **height}
+    return PointResult(doc, {**res.fields(), "failed_height": height["failed_height"]},
+                       pending=res)  # the energy: _finish_push_trials
 
 
 def _finish_push_trials(results: list[PointResult]) -> list[PointResult]:
@@ -269,9 +294,11 @@ _ROUGH_KEYS = _STRATEGY_KEYS + ("s_max", "rtol", "atol")
 
 
 def rough_runner(walker: Walker, p: Mapping):
-    """The rough-ground runner of the point's strategy and settings (kept per process)."""
+    """The rough-ground runner of the point's strategy and settings on the point's slope
+    (SPEC 14: the step heights on top of it; kept per process)."""
     from ..resilience.rough import RoughRunner
 
+    walker = on_slope(walker, p)
     real, mu = realized_strategy(walker, p)
     key = ("rough", id(walker), canonical({k: p.get(k) for k in _ROUGH_KEYS}))
 
@@ -299,6 +326,7 @@ _RT_FIELDS = {
 def _rough_trial_point(walker: Walker, p: dict, start: dict | None) -> PointResult:
     from ..resilience.rough import trial_terrain
 
+    walker = on_slope(walker, p)
     runner = rough_runner(walker, p)
     sigma, cap = float(p["sigma"]), int(p["cap"])
     terrain = trial_terrain(p["distribution"], sigma, int(p["seed"]), int(p["trial"]),
