@@ -246,6 +246,67 @@ def test_result_files_are_ordinary_files(tmp_path):
     assert [f.name for f in tmp_path.iterdir()] == ["x.json"]  # no temporary left behind
 
 
+def test_thrust_model_options_are_one_definition(cli, tmp_path, monkeypatch):
+    """simulate, control, stability and mujoco take the thrust-model options from one
+    definition (commands/options.py): where two commands' defaults agree, the help texts are
+    the same words; the defaults that legitimately differ (control's fast thruster) are
+    kept and shown by --help. --push is parsed by one parse_push: a malformed value is one
+    error line naming the option, exit 2, the same on control and mujoco (user robot, run
+    from another folder)."""
+    import typer.main
+
+    four = ("simulate", "control", "stability", "mujoco")
+    built = typer.main.get_command(app)
+    params = {c: {p.opts[0]: p for p in built.commands[c].params
+                  if p.opts[0].startswith("--")} for c in four}
+    defaults = {"--wn": {"simulate": 2.0, "stability": 2.0, "mujoco": 2.0, "control": 20.0},
+                "--xi": dict.fromkeys(four, 1.0),
+                "--tau": {"simulate": 0.5, "stability": 0.5, "mujoco": 0.5, "control": 0.05},
+                "--f0": {"simulate": 0.0, "mujoco": 0.0},
+                "--push": {"control": None, "mujoco": None},
+                "--thruster": dict.fromkeys(four)}
+    for name, want in defaults.items():
+        have = {c: params[c][name] for c in four if name in params[c]}
+        assert {c: o.default for c, o in have.items()} == want, name
+        for a in have:
+            for b in have:
+                if want[a] == want[b] and not (name == "--thruster" and {a, b} & {
+                        "control", "stability"}):  # what drives it; stability's: only one
+                    assert have[a].help == have[b].help, (name, a, b)
+            if want[a] is not None:
+                assert have[a].show_default is not False, (name, a)  # [default: ...] shown
+    for c in ("simulate", "control", "mujoco"):  # control has no --thrust: what drives it
+        assert params[c]["--thruster"].multiple
+        assert params[c]["--thruster"].help.endswith("(repeat for several; default: the "
+                                                     "first).")
+    assert not params["stability"]["--thruster"].multiple  # one F_ss on one thruster
+    # --thrust-model: the gait's schedule first, else the study's own fallback
+    fallback = {"simulate": "second-order", "stability": "second-order", "mujoco": "ideal"}
+    helps = {c: params[c]["--thrust-model"].help for c in fallback}
+    assert helps["simulate"] == helps["stability"]
+    for c, f in fallback.items():
+        assert helps[c].endswith(f"default: piecewise for a gait with a thrust: section and "
+                                 f"no --thrust, else {f}).")
+        assert helps[c].replace(f"else {f})", "") == helps["simulate"].replace(
+            "else second-order)", "")
+    assert params["control"]["--thrust-model"].default == "ideal"
+
+    monkeypatch.chdir(tmp_path)
+    data = Path(__file__).parent / "data"
+    robot, gait = (Path(__import__("os").path.relpath(data / f, tmp_path))
+                   for f in ("walker5.yaml", "walker5_walk.yaml"))
+    said = {}
+    for c in ("control", "mujoco"):
+        res = cli(c, str(robot), str(gait), "--steps", "3", "--push", "2:0.5",
+                  "--out", "o_" + c, "-q")
+        lines = res.stderr.strip().splitlines()
+        assert res.exit_code == 2 and len(lines) == 1, (c, res.stderr)
+        assert "option --push: '2:0.5' is not STEP:PHASE:PX[:PY]" in lines[0], lines
+        said[c] = lines[0]
+        assert not (tmp_path / ("o_" + c)).exists()
+    assert said["control"] == said["mujoco"]
+
+
 def test_the_thrust_model_option_lists_the_option_table(cli):
     """--thrust-model's help (written without importing numpy) names exactly the thruster
     models of thrust/dynamics.MODELS plus piecewise, on every command that takes it."""

@@ -444,6 +444,50 @@ def test_plant_with_heavier_torso(walker3):
     assert res.tracking_errors()[-1] < 0.05
 
 
+def test_plant_scale_scales_the_walkers_overridden_robot(_cache_dir):
+    """A walker loaded with robot_parameters (walker5's torso mT = 18 kg instead of the
+    file's 15): the plant of plant_scale mT = 1.1 is that robot scaled (19.8 kg), not the
+    file's (16.5 kg). Independent: the robot loaded with mT = 19.8 directly, its mass matrix
+    D(q) at one state, and the total mass (+1.8 kg)."""
+    from thrustwalk_cli.files.robot_file import load_robot
+    from thrustwalk_cli.model.compiler import load_model
+    from thrustwalk_cli.studies.control import _plant
+    from thrustwalk_cli.walker import load_walker
+
+    robot, gait = str(DATA / "walker5.yaml"), str(DATA / "walker5_walk.yaml")
+    w = load_walker(robot, gait, robot_parameters={"mT": 18.0})
+    zd, doc = _plant(w, {"mT": 1.1})
+    direct = load_model(load_robot(robot, {"mT": 19.8}))
+    q = np.array([0.1, -0.3, 0.2, 0.4, 3.0])
+    assert doc["parameters"]["mT"] == pytest.approx(19.8, rel=1e-12)
+    assert zd.model.robot.total_mass == pytest.approx(w.robot.total_mass + 1.8, rel=1e-12)
+    np.testing.assert_allclose(zd.model.D(q), direct.D(q), rtol=1e-12, atol=1e-12)
+    assert not np.allclose(zd.model.D(q), w.model.D(q))  # the plant differs from the model
+
+
+def test_plant_scale_of_a_robot_without_its_file(walker5):
+    """plant_scale scales the robot file's parameters: a robot built in memory (no file), or
+    one that is no longer what its file gives, is an InputError naming plant_scale, found
+    with the other options (check_only), not a file error about `<memory>` after the
+    compile."""
+    from dataclasses import replace
+
+    from thrustwalk_cli.errors import InputError
+    from thrustwalk_cli.model.compiler import load_model
+    from thrustwalk_cli.walker import walker_from
+
+    w = walker5["walker5_walk"]
+    for robot, says in ((replace(w.robot, source_file="<memory>", source_sha256=""),
+                         "built in memory"),
+                        (replace(w.robot, gravity=9.0), "is not what its file")):
+        wm = walker_from(load_model(robot), w.gait)
+        with pytest.raises(InputError) as exc:
+            control(wm, reference="zeta", profile=[(0, 1.0)], plant_scale={"mT": 1.1},
+                    check_only=True)
+        (problem,) = exc.value.problems
+        assert problem.params == ("plant_scale",) and says in problem.message, problem
+
+
 # ----------------------------------------------------------------------------- command
 @pytest.mark.slow
 def test_cli_control_writes_every_output(tmp_path, cli):

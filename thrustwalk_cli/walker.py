@@ -26,7 +26,7 @@ from .description.terrain import Terrain
 from .errors import InputError, Where, check_instance, check_number_map, check_path
 from .files.bundled import bundled_names, resolve
 from .files.gait_file import GaitSource, bind_gait, load_gait, same_robot_file
-from .files.robot_file import load_robot
+from .files.robot_file import load_robot, plant_robot
 from .files.terrain_file import load_terrain
 from .hzd.constraints import apply_invariance, gait_maps
 from .hzd.zero_dynamics import ZeroDynamics, zero_dynamics
@@ -138,11 +138,12 @@ def walker_from(model: CompiledModel, gait: Gait, where: Where = "gait") -> Walk
 
 def plant_walker(walker: Walker, scale: Mapping[str, float]) -> Walker:
     """``walker``'s gait as it is (bound, invariance applied: a controller's virtual
-    constraints, not fitted again) on its robot file read again with the named parameters
-    multiplied by ``scale`` (:func:`load_robot`'s ``scale``), compiled (:func:`load_model`)
-    and on the walker's slope (SPEC 14): the plant of a controller whose model is
-    ``walker``."""
-    robot = load_robot(walker.robot.source_file, scale=scale)
+    constraints, not fitted again) on its robot with the named parameters multiplied by
+    ``scale`` [1] (:func:`plant_robot`: the robot file read again with the walker's own
+    parameter overrides, then scaled), compiled (:func:`load_model`) and on the walker's
+    slope (SPEC 14): the plant of a controller whose model is ``walker``. :class:`InputError`
+    naming ``plant_scale`` for a robot built in memory."""
+    robot = plant_robot(walker.robot, scale)
     return walker_from(load_model(robot), walker.gait, walker.where).on_slope(walker.slope)
 
 

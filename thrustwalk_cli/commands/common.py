@@ -231,6 +231,26 @@ def parse_knots(text: str, option: str = "--knots") -> list[float | None]:
     return out
 
 
+def parse_push(items: list[str] | None, option: str = "--push"
+               ) -> list[tuple[float, float, float, float]]:
+    """``STEP:PHASE:PX[:PY]`` (an impulse [N s] at phase s [1] of a step, P_y 0 when not
+    given) -> ``(step, phase, P_x, P_y)``, for every command with ``--push``. Raises
+    :class:`InputError` naming the option on malformed input; the study checks the values
+    (the step in range, the phase in [0, 1), the impulse's size)."""
+    out = []
+    for item in items or []:
+        parts = item.split(":")
+        try:
+            if len(parts) not in (3, 4):
+                raise ValueError
+            v = [float(p) for p in parts]
+        except ValueError:
+            raise InputError(f"option {option}: {item!r} is not STEP:PHASE:PX[:PY] (e.g. "
+                             "3:0.5:20 for 20 N s forward at phase 0.5 of step 3)") from None
+        out.append((v[0], v[1], v[2], v[3] if len(v) == 4 else 0.0))
+    return out
+
+
 def parse_formats(text: str, allowed: tuple[str, ...] = ("csv", "png", "pdf", "svg")
                   ) -> set[str]:
     """``--formats csv,png`` -> the set of file kinds to write besides the JSON; ``none``:

@@ -17,6 +17,7 @@ from .common import (
     load_walker,
     parse_formats,
     parse_knots,
+    parse_push,
     progress,
     show_table,
     warn,
@@ -30,6 +31,7 @@ from .options import (
     MinVerticalForceOpt,
     MuOpt,
     OutOpt,
+    PushOpt,
     QuietOpt,
     RobotArg,
     SlopeOpt,
@@ -38,6 +40,7 @@ from .options import (
     WnOpt,
     XiOpt,
     thrust_model_opt,
+    thrusters_opt,
 )
 
 HELP = """Step-to-step thrust control with certified contact, in closed loop with the
@@ -92,22 +95,6 @@ def parse_profile(text: str | None) -> list[tuple[float, float]]:
         except ValueError:
             raise InputError(f"option --profile: {item.strip()!r} is not step:value (use e.g. "
                              "0:0.8,10:1.4,25:1.0)") from None
-    return out
-
-
-def parse_push(items: list[str] | None) -> list[tuple[int, float, float, float]]:
-    """``STEP:PHASE:PX[:PY]`` [N s] -> (step, phase, P_x, P_y)."""
-    out = []
-    for item in items or []:
-        parts = item.split(":")
-        try:
-            if len(parts) not in (3, 4):
-                raise ValueError
-            v = [float(p) for p in parts]
-        except ValueError:
-            raise InputError(f"option --push: {item!r} is not STEP:PHASE:PX[:PY] (e.g. "
-                             "12:0.8:-30 for -30 N s at phase 0.8 of step 12)") from None
-        out.append((v[0], v[1], v[2], v[3] if len(v) == 4 else 0.0))
     return out
 
 
@@ -236,12 +223,9 @@ def register(app: typer.Typer) -> None:
         wn: WnOpt = 20.0,
         xi: XiOpt = 1.0,
         tau: TauOpt = 0.05,
-        thruster: Annotated[list[str] | None, typer.Option(
-            "--thruster", metavar="NAME", help="Thruster the controller drives (repeat for "
-                                               "several; default: the first).")] = None,
-        push: Annotated[list[str] | None, typer.Option(
-            "--push", metavar="STEP:PHASE:PX[:PY]",
-            help="Impulse [N s] at the hip at phase s of a step (repeatable).")] = None,
+        thruster: Annotated[list[str] | None, thrusters_opt("the controller drives")
+                            ] = None,
+        push: PushOpt = None,
         plant_scale: Annotated[list[str] | None, typer.Option(
             "--plant-scale", metavar="NAME=FACTOR",
             help="Scale a robot-file parameter of the plant (e.g. MT=1.1; repeatable): the "

@@ -14,6 +14,7 @@ from .common import (
     console,
     load_walker,
     parse_formats,
+    parse_push,
     parse_values,
     progress,
     show_table,
@@ -30,11 +31,13 @@ from .options import (
     JsonOpt,
     MuOpt,
     OutOpt,
+    PushOpt,
     QuietOpt,
     RobotArg,
     SolimpOpt,
     SolrefOpt,
     TauOpt,
+    ThrustersOpt,
     TimestepOpt,
     TitlesOpt,
     WnOpt,
@@ -92,24 +95,6 @@ def contact_from_options(preset: str, *, timestep: float | None = None,
     return contact_settings(preset, timestep=timestep, solref=_floats(solref, "--solref", (2,)),
                             solimp=_floats(solimp, "--solimp", (3, 5)), integrator=integrator,
                             foot_radius=foot_radius)
-
-
-def parse_push(items: list[str] | None) -> list[tuple[float, float, float, float]]:
-    """``STEP:PHASE:PX[:PY]`` [N s] -> (step, phase, P_x, P_y)."""
-    from ..errors import InputError
-
-    out = []
-    for item in items or []:
-        parts = item.split(":")
-        try:
-            if len(parts) not in (3, 4):
-                raise ValueError
-            v = [float(p) for p in parts]
-        except ValueError:
-            raise InputError(f"option --push: {item!r} is not STEP:PHASE:PX[:PY] (e.g. "
-                             "3:0.5:20 for 20 N s forward at phase 0.5 of step 3)") from None
-        out.append((v[0], v[1], v[2], v[3] if len(v) == 4 else 0.0))
-    return out
 
 
 def run_mujoco_command(robot: str, gait: str | None, *, steps: int, thrust_model: str | None,
@@ -190,8 +175,7 @@ def register(app: typer.Typer) -> None:
         robot: RobotArg = "three_link",
         gait: GaitArg = None,
         steps: Annotated[int, typer.Option("--steps", help="Steps per run.")] = 20,
-        thrust_model: Annotated[str | None, thrust_model_opt(
-            "piecewise for a gait with a thrust: section and no --thrust, else ideal")] = None,
+        thrust_model: Annotated[str | None, thrust_model_opt("ideal")] = None,
         thrust: Annotated[str | None, typer.Option(
             "--thrust", help="Steady thrust F_ss [N], one run per value: start:stop:step or a "
                              "comma list (default 0).")] = None,
@@ -199,12 +183,8 @@ def register(app: typer.Typer) -> None:
         xi: XiOpt = 1.0,
         tau: TauOpt = 0.5,
         f0: F0Opt = 0.0,
-        thruster: Annotated[list[str] | None, typer.Option(
-            "--thruster", metavar="NAME", help="Thruster driven by --thrust (repeat for "
-                                               "several; default: the first).")] = None,
-        push: Annotated[list[str] | None, typer.Option(
-            "--push", metavar="STEP:PHASE:PX[:PY]",
-            help="Impulse [N s] at the hip at phase s of a step (repeatable).")] = None,
+        thruster: ThrustersOpt = None,
+        push: PushOpt = None,
         mu: MuOpt = None,
         contact: ContactOpt = "default",
         timestep: TimestepOpt = None,

@@ -53,19 +53,41 @@ THRUST_MODEL_NAMES = "ideal | first-order | second-order | piecewise"
 
 
 def thrust_model_opt(default: str, piecewise: bool = True):
-    """The ``--thrust-model`` option; ``default`` says what happens without it, ``piecewise``
-    whether the command takes a gait's ``thrust:`` schedule."""
+    """The ``--thrust-model`` option. ``piecewise``: the command takes a gait's ``thrust:``
+    schedule, its default for a gait that has one and no ``--thrust``, else ``default``
+    (simulate and stability: second-order; mujoco: ideal); without ``piecewise`` (control),
+    ``default`` says all that happens without the option."""
     names = THRUST_MODEL_NAMES if piecewise else THRUST_MODEL_NAMES.replace(" | piecewise", "")
+    if piecewise:
+        default = f"piecewise for a gait with a thrust: section and no --thrust, else {default}"
     return typer.Option("--thrust-model", help=f"{names} (`constant`: the deprecated name of "
                                                f"ideal; default: {default}).")
 
 
+# the thruster models' parameters: one help text each; a command gives its default in its
+# signature (simulate, stability, mujoco: wn 2, xi 1, tau 0.5; control: wn 20, xi 1, tau
+# 0.05, its controller's fast thruster), which --help shows as [default: ...]
 WnOpt = Annotated[float, typer.Option("--wn", help="Second-order thruster natural frequency "
                                                    "[rad/s].")]
 XiOpt = Annotated[float, typer.Option("--xi", help="Second-order thruster damping ratio [1].")]
 TauOpt = Annotated[float, typer.Option("--tau", help="First-order thruster time constant [s].")]
 F0Opt = Annotated[float, typer.Option("--f0", help="Thrust at t = 0 of the dynamic thrusters "
                                                    "[N].")]
+
+
+def thrusters_opt(driven: str = "driven by --thrust"):
+    """The repeatable ``--thruster NAME`` option (simulate, mujoco, control); ``driven``
+    says what drives it (control: its controller)."""
+    return typer.Option("--thruster", metavar="NAME", help=f"Thruster {driven} (repeat for "
+                                                           "several; default: the first).")
+
+
+ThrustersOpt = Annotated[list[str] | None, thrusters_opt()]
+PushOpt = Annotated[
+    list[str] | None, typer.Option("--push", metavar="STEP:PHASE:PX[:PY]",
+                                   help="Impulse [N s] at the hip at phase s of a step "
+                                        "(repeatable).")
+]
 MuOpt = Annotated[
     float | None, typer.Option("--mu", help="Friction coefficient [-] (default: the gait's "
                                             "`mu`).")

@@ -33,6 +33,7 @@ from .options import (
     RobotArg,
     SlopeOpt,
     TauOpt,
+    ThrustersOpt,
     TitlesOpt,
     WnOpt,
     XiOpt,
@@ -167,8 +168,7 @@ def register(app: typer.Typer) -> None:
         robot: RobotArg = "three_link",
         gait: GaitArg = None,
         steps: Annotated[int, typer.Option("--steps", help="Steps per run.")] = 30,
-        thrust_model: Annotated[str | None, thrust_model_opt(
-            "piecewise for a gait with a thrust: section, else second-order")] = None,
+        thrust_model: Annotated[str | None, thrust_model_opt("second-order")] = None,
         thrust: Annotated[str | None, typer.Option(
             "--thrust", help="Steady thrust F_ss [N], one run per value: start:stop:step or "
                              "a comma list (default 0:-50:-10, or 0 for a robot without "
@@ -177,10 +177,7 @@ def register(app: typer.Typer) -> None:
         xi: XiOpt = 1.0,
         tau: TauOpt = 0.5,
         f0: F0Opt = 0.0,
-        thruster: Annotated[list[str] | None, typer.Option(
-            "--thruster", metavar="NAME",
-            help="Thruster driven by --thrust (repeat for several; default: the "
-                               "first).")] = None,
+        thruster: ThrustersOpt = None,
         perturb: Annotated[float, typer.Option(
             "--perturb", help="Relative change of the start's pre-impact zeta^- [1], e.g. "
                               "0.2 = 20 % more.")] = 0.0,

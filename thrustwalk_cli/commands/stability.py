@@ -194,9 +194,7 @@ def register(app: typer.Typer) -> None:
         ctx: typer.Context,
         robot: RobotArg = "three_link",
         gait: GaitArg = None,
-        thrust_model: Annotated[str | None, thrust_model_opt(
-            "piecewise for a gait with a thrust: section and no --thrust, else "
-            "second-order")] = None,
+        thrust_model: Annotated[str | None, thrust_model_opt("second-order")] = None,
         thrust: Annotated[str | None, typer.Option(
             "--thrust", help="Steady thrust F_ss [N], one value (default 0; sweep it with "
                              "--vary thrust=...).")] = None,

@@ -147,6 +147,10 @@ class Robot:
     source_sha256: str = ""
     parameters: tuple[tuple[str, float], ...] = field(default=())
     key_lines: tuple[tuple[str, int], ...] = field(default=(), compare=False, repr=False)
+    #: the named parameters replaced when the file was read (``load_robot``'s
+    #: ``parameters``, a sweep's robot-parameter axis) [SI]: with the file, they rebuild this
+    #: robot (a controller's plant with scaled parameters, ``files.robot_file.plant_robot``)
+    overrides: tuple[tuple[str, float], ...] = field(default=(), compare=False, repr=False)
 
     def line_of(self, path: str) -> int | None:
         """Line of a key path (e.g. ``"coordinates.unactuated"``) in the source file."""

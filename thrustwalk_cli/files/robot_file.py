@@ -22,7 +22,7 @@ from ..description.robot import (
     coordinate_map,
     symmetry_relabel,
 )
-from ..errors import InputError, Problem, check_number_map, check_path
+from ..errors import InputError, Problem, check_instance, check_number_map, check_path
 from .bundled import resolve
 from .schema import (
     check,
@@ -211,18 +211,49 @@ def load_robot(ref: str, parameters: Mapping[str, float] | None = None, *,
     """Read, validate and build a :class:`Robot` from a YAML file or bundled name.
 
     ``parameters``: numbers replacing the file's named ``parameters:`` (e.g. ``{"MT": 12.0}``
-    [kg]), exactly as if they were edited into the file (a robot-parameter axis of a sweep).
+    [kg]), exactly as if they were edited into the file (a robot-parameter axis of a sweep;
+    kept as the robot's ``overrides``).
     ``scale``: factors for named parameters (``{"MT": 1.1}``: 10 % more torso mass; an
-    expression ``e`` becomes ``(e) * factor``), applied before ``parameters`` (a plant that
-    differs from a controller's model)."""
+    expression ``e`` becomes ``(e) * factor``), applied after ``parameters`` (a plant that
+    differs from a controller's model: ``parameters={"MT": 12.0}, scale={"MT": 1.1}`` is a
+    13.2 kg torso)."""
     ref = check_path("ref", ref)
     parameters = check_number_map("parameters", parameters, optional=True)
     scale = check_number_map("scale", scale, optional=True, gt=0)
     path = resolve(ref, "robots")
     doc = load_yaml(path, expect=kind_check("robot", ROBOT_SCHEMA))
-    if scale:
-        doc = _scaled(doc, dict(scale))
-    return parse_robot(doc, path, parameters)
+    return parse_robot(doc, path, parameters, scale=scale)
+
+
+def plant_robot(robot: Robot, scale: Mapping[str, float]) -> Robot:
+    """``robot`` with the named ``parameters:`` of its file multiplied by ``scale``
+    (``{"MT": 1.1}``: 10 % more torso mass [1]): the file read again with the robot's own
+    ``overrides`` (the parameters it was loaded with, e.g. ``load_walker(...,
+    robot_parameters=...)``) and then the factors (:func:`load_robot`), so the plant is this
+    robot scaled, not the file's. :class:`InputError` naming ``plant_scale`` for a name the
+    file does not define, for a robot built in memory (no file to scale the parameters of)
+    and for a robot its file no longer gives (the file edited since, or the robot changed in
+    memory)."""
+    check_instance("robot", robot, Robot, "a Robot")
+    scale = check_number_map("plant_scale", scale, gt=0)
+    how = ("the parameters to scale are those of the robot file: load the robot from its "
+           "file (tw.load_robot, tw.load_walker; robot_parameters for other values)")
+    if not robot.source_sha256 or robot.source_file == "<memory>":
+        raise InputError.param("plant_scale", f"robot {robot.name!r} was built in memory, "
+                                              f"not read from a file: {how}")
+    try:
+        path = resolve(robot.source_file, "robots")
+        doc = load_yaml(path, expect=kind_check("robot", ROBOT_SCHEMA))
+        overrides = dict(robot.overrides)
+        same = parse_robot(doc, path, overrides).canonical() == robot.canonical()
+    except InputError as exc:
+        raise InputError.param("plant_scale", f"robot {robot.name!r}: its file "
+                               f"{robot.source_file} does not read again ({exc})") from None
+    if not same:
+        raise InputError.param("plant_scale", f"robot {robot.name!r} is not what its file "
+                               f"{robot.source_file} gives (the file edited since it was "
+                               f"loaded, or the robot changed in memory): {how}")
+    return parse_robot(doc, path, overrides, scale=scale)
 
 
 def load_robot_text(text: str, file: str, parameters: Mapping[str, float] | None = None
@@ -233,11 +264,14 @@ def load_robot_text(text: str, file: str, parameters: Mapping[str, float] | None
                        Path(file), parameters)
 
 
-def parse_robot(doc: Document, path: Path, parameters: Mapping[str, float] | None = None
-                ) -> Robot:
-    """Validate a parsed robot document (with ``parameters`` replaced, see :func:`load_robot`)
-    against ``ROBOT_SCHEMA`` and build the :class:`Robot` (every problem at once)."""
+def parse_robot(doc: Document, path: Path, parameters: Mapping[str, float] | None = None,
+                *, scale: Mapping[str, float] | None = None) -> Robot:
+    """Validate a parsed robot document (with ``parameters`` replaced, then ``scale``
+    applied, see :func:`load_robot`) against ``ROBOT_SCHEMA`` and build the :class:`Robot`
+    (every problem at once)."""
     doc = override_parameters(doc, parameters)
+    if scale:
+        doc = _scaled(doc, dict(scale))
     expect_kind(doc, "robot", ROBOT_SCHEMA)
     res = check(doc, ROBOT_SCHEMA)
     res.raise_if_problems()
@@ -374,6 +408,7 @@ def parse_robot(doc: Document, path: Path, parameters: Mapping[str, float] | Non
         thrusters=tuple(thrusters), gravity=d["gravity"], description=d["description"],
         source_file=str(path), source_sha256=doc.sha256,
         parameters=tuple(sorted(res.params.items())), key_lines=lines,
+        overrides=tuple(sorted((k, float(v)) for k, v in (parameters or {}).items())),
     )
 
 

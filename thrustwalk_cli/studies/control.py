@@ -59,6 +59,7 @@ from ..errors import (
     check_pushes,
     check_texts,
 )
+from ..files.robot_file import plant_robot
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..simulation.closed_loop import MAX_STEPS, SimConfig, check_thruster_rate
 from ..simulation.full_order import Start
@@ -212,8 +213,9 @@ def _plant(walker: Walker, plant_scale: dict[str, float]) -> tuple[ZeroDynamics,
     plant = plant_walker(walker, plant_scale)
     return plant.zd, {"same_as_model": False, "scale": dict(plant_scale),
                       "parameters": dict(plant.robot.parameters),
-                      "note": "the plant's robot file parameters scaled; the controller keeps "
-                              "the model's virtual constraints and step map"}
+                      "note": "the plant's robot parameters (the robot file's, with the "
+                              "model's overrides) scaled; the controller keeps the model's "
+                              "virtual constraints and step map"}
 
 
 def control(walker: Walker, *, reference: str = "speed",
@@ -390,6 +392,8 @@ def control(walker: Walker, *, reference: str = "speed",
         pushes.append(Push(int(stp), float(s), (float(px), float(py))))
     if problems:
         raise InputError([InputError.param(n, m).problems[0] for n, m in problems])
+    if plant_scale:  # the plant's robot: its names, and a file to scale (before any compile)
+        plant_robot(robot, plant_scale)
     if not zd.valid:
         raise InputError.param("gait", f"the gait has no walking orbit to control: "
                                        f"{zd.invalid_reason}")
