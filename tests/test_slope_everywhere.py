@@ -388,6 +388,7 @@ def test_sweep_over_slope_equals_limit_cycle_runs(cli, tmp_path, monkeypatch, wa
     assert "slope" not in dict(flat.spec.settings)
 
 
+@pytest.mark.slow  # two gait designs (about 10 s)
 def test_gait_library_over_slopes(cli, tmp_path, monkeypatch):
     """A design-gait sweep with a `slope` axis [0, 0.03] (bundled 3-link, from another
     folder): library.csv has the slope column, each gait file's header names its slope, and
