@@ -283,3 +283,21 @@ def test_simulate_reuses_a_sim_config_and_a_start(walker5):
         tw.simulate(walker5, steps=3, config=config, check_only=True)
     with pytest.raises(tw.InputError, match="^start: "):
         tw.simulate(walker5, zeta0=1.0, start=start, check_only=True)
+
+
+def test_robustness_and_rough_ground_show_every_option_in_their_signature():
+    """`help(tw.robustness)` shows the options it passes on to `plan_robustness` (and so for
+    rough-ground): the signature is the plan's keyword options with their defaults."""
+    import inspect
+
+    from thrustwalk_cli.studies.robustness import plan_robustness
+    from thrustwalk_cli.studies.rough_ground import plan_rough_ground
+
+    for run, plan in ((tw.robustness, plan_robustness), (tw.rough_ground, plan_rough_ground)):
+        shown = inspect.signature(run).parameters
+        assert not any(p.kind is inspect.Parameter.VAR_KEYWORD for p in shown.values())
+        for name, p in inspect.signature(plan).parameters.items():
+            if p.kind is inspect.Parameter.KEYWORD_ONLY:
+                assert shown[name].default == p.default, (run.__name__, name)
+        for name in ("workers", "scheduler", "progress"):
+            assert name in shown

@@ -58,6 +58,7 @@ from ..sweep.runner import RunCounts, run_tasks
 from ..sweep.tasks import PointTask, identity, task_key
 from ..walker import Walker, check_ground, check_walker
 from .robustness_result import DEFINITIONS, UNITS, RobustnessPlan, RobustnessResult
+from .sweep import with_plan_signature
 from .sweep_studies import STUDIES, run_point, run_points
 from .trial_studies import realized_strategy, trial_chunk
 
@@ -461,3 +462,5 @@ def robustness(walker: Walker, *, workers: int | None = None, scheduler: str | N
     return run_robustness(plan, workers=workers, scheduler=scheduler,
                           on_record=None if progress is None else (lambda r: progress(1)))
 
+
+with_plan_signature(robustness, plan_robustness)

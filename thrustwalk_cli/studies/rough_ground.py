@@ -61,6 +61,7 @@ from .rough_ground_result import (  # noqa: F401 - DEFINITIONS, UNITS: named her
     RoughGroundPlan,
     RoughGroundResult,
 )
+from .sweep import with_plan_signature
 from .sweep_studies import STUDIES, run_point
 from .trial_studies import check_strategy, realized_strategy, rough_runner
 
@@ -333,3 +334,6 @@ def rough_ground(walker: Walker, *, sigma: Sequence[float], workers: int | None 
 
 
 # ------------------------------------------------------------------------------ the result
+
+
+with_plan_signature(rough_ground, plan_rough_ground)
