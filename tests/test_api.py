@@ -301,3 +301,26 @@ def test_robustness_and_rough_ground_show_every_option_in_their_signature():
                 assert shown[name].default == p.default, (run.__name__, name)
         for name in ("workers", "scheduler", "progress"):
             assert name in shown
+
+
+def test_design_gait_takes_its_settings_as_keywords(walker3):
+    """`tw.design_gait(robot, speed=..., ...)` is `tw.design_gait(robot, DesignSpec(...))`:
+    the same designed gait, bit for bit; both at once, or an unknown setting, is bad input
+    naming the keyword; the signature shows every setting."""
+    import inspect
+
+    kw = dict(speed=0.8, clearance=0.0, starts=1, max_iter=3)
+    a = tw.design_gait(walker3, tw.DesignSpec(**kw))
+    b = tw.design_gait(walker3, **kw)
+    da, db = a.document(), b.document()
+    for d in (da, db):  # wall times
+        d.pop("seconds")
+        for start in d["starts"]:
+            start.pop("seconds")
+    assert da == db and da["coefficients"]
+    with pytest.raises(tw.InputError, match="speed"):
+        tw.design_gait(walker3, tw.DesignSpec(**kw), speed=0.7)
+    with pytest.raises(tw.InputError, match="sped"):
+        tw.design_gait(walker3, sped=0.8)
+    shown = inspect.signature(tw.design_gait).parameters
+    assert shown["objective"].default == "effort" and shown["starts"].default == 8

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
 
 import numpy as np
@@ -385,13 +385,16 @@ def design_gait(robot_or_walker: Robot | CompiledModel | Walker | None = None,
                 spec: DesignSpec | None = None, *, compare: Walker | None = None,
                 progress: Callable[[int, int, str], None] | None = None,
                 initial: WarmStart | None = None, slope: float = 0.0,
-                robot: Robot | CompiledModel | Walker | None = None) -> DesignGaitResult:
+                robot: Robot | CompiledModel | Walker | None = None,
+                **settings) -> DesignGaitResult:
     """Design a gait for a robot (:func:`solve_design`, SPEC 2, 3, 5) and optionally evaluate an
     existing gait (``compare``) with the same objective and constraints. ``robot_or_walker``: a
     :class:`Robot` (compiled by :func:`load_model`, cached by structure), its
     :class:`CompiledModel`, or a :class:`Walker` (its robot; its gait is not a start: pass it
     as ``compare`` to evaluate it); ``robot=`` is its deprecated old name (one release, a
-    DeprecationWarning). ``spec``: a :class:`DesignSpec`. ``progress(done, total, message)``
+    DeprecationWarning). The design's settings: the fields of :class:`DesignSpec` as keywords
+    (``tw.design_gait(robot, speed=0.6, objective="cot")``), or one ``spec`` built once and
+    reused (not both). ``progress(done, total, message)``
     after every solver start. ``initial``: a finished neighbouring design to start from
     (continuation; replaces the default start). ``slope`` [rad, positive uphill, |slope| <
     pi/2]: design for that ground (SPEC 14): the design problem's gravity terms, world-frame
@@ -405,7 +408,18 @@ def design_gait(robot_or_walker: Robot | CompiledModel | Walker | None = None,
     slope = check_slope(slope)
     if slope != 0.0:
         robot = slope_model(robot, slope)
-    check_instance("spec", spec, DesignSpec, "a DesignSpec (tw.DesignSpec(speed=...))")
+    if settings:
+        known = [f.name for f in fields(DesignSpec)]
+        for name in settings:
+            if name not in known:
+                raise InputError.param(name, "not a setting of design_gait (they are: "
+                                             f"{', '.join(known)})")
+        if spec is not None:
+            raise InputError.param(next(iter(settings)), "give the design's settings as "
+                                   "keywords or as spec=DesignSpec(...), not both")
+        spec = DesignSpec(**settings)
+    check_instance("spec", spec, DesignSpec, "a DesignSpec (tw.DesignSpec(speed=...)), or "
+                                             "the settings as keywords (speed=...)")
     if compare is not None:
         check_walker(compare, "compare")
     check_callable("progress", progress)
@@ -421,3 +435,19 @@ def design_gait(robot_or_walker: Robot | CompiledModel | Walker | None = None,
         cmp = {"gait": compare.gait.name, "file": compare.gait.source_file,
                **check_gait(robot, compare.gait, spec)}
     return DesignGaitResult(robot, res, cmp)
+
+
+def _show_settings(fn: Callable) -> Callable:
+    """``design_gait``'s signature with ``**settings`` shown as :class:`DesignSpec`'s fields
+    (keyword-only, with their defaults), for ``help()``, ``inspect`` and editors."""
+    import inspect
+
+    params = [p for p in inspect.signature(fn).parameters.values()
+              if p.kind is not inspect.Parameter.VAR_KEYWORD]
+    params += [inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=f.default,
+                                 annotation=f.type) for f in fields(DesignSpec)]
+    fn.__signature__ = inspect.signature(fn).replace(parameters=params)
+    return fn
+
+
+_show_settings(design_gait)
