@@ -60,7 +60,7 @@ def _fmt(v: float) -> str:
     return str(int(v)) if float(v).is_integer() and abs(v) < 1e15 else repr(float(v))
 
 
-def _suggest(word: str, options: Sequence[str]) -> str:
+def suggest(word: str, options: Sequence[str]) -> str:
     close = difflib.get_close_matches(word, list(options), n=1)
     return f"; did you mean '{close[0]}'?" if close else ""
 
@@ -132,7 +132,7 @@ def _check_number(value: Any, path: KeyPath, ctx: _Ctx, bounds: Bounds,
             m = re.match(r"unknown name '(\w+)'", exc.message)
             if m and m.group(1) in ctx.broken:
                 return None  # the parameter's own problem is reported once, at its definition
-            hint = "" if not m else _suggest(m.group(1), sorted(ctx.params)) or (
+            hint = "" if not m else suggest(m.group(1), sorted(ctx.params)) or (
                 "" if ctx.params else "; no parameters are defined")
             col = exc.column + 1
             return ctx.report(path, f"expression error at column {col}: {exc.message}{hint}")
@@ -227,7 +227,7 @@ class Kind:
         if t == "choice":
             if isinstance(v, str) and v in self.choices:
                 return v
-            got, hint = (repr(v), _suggest(v, self.choices)) if isinstance(v, str) else (
+            got, hint = (repr(v), suggest(v, self.choices)) if isinstance(v, str) else (
                 _type_name(v), "")
             return ctx.report(path, f"must be one of: {', '.join(self.choices)}; got {got}{hint}")
         typ, want = _EXPECT[t]
@@ -270,7 +270,7 @@ class Kind:
         keys = [f.key for f in self.fields]
         for key in v:
             if key not in keys:
-                hint = _suggest(key, keys)
+                hint = suggest(key, keys)
                 ctx.report(path + (key,),
                            f"unknown key '{key}' (expected one of: {', '.join(keys)}){hint}")
         out: dict[str, Any] = {}
@@ -395,7 +395,7 @@ def resolve_parameters(
             unknown = sorted(raw[name].names() - set(section))
             for u in unknown:
                 ctx.report(p, f"unknown name '{u}' in expression '{value}'"
-                           f"{_suggest(u, sorted(section))}")
+                           f"{suggest(u, sorted(section))}")
             raw[name], deps[name] = (None, set()) if unknown else (raw[name], raw[name].names())
     values: dict[str, float] = {}
     done: set[str] = set()
@@ -448,7 +448,7 @@ def override_parameters(doc: Document, values: Mapping[str, float] | None,
     unknown = [k for k in values if k not in names]
     if unknown:
         raise InputError([problem(doc, path, f"no parameter '{k}' to replace (defined: "
-                                              f"{', '.join(names) or 'none'}){_suggest(k, names)}")
+                                              f"{', '.join(names) or 'none'}){suggest(k, names)}")
                           for k in unknown])
     data = copy.deepcopy(doc.data)
     target = data

@@ -31,7 +31,6 @@ from .bundled import EXPLICITLY, resolve, resolve_inside
 from .schema import (
     Kind,
     ValidationResult,
-    _suggest,
     boolean,
     check,
     choice,
@@ -45,6 +44,7 @@ from .schema import (
     null_or,
     number,
     string,
+    suggest,
     vector,
 )
 from .yamlio import load_yaml
@@ -533,7 +533,7 @@ def load_sweep_file(ref: str | Path, robot: str | None = None, gait: str | None 
                     known.append("schedule.j")
                 problems.append(res.problem(key, f"unknown axis '{name}' for the {study} study "
                                                  f"(one of: {', '.join(known)})"
-                                                 f"{_suggest(name, sorted(units))}"))
+                                                 f"{suggest(name, sorted(units))}"))
                 return None
             if a["unit"] is not None and a["unit"] != unit:
                 problems.append(res.problem(key + ("unit",), f"'{name}' is in {unit or '1'}: "

@@ -31,7 +31,7 @@ from ..errors import (
 from ..files.bundled import EXPLICITLY, resolve, resolve_inside
 from ..files.gait_file import load_gait_text
 from ..files.robot_file import load_robot_text
-from ..files.schema import _suggest
+from ..files.schema import suggest
 from ..files.sweep_file import SweepSource, load_sweep_file, read_source, value_problem
 from ..sweep.executors import DaskCluster, InProcess, LocalProcesses
 from ..sweep.points import expand, grid_coordinates, neighbours
@@ -91,7 +91,7 @@ def load_sweep(path: str | Path, *, robot: str | None = None,
             problems.append(source.where(("collect", i), f"unknown field '{name}' of the "
                                                          f"{spec.study} study (one of: "
                                                          f"{', '.join(study.fields)})"
-                                                         f"{_suggest(name, study.fields)}"))
+                                                         f"{suggest(name, study.fields)}"))
     robot = load_robot_text(spec.robot_text, spec.robot)
     gait_name = None
     if study.uses_gait and spec.gait is None:
@@ -123,7 +123,7 @@ def load_sweep(path: str | Path, *, robot: str | None = None,
             what = f"{a.target} {robot.name if a.target == 'robot' else spec.gait}"
             problems.append(source.where(source.axis_key(a), (
                 f"no parameter '{a.parameter}' in the {what} (its parameters: "
-                f"{', '.join(sorted(known)) or 'none'}){_suggest(a.parameter, known)}")))
+                f"{', '.join(sorted(known)) or 'none'}){suggest(a.parameter, known)}")))
     if problems:
         raise InputError(sorted(problems, key=lambda p: p.line or 0))
     if study.uses_gait:
