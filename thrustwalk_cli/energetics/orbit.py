@@ -184,13 +184,15 @@ class OrbitEnergy:
 
 
 @lru_cache(maxsize=16)
-def _node_tables(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                                  np.ndarray]:
+def _node_tables(n: int) -> tuple[np.ndarray, ...]:
     """For ``n`` ascending Lobatto nodes ``x_i`` of [-1, 1]: the nodes, the gaps ``h_i =
     x_{i+1} - x_i``, the least ``sin(theta)`` on each gap (``x = cos(theta)``), the columns
-    ``(k^2, k, k^2 (k^2 - 1) / 3)`` (n, 3) of :func:`_second_derivative_bound`, and the matrix
+    ``(k^2, k, k^2 (k^2 - 1) / 3)`` (n, 3) of :func:`_second_derivative_bound`, the matrix
     (n, 2n) taking node values to the Chebyshev coefficients and the derivatives at the
-    nodes."""
+    nodes, the matrix (n, n-2) taking coefficients to those of the second derivative, the
+    matrix (n-2, 2n-1) taking those to the second derivative at the nodes and to the sums
+    of :func:`_node_bound` (``min(k^2, k / s_i)`` per gap), the antiderivative's matrix
+    (n, n+1) (coefficients of ``F`` with ``F(-1) = 0``) and its row sums (``F(1)``)."""
     x = -np.cos(np.pi * np.arange(n) / (n - 1))
     k = np.arange(n, dtype=float)
     sn = np.sqrt(np.maximum(1.0 - x * x, 0.0))
@@ -198,7 +200,23 @@ def _node_tables(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
     K = np.stack([k * k, k, k * k * (k * k - 1.0) / 3.0], axis=1)
     dct = _dct_matrix(n)
     dT = C.chebval(x, C.chebder(np.eye(n))).T  # (nodes, k) T_k'(x_i)
-    return x, np.diff(x), s, K, np.concatenate([dct.T, (dT @ dct).T], axis=1)
+    d2 = C.chebder(np.eye(n), 2).T  # (k, j): T_k'' = sum_j d2[k, j] T_j
+    k2 = k[:n - 2, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        kd = np.where(s[None, :] > 0, np.minimum(k2 * k2, k2 / s[None, :]), k2 * k2)
+    T2 = C.chebval(x, np.eye(n - 2))  # (j, nodes) T_j(x_i)
+    anti = C.chebint(np.eye(n), lbnd=-1.0).T  # (k, n+1)
+    tables = (x, np.diff(x), s, K, np.concatenate([dct.T, (dT @ dct).T], axis=1), d2,
+              np.concatenate([T2, kd], axis=1), anti, anti.sum(axis=1))
+    for t in tables:
+        t.setflags(write=False)
+    return tables
+
+
+@lru_cache(maxsize=16)
+def _weights(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Clenshaw-Curtis weights of ``n`` Lobatto nodes and of the nested ``(n-1)/2 + 1``."""
+    return _cc_weights(n), _cc_weights((n - 1) // 2 + 1)
 
 
 def _second_derivative_bound(abs_coef_sums: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -211,6 +229,26 @@ def _second_derivative_bound(abs_coef_sums: np.ndarray, s: np.ndarray) -> np.nda
     with np.errstate(divide="ignore", invalid="ignore"):
         loc = A / (s * s) + B / (s * s * s)
     return np.where(s > 0, np.minimum(G, loc), G) * (1.0 + 1e-12)  # and its own rounding
+
+
+def _node_bound(coef: np.ndarray, h: np.ndarray, d2: np.ndarray, T2kd: np.ndarray
+                ) -> np.ndarray:
+    """A second bound of ``|p''|`` on each gap ``[x_i, x_{i+1}]`` of the nodes (P, n-1), for
+    the coefficient rows ``coef`` (P, n), tight where the coefficients decay: with ``p'' =
+    sum_j d_j T_j`` (``d = coef d2``) and ``|T_j'| = |j sin(j theta) / sin(theta)| <=
+    min(j^2, j / s_i)`` on the gap (``s_i`` its least ``sin(theta)``),
+
+        max |p''| <= max(|p''(x_i)|, |p''(x_{i+1})|) + (h_i / 2) sum_j |d_j| min(j^2, j / s_i)
+
+    (every point of the gap is within ``h_i / 2`` of one end); ``p''(x_i) = sum_j d_j
+    T_j(x_i)`` with ``|T_j| <= 1``, so its rounding is below ``1e-13 sum_j |d_j|``, added."""
+    n = coef.shape[1]
+    d = coef @ d2
+    ad = np.abs(d)
+    t = ad @ T2kd[:, n:]  # (P, n-1)
+    v = np.abs(d @ T2kd[:, :n])  # |p''| at the nodes
+    return ((np.maximum(v[:, :-1], v[:, 1:]) + 0.5 * h * t
+             + 1e-13 * ad.sum(axis=1, keepdims=True)) * (1.0 + 1e-12))
 
 
 def _clenshaw(c: np.ndarray, x: np.ndarray, derivative: bool = False):
@@ -274,35 +312,50 @@ def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.n
     their sign and ``min(|p(x_i)|, |p(x_{i+1})|) > h_i^2 max|p''| / 8``, the linear
     interpolant's error bound) or exactly one (they change sign and ``p'`` keeps its sign:
     ``p'(x_i) p'(x_{i+1}) > 0`` and ``|p'(x_i)| + |p'(x_{i+1})| > h_i max|p''|``), with
-    ``max|p''|`` bounded from the coefficients (:func:`_second_derivative_bound`); a gap
-    without such a proof is halved (``p`` and ``p'`` at its middle) and the test repeated on
-    the halves, up to ``SPLITS`` times (a piece where ``|p|`` stays below ``1e-15`` of the
-    row's largest node value is negligible and left unsplit). Each root starts at the root of
-    the cubic Hermite interpolant of its bracket's end values and slopes
-    (:func:`_hermite_root`) and takes one Newton step on ``p``, kept in the bracket (the
-    root's error enters the integrals squared). Only roots closer than the last halving's
-    width (``2^-SPLITS`` of a gap) and double roots are not separated."""
+    ``max|p''|`` bounded from the coefficients (:func:`_second_derivative_bound`; on the
+    rows where that leaves a gap without a proof, also the smaller of it and
+    :func:`_node_bound`); a gap without such a proof is halved (``p`` and ``p'`` at its
+    middle) and the test repeated on the halves with the gap's bound, up to ``SPLITS`` times
+    (a piece where ``|p|`` stays below ``1e-15`` of the row's largest node value is
+    negligible and left unsplit). Each root starts at the root of the cubic Hermite
+    interpolant of its bracket's end values and slopes (:func:`_hermite_root`) and takes one
+    Newton step on ``p``, kept in the bracket (the root's error enters the integrals
+    squared). Only roots closer than the last halving's width (``2^-SPLITS`` of a gap) and
+    double roots are not separated."""
     P, n = values.shape
     if P == 0:
         return np.zeros(0), np.zeros(0)
-    xn, h, sg, K, to_cd = _node_tables(n)
+    xn, h, sg, K, to_cd, d2, T2kd, anti_m, F1_m = _node_tables(n)
     cd = values @ to_cd
     coef, dv = cd[:, :n], cd[:, n:]  # Chebyshev coefficients, p' at the nodes (P, n)
     M2 = _second_derivative_bound(np.abs(coef) @ K, sg)  # (P, n-1) on each gap
     pos = values >= 0.0
     change = pos[:, 1:] != pos[:, :-1]
     av = np.abs(values)
-    no_root = (np.minimum(av[:, :-1], av[:, 1:]) > 0.125 * h * h * M2) | (M2 == 0.0)
-    one_root = ((dv[:, :-1] * dv[:, 1:] > 0.0)
-                & (np.abs(dv[:, :-1]) + np.abs(dv[:, 1:]) > h * M2))
+    hh = 0.125 * h * h
+    adv = np.abs(dv)
+    sdv = adv[:, :-1] + adv[:, 1:]
+    mono = dv[:, :-1] * dv[:, 1:] > 0.0
+    amin = np.minimum(av[:, :-1], av[:, 1:])
+    no_root = (amin > hh * M2) | (M2 == 0.0)
+    one_root = mono & (sdv > h * M2)
+    open_ = np.where(change, ~one_root, ~no_root)
+    sub = np.flatnonzero(open_.any(axis=1))
+    if sub.size:  # the rows with a gap left: the node bound too (where it is smaller)
+        m2 = np.minimum(M2[sub], _node_bound(coef[sub], h, d2, T2kd))
+        M2[sub] = m2
+        no_root = (amin[sub] > hh * m2) | (m2 == 0.0)
+        one_root[sub] = mono[sub] & (sdv[sub] > h * m2)
+        open_[sub] = np.where(change[sub], ~one_root[sub], ~no_root)
     rows, gap = np.nonzero(change & one_root)
     brackets = [(rows, xn[gap], h[gap], values[rows, gap], values[rows, gap + 1],
                  dv[rows, gap], dv[rows, gap + 1])]
     # the other gaps: halved until each piece provably holds no root or one
-    r, gap = np.nonzero(np.where(change, ~one_root, ~no_root))
+    r, gap = np.nonzero(open_)
     piece = (r, xn[gap], h[gap], values[r, gap], values[r, gap + 1], dv[r, gap],
              dv[r, gap + 1], M2[r, gap])
     tiny = 1e-15 * np.max(av, axis=1)  # a piece below it is negligible in the integrals
+    cT = coef.T  # (n, P): a gathered column block is contiguous
     for level in range(SPLITS + 1):
         r = piece[0]
         if not r.size:
@@ -313,21 +366,21 @@ def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.n
             break
         r, a, w, fa, fb, ga, gb, m2 = piece
         w = 0.5 * w
-        pm, dm = _clenshaw(coef[r].T, a + w, derivative=True)
+        pm, dm = _clenshaw(cT[:, r], a + w, derivative=True)
         r, a, fa, fb, ga, gb, m2 = (np.concatenate(v) for v in (
             (r, r), (a, a + w), (fa, pm), (pm, fb), (ga, dm), (dm, gb), (m2, m2)))
         w = np.concatenate([w, w])
         ch = (fa >= 0.0) != (fb >= 0.0)
-        none = ~ch & ((np.minimum(np.abs(fa), np.abs(fb)) > 0.125 * w * w * m2)
-                      | (np.maximum(np.abs(fa), np.abs(fb)) + 0.125 * w * w * m2 <= tiny[r]))
-        one = ch & (((ga * gb > 0.0) & (np.abs(ga) + np.abs(gb) > w * m2))
-                    | (np.maximum(np.abs(fa), np.abs(fb)) + 0.125 * w * w * m2 <= tiny[r]))
+        e2 = 0.125 * w * w * m2
+        afa, afb = np.abs(fa), np.abs(fb)
+        small = np.maximum(afa, afb) + e2 <= tiny[r]
+        none = ~ch & ((np.minimum(afa, afb) > e2) | small)
+        one = ch & (((ga * gb > 0.0) & (np.abs(ga) + np.abs(gb) > w * m2)) | small)
         brackets.append((r[one], a[one], w[one], fa[one], fb[one], ga[one], gb[one]))
         keep = ~(none | one)
         piece = (r[keep], a[keep], w[keep], fa[keep], fb[keep], ga[keep], gb[keep], m2[keep])
     rows, xa, hb, fa, fb, da, db = (np.concatenate(v) for v in zip(*brackets))
-    anti = C.chebint(coef, axis=1, lbnd=-1.0)  # (P, n+1)
-    F1 = anti.sum(axis=1)  # F(1): T_k(1) = 1
+    F1 = coef @ F1_m  # F(1): T_k(1) = 1
     s0 = np.where(pos[:, 0], 1.0, -1.0)
     total_abs = s0 * F1  # no root
     if rows.size:
@@ -336,10 +389,10 @@ def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.n
         t = _hermite_root(fa, fb, da * hb, db * hb)
         x = xa + t * hb
         # one Newton step on p itself
-        f, df = _clenshaw(coef[rows].T, x, derivative=True)
+        f, df = _clenshaw(cT[:, rows], x, derivative=True)
         with np.errstate(divide="ignore", invalid="ignore"):
             x = np.clip(x - np.nan_to_num(np.where(df != 0, f / df, 0.0)), xa, xa + hb)
-        Fr = _clenshaw(anti[rows].T, x)
+        Fr = _clenshaw((coef[rows] @ anti_m).T, x)
         rank = np.arange(rows.size) - np.searchsorted(rows, rows, side="left")
         count = np.bincount(rows, minlength=P)
         inner = np.bincount(rows, 2.0 * np.where(rank % 2 == 0, 1.0, -1.0) * Fr, minlength=P)
@@ -347,10 +400,80 @@ def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.n
     return total_abs * half, 0.5 * (total_abs + F1) * half
 
 
+def _nodes(zd: ZeroDynamics, knots: np.ndarray, j: int, n: int) -> dict:
+    """What the energy integrands of knot interval ``j`` need at its ``n`` ascending Lobatto
+    nodes that does not depend on the thrust values (they depend on alpha only): the stance
+    terms' torque rows (SPEC 5), ``s Phi_j`` of the joints, ``s (B_F^T Phi)_k`` of the
+    thrusters, ``s Phi_N``, ``|kappa_1|`` and the pieces of ``V_Z`` (``V_0`` and per knot
+    interval the increments of ``Gamma`` and ``b_F``, as :meth:`ZeroDynamics.V_Z`); computed
+    on first use and kept on ``zd``."""
+    cache = zd.__dict__.setdefault("_energy_nodes", {})
+    key = (tuple(knots.tolist()), j, n)
+    out = cache.get(key)
+    if out is not None:
+        return out
+    if len(cache) > 64:
+        cache.clear()
+    model, maps = zd.model, zd.maps
+    N, m = model.n, model.n_thrusters
+    s = zd.direction
+    lo, hi = sorted((knots[j], knots[j + 1]))
+    alpha = lobatto(lo, hi, n)
+    st = stance_terms(model, maps, alpha)
+    phi = maps.Phi(alpha)  # (g, N)
+    klo, khi = np.minimum(knots[:-1], knots[1:]), np.maximum(knots[:-1], knots[1:])
+    dG, dB = [], []
+    for jj in range(len(knots) - 1):  # as ZeroDynamics.V_Z
+        a = np.clip(alpha, klo[jj], khi[jj])
+        dG.append(zd.Gamma(a) - zd.Gamma(knots[jj]))
+        dB.append(zd.B(a) - zd.B(knots[jj]))
+    out = cache[key] = {
+        "U0": st.U0.T[None], "U1": st.U1.T[None], "UT": st.UT.T[None],
+        "U2": st.U2.transpose(2, 1, 0).reshape(m, -1),
+        "pphi": (s * phi[:, :N - 1].T)[None],
+        "bt": s * np.einsum("gnm,gn->mg", model.B_F(maps.q_Z(alpha)), phi),  # (m, g)
+        "bg": s * phi[:, N - 1],
+        "k1": np.abs(st.AT),  # AT = 1 / (e_N^T D Phi) = kappa_1
+        "V0": zd.V0(alpha), "dG": dG, "dB": dB}
+    return out
+
+
+def _integrands(zd: ZeroDynamics, sched: Schedule, zp: np.ndarray, j: int, n: int) -> dict:
+    """The integrands of knot interval ``j`` at ``n`` Lobatto nodes for the batch (module
+    docstring): ``zeta``, the torques ``u`` and the joint powers per ``|d alpha|`` (k, joint,
+    g), ``|alpha'|`` and its inverse (k, g), the thrust's and the generalised mode's powers per
+    unit thrust (m, g), (g,)."""
+    nd = _nodes(zd, np.asarray(sched.knots, float), j, n)
+    N, m = zd.model.n, zd.model.n_thrusters
+    k = sched.size
+    F = sched.force[:, j, :]  # (k, m)
+    Tg = sched.generalized[:, j]  # (k,)
+    zeta = np.broadcast_to(nd["V0"], (k, n)).copy()  # as ZeroDynamics.V_Z
+    for jj, (dG, dB) in enumerate(zip(nd["dG"], nd["dB"])):
+        zeta += np.einsum("...m,km->k...", dG, sched.force[:, jj, :])
+        zeta += sched.generalized[:, jj].reshape(-1, 1) * dB
+    zeta = zp[:, None] + zeta  # (k, g)
+    zeta = np.maximum(zeta, 0.0)
+    u = nd["U0"] + nd["U1"] * zeta[:, None, :]
+    if m:  # + U2 F
+        u = u + (F @ nd["U2"]).reshape(k, N - 1, n)
+    u = u + nd["UT"] * Tg[:, None, None]
+    adot = nd["k1"][None] * np.sqrt(2.0 * zeta)  # |alpha'| (k, g)
+    with np.errstate(divide="ignore"):
+        inv = 1.0 / adot
+    return {"u": u, "pj": u * nd["pphi"], "bt": nd["bt"], "bg": nd["bg"], "adot": adot,
+            "inv": inv}
+
+
 def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bool = False
                  ) -> list[OrbitEnergy]:
     """The step energies of each schedule's periodic orbit (``cycles[i]`` its
-    :class:`LimitCycle`), exactly by quadrature on Z (module docstring, SPEC 15)."""
+    :class:`LimitCycle`), exactly by quadrature on Z (module docstring, SPEC 15).
+
+    What depends on alpha only is computed once per walker, knots and node count
+    (:func:`_nodes`); the node count of a knot interval starts where the last call ended
+    (kept on ``zd``), and the smaller nested counts are tried first on subsets of those
+    nodes, so the result is the one the doubling from 33 nodes gives."""
     model, maps = zd.model, zd.maps
     robot = model.robot
     N, m = model.n, model.n_thrusters
@@ -367,7 +490,6 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
     sched = schedule.take(np.array(live))
     k = len(live)
     zp = np.array([cycles[i].zeta_plus for i in live])
-    s = zd.direction
     kn = np.asarray(sched.knots, float)
     acc = {name: np.zeros((k,) + shape) for name, shape in (
         ("work", (N - 1,)), ("abs", (N - 1,)), ("pos", (N - 1,)), ("el", (N - 1,)),
@@ -376,6 +498,8 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
     err = np.zeros(k)
     tin_ok = np.ones((k, m), bool)
     timed = True  # alpha' > 0 at every node: the time-based integrals exist
+    el = [jj for jj, mo in enumerate(motors) if mo is not None]
+    start = zd.__dict__.setdefault("_energy_node_count", {})
     for j in range(len(kn) - 1):
         lo, hi = sorted((kn[j], kn[j + 1]))
         if hi <= lo:
@@ -383,76 +507,70 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
         half = 0.5 * (hi - lo)
         F = sched.force[:, j, :]  # (k, m)
         Tg = sched.generalized[:, j]  # (k,)
-        n = 33
+        aF = np.abs(F)
+        skey = (tuple(kn.tolist()), j)
+        n, have, full = 33, 0, None
         while True:
-            alpha = lobatto(lo, hi, n)
-            st = stance_terms(model, maps, alpha)
-            zeta = zp[:, None] + zd.V_Z(alpha, sched)  # (k, g)
-            zeta = np.maximum(zeta, 0.0)
-            phi = maps.Phi(alpha)  # (g, N)
-            # the torques and the joint power per |d alpha|, as (k, joint, g)
-            g = len(alpha)
-            u = st.U0.T[None] + st.U1.T[None] * zeta[:, None, :]
-            if m:  # + U2 F
-                u = u + (F @ st.U2.transpose(2, 1, 0).reshape(m, -1)).reshape(k, N - 1, g)
-            u = u + st.UT.T[None] * Tg[:, None, None]
-            pj = u * (s * phi[:, :N - 1].T)[None]
-            # thrust and generalised-mode power: thrust (k, m) times a function of alpha
-            bt = s * np.einsum("gnm,gn->mg", model.B_F(maps.q_Z(alpha)), phi)  # (m, g)
-            bg = s * phi[:, N - 1]  # (g,)
-            k1 = np.abs(st.AT)  # AT = 1 / (e_N^T D Phi) = kappa_1
-            adot = k1[None] * np.sqrt(2.0 * zeta)  # |alpha'| (k, g)
-            with np.errstate(divide="ignore"):
-                inv = 1.0 / adot
-            w = _cc_weights(n) * half
-            wc = _cc_weights((n - 1) // 2 + 1) * half
+            if have < n:  # the integrands at max(n, where the last call ended) nodes
+                have = max(n, start.get(skey, 33))
+                full = _integrands(zd, sched, zp, j, have)
+            step = (have - 1) // (n - 1)  # the n nodes are every step-th of them
+            it = {key: v[..., ::step] for key, v in full.items()}
+            w, wc = _weights(n)
+            w, wc = w * half, wc * half
 
             def quad(v, w=w, wc=wc):
                 fine = v @ w
                 return fine, np.abs(fine - v[..., ::2] @ wc)
-            work, e_work = quad(pj)  # (k, N-1)
-            bt_i, e_bt = quad(bt)  # (m,)
-            bg_i, e_bg = quad(bg)
-            aF = np.abs(F)
+            work, e_work = quad(it["pj"])  # (k, N-1)
+            bt_i, e_bt = quad(it["bt"])  # (m,)
+            bg_i, e_bg = quad(it["bg"])
             e = np.maximum(e_work.max(axis=1), np.abs(Tg) * e_bg)
             if m:
                 e = np.maximum(e, (aF * e_bt).max(axis=1))
-            finite = np.all(np.isfinite(inv))
+            finite = np.all(np.isfinite(it["inv"]))
             if finite:
-                time_i, e_time = quad(inv)
+                time_i, e_time = quad(it["inv"])
                 e = np.maximum(e, e_time)
             scale = max(float(np.max(np.abs(work))), 1e-300)
             if np.all(e <= RTOL * scale) or n >= MAX_NODES:
                 break
             n = 2 * n - 1
+        start[skey] = n
+        u, pj, bt, adot, inv = (np.ascontiguousarray(it[key]) for key in (
+            "u", "pj", "bt", "adot", "inv"))
         err += e
         acc["work"] += work
         acc["tw"] += F * bt_i
         acc["gen"] += Tg * bg_i
-        ab, po = _abs_and_positive(pj.reshape(-1, n), half)
-        po = po.reshape(k, N - 1)
-        acc["abs"] += ab.reshape(k, N - 1)
-        acc["pos"] += po
+        # every int |.| and int max(0, .) of the interval in one batch: the joints' powers,
+        # the thrusters' per unit thrust and the clipped electrical powers
+        parts = [pj.reshape(-1, n), bt]
+        if finite and el:  # SPEC 15 with the gearbox's kink at P_m = 0 taken out
+            eta = np.array([motors[jj].efficiency for jj in el])[None, :]
+            joule = np.stack([joule_power(u[:, jj], motors[jj]) for jj in el], axis=1)
+            joule = joule * inv[:, None, :]  # per |d alpha|
+            if not regenerate:
+                parts.append((eta[..., None] * pj[:, el] + joule).reshape(-1, n))
+        ab, po = _abs_and_positive(np.concatenate(parts), half)
+        nj = k * (N - 1)
+        po_j = po[:nj].reshape(k, N - 1)
+        acc["abs"] += ab[:nj].reshape(k, N - 1)
+        acc["pos"] += po_j
         if m:  # int max(0, F b) = F int max(0, b) (F > 0), |F| int max(0, -b) (F < 0)
-            b_abs, b_pos = _abs_and_positive(bt, half)
+            b_abs, b_pos = ab[nj:nj + m], po[nj:nj + m]
             acc["tpos"] += np.where(F > 0, F * b_pos, aF * (b_abs - b_pos))
         if not finite:
             tin_ok[:] = False
             timed = False
             continue
         acc["time"] += time_i
-        el = [jj for jj, mo in enumerate(motors) if mo is not None]
-        if el:  # SPEC 15 with the gearbox's kink at P_m = 0 taken out (module docstring)
-            eta = np.array([motors[jj].efficiency for jj in el])[None, :]
-            joule = np.stack([joule_power(u[:, jj], motors[jj]) for jj in el], axis=1)
-            joule = joule * inv[:, None, :]  # per |d alpha|
-            kink = (1.0 / eta - eta) * po[:, el]
+        if el:  # (module docstring)
+            kink = (1.0 / eta - eta) * po_j[:, el]
             if regenerate:
                 acc["el"][:, el] += kink + eta * work[:, el] + quad(joule)[0]
             else:
-                g2 = eta[..., None] * pj[:, el] + joule
-                acc["el"][:, el] += kink + _abs_and_positive(g2.reshape(-1, n), half)[1] \
-                    .reshape(k, len(el))
+                acc["el"][:, el] += kink + po[nj + m:].reshape(k, len(el))
         for kk, p in enumerate(powers):
             if p is None:
                 continue
