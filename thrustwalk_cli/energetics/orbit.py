@@ -58,6 +58,7 @@ from .power import input_power, joule_power, missing_models
 RTOL = 1e-10
 MAX_NODES = 1025
 SPLITS = 12  # halvings of a gap of the nodes to isolate the roots in it
+SMALL = 256  # at most this many points: Chebyshev series evaluated without a recurrence
 
 
 @dataclass(frozen=True)
@@ -205,9 +206,12 @@ def _node_tables(n: int) -> tuple[np.ndarray, ...]:
     with np.errstate(divide="ignore", invalid="ignore"):
         kd = np.where(s[None, :] > 0, np.minimum(k2 * k2, k2 / s[None, :]), k2 * k2)
     T2 = C.chebval(x, np.eye(n - 2))  # (j, nodes) T_j(x_i)
-    anti = C.chebint(np.eye(n), lbnd=-1.0).T  # (k, n+1)
-    tables = (x, np.diff(x), s, K, np.concatenate([dct.T, (dT @ dct).T], axis=1), d2,
-              np.concatenate([T2, kd], axis=1), anti, anti.sum(axis=1))
+    F1 = C.chebint(np.eye(n), lbnd=-1.0).sum(axis=0)  # (k,) int_{-1}^{1} T_k
+    h = np.diff(x)
+    with np.errstate(divide="ignore"):
+        e_abc = np.stack([h * h / (s * s), h * h / (s * s * s), h * h]) * (0.125 * (1.0 + 1e-12))
+    tables = (x, h, s, K, np.concatenate([dct.T, (dT @ dct).T], axis=1), d2,
+              np.concatenate([T2, kd], axis=1), F1, e_abc)
     for t in tables:
         t.setflags(write=False)
     return tables
@@ -221,11 +225,11 @@ def _weights(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 def _second_derivative_bound(abs_coef_sums: np.ndarray, s: np.ndarray) -> np.ndarray:
     """A bound of ``|p''|`` on each gap of the nodes for ``p = sum_k c_k T_k``, from the rows
-    ``(sum |c_k| k^2, sum |c_k| k, sum |c_k| k^2 (k^2 - 1) / 3)`` (P, 3) and each gap's least
-    ``sin(theta) = s``: with ``x = cos(theta)``, ``T_k'' = (k cos(theta) sin(k theta) - k^2
+    ``(sum |c_k| k^2, sum |c_k| k, sum |c_k| k^2 (k^2 - 1) / 3)`` (..., 3) and each gap's
+    least ``sin(theta) = s`` (...): with ``x = cos(theta)``, ``T_k'' = (k cos(theta) sin(k theta) - k^2
     sin(theta) cos(k theta)) / sin(theta)^3``, so ``|T_k''| <= k^2 / s^2 + k / s^3``, and
     everywhere ``|T_k''| <= T_k''(1) = k^2 (k^2 - 1) / 3``."""
-    A, B, G = (abs_coef_sums[:, i:i + 1] for i in range(3))
+    A, B, G = (abs_coef_sums[..., i] for i in range(3))
     with np.errstate(divide="ignore", invalid="ignore"):
         loc = A / (s * s) + B / (s * s * s)
     return np.where(s > 0, np.minimum(G, loc), G) * (1.0 + 1e-12)  # and its own rounding
@@ -265,6 +269,50 @@ def _clenshaw(c: np.ndarray, x: np.ndarray, derivative: bool = False):
         b1, b2 = ck + x2 * b1 - b2, b1
     val = c[0] + x * b1 - b2
     return (val, b1 + x * d1 - d2) if derivative else val
+
+
+def _chebyshev_at(cT: np.ndarray, x: np.ndarray, derivative: bool = False):
+    """``p(x_r) = sum_k cT[k, r] T_k(x_r)`` for coefficient columns ``cT`` (n, r) at points
+    ``x`` (r,) in [-1, 1]; with ``derivative`` also ``p'(x_r)``. Many points: Clenshaw's
+    recurrence (:func:`_clenshaw`, n vector steps); a few (at most ``SMALL``): with ``x =
+    cos(theta)``, ``T_k(x) + i sin(k theta) = e^(i k theta)`` (the powers of ``e^(i theta)``,
+    one cumulative product), ``T_k' = k sin(k theta) / sin(theta)``, and at ``x = +-1``
+    (``sin(theta) = 0``) its limit ``T_k'(+-1) = (+-1)^(k+1) k^2``."""
+    if x.size > SMALL:
+        return _clenshaw(cT, x, derivative)
+    n = cT.shape[0]
+    theta = np.arccos(np.clip(x, -1.0, 1.0))
+    Z = np.empty((n, x.size), complex)
+    Z[0] = 1.0
+    Z[1:] = np.exp(1j * theta)
+    Z = np.cumprod(Z, axis=0)
+    val = np.einsum("kr,kr->r", cT, Z.real)
+    if not derivative:
+        return val
+    k = np.arange(n, dtype=float)[:, None]
+    sn = np.sin(theta)
+    end = sn == 0.0
+    d = np.einsum("kr,kr->r", cT * k, Z.imag) / np.where(end, 1.0, sn)
+    if np.any(end):  # T_k'(+-1) = (+-1)^(k+1) k^2
+        sgn = np.where(x[end] > 0, 1.0, -1.0)
+        d[end] = np.einsum("kr,kr->r", cT[:, end] * (k * k), sgn[None] ** (k + 1))
+    return val, d
+
+
+def _antiderivative(cT: np.ndarray) -> np.ndarray:
+    """The Chebyshev coefficients (n+1, r) of ``F(x) = int_{-1}^x p`` for coefficient columns
+    ``cT`` (n, r) (``numpy.polynomial.chebyshev.chebint`` with ``lbnd = -1``, column-wise):
+    ``a_1 = c_0 - c_2 / 2``, ``a_i = (c_{i-1} - c_{i+1}) / (2 i)`` (``c_n = c_{n+1} = 0``) and
+    ``a_0 = -sum_{i>=1} (-1)^i a_i`` (``F(-1) = 0``)."""
+    n, r = cT.shape
+    c = np.zeros((n + 2, r))
+    c[:n] = cT
+    a = np.empty((n + 1, r))
+    i = np.arange(2, n + 1, dtype=float)[:, None]
+    a[2:] = (c[1:n] - c[3:n + 2]) / (2.0 * i)
+    a[1] = c[0] - 0.5 * c[2]
+    a[0] = -(np.where(np.arange(1, n + 1) % 2 == 0, 1.0, -1.0) @ a[1:])
+    return a
 
 
 def _hermite_root(fa: np.ndarray, fb: np.ndarray, da: np.ndarray, db: np.ndarray
@@ -312,48 +360,54 @@ def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.n
     their sign and ``min(|p(x_i)|, |p(x_{i+1})|) > h_i^2 max|p''| / 8``, the linear
     interpolant's error bound) or exactly one (they change sign and ``p'`` keeps its sign:
     ``p'(x_i) p'(x_{i+1}) > 0`` and ``|p'(x_i)| + |p'(x_{i+1})| > h_i max|p''|``), with
-    ``max|p''|`` bounded from the coefficients (:func:`_second_derivative_bound`; on the
-    rows where that leaves a gap without a proof, also the smaller of it and
-    :func:`_node_bound`); a gap without such a proof is halved (``p`` and ``p'`` at its
-    middle) and the test repeated on the halves with the gap's bound, up to ``SPLITS`` times
-    (a piece where ``|p|`` stays below ``1e-15`` of the row's largest node value is
-    negligible and left unsplit). Each root starts at the root of the cubic Hermite
-    interpolant of its bracket's end values and slopes (:func:`_hermite_root`) and takes one
-    Newton step on ``p``, kept in the bracket (the root's error enters the integrals
-    squared). Only roots closer than the last halving's width (``2^-SPLITS`` of a gap) and
-    double roots are not separated."""
+    ``max|p''|`` bounded from the coefficients (:func:`_second_derivative_bound`; on a gap
+    that this leaves without a proof, the smaller of it and :func:`_node_bound`); a gap
+    still without a proof is halved (``p`` and ``p'`` at its middle,
+    :func:`_chebyshev_at`) and the test repeated on the halves with the gap's bound, up to
+    ``SPLITS`` times (a piece where ``|p|`` stays below ``1e-15`` of the row's largest node
+    value is negligible and left unsplit). Each root starts at the root of the cubic
+    Hermite interpolant of its bracket's end values and slopes (:func:`_hermite_root`) and
+    takes one Newton step on ``p``, kept in the bracket (the root's error enters the
+    integrals squared). Only roots closer than the last halving's width (``2^-SPLITS`` of a
+    gap) and double roots are not separated."""
     P, n = values.shape
     if P == 0:
         return np.zeros(0), np.zeros(0)
-    xn, h, sg, K, to_cd, d2, T2kd, anti_m, F1_m = _node_tables(n)
+    xn, h, sg, K, to_cd, d2, T2kd, F1_m, e_abc = _node_tables(n)
     cd = values @ to_cd
     coef, dv = cd[:, :n], cd[:, n:]  # Chebyshev coefficients, p' at the nodes (P, n)
-    M2 = _second_derivative_bound(np.abs(coef) @ K, sg)  # (P, n-1) on each gap
+    S = np.abs(coef) @ K  # (P, 3): the sums of _second_derivative_bound
     pos = values >= 0.0
     change = pos[:, 1:] != pos[:, :-1]
     av = np.abs(values)
-    hh = 0.125 * h * h
-    adv = np.abs(dv)
-    sdv = adv[:, :-1] + adv[:, 1:]
-    mono = dv[:, :-1] * dv[:, 1:] > 0.0
     amin = np.minimum(av[:, :-1], av[:, 1:])
-    no_root = (amin > hh * M2) | (M2 == 0.0)
-    one_root = mono & (sdv > h * M2)
-    open_ = np.where(change, ~one_root, ~no_root)
-    sub = np.flatnonzero(open_.any(axis=1))
-    if sub.size:  # the rows with a gap left: the node bound too (where it is smaller)
-        m2 = np.minimum(M2[sub], _node_bound(coef[sub], h, d2, T2kd))
-        M2[sub] = m2
-        no_root = (amin[sub] > hh * m2) | (m2 == 0.0)
-        one_root[sub] = mono[sub] & (sdv[sub] > h * m2)
-        open_[sub] = np.where(change[sub], ~one_root[sub], ~no_root)
-    rows, gap = np.nonzero(change & one_root)
-    brackets = [(rows, xn[gap], h[gap], values[rows, gap], values[rows, gap + 1],
-                 dv[rows, gap], dv[rows, gap + 1])]
+    # every gap at once: h_i^2 max|p''| / 8 <= min(G h_i^2, A h_i^2 / s_i^2 + B h_i^2 / s_i^3)
+    # / 8 (the factors e_abc, with the bound's own rounding); the few gaps where that
+    # proves no root-free gap, one by one below with the bound itself
+    with np.errstate(invalid="ignore"):
+        e = np.fmin(S[:, 2:3] * e_abc[2], S[:, 0:1] * e_abc[0] + S[:, 1:2] * e_abc[1])
+    r, gap = np.nonzero(change | ~(amin > e))
+    ch = change[r, gap]
+    m2 = _second_derivative_bound(S[r], sg[gap])
+    ga, gb = dv[r, gap], dv[r, gap + 1]
+    mono = ga * gb > 0.0
+    sdv = np.abs(ga) + np.abs(gb)
+    hg, am = h[gap], amin[r, gap]
+    one = ch & mono & (sdv > hg * m2)
+    open_ = ch & ~one | ~ch & ~((am > 0.125 * hg * hg * m2) | (m2 == 0.0))
+    if np.any(open_):  # the node bound too, where it is smaller
+        rows_o = np.unique(r[open_])
+        nb = _node_bound(coef[rows_o], h, d2, T2kd)
+        nb = nb[np.searchsorted(rows_o, r[open_]), gap[open_]]
+        m2[open_] = np.minimum(m2[open_], nb)
+        one = ch & mono & (sdv > hg * m2)
+        open_ = ch & ~one | ~ch & ~((am > 0.125 * hg * hg * m2) | (m2 == 0.0))
+    ro, go = r[one], gap[one]
+    brackets = [(ro, xn[go], h[go], values[ro, go], values[ro, go + 1], ga[one], gb[one])]
     # the other gaps: halved until each piece provably holds no root or one
-    r, gap = np.nonzero(open_)
-    piece = (r, xn[gap], h[gap], values[r, gap], values[r, gap + 1], dv[r, gap],
-             dv[r, gap + 1], M2[r, gap])
+    r, gap = r[open_], gap[open_]
+    piece = (r, xn[gap], h[gap], values[r, gap], values[r, gap + 1], ga[open_], gb[open_],
+             m2[open_])
     tiny = 1e-15 * np.max(av, axis=1)  # a piece below it is negligible in the integrals
     cT = coef.T  # (n, P): a gathered column block is contiguous
     for level in range(SPLITS + 1):
@@ -366,7 +420,7 @@ def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.n
             break
         r, a, w, fa, fb, ga, gb, m2 = piece
         w = 0.5 * w
-        pm, dm = _clenshaw(cT[:, r], a + w, derivative=True)
+        pm, dm = _chebyshev_at(cT[:, r], a + w, derivative=True)
         r, a, fa, fb, ga, gb, m2 = (np.concatenate(v) for v in (
             (r, r), (a, a + w), (fa, pm), (pm, fb), (ga, dm), (dm, gb), (m2, m2)))
         w = np.concatenate([w, w])
@@ -389,10 +443,11 @@ def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.n
         t = _hermite_root(fa, fb, da * hb, db * hb)
         x = xa + t * hb
         # one Newton step on p itself
-        f, df = _clenshaw(cT[:, rows], x, derivative=True)
+        c = cT[:, rows]
+        f, df = _chebyshev_at(c, x, derivative=True)
         with np.errstate(divide="ignore", invalid="ignore"):
             x = np.clip(x - np.nan_to_num(np.where(df != 0, f / df, 0.0)), xa, xa + hb)
-        Fr = _clenshaw((coef[rows] @ anti_m).T, x)
+        Fr = _chebyshev_at(_antiderivative(c), x)
         rank = np.arange(rows.size) - np.searchsorted(rows, rows, side="left")
         count = np.bincount(rows, minlength=P)
         inner = np.bincount(rows, 2.0 * np.where(rank % 2 == 0, 1.0, -1.0) * Fr, minlength=P)
