@@ -226,9 +226,9 @@ def _weights(n: int) -> tuple[np.ndarray, np.ndarray]:
 def _second_derivative_bound(abs_coef_sums: np.ndarray, s: np.ndarray) -> np.ndarray:
     """A bound of ``|p''|`` on each gap of the nodes for ``p = sum_k c_k T_k``, from the rows
     ``(sum |c_k| k^2, sum |c_k| k, sum |c_k| k^2 (k^2 - 1) / 3)`` (..., 3) and each gap's
-    least ``sin(theta) = s`` (...): with ``x = cos(theta)``, ``T_k'' = (k cos(theta) sin(k theta) - k^2
-    sin(theta) cos(k theta)) / sin(theta)^3``, so ``|T_k''| <= k^2 / s^2 + k / s^3``, and
-    everywhere ``|T_k''| <= T_k''(1) = k^2 (k^2 - 1) / 3``."""
+    least ``sin(theta) = s`` (...): with ``x = cos(theta)``, ``T_k'' = (k cos(theta)
+    sin(k theta) - k^2 sin(theta) cos(k theta)) / sin(theta)^3``, so ``|T_k''| <= k^2 / s^2
+    + k / s^3``, and everywhere ``|T_k''| <= T_k''(1) = k^2 (k^2 - 1) / 3``."""
     A, B, G = (abs_coef_sums[..., i] for i in range(3))
     with np.errstate(divide="ignore", invalid="ignore"):
         loc = A / (s * s) + B / (s * s * s)
