@@ -476,12 +476,6 @@ def _nodes(zd: ZeroDynamics, knots: np.ndarray, j: int, n: int) -> dict:
     alpha = lobatto(lo, hi, n)
     st = stance_terms(model, maps, alpha)
     phi = maps.Phi(alpha)  # (g, N)
-    klo, khi = np.minimum(knots[:-1], knots[1:]), np.maximum(knots[:-1], knots[1:])
-    dG, dB = [], []
-    for jj in range(len(knots) - 1):  # as ZeroDynamics.V_Z
-        a = np.clip(alpha, klo[jj], khi[jj])
-        dG.append(zd.Gamma(a) - zd.Gamma(knots[jj]))
-        dB.append(zd.B(a) - zd.B(knots[jj]))
     out = cache[key] = {
         "U0": st.U0.T[None], "U1": st.U1.T[None], "UT": st.UT.T[None],
         "U2": st.U2.transpose(2, 1, 0).reshape(m, -1),
@@ -489,7 +483,32 @@ def _nodes(zd: ZeroDynamics, knots: np.ndarray, j: int, n: int) -> dict:
         "bt": s * np.einsum("gnm,gn->mg", model.B_F(maps.q_Z(alpha)), phi),  # (m, g)
         "bg": s * phi[:, N - 1],
         "k1": np.abs(st.AT),  # AT = 1 / (e_N^T D Phi) = kappa_1
-        "V0": zd.V0(alpha), "dG": dG, "dB": dB}
+        "V_Z": _vz_pieces(zd, alpha, knots)}
+    return out
+
+
+def _vz_pieces(zd: ZeroDynamics, alpha: np.ndarray, knots: np.ndarray) -> tuple:
+    """The thrust-independent pieces of ``V_Z(alpha)`` (SPEC 3, 4) for a schedule's
+    ``knots``, as :meth:`ZeroDynamics.V_Z` computes them: ``V_0(alpha)`` and per knot
+    interval the increments of ``Gamma`` and ``b_F`` from the knot to ``alpha`` clipped into
+    the interval."""
+    klo, khi = np.minimum(knots[:-1], knots[1:]), np.maximum(knots[:-1], knots[1:])
+    dG, dB = [], []
+    for jj in range(len(knots) - 1):
+        a = np.clip(alpha, klo[jj], khi[jj])
+        dG.append(zd.Gamma(a) - zd.Gamma(knots[jj]))
+        dB.append(zd.B(a) - zd.B(knots[jj]))
+    return zd.V0(alpha), dG, dB
+
+
+def _vz(pieces: tuple, sched: Schedule) -> np.ndarray:
+    """``V_Z`` (k, g) of every schedule of the batch from :func:`_vz_pieces`, with the
+    operations of :meth:`ZeroDynamics.V_Z` in its order (the same numbers)."""
+    V0, dG, dB = pieces
+    out = np.broadcast_to(V0, (sched.size,) + V0.shape).copy()
+    for jj in range(len(dG)):
+        out += np.einsum("...m,km->k...", dG[jj], sched.force[:, jj, :])
+        out += sched.generalized[:, jj].reshape((-1,) + (1,) * V0.ndim) * dB[jj]
     return out
 
 
@@ -503,11 +522,7 @@ def _integrands(zd: ZeroDynamics, sched: Schedule, zp: np.ndarray, j: int, n: in
     k = sched.size
     F = sched.force[:, j, :]  # (k, m)
     Tg = sched.generalized[:, j]  # (k,)
-    zeta = np.broadcast_to(nd["V0"], (k, n)).copy()  # as ZeroDynamics.V_Z
-    for jj, (dG, dB) in enumerate(zip(nd["dG"], nd["dB"])):
-        zeta += np.einsum("...m,km->k...", dG, sched.force[:, jj, :])
-        zeta += sched.generalized[:, jj].reshape(-1, 1) * dB
-    zeta = zp[:, None] + zeta  # (k, g)
+    zeta = zp[:, None] + _vz(nd["V_Z"], sched)  # (k, g)
     zeta = np.maximum(zeta, 0.0)
     u = nd["U0"] + nd["U1"] * zeta[:, None, :]
     if m:  # + U2 F
@@ -703,26 +718,34 @@ def power_profile(zd: ZeroDynamics, schedule: Schedule, cycle, *, samples: int =
     robot = model.robot
     N, m = model.n, model.n_thrusters
     sched = schedule.take(np.array([0]))
-    alpha = np.linspace(zd.alpha_i, zd.alpha_f, samples)
     kn = np.asarray(sched.knots, float)
-    frac = (alpha - kn[0]) / (kn[-1] - kn[0])
-    pk = (kn - kn[0]) / (kn[-1] - kn[0])
-    j = np.clip(np.searchsorted(pk, frac, side="right") - 1, 0, len(kn) - 2)
+    # what depends on alpha only, once per walker, knots and samples
+    cache = zd.__dict__.setdefault("_profile_terms", {})
+    key = (tuple(kn.tolist()), samples)
+    if key not in cache:
+        if len(cache) > 16:
+            cache.clear()
+        alpha = np.linspace(zd.alpha_i, zd.alpha_f, samples)
+        frac = (alpha - kn[0]) / (kn[-1] - kn[0])
+        pk = (kn - kn[0]) / (kn[-1] - kn[0])
+        j = np.clip(np.searchsorted(pk, frac, side="right") - 1, 0, len(kn) - 2)
+        cache[key] = (alpha, j, stance_terms(model, maps, alpha), _vz_pieces(zd, alpha, kn),
+                      maps.Phi(alpha), model.B_F(maps.q_Z(alpha)))
+    alpha, j, st, vz, phi, BF = cache[key]
+    alpha = alpha.copy()
     F = sched.force[0, j, :]  # (g, m)
     Tg = sched.generalized[0, j]  # (g,)
-    st = stance_terms(model, maps, alpha)
-    zeta = np.maximum(cycle.zeta_plus + zd.V_Z(alpha, sched)[0], 0.0)
+    zeta = np.maximum(cycle.zeta_plus + _vz(vz, sched)[0], 0.0)
     adot = np.abs(st.AT) * np.sqrt(2.0 * zeta)  # |alpha'|
     if not np.all(adot > 0.0):
         return None
     s = zd.direction
-    phi = maps.Phi(alpha)  # (g, N)
     u = st.U0 + st.U1 * zeta[:, None] + st.UT * Tg[:, None]
     if m:
         u = u + np.einsum("gim,gm->gi", st.U2, F)
     qd = phi * (s * adot)[:, None]  # q' (g, N)
     joint = u * qd[:, :N - 1]
-    bt = np.einsum("gnm,gn->gm", model.B_F(maps.q_Z(alpha)), qd)  # d_k . p_k' (g, m)
+    bt = np.einsum("gnm,gn->gm", BF, qd)  # d_k . p_k' (g, m)
     thrust = F * bt
     inv = 1.0 / adot
     h = np.abs(np.diff(alpha))
