@@ -188,12 +188,13 @@ class OrbitEnergy:
 def _node_tables(n: int) -> tuple[np.ndarray, ...]:
     """For ``n`` ascending Lobatto nodes ``x_i`` of [-1, 1]: the nodes, the gaps ``h_i =
     x_{i+1} - x_i``, the least ``sin(theta)`` on each gap (``x = cos(theta)``), the columns
-    ``(k^2, k, k^2 (k^2 - 1) / 3)`` (n, 3) of :func:`_second_derivative_bound`, the matrix
-    (n, 2n) taking node values to the Chebyshev coefficients and the derivatives at the
-    nodes, the matrix (n, n-2) taking coefficients to those of the second derivative, the
+    ``(k^2, k, k^2 (k^2 - 1) / 3)`` of :func:`_second_derivative_bound` as rows (3, n), the
+    matrix (2n, n) taking node values to the Chebyshev coefficients and the derivatives at
+    the nodes, the matrix (n, n-2) taking coefficients to those of the second derivative, the
     matrix (n-2, 2n-1) taking those to the second derivative at the nodes and to the sums
-    of :func:`_node_bound` (``min(k^2, k / s_i)`` per gap), the antiderivative's matrix
-    (n, n+1) (coefficients of ``F`` with ``F(-1) = 0``) and its row sums (``F(1)``)."""
+    of :func:`_node_bound` (``min(k^2, k / s_i)`` per gap), ``int_{-1}^1 T_k`` (n,) and the
+    factors (3, n-1) ``(h_i^2 / s_i^2, h_i^2 / s_i^3, h_i^2) / 8`` of the gaps' no-root test
+    (with the bound's rounding, ``1 + 1e-12``)."""
     x = -np.cos(np.pi * np.arange(n) / (n - 1))
     k = np.arange(n, dtype=float)
     sn = np.sqrt(np.maximum(1.0 - x * x, 0.0))
@@ -210,7 +211,7 @@ def _node_tables(n: int) -> tuple[np.ndarray, ...]:
     h = np.diff(x)
     with np.errstate(divide="ignore"):
         e_abc = np.stack([h * h / (s * s), h * h / (s * s * s), h * h]) * (0.125 * (1.0 + 1e-12))
-    tables = (x, h, s, K, np.concatenate([dct.T, (dT @ dct).T], axis=1), d2,
+    tables = (x, h, s, K.T.copy(), np.concatenate([dct, dT @ dct]), d2,
               np.concatenate([T2, kd], axis=1), F1, e_abc)
     for t in tables:
         t.setflags(write=False)
@@ -374,9 +375,10 @@ def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.n
     if P == 0:
         return np.zeros(0), np.zeros(0)
     xn, h, sg, K, to_cd, d2, T2kd, F1_m, e_abc = _node_tables(n)
-    cd = values @ to_cd
-    coef, dv = cd[:, :n], cd[:, n:]  # Chebyshev coefficients, p' at the nodes (P, n)
-    S = np.abs(coef) @ K  # (P, 3): the sums of _second_derivative_bound
+    cd = to_cd @ values.T  # (2n, P), rows contiguous: what the recurrences gather
+    cT = cd[:n]  # Chebyshev coefficients (n, P)
+    coef, dv = cT.T, cd[n:].T  # (P, n): the coefficients, p' at the nodes
+    S = (K @ np.abs(cT)).T  # (P, 3): the sums of _second_derivative_bound
     pos = values >= 0.0
     change = pos[:, 1:] != pos[:, :-1]
     av = np.abs(values)
@@ -397,7 +399,7 @@ def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.n
     open_ = ch & ~one | ~ch & ~((am > 0.125 * hg * hg * m2) | (m2 == 0.0))
     if np.any(open_):  # the node bound too, where it is smaller
         rows_o = np.unique(r[open_])
-        nb = _node_bound(coef[rows_o], h, d2, T2kd)
+        nb = _node_bound(np.take(cT, rows_o, axis=1).T, h, d2, T2kd)
         nb = nb[np.searchsorted(rows_o, r[open_]), gap[open_]]
         m2[open_] = np.minimum(m2[open_], nb)
         one = ch & mono & (sdv > hg * m2)
@@ -409,7 +411,6 @@ def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.n
     piece = (r, xn[gap], h[gap], values[r, gap], values[r, gap + 1], ga[open_], gb[open_],
              m2[open_])
     tiny = 1e-15 * np.max(av, axis=1)  # a piece below it is negligible in the integrals
-    cT = coef.T  # (n, P): a gathered column block is contiguous
     for level in range(SPLITS + 1):
         r = piece[0]
         if not r.size:
@@ -420,7 +421,7 @@ def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.n
             break
         r, a, w, fa, fb, ga, gb, m2 = piece
         w = 0.5 * w
-        pm, dm = _chebyshev_at(cT[:, r], a + w, derivative=True)
+        pm, dm = _chebyshev_at(np.take(cT, r, axis=1), a + w, derivative=True)
         r, a, fa, fb, ga, gb, m2 = (np.concatenate(v) for v in (
             (r, r), (a, a + w), (fa, pm), (pm, fb), (ga, dm), (dm, gb), (m2, m2)))
         w = np.concatenate([w, w])
@@ -443,7 +444,7 @@ def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.n
         t = _hermite_root(fa, fb, da * hb, db * hb)
         x = xa + t * hb
         # one Newton step on p itself
-        c = cT[:, rows]
+        c = np.take(cT, rows, axis=1)  # (n, roots), contiguous rows
         f, df = _chebyshev_at(c, x, derivative=True)
         with np.errstate(divide="ignore", invalid="ignore"):
             x = np.clip(x - np.nan_to_num(np.where(df != 0, f / df, 0.0)), xa, xa + hb)
