@@ -189,12 +189,13 @@ def _node_tables(n: int) -> tuple[np.ndarray, ...]:
     """For ``n`` ascending Lobatto nodes ``x_i`` of [-1, 1]: the nodes, the gaps ``h_i =
     x_{i+1} - x_i``, the least ``sin(theta)`` on each gap (``x = cos(theta)``), the columns
     ``(k^2, k, k^2 (k^2 - 1) / 3)`` of :func:`_second_derivative_bound` as rows (3, n), the
-    matrix (2n, n) taking node values to the Chebyshev coefficients and the derivatives at
-    the nodes, the matrix (n, n-2) taking coefficients to those of the second derivative, the
-    matrix (n-2, 2n-1) taking those to the second derivative at the nodes and to the sums
-    of :func:`_node_bound` (``min(k^2, k / s_i)`` per gap), ``int_{-1}^1 T_k`` (n,) and the
-    factors (3, n-1) ``(h_i^2 / s_i^2, h_i^2 / s_i^3, h_i^2) / 8`` of the gaps' no-root test
-    (with the bound's rounding, ``1 + 1e-12``)."""
+    matrix (3n+1, n) taking node values to the Chebyshev coefficients, the derivatives at
+    the nodes and the antiderivative's coefficients (``F(-1) = 0``), the matrix (n, n-2)
+    taking coefficients to those of the second derivative, the matrix (n-2, 2n-1) taking
+    those to the second derivative at the nodes and to the sums of :func:`_node_bound`
+    (``min(k^2, k / s_i)`` per gap), ``int_{-1}^1 T_k`` (n,) and the factors (3, n-1)
+    ``(h_i^2 / s_i^2, h_i^2 / s_i^3, h_i^2) / 8`` of the gaps' no-root test (with the
+    bound's rounding, ``1 + 1e-12``)."""
     x = -np.cos(np.pi * np.arange(n) / (n - 1))
     k = np.arange(n, dtype=float)
     sn = np.sqrt(np.maximum(1.0 - x * x, 0.0))
@@ -211,7 +212,8 @@ def _node_tables(n: int) -> tuple[np.ndarray, ...]:
     h = np.diff(x)
     with np.errstate(divide="ignore"):
         e_abc = np.stack([h * h / (s * s), h * h / (s * s * s), h * h]) * (0.125 * (1.0 + 1e-12))
-    tables = (x, h, s, K.T.copy(), np.concatenate([dct, dT @ dct]), d2,
+    anti = C.chebint(np.eye(n), lbnd=-1.0) @ dct  # values -> F's coefficients (n+1, n)
+    tables = (x, h, s, K.T.copy(), np.concatenate([dct, dT @ dct, anti]), d2,
               np.concatenate([T2, kd], axis=1), F1, e_abc)
     for t in tables:
         t.setflags(write=False)
@@ -300,22 +302,6 @@ def _chebyshev_at(cT: np.ndarray, x: np.ndarray, derivative: bool = False):
     return val, d
 
 
-def _antiderivative(cT: np.ndarray) -> np.ndarray:
-    """The Chebyshev coefficients (n+1, r) of ``F(x) = int_{-1}^x p`` for coefficient columns
-    ``cT`` (n, r) (``numpy.polynomial.chebyshev.chebint`` with ``lbnd = -1``, column-wise):
-    ``a_1 = c_0 - c_2 / 2``, ``a_i = (c_{i-1} - c_{i+1}) / (2 i)`` (``c_n = c_{n+1} = 0``) and
-    ``a_0 = -sum_{i>=1} (-1)^i a_i`` (``F(-1) = 0``)."""
-    n, r = cT.shape
-    c = np.zeros((n + 2, r))
-    c[:n] = cT
-    a = np.empty((n + 1, r))
-    i = np.arange(2, n + 1, dtype=float)[:, None]
-    a[2:] = (c[1:n] - c[3:n + 2]) / (2.0 * i)
-    a[1] = c[0] - 0.5 * c[2]
-    a[0] = -(np.where(np.arange(1, n + 1) % 2 == 0, 1.0, -1.0) @ a[1:])
-    return a
-
-
 def _hermite_root(fa: np.ndarray, fb: np.ndarray, da: np.ndarray, db: np.ndarray
                   ) -> np.ndarray:
     """A root ``t`` in [0, 1] of each cubic Hermite interpolant ``H`` with end values ``fa``,
@@ -375,9 +361,9 @@ def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.n
     if P == 0:
         return np.zeros(0), np.zeros(0)
     xn, h, sg, K, to_cd, d2, T2kd, F1_m, e_abc = _node_tables(n)
-    cd = to_cd @ values.T  # (2n, P), rows contiguous: what the recurrences gather
+    cd = to_cd @ values.T  # (3n+1, P), rows contiguous: what the recurrences gather
     cT = cd[:n]  # Chebyshev coefficients (n, P)
-    coef, dv = cT.T, cd[n:].T  # (P, n): the coefficients, p' at the nodes
+    coef, dv = cT.T, cd[n:2 * n].T  # (P, n): the coefficients, p' at the nodes
     S = (K @ np.abs(cT)).T  # (P, 3): the sums of _second_derivative_bound
     pos = values >= 0.0
     change = pos[:, 1:] != pos[:, :-1]
@@ -448,7 +434,7 @@ def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.n
         f, df = _chebyshev_at(c, x, derivative=True)
         with np.errstate(divide="ignore", invalid="ignore"):
             x = np.clip(x - np.nan_to_num(np.where(df != 0, f / df, 0.0)), xa, xa + hb)
-        Fr = _chebyshev_at(_antiderivative(c), x)
+        Fr = _chebyshev_at(np.take(cd[2 * n:], rows, axis=1), x)  # F's coefficients
         rank = np.arange(rows.size) - np.searchsorted(rows, rows, side="left")
         count = np.bincount(rows, minlength=P)
         inner = np.bincount(rows, 2.0 * np.where(rank % 2 == 0, 1.0, -1.0) * Fr, minlength=P)
