@@ -43,6 +43,7 @@ thrust. A part whose model is missing is None with a reason, never 0.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -88,6 +89,16 @@ class OrbitEnergy:
     error_estimate: float | None = None  # [J] nested quadrature estimate, largest
     regenerate: bool = False
     missing: tuple[str, ...] = field(default=())
+
+    @classmethod
+    def _of(cls, fields: dict) -> OrbitEnergy:
+        """The object with these ``fields`` (every one, by name), as the constructor makes
+        it: the frozen dataclass's ``__init__`` sets each of its 21 fields through
+        ``object.__setattr__`` (4 us an object); a batch of orbits fills ``__dict__`` at
+        once (the class has no ``__post_init__`` and no slots)."""
+        e = object.__new__(cls)
+        e.__dict__.update(fields)
+        return e
 
     # -- derived ------------------------------------------------------------------------
     @property
@@ -657,6 +668,7 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
     ok = tin_ok.tolist()
     errs = err.tolist()
     reason = "energies of the periodic orbit's step (exact quadrature on Z)"
+    fields = [f.name for f in dataclasses.fields(OrbitEnergy)]
     for r, i in enumerate(live):
         extra = [f"thruster {robot.thrusters[kk].name}: thrust outside its power table's "
                  "range: input energy not computed"
@@ -666,17 +678,16 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
                          "orbit): step time, electrical, thruster input and fuel not computed")
         el = lists["el"][r]
         tin, fl = lists["tin"][r], lists["fuel"][r]
-        out[i] = OrbitEnergy(
+        out[i] = OrbitEnergy._of(dict(zip(fields, (
             True, reason, tuple(lists["work"][r]), tuple(lists["pos"][r]),
             tuple(lists["abs"][r]),
             tuple(None if el_none[jj] or not timed else el[jj] for jj in range(N - 1)),
             tuple(lists["tw"][r]), tuple(lists["tpos"][r]), lists["gen"][r],
             tuple(None if tin_none[kk] or not ok[r][kk] else tin[kk] for kk in range(m)),
             tuple(fl[kk] if is_fuel[kk] and timed else None for kk in range(m)),
-            kinetic_start=K[r][0], kinetic_end=K[r][1],
-            potential_start=Vp, potential_end=Vm, step_time=lists["time"][r] if timed else None,
-            distance=distance, weight=weight, error_estimate=errs[r],
-            regenerate=regenerate, missing=tuple(missing + extra) if extra else missing_t)
+            K[r][0], K[r][1], Vp, Vm, lists["time"][r] if timed else None,
+            distance, weight, errs[r], regenerate,
+            tuple(missing + extra) if extra else missing_t))))
     return out
 
 
