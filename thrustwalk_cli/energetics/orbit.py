@@ -202,11 +202,10 @@ def _node_tables(n: int) -> tuple[np.ndarray, ...]:
     ``(k^2, k, k^2 (k^2 - 1) / 3)`` of :func:`_second_derivative_bound` as rows (3, n), the
     matrix (3n+1, n) taking node values to the Chebyshev coefficients, the derivatives at
     the nodes and the antiderivative's coefficients (``F(-1) = 0``), the matrix (n, n-2)
-    taking coefficients to those of the second derivative, the matrix (n-2, 2n-1) taking
-    those to the second derivative at the nodes and to the sums of :func:`_node_bound`
-    (``min(k^2, k / s_i)`` per gap), ``int_{-1}^1 T_k`` (n,) and the factors (3, n-1)
-    ``(h_i^2 / s_i^2, h_i^2 / s_i^3, h_i^2) / 8`` of the gaps' no-root test (with the
-    bound's rounding, ``1 + 1e-12``)."""
+    taking coefficients to those of the second derivative, the rows ``T_j(x_i)`` (n, n-2)
+    and ``min(j^2, j / s_i)`` (n-1, n-2) of :func:`_node_bound`, ``int_{-1}^1 T_k`` (n,)
+    and the factors (3, n-1) ``(h_i^2 / s_i^2, h_i^2 / s_i^3, h_i^2) / 8`` of the gaps'
+    no-root test (with the bound's rounding, ``1 + 1e-12``)."""
     x = -np.cos(np.pi * np.arange(n) / (n - 1))
     k = np.arange(n, dtype=float)
     sn = np.sqrt(np.maximum(1.0 - x * x, 0.0))
@@ -224,8 +223,8 @@ def _node_tables(n: int) -> tuple[np.ndarray, ...]:
     with np.errstate(divide="ignore"):
         e_abc = np.stack([h * h / (s * s), h * h / (s * s * s), h * h]) * (0.125 * (1.0 + 1e-12))
     anti = C.chebint(np.eye(n), lbnd=-1.0) @ dct  # values -> F's coefficients (n+1, n)
-    tables = (x, h, s, K.T.copy(), np.concatenate([dct, dT @ dct, anti]), d2,
-              np.concatenate([T2, kd], axis=1), F1, e_abc)
+    tables = (x, h, s, K.T.copy(), np.concatenate([dct, dT @ dct, anti]), d2, T2.T.copy(),
+              kd.T.copy(), F1, e_abc)
     for t in tables:
         t.setflags(write=False)
     return tables
@@ -249,24 +248,24 @@ def _second_derivative_bound(abs_coef_sums: np.ndarray, s: np.ndarray) -> np.nda
     return np.where(s > 0, np.minimum(G, loc), G) * (1.0 + 1e-12)  # and its own rounding
 
 
-def _node_bound(coef: np.ndarray, h: np.ndarray, d2: np.ndarray, T2kd: np.ndarray
-                ) -> np.ndarray:
-    """A second bound of ``|p''|`` on each gap ``[x_i, x_{i+1}]`` of the nodes (P, n-1), for
-    the coefficient rows ``coef`` (P, n), tight where the coefficients decay: with ``p'' =
-    sum_j d_j T_j`` (``d = coef d2``) and ``|T_j'| = |j sin(j theta) / sin(theta)| <=
-    min(j^2, j / s_i)`` on the gap (``s_i`` its least ``sin(theta)``),
+def _node_bound(d: np.ndarray, gap: np.ndarray, h: np.ndarray, T2: np.ndarray,
+                kd: np.ndarray) -> np.ndarray:
+    """A second bound of ``|p''|`` on gaps ``[x_i, x_{i+1}]`` of the nodes (``i = gap``,
+    (G,)), for the Chebyshev coefficients ``d`` (G, n-2) of each one's ``p'' = sum_j d_j
+    T_j``, tight where the coefficients decay: with ``|T_j'| = |j sin(j theta) /
+    sin(theta)| <= min(j^2, j / s_i)`` on the gap (``s_i`` its least ``sin(theta)``; the
+    rows ``kd`` (n-1, n-2)),
 
         max |p''| <= max(|p''(x_i)|, |p''(x_{i+1})|) + (h_i / 2) sum_j |d_j| min(j^2, j / s_i)
 
     (every point of the gap is within ``h_i / 2`` of one end); ``p''(x_i) = sum_j d_j
-    T_j(x_i)`` with ``|T_j| <= 1``, so its rounding is below ``1e-13 sum_j |d_j|``, added."""
-    n = coef.shape[1]
-    d = coef @ d2
+    T_j(x_i)`` (the rows ``T2`` (n, n-2)) with ``|T_j| <= 1``, so its rounding is below
+    ``1e-13 sum_j |d_j|``, added."""
     ad = np.abs(d)
-    t = ad @ T2kd[:, n:]  # (P, n-1)
-    v = np.abs(d @ T2kd[:, :n])  # |p''| at the nodes
-    return ((np.maximum(v[:, :-1], v[:, 1:]) + 0.5 * h * t
-             + 1e-13 * ad.sum(axis=1, keepdims=True)) * (1.0 + 1e-12))
+    t = np.einsum("gj,gj->g", ad, kd[gap])
+    va = np.abs(np.einsum("gj,gj->g", d, T2[gap]))
+    vb = np.abs(np.einsum("gj,gj->g", d, T2[gap + 1]))
+    return (np.maximum(va, vb) + 0.5 * h[gap] * t + 1e-13 * ad.sum(axis=1)) * (1.0 + 1e-12)
 
 
 def _clenshaw(c: np.ndarray, x: np.ndarray, derivative: bool = False):
@@ -371,7 +370,7 @@ def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.n
     P, n = values.shape
     if P == 0:
         return np.zeros(0), np.zeros(0)
-    xn, h, sg, K, to_cd, d2, T2kd, F1_m, e_abc = _node_tables(n)
+    xn, h, sg, K, to_cd, d2, T2, kd, F1_m, e_abc = _node_tables(n)
     cd = to_cd @ values.T  # (3n+1, P), rows contiguous: what the recurrences gather
     cT = cd[:n]  # Chebyshev coefficients (n, P)
     coef, dv = cT.T, cd[n:2 * n].T  # (P, n): the coefficients, p' at the nodes
@@ -395,10 +394,9 @@ def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.n
     one = ch & mono & (sdv > hg * m2)
     open_ = ch & ~one | ~ch & ~((am > 0.125 * hg * hg * m2) | (m2 == 0.0))
     if np.any(open_):  # the node bound too, where it is smaller
-        rows_o = np.unique(r[open_])
-        nb = _node_bound(np.take(cT, rows_o, axis=1).T, h, d2, T2kd)
-        nb = nb[np.searchsorted(rows_o, r[open_]), gap[open_]]
-        m2[open_] = np.minimum(m2[open_], nb)
+        rows_o, inv = np.unique(r[open_], return_inverse=True)
+        d = (np.take(cT, rows_o, axis=1).T @ d2)[inv]  # p'''s coefficients, per gap
+        m2[open_] = np.minimum(m2[open_], _node_bound(d, gap[open_], h, T2, kd))
         one = ch & mono & (sdv > hg * m2)
         open_ = ch & ~one | ~ch & ~((am > 0.125 * hg * hg * m2) | (m2 == 0.0))
     ro, go = r[one], gap[one]
