@@ -342,7 +342,7 @@ def test_chebyshev_evaluation_against_numpy():
     there)."""
     from numpy.polynomial import chebyshev as C
 
-    from thrustwalk_cli.energetics.orbit import SMALL, _chebyshev_at
+    from thrustwalk_cli.energetics.kinks import SMALL, chebyshev_at
 
     rng = np.random.default_rng(5)
     n = 65
@@ -350,13 +350,13 @@ def test_chebyshev_evaluation_against_numpy():
         c = rng.standard_normal((n, size)) / (1.0 + np.arange(n)[:, None]) ** 1.5
         x = rng.uniform(-1.0, 1.0, size)
         x[:4] = [-1.0, 1.0, -1.0 + 1e-9, 1.0 - 1e-12]
-        val, der = _chebyshev_at(np.ascontiguousarray(c), x, derivative=True)
+        val, der = chebyshev_at(np.ascontiguousarray(c), x, derivative=True)
         scale = np.abs(c).sum(axis=0)
         dscale = (np.abs(c) * np.arange(n)[:, None] ** 2).sum(axis=0)
         for r in range(size):
             assert abs(val[r] - C.chebval(x[r], c[:, r])) <= 1e-14 * scale[r]
             assert abs(der[r] - C.chebval(x[r], C.chebder(c[:, r]))) <= 1e-13 * dscale[r]
-        assert np.array_equal(_chebyshev_at(np.ascontiguousarray(c), x), val)
+        assert np.array_equal(chebyshev_at(np.ascontiguousarray(c), x), val)
 
 
 def test_node_bound_bounds_the_second_derivative():
@@ -365,11 +365,11 @@ def test_node_bound_bounds_the_second_derivative():
     sampled densely on the gap (numpy's chebder), for smooth, oscillating and noisy rows."""
     from numpy.polynomial import chebyshev as C
 
-    from thrustwalk_cli.energetics.orbit import _node_bound, _node_tables
+    from thrustwalk_cli.energetics.kinks import node_bound, node_tables
     from thrustwalk_cli.hzd.quadrature import coefficients
 
     n = 65
-    xn, h, _, _, _, d2, T2, kd, _, _ = _node_tables(n)
+    xn, h, _, _, _, d2, T2, kd, _, _ = node_tables(n)
     rng = np.random.default_rng(7)
     rows = [np.sin(15 * xn) + 0.2, np.exp(xn) * np.cos(3 * xn), 3.0 * (xn + 0.5) * (xn - 0.3),
             rng.standard_normal(n), np.abs(xn) ** 3]
@@ -377,7 +377,7 @@ def test_node_bound_bounds_the_second_derivative():
     gaps = np.arange(n - 1)
     t = np.linspace(0.0, 1.0, 201)
     for c in coef:
-        bound = _node_bound(np.tile(c @ d2, (n - 1, 1)), gaps, h, T2, kd)
+        bound = node_bound(np.tile(c @ d2, (n - 1, 1)), gaps, h, T2, kd)
         dd = C.chebder(c, 2)
         for i in gaps:
             assert np.max(np.abs(C.chebval(xn[i] + t * h[i], dd))) <= bound[i]
