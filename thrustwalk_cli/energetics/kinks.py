@@ -201,9 +201,15 @@ def abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.nd
     # every gap at once: h_i^2 max|p''| / 8 <= min(G h_i^2, A h_i^2 / s_i^2 + B h_i^2 / s_i^3)
     # / 8 (the factors e_abc, with the bound's own rounding); the few gaps where that
     # proves no root-free gap, one by one below with the bound itself
-    with np.errstate(invalid="ignore"):
-        e = np.fmin(S[:, 2:3] * e_abc[2], S[:, 0:1] * e_abc[0] + S[:, 1:2] * e_abc[1])
-    r, gap = np.nonzero(change | ~(amin > e))
+    with np.errstate(invalid="ignore"):  # 0 inf at the end gaps: NaN, which fmin drops
+        e = S[:, 0:1] * e_abc[0]
+        tmp = S[:, 1:2] * e_abc[1]
+        e += tmp
+    np.multiply(S[:, 2:3], e_abc[2], out=tmp)
+    np.fmin(e, tmp, out=e)
+    test = np.less_equal(amin, e)
+    test |= change
+    r, gap = np.nonzero(test)
     ch = change[r, gap]
     m2 = second_derivative_bound(S[r], sg[gap])
     ga, gb = dv[r, gap], dv[r, gap + 1]
