@@ -199,8 +199,8 @@ def abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.nd
     av = np.abs(values)
     amin = np.minimum(av[:, :-1], av[:, 1:])
     # every gap at once: h_i^2 max|p''| / 8 <= min(G h_i^2, A h_i^2 / s_i^2 + B h_i^2 / s_i^3)
-    # / 8 (the factors e_abc, with the bound's own rounding); the few gaps where that
-    # proves no root-free gap, one by one below with the bound itself
+    # / 8 (the factors e_abc, with the bound's own rounding); the gaps with a sign change and
+    # those this does not prove root-free are tested one by one below, with the bound itself
     with np.errstate(invalid="ignore"):  # 0 inf at the end gaps: NaN, which fmin drops
         e = S[:, 0:1] * e_abc[0]
         tmp = S[:, 1:2] * e_abc[1]
