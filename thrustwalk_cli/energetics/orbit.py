@@ -317,6 +317,8 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
     timed = True  # alpha' > 0 at every node: the time-based integrals exist
     el = [jj for jj, mo in enumerate(motors) if mo is not None]
     start = zd.__dict__.setdefault("_energy_node_count", {})
+    if len(start) > 256:  # knots that change from call to call (an optimiser's)
+        start.clear()
     for j in range(len(kn) - 1):
         lo, hi = sorted((kn[j], kn[j + 1]))
         if hi <= lo:
