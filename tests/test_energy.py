@@ -336,6 +336,87 @@ def test_orbit_kinks_against_brute_force(tmp_path, monkeypatch, _cache_dir):
         assert np.all(np.abs(po - epo) <= 1e-12 * scale + 1e-15)
 
 
+def test_chebyshev_evaluation_against_numpy():
+    """The series and its derivative at points (few: powers of e^(i theta); many: Clenshaw)
+    against numpy's chebval and chebder, at the ends x = +-1 too (the derivative's limit
+    there)."""
+    from numpy.polynomial import chebyshev as C
+
+    from thrustwalk_cli.energetics.kinks import SMALL, chebyshev_at
+
+    rng = np.random.default_rng(5)
+    n = 65
+    for size in (7, SMALL + 40):
+        c = rng.standard_normal((n, size)) / (1.0 + np.arange(n)[:, None]) ** 1.5
+        x = rng.uniform(-1.0, 1.0, size)
+        x[:4] = [-1.0, 1.0, -1.0 + 1e-9, 1.0 - 1e-12]
+        val, der = chebyshev_at(np.ascontiguousarray(c), x, derivative=True)
+        scale = np.abs(c).sum(axis=0)
+        dscale = (np.abs(c) * np.arange(n)[:, None] ** 2).sum(axis=0)
+        for r in range(size):
+            assert abs(val[r] - C.chebval(x[r], c[:, r])) <= 1e-14 * scale[r]
+            assert abs(der[r] - C.chebval(x[r], C.chebder(c[:, r]))) <= 1e-13 * dscale[r]
+        assert np.array_equal(chebyshev_at(np.ascontiguousarray(c), x), val)
+
+
+def test_node_bound_bounds_the_second_derivative():
+    """The node bound of the second derivative's size on each gap of the nodes (its size at
+    the ends plus half a gap times a bound of the third derivative) is not below the size
+    sampled densely on the gap (numpy's chebder), for smooth, oscillating and noisy rows."""
+    from numpy.polynomial import chebyshev as C
+
+    from thrustwalk_cli.energetics.kinks import node_bound, node_tables
+    from thrustwalk_cli.hzd.quadrature import coefficients
+
+    n = 65
+    xn, h, _, _, _, d2, T2, kd, _, _ = node_tables(n)
+    rng = np.random.default_rng(7)
+    rows = [np.sin(15 * xn) + 0.2, np.exp(xn) * np.cos(3 * xn), 3.0 * (xn + 0.5) * (xn - 0.3),
+            rng.standard_normal(n), np.abs(xn) ** 3]
+    coef = coefficients(np.array(rows).T).T  # (rows, n)
+    gaps = np.arange(n - 1)
+    t = np.linspace(0.0, 1.0, 201)
+    for c in coef:
+        bound = node_bound(np.tile(c @ d2, (n - 1, 1)), gaps, h, T2, kd)
+        dd = C.chebder(c, 2)
+        for i in gaps:
+            assert np.max(np.abs(C.chebval(xn[i] + t * h[i], dd))) <= bound[i]
+
+
+def test_orbit_energy_from_warm_caches_equals_a_fresh_one(walker3):
+    """What orbit_energy keeps on the walker (the alpha-only terms at the nodes, the node
+    count where the last call ended) changes no energy: a batch after a larger one equals
+    the same batch from empty caches; V_Z from its kept pieces is ZeroDynamics.V_Z; the
+    objects equal those of the constructor."""
+    import dataclasses
+
+    from thrustwalk_cli.energetics.orbit import OrbitEnergy, _vz, _vz_pieces, orbit_energy
+    from thrustwalk_cli.hzd.quadrature import lobatto
+    from thrustwalk_cli.hzd.zero_dynamics import limit_cycles
+    from thrustwalk_cli.thrust.schedule import Schedule
+
+    zd = walker3.zd
+    m = zd.model.n_thrusters
+    big = Schedule.on_thruster(zd, list(np.linspace(0.0, -50.0, 40)), 0, m)
+    small = Schedule.on_thruster(zd, [0.0, -25.0], 0, m)
+    c_big, c_small = limit_cycles(zd, big), limit_cycles(zd, small)
+    for key in ("_energy_nodes", "_energy_node_count"):
+        zd.__dict__.pop(key, None)
+    fresh = orbit_energy(zd, small, c_small)
+    orbit_energy(zd, big, c_big)
+    again = orbit_energy(zd, small, c_small)
+    for a, b in zip(fresh, again):
+        da, db = dataclasses.asdict(a), dataclasses.asdict(b)
+        for name in ("joint_work", "joint_positive_work", "joint_absolute_work",
+                     "joint_electrical", "thrust_work", "thrust_positive_work",
+                     "thruster_input", "step_time"):
+            assert np.allclose(da[name], db[name], rtol=1e-12, atol=1e-15), name
+        assert b == OrbitEnergy(**db)
+    alpha = lobatto(zd.alpha_i, zd.alpha_f, 33)
+    kn = np.asarray(big.knots, float)
+    assert np.array_equal(_vz(_vz_pieces(zd, alpha, kn), big), zd.V_Z(alpha, big))
+
+
 def test_limit_cycle_without_energy(walker3):
     """``energy=False`` drops the energy blocks and changes nothing else."""
     import thrustwalk_cli.studies.limit_cycle as lc

@@ -17,11 +17,14 @@ until the nested error estimate of the smooth integrals is below ``RTOL`` relati
 ``max(0, .)`` and ``|.|`` (positive and absolute work, clipped electrical power) are integrated
 piecewise between the kinks: the roots of the integrand's Chebyshev interpolant on the interval
 split it, and the interpolant's antiderivative is evaluated at the roots. The roots are isolated
-between the nodes with a proof (no root, or exactly one, from a bound of the interpolant's
+between the nodes with a proof (no root, or exactly one, from bounds of the interpolant's
 second derivative; gaps without a proof are halved up to ``SPLITS`` times) and polished from
-the root of a cubic Hermite interpolant by a Newton step (:func:`_abs_and_positive`). A
+the root of a cubic Hermite interpolant by a Newton step (:func:`.kinks.abs_and_positive`,
+one call for all the rows of a knot interval: joints, thrusters, electrical powers). A
 thrust's power ``F_k (B_F^T Phi)_k`` is the constant thrust times one function of alpha on a
-knot interval: its kinks are those of that function, found once for the whole batch.
+knot interval: its kinks are those of that function, found once for the whole batch. What
+depends on alpha only (the stance terms, ``Phi``, ``B_F^T Phi``, the pieces of ``V_Z`` at the
+nodes) is computed once per walker, knots and node count and kept on the ``ZeroDynamics``.
 
 Joint electrical power with a motor: ``P_m / eta_g`` (or ``P_m eta_g`` when negative) plus
 the Joule loss ``J = R (u / (G k_t))^2`` (:mod:`.power`); negative electrical power is not
@@ -43,21 +46,21 @@ thrust. A part whose model is missing is None with a reason, never 0.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
-from numpy.polynomial import chebyshev as C
 
 from ..contact.terms import stance_terms
-from ..hzd.quadrature import _cc_weights, _dct_matrix, lobatto
+from ..hzd.quadrature import _cc_weights, lobatto
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..thrust.schedule import Schedule
+from .kinks import abs_and_positive as _abs_and_positive
 from .power import input_power, joule_power, missing_models
 
 RTOL = 1e-10
 MAX_NODES = 1025
-SPLITS = 12  # halvings of a gap of the nodes to isolate the roots in it
 
 
 @dataclass(frozen=True)
@@ -87,6 +90,16 @@ class OrbitEnergy:
     error_estimate: float | None = None  # [J] nested quadrature estimate, largest
     regenerate: bool = False
     missing: tuple[str, ...] = field(default=())
+
+    @classmethod
+    def _of(cls, fields: dict) -> OrbitEnergy:
+        """The object with these ``fields`` (every one, by name), as the constructor makes
+        it: the frozen dataclass's ``__init__`` sets each of its 21 fields through
+        ``object.__setattr__`` (4 us an object); a batch of orbits fills ``__dict__`` at
+        once (the class has no ``__post_init__`` and no slots)."""
+        e = object.__new__(cls)
+        e.__dict__.update(fields)
+        return e
 
     # -- derived ------------------------------------------------------------------------
     @property
@@ -184,173 +197,100 @@ class OrbitEnergy:
 
 
 @lru_cache(maxsize=16)
-def _node_tables(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                                  np.ndarray]:
-    """For ``n`` ascending Lobatto nodes ``x_i`` of [-1, 1]: the nodes, the gaps ``h_i =
-    x_{i+1} - x_i``, the least ``sin(theta)`` on each gap (``x = cos(theta)``), the columns
-    ``(k^2, k, k^2 (k^2 - 1) / 3)`` (n, 3) of :func:`_second_derivative_bound`, and the matrix
-    (n, 2n) taking node values to the Chebyshev coefficients and the derivatives at the
-    nodes."""
-    x = -np.cos(np.pi * np.arange(n) / (n - 1))
-    k = np.arange(n, dtype=float)
-    sn = np.sqrt(np.maximum(1.0 - x * x, 0.0))
-    s = np.minimum(sn[:-1], sn[1:])
-    K = np.stack([k * k, k, k * k * (k * k - 1.0) / 3.0], axis=1)
-    dct = _dct_matrix(n)
-    dT = C.chebval(x, C.chebder(np.eye(n))).T  # (nodes, k) T_k'(x_i)
-    return x, np.diff(x), s, K, np.concatenate([dct.T, (dT @ dct).T], axis=1)
+def _weights(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Clenshaw-Curtis weights of ``n`` Lobatto nodes and of the nested ``(n-1)/2 + 1``."""
+    return _cc_weights(n), _cc_weights((n - 1) // 2 + 1)
 
 
-def _second_derivative_bound(abs_coef_sums: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """A bound of ``|p''|`` on each gap of the nodes for ``p = sum_k c_k T_k``, from the rows
-    ``(sum |c_k| k^2, sum |c_k| k, sum |c_k| k^2 (k^2 - 1) / 3)`` (P, 3) and each gap's least
-    ``sin(theta) = s``: with ``x = cos(theta)``, ``T_k'' = (k cos(theta) sin(k theta) - k^2
-    sin(theta) cos(k theta)) / sin(theta)^3``, so ``|T_k''| <= k^2 / s^2 + k / s^3``, and
-    everywhere ``|T_k''| <= T_k''(1) = k^2 (k^2 - 1) / 3``."""
-    A, B, G = (abs_coef_sums[:, i:i + 1] for i in range(3))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        loc = A / (s * s) + B / (s * s * s)
-    return np.where(s > 0, np.minimum(G, loc), G) * (1.0 + 1e-12)  # and its own rounding
+def _nodes(zd: ZeroDynamics, knots: np.ndarray, j: int, n: int) -> dict:
+    """What the energy integrands of knot interval ``j`` need at its ``n`` ascending Lobatto
+    nodes that does not depend on the thrust values (they depend on alpha only): the stance
+    terms' torque rows (SPEC 5), ``s Phi_j`` of the joints, ``s (B_F^T Phi)_k`` of the
+    thrusters, ``s Phi_N``, ``|kappa_1|`` and the pieces of ``V_Z`` (``V_0`` and per knot
+    interval the increments of ``Gamma`` and ``b_F``, as :meth:`ZeroDynamics.V_Z`); computed
+    on first use and kept on ``zd``."""
+    cache = zd.__dict__.setdefault("_energy_nodes", {})
+    key = (tuple(knots.tolist()), j, n)
+    out = cache.get(key)
+    if out is not None:
+        return out
+    if len(cache) > 64:
+        cache.clear()
+    model, maps = zd.model, zd.maps
+    N, m = model.n, model.n_thrusters
+    s = zd.direction
+    lo, hi = sorted((knots[j], knots[j + 1]))
+    alpha = lobatto(lo, hi, n)
+    st = stance_terms(model, maps, alpha)
+    phi = maps.Phi(alpha)  # (g, N)
+    out = cache[key] = {
+        "U0": st.U0.T[None], "U1": st.U1.T[None], "UT": st.UT.T[None],
+        "U2": st.U2.transpose(2, 1, 0).reshape(m, -1),
+        "pphi": (s * phi[:, :N - 1].T)[None],
+        "bt": s * np.einsum("gnm,gn->mg", model.B_F(maps.q_Z(alpha)), phi),  # (m, g)
+        "bg": s * phi[:, N - 1],
+        "k1": np.abs(st.AT),  # AT = 1 / (e_N^T D Phi) = kappa_1
+        "V_Z": _vz_pieces(zd, alpha, knots)}
+    return out
 
 
-def _clenshaw(c: np.ndarray, x: np.ndarray, derivative: bool = False):
-    """``sum_k c[k, r] T_k(x_r)`` for coefficient columns ``c`` (n, r, ...) at points ``x``
-    (r, ...) by Clenshaw's recurrence; with ``derivative`` also its derivative in ``x``."""
-    b1 = np.zeros(np.broadcast_shapes(c.shape[1:], x.shape))
-    b2 = np.zeros_like(b1)
-    d1 = np.zeros_like(b1)
-    d2 = np.zeros_like(b1)
-    x2 = 2.0 * x
-    for ck in c[:0:-1]:
-        if derivative:
-            d1, d2 = 2.0 * b1 + x2 * d1 - d2, d1
-        b1, b2 = ck + x2 * b1 - b2, b1
-    val = c[0] + x * b1 - b2
-    return (val, b1 + x * d1 - d2) if derivative else val
+def _vz_pieces(zd: ZeroDynamics, alpha: np.ndarray, knots: np.ndarray) -> tuple:
+    """The thrust-independent pieces of ``V_Z(alpha)`` (SPEC 3, 4) for a schedule's
+    ``knots``, as :meth:`ZeroDynamics.V_Z` computes them: ``V_0(alpha)`` and per knot
+    interval the increments of ``Gamma`` and ``b_F`` from the knot to ``alpha`` clipped into
+    the interval."""
+    klo, khi = np.minimum(knots[:-1], knots[1:]), np.maximum(knots[:-1], knots[1:])
+    dG, dB = [], []
+    for jj in range(len(knots) - 1):
+        a = np.clip(alpha, klo[jj], khi[jj])
+        dG.append(zd.Gamma(a) - zd.Gamma(knots[jj]))
+        dB.append(zd.B(a) - zd.B(knots[jj]))
+    return zd.V0(alpha), dG, dB
 
 
-def _hermite_root(fa: np.ndarray, fb: np.ndarray, da: np.ndarray, db: np.ndarray
-                  ) -> np.ndarray:
-    """A root ``t`` in [0, 1] of each cubic Hermite interpolant ``H`` with end values ``fa``,
-    ``fb`` of opposite signs (``fa >= 0`` and ``fb < 0`` or the reverse) and end slopes
-    ``da``, ``db`` (d/dt): Newton's method kept inside a bracket of ``H``'s sign change,
-    bisecting where a step would leave it, to ``1e-15``."""
-    lo, hi = np.zeros_like(fa), np.ones_like(fa)
-    up = fa < 0.0  # H(lo) < 0 <= H(hi)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.clip(np.nan_to_num(fa / (fa - fb), nan=0.5), 0.0, 1.0)
-    act = np.arange(fa.size)
-    for _ in range(60):
-        tt, a, b, ea, eb = t[act], fa[act], fb[act], da[act], db[act]
-        t2 = tt * tt
-        t3 = t2 * tt
-        H = (2 * t3 - 3 * t2 + 1) * a + (t3 - 2 * t2 + tt) * ea + (3 * t2 - 2 * t3) * b \
-            + (t3 - t2) * eb
-        dH = (6 * t2 - 6 * tt) * (a - b) + (3 * t2 - 4 * tt + 1) * ea + (3 * t2 - 2 * tt) * eb
-        below = (H < 0.0) == up[act]  # the root is above tt
-        lo[act] = np.where(below, tt, lo[act])
-        hi[act] = np.where(below, hi[act], tt)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            new = tt - H / dH
-        mid = 0.5 * (lo[act] + hi[act])
-        new = np.where(np.isfinite(new) & (new >= lo[act]) & (new <= hi[act]), new, mid)
-        new = np.where(H == 0.0, tt, new)
-        t[act] = new
-        done = (np.abs(new - tt) <= 1e-15) | (hi[act] - lo[act] <= 1e-15) | (H == 0.0)
-        act = act[~done]
-        if not act.size:
-            break
-    return t
+def _vz(pieces: tuple, sched: Schedule) -> np.ndarray:
+    """``V_Z`` (k, g) of every schedule of the batch from :func:`_vz_pieces`, with the
+    operations of :meth:`ZeroDynamics.V_Z` in its order (the same numbers)."""
+    V0, dG, dB = pieces
+    out = np.broadcast_to(V0, (sched.size,) + V0.shape).copy()
+    for jj in range(len(dG)):
+        out += np.einsum("...m,km->k...", dG[jj], sched.force[:, jj, :])
+        out += sched.generalized[:, jj].reshape((-1,) + (1,) * V0.ndim) * dB[jj]
+    return out
 
 
-def _abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.ndarray]:
-    """``int |f|`` and ``int max(0, f)`` over an interval of half-length ``half`` for rows of
-    samples ``values`` (P, n) at ascending Lobatto nodes, piecewise between the roots of each
-    row's Chebyshev interpolant ``p`` (module docstring): with ``F`` its antiderivative
-    (``F(-1) = 0``), ``s_0`` its sign at the start and ``r_1 < ... < r_p`` its roots,
-    ``int |f| = s_0 (sum_i 2 (-1)^(i-1) F(r_i) + (-1)^p F(1))``.
-
-    Each gap ``[x_i, x_{i+1}]`` of the nodes is shown to hold no root (its end values keep
-    their sign and ``min(|p(x_i)|, |p(x_{i+1})|) > h_i^2 max|p''| / 8``, the linear
-    interpolant's error bound) or exactly one (they change sign and ``p'`` keeps its sign:
-    ``p'(x_i) p'(x_{i+1}) > 0`` and ``|p'(x_i)| + |p'(x_{i+1})| > h_i max|p''|``), with
-    ``max|p''|`` bounded from the coefficients (:func:`_second_derivative_bound`); a gap
-    without such a proof is halved (``p`` and ``p'`` at its middle) and the test repeated on
-    the halves, up to ``SPLITS`` times (a piece where ``|p|`` stays below ``1e-15`` of the
-    row's largest node value is negligible and left unsplit). Each root starts at the root of
-    the cubic Hermite interpolant of its bracket's end values and slopes
-    (:func:`_hermite_root`) and takes one Newton step on ``p``, kept in the bracket (the
-    root's error enters the integrals squared). Only roots closer than the last halving's
-    width (``2^-SPLITS`` of a gap) and double roots are not separated."""
-    P, n = values.shape
-    if P == 0:
-        return np.zeros(0), np.zeros(0)
-    xn, h, sg, K, to_cd = _node_tables(n)
-    cd = values @ to_cd
-    coef, dv = cd[:, :n], cd[:, n:]  # Chebyshev coefficients, p' at the nodes (P, n)
-    M2 = _second_derivative_bound(np.abs(coef) @ K, sg)  # (P, n-1) on each gap
-    pos = values >= 0.0
-    change = pos[:, 1:] != pos[:, :-1]
-    av = np.abs(values)
-    no_root = (np.minimum(av[:, :-1], av[:, 1:]) > 0.125 * h * h * M2) | (M2 == 0.0)
-    one_root = ((dv[:, :-1] * dv[:, 1:] > 0.0)
-                & (np.abs(dv[:, :-1]) + np.abs(dv[:, 1:]) > h * M2))
-    rows, gap = np.nonzero(change & one_root)
-    brackets = [(rows, xn[gap], h[gap], values[rows, gap], values[rows, gap + 1],
-                 dv[rows, gap], dv[rows, gap + 1])]
-    # the other gaps: halved until each piece provably holds no root or one
-    r, gap = np.nonzero(np.where(change, ~one_root, ~no_root))
-    piece = (r, xn[gap], h[gap], values[r, gap], values[r, gap + 1], dv[r, gap],
-             dv[r, gap + 1], M2[r, gap])
-    tiny = 1e-15 * np.max(av, axis=1)  # a piece below it is negligible in the integrals
-    for level in range(SPLITS + 1):
-        r = piece[0]
-        if not r.size:
-            break
-        if level == SPLITS:  # unresolved (a double root or roots closer than the width)
-            ch = (piece[3] >= 0.0) != (piece[4] >= 0.0)
-            brackets.append(tuple(v[ch] for v in piece[:7]))
-            break
-        r, a, w, fa, fb, ga, gb, m2 = piece
-        w = 0.5 * w
-        pm, dm = _clenshaw(coef[r].T, a + w, derivative=True)
-        r, a, fa, fb, ga, gb, m2 = (np.concatenate(v) for v in (
-            (r, r), (a, a + w), (fa, pm), (pm, fb), (ga, dm), (dm, gb), (m2, m2)))
-        w = np.concatenate([w, w])
-        ch = (fa >= 0.0) != (fb >= 0.0)
-        none = ~ch & ((np.minimum(np.abs(fa), np.abs(fb)) > 0.125 * w * w * m2)
-                      | (np.maximum(np.abs(fa), np.abs(fb)) + 0.125 * w * w * m2 <= tiny[r]))
-        one = ch & (((ga * gb > 0.0) & (np.abs(ga) + np.abs(gb) > w * m2))
-                    | (np.maximum(np.abs(fa), np.abs(fb)) + 0.125 * w * w * m2 <= tiny[r]))
-        brackets.append((r[one], a[one], w[one], fa[one], fb[one], ga[one], gb[one]))
-        keep = ~(none | one)
-        piece = (r[keep], a[keep], w[keep], fa[keep], fb[keep], ga[keep], gb[keep], m2[keep])
-    rows, xa, hb, fa, fb, da, db = (np.concatenate(v) for v in zip(*brackets))
-    anti = C.chebint(coef, axis=1, lbnd=-1.0)  # (P, n+1)
-    F1 = anti.sum(axis=1)  # F(1): T_k(1) = 1
-    s0 = np.where(pos[:, 0], 1.0, -1.0)
-    total_abs = s0 * F1  # no root
-    if rows.size:
-        order = np.lexsort((xa, rows))
-        rows, xa, hb, fa, fb, da, db = (v[order] for v in (rows, xa, hb, fa, fb, da, db))
-        t = _hermite_root(fa, fb, da * hb, db * hb)
-        x = xa + t * hb
-        # one Newton step on p itself
-        f, df = _clenshaw(coef[rows].T, x, derivative=True)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            x = np.clip(x - np.nan_to_num(np.where(df != 0, f / df, 0.0)), xa, xa + hb)
-        Fr = _clenshaw(anti[rows].T, x)
-        rank = np.arange(rows.size) - np.searchsorted(rows, rows, side="left")
-        count = np.bincount(rows, minlength=P)
-        inner = np.bincount(rows, 2.0 * np.where(rank % 2 == 0, 1.0, -1.0) * Fr, minlength=P)
-        total_abs = s0 * (inner + np.where(count % 2 == 0, 1.0, -1.0) * F1)
-    return total_abs * half, 0.5 * (total_abs + F1) * half
+def _integrands(zd: ZeroDynamics, sched: Schedule, zp: np.ndarray, j: int, n: int) -> dict:
+    """The integrands of knot interval ``j`` at ``n`` Lobatto nodes for the batch (module
+    docstring): ``zeta``, the torques ``u`` and the joint powers per ``|d alpha|`` (k, joint,
+    g), ``|alpha'|`` and its inverse (k, g), the thrust's and the generalised mode's powers per
+    unit thrust (m, g), (g,)."""
+    nd = _nodes(zd, np.asarray(sched.knots, float), j, n)
+    N, m = zd.model.n, zd.model.n_thrusters
+    k = sched.size
+    F = sched.force[:, j, :]  # (k, m)
+    Tg = sched.generalized[:, j]  # (k,)
+    zeta = zp[:, None] + _vz(nd["V_Z"], sched)  # (k, g)
+    zeta = np.maximum(zeta, 0.0)
+    u = nd["U0"] + nd["U1"] * zeta[:, None, :]
+    if m:  # + U2 F
+        u = u + (F @ nd["U2"]).reshape(k, N - 1, n)
+    u = u + nd["UT"] * Tg[:, None, None]
+    adot = nd["k1"][None] * np.sqrt(2.0 * zeta)  # |alpha'| (k, g)
+    with np.errstate(divide="ignore"):
+        inv = 1.0 / adot
+    return {"u": u, "pj": u * nd["pphi"], "bt": nd["bt"], "bg": nd["bg"], "adot": adot,
+            "inv": inv}
 
 
 def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bool = False
                  ) -> list[OrbitEnergy]:
     """The step energies of each schedule's periodic orbit (``cycles[i]`` its
-    :class:`LimitCycle`), exactly by quadrature on Z (module docstring, SPEC 15)."""
+    :class:`LimitCycle`), exactly by quadrature on Z (module docstring, SPEC 15).
+
+    What depends on alpha only is computed once per walker, knots and node count
+    (:func:`_nodes`); the node count of a knot interval starts where the last call ended
+    (kept on ``zd``), and the smaller nested counts are tried first on subsets of those
+    nodes, so the result is the one the doubling from 33 nodes gives."""
     model, maps = zd.model, zd.maps
     robot = model.robot
     N, m = model.n, model.n_thrusters
@@ -367,7 +307,6 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
     sched = schedule.take(np.array(live))
     k = len(live)
     zp = np.array([cycles[i].zeta_plus for i in live])
-    s = zd.direction
     kn = np.asarray(sched.knots, float)
     acc = {name: np.zeros((k,) + shape) for name, shape in (
         ("work", (N - 1,)), ("abs", (N - 1,)), ("pos", (N - 1,)), ("el", (N - 1,)),
@@ -376,6 +315,10 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
     err = np.zeros(k)
     tin_ok = np.ones((k, m), bool)
     timed = True  # alpha' > 0 at every node: the time-based integrals exist
+    el = [jj for jj, mo in enumerate(motors) if mo is not None]
+    start = zd.__dict__.setdefault("_energy_node_count", {})
+    if len(start) > 256:  # knots that change from call to call (an optimiser's)
+        start.clear()
     for j in range(len(kn) - 1):
         lo, hi = sorted((kn[j], kn[j + 1]))
         if hi <= lo:
@@ -383,76 +326,70 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
         half = 0.5 * (hi - lo)
         F = sched.force[:, j, :]  # (k, m)
         Tg = sched.generalized[:, j]  # (k,)
-        n = 33
+        aF = np.abs(F)
+        skey = (tuple(kn.tolist()), j)
+        n, have, full = 33, 0, None
         while True:
-            alpha = lobatto(lo, hi, n)
-            st = stance_terms(model, maps, alpha)
-            zeta = zp[:, None] + zd.V_Z(alpha, sched)  # (k, g)
-            zeta = np.maximum(zeta, 0.0)
-            phi = maps.Phi(alpha)  # (g, N)
-            # the torques and the joint power per |d alpha|, as (k, joint, g)
-            g = len(alpha)
-            u = st.U0.T[None] + st.U1.T[None] * zeta[:, None, :]
-            if m:  # + U2 F
-                u = u + (F @ st.U2.transpose(2, 1, 0).reshape(m, -1)).reshape(k, N - 1, g)
-            u = u + st.UT.T[None] * Tg[:, None, None]
-            pj = u * (s * phi[:, :N - 1].T)[None]
-            # thrust and generalised-mode power: thrust (k, m) times a function of alpha
-            bt = s * np.einsum("gnm,gn->mg", model.B_F(maps.q_Z(alpha)), phi)  # (m, g)
-            bg = s * phi[:, N - 1]  # (g,)
-            k1 = np.abs(st.AT)  # AT = 1 / (e_N^T D Phi) = kappa_1
-            adot = k1[None] * np.sqrt(2.0 * zeta)  # |alpha'| (k, g)
-            with np.errstate(divide="ignore"):
-                inv = 1.0 / adot
-            w = _cc_weights(n) * half
-            wc = _cc_weights((n - 1) // 2 + 1) * half
+            if have < n:  # the integrands at max(n, where the last call ended) nodes
+                have = max(n, start.get(skey, 33))
+                full = _integrands(zd, sched, zp, j, have)
+            step = (have - 1) // (n - 1)  # the n nodes are every step-th of them
+            it = {key: v[..., ::step] for key, v in full.items()}
+            w, wc = _weights(n)
+            w, wc = w * half, wc * half
 
             def quad(v, w=w, wc=wc):
                 fine = v @ w
                 return fine, np.abs(fine - v[..., ::2] @ wc)
-            work, e_work = quad(pj)  # (k, N-1)
-            bt_i, e_bt = quad(bt)  # (m,)
-            bg_i, e_bg = quad(bg)
-            aF = np.abs(F)
+            work, e_work = quad(it["pj"])  # (k, N-1)
+            bt_i, e_bt = quad(it["bt"])  # (m,)
+            bg_i, e_bg = quad(it["bg"])
             e = np.maximum(e_work.max(axis=1), np.abs(Tg) * e_bg)
             if m:
                 e = np.maximum(e, (aF * e_bt).max(axis=1))
-            finite = np.all(np.isfinite(inv))
+            finite = np.all(np.isfinite(it["inv"]))
             if finite:
-                time_i, e_time = quad(inv)
+                time_i, e_time = quad(it["inv"])
                 e = np.maximum(e, e_time)
             scale = max(float(np.max(np.abs(work))), 1e-300)
             if np.all(e <= RTOL * scale) or n >= MAX_NODES:
                 break
             n = 2 * n - 1
+        start[skey] = n
+        u, pj, bt, adot, inv = (np.ascontiguousarray(it[key]) for key in (
+            "u", "pj", "bt", "adot", "inv"))
         err += e
         acc["work"] += work
         acc["tw"] += F * bt_i
         acc["gen"] += Tg * bg_i
-        ab, po = _abs_and_positive(pj.reshape(-1, n), half)
-        po = po.reshape(k, N - 1)
-        acc["abs"] += ab.reshape(k, N - 1)
-        acc["pos"] += po
+        # every int |.| and int max(0, .) of the interval in one batch: the joints' powers,
+        # the thrusters' per unit thrust and the clipped electrical powers
+        parts = [pj.reshape(-1, n), bt]
+        if finite and el:  # SPEC 15 with the gearbox's kink at P_m = 0 taken out
+            eta = np.array([motors[jj].efficiency for jj in el])[None, :]
+            joule = np.stack([joule_power(u[:, jj], motors[jj]) for jj in el], axis=1)
+            joule = joule * inv[:, None, :]  # per |d alpha|
+            if not regenerate:
+                parts.append((eta[..., None] * pj[:, el] + joule).reshape(-1, n))
+        ab, po = _abs_and_positive(np.concatenate(parts), half)
+        nj = k * (N - 1)
+        po_j = po[:nj].reshape(k, N - 1)
+        acc["abs"] += ab[:nj].reshape(k, N - 1)
+        acc["pos"] += po_j
         if m:  # int max(0, F b) = F int max(0, b) (F > 0), |F| int max(0, -b) (F < 0)
-            b_abs, b_pos = _abs_and_positive(bt, half)
+            b_abs, b_pos = ab[nj:nj + m], po[nj:nj + m]
             acc["tpos"] += np.where(F > 0, F * b_pos, aF * (b_abs - b_pos))
         if not finite:
             tin_ok[:] = False
             timed = False
             continue
         acc["time"] += time_i
-        el = [jj for jj, mo in enumerate(motors) if mo is not None]
-        if el:  # SPEC 15 with the gearbox's kink at P_m = 0 taken out (module docstring)
-            eta = np.array([motors[jj].efficiency for jj in el])[None, :]
-            joule = np.stack([joule_power(u[:, jj], motors[jj]) for jj in el], axis=1)
-            joule = joule * inv[:, None, :]  # per |d alpha|
-            kink = (1.0 / eta - eta) * po[:, el]
+        if el:  # (module docstring)
+            kink = (1.0 / eta - eta) * po_j[:, el]
             if regenerate:
                 acc["el"][:, el] += kink + eta * work[:, el] + quad(joule)[0]
             else:
-                g2 = eta[..., None] * pj[:, el] + joule
-                acc["el"][:, el] += kink + _abs_and_positive(g2.reshape(-1, n), half)[1] \
-                    .reshape(k, len(el))
+                acc["el"][:, el] += kink + po[nj + m:].reshape(k, len(el))
         for kk, p in enumerate(powers):
             if p is None:
                 continue
@@ -482,6 +419,7 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
     ok = tin_ok.tolist()
     errs = err.tolist()
     reason = "energies of the periodic orbit's step (exact quadrature on Z)"
+    fields = [f.name for f in dataclasses.fields(OrbitEnergy)]
     for r, i in enumerate(live):
         extra = [f"thruster {robot.thrusters[kk].name}: thrust outside its power table's "
                  "range: input energy not computed"
@@ -491,17 +429,16 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
                          "orbit): step time, electrical, thruster input and fuel not computed")
         el = lists["el"][r]
         tin, fl = lists["tin"][r], lists["fuel"][r]
-        out[i] = OrbitEnergy(
+        out[i] = OrbitEnergy._of(dict(zip(fields, (
             True, reason, tuple(lists["work"][r]), tuple(lists["pos"][r]),
             tuple(lists["abs"][r]),
             tuple(None if el_none[jj] or not timed else el[jj] for jj in range(N - 1)),
             tuple(lists["tw"][r]), tuple(lists["tpos"][r]), lists["gen"][r],
             tuple(None if tin_none[kk] or not ok[r][kk] else tin[kk] for kk in range(m)),
             tuple(fl[kk] if is_fuel[kk] and timed else None for kk in range(m)),
-            kinetic_start=K[r][0], kinetic_end=K[r][1],
-            potential_start=Vp, potential_end=Vm, step_time=lists["time"][r] if timed else None,
-            distance=distance, weight=weight, error_estimate=errs[r],
-            regenerate=regenerate, missing=tuple(missing + extra) if extra else missing_t)
+            K[r][0], K[r][1], Vp, Vm, lists["time"][r] if timed else None,
+            distance, weight, errs[r], regenerate,
+            tuple(missing + extra) if extra else missing_t))))
     return out
 
 
@@ -530,26 +467,34 @@ def power_profile(zd: ZeroDynamics, schedule: Schedule, cycle, *, samples: int =
     robot = model.robot
     N, m = model.n, model.n_thrusters
     sched = schedule.take(np.array([0]))
-    alpha = np.linspace(zd.alpha_i, zd.alpha_f, samples)
     kn = np.asarray(sched.knots, float)
-    frac = (alpha - kn[0]) / (kn[-1] - kn[0])
-    pk = (kn - kn[0]) / (kn[-1] - kn[0])
-    j = np.clip(np.searchsorted(pk, frac, side="right") - 1, 0, len(kn) - 2)
+    # what depends on alpha only, once per walker, knots and samples
+    cache = zd.__dict__.setdefault("_profile_terms", {})
+    key = (tuple(kn.tolist()), samples)
+    if key not in cache:
+        if len(cache) > 16:
+            cache.clear()
+        alpha = np.linspace(zd.alpha_i, zd.alpha_f, samples)
+        frac = (alpha - kn[0]) / (kn[-1] - kn[0])
+        pk = (kn - kn[0]) / (kn[-1] - kn[0])
+        j = np.clip(np.searchsorted(pk, frac, side="right") - 1, 0, len(kn) - 2)
+        cache[key] = (alpha, j, stance_terms(model, maps, alpha), _vz_pieces(zd, alpha, kn),
+                      maps.Phi(alpha), model.B_F(maps.q_Z(alpha)))
+    alpha, j, st, vz, phi, BF = cache[key]
+    alpha = alpha.copy()
     F = sched.force[0, j, :]  # (g, m)
     Tg = sched.generalized[0, j]  # (g,)
-    st = stance_terms(model, maps, alpha)
-    zeta = np.maximum(cycle.zeta_plus + zd.V_Z(alpha, sched)[0], 0.0)
+    zeta = np.maximum(cycle.zeta_plus + _vz(vz, sched)[0], 0.0)
     adot = np.abs(st.AT) * np.sqrt(2.0 * zeta)  # |alpha'|
     if not np.all(adot > 0.0):
         return None
     s = zd.direction
-    phi = maps.Phi(alpha)  # (g, N)
     u = st.U0 + st.U1 * zeta[:, None] + st.UT * Tg[:, None]
     if m:
         u = u + np.einsum("gim,gm->gi", st.U2, F)
     qd = phi * (s * adot)[:, None]  # q' (g, N)
     joint = u * qd[:, :N - 1]
-    bt = np.einsum("gnm,gn->gm", model.B_F(maps.q_Z(alpha)), qd)  # d_k . p_k' (g, m)
+    bt = np.einsum("gnm,gn->gm", BF, qd)  # d_k . p_k' (g, m)
     thrust = F * bt
     inv = 1.0 / adot
     h = np.abs(np.diff(alpha))
