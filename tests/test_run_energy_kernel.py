@@ -117,3 +117,28 @@ def test_thrust_given_per_step_with_a_lagging_thruster(walker5, monkeypatch):
     # the thrust work is that of the given thrust: -5 N in the second step, not the run's
     other = run_energy(res.sim, _steps(res))
     assert abs(got[1].thrust_work[0] - other[1].thrust_work[0]) > 1e-3
+
+
+def test_piecewise_thrust_with_a_generalised_force_and_a_slope(walker5, monkeypatch):
+    """A piecewise schedule in force and generalised mode (``T`` on ``q_N`` per segment: the
+    generalised work) on level ground, and constant thrust on a 0.03 rad downhill slope (the
+    kernel's turned posture): the kernel's energies equal the NumPy path's."""
+    import thrustwalk_cli as tw
+    from thrustwalk_cli.thrust.schedule import Schedule
+
+    zd = walker5.zd
+    knots = np.linspace(zd.alpha_i, zd.alpha_f, 4)
+    sched = Schedule(knots, np.array([[[-10.0], [-20.0], [-5.0]]]),
+                     np.array([[1.0, -2.0, 0.5]]))
+    runs = [simulate(zd, ThrustModel("piecewise", np.zeros(1), schedule=sched),
+                     SimConfig(steps=2)),
+            tw.simulate(walker5, steps=2, thrust_model="ideal", thrust=[-20.0],
+                        slope=-0.03).outcomes[0].full]
+    for res in runs:
+        assert res.success, res.reason
+        want = run_energy(res.sim, _steps(res, numpy_path=True))
+        with monkeypatch.context() as mp:
+            _no_numpy_law(mp)
+            got = run_energy(res.sim, _steps(res))
+        _same(got, want)
+    assert all(abs(e.generalized_work) > 1e-3 for e in run_energy(runs[0].sim, _steps(runs[0])))
