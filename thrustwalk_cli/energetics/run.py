@@ -40,7 +40,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .nodes import NODES, Dense, evaluate, evaluate_compiled, lobatto_rule
+from .nodes import NODES, Dense, evaluate, evaluate_compiled, kernel_context, lobatto_rule
 from .orbit import OrbitEnergy
 from .power import input_power, missing_models
 
@@ -140,13 +140,16 @@ class _Integrands:
         return d["T"] * d["dq"][:, self.N - 1], pin, fuel
 
 
-def _abs_integrals(half: np.ndarray, vals: np.ndarray, net: np.ndarray) -> np.ndarray:
+def _abs_integrals(half: np.ndarray, vals: np.ndarray, net: np.ndarray,
+                   kernel=None) -> np.ndarray:
     """``int |p|`` per row (R, columns) of the kinked integrands with values ``vals`` (R,
     NODES, columns) at the Gauss-Lobatto nodes of rows of half-width ``half`` and integrals
     ``net`` (R, columns): ``|net|`` where ``p`` keeps its sign at the nodes; else ``p`` is
     its interpolating polynomial on the row (degree ``NODES - 1``, whose integral is the
     Lobatto sum), split at its roots between the nodes (Illinois' regula falsi to rounding)
-    and ``int |p| = sum |int p|`` over the pieces, from its antiderivative."""
+    and ``int |p| = sum |int p|`` over the pieces, from its antiderivative. ``kernel``: the
+    compiled kernel's module, whose ``kink_integrals`` does the root finding and the sums
+    (the same operations element by element; a compiled run's), else NumPy."""
     out = np.abs(net)
     sg = vals >= 0.0
     rr, cc = np.nonzero(np.any(sg[:, 1:, :] != sg[:, :-1, :], axis=1))
@@ -163,6 +166,11 @@ def _abs_integrals(half: np.ndarray, vals: np.ndarray, net: np.ndarray) -> np.nd
         return acc
 
     v = vals[rr, :, cc]  # (P, NODES)
+    if kernel is not None:
+        total = np.empty(len(rr))
+        kernel.kink_integrals(v, coef, anti, x, ROOT_ITERATIONS, total)
+        out[rr, cc] = total * half[rr]
+        return out
     s = v >= 0.0
     p, g = np.nonzero(s[:, 1:] != s[:, :-1])  # a root in (x_g, x_{g+1}) of polynomial p
     a, b = x[g], x[g + 1]
@@ -268,7 +276,8 @@ def run_energy(cl, steps: list[tuple], *, regenerate: bool = False,
     vals = np.concatenate(cols, axis=1).reshape(R, NODES, -1)
     nk = kv.shape[1]
     rowint = (vals * W).sum(1)  # Gauss-Lobatto on every row (R, columns)
-    k_abs_row = _abs_integrals(half, vals[..., :nk], rowint[:, :nk])
+    k_abs_row = _abs_integrals(half, vals[..., :nk], rowint[:, :nk],
+                               kernel_context(cl)[0] if dense.compiled else None)
     per_step = _per_step(np.concatenate([rowint, k_abs_row,
                                          (dense.hi - dense.lo)[:, None]], axis=1),
                          dense.owner, ns)

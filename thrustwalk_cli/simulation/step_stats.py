@@ -11,7 +11,8 @@ the friction ratio, the outputs and their rates and the torques (their extremes 
 
 Also here, called from Python after a run: :func:`energy_nodes`, the closed loop's torques,
 thrust and velocities at the Gauss-Lobatto nodes of every integrator step of a run's dense
-output, which the energies along the run integrate (SPEC 15,
+output, which the energies along the run integrate, and :func:`kink_integrals`, their
+absolute values' integrals where they change sign (SPEC 15,
 :mod:`thrustwalk_cli.energetics.nodes`; the same states and equations as its NumPy path, to
 rounding). Units SI.
 """
@@ -222,6 +223,62 @@ def energy_nodes(R, lo, hi, seg, start, force, xn, fs, ip, par, w, V):
     return -1
 
 
+def kink_integrals(v, coef, anti, x, iters, out):
+    """``int |p| dx`` over ``[-1, 1]`` (into ``out``) of polynomials ``p`` that change sign
+    between some of the nodes ``x`` (ascending, with both ends): per row ``v`` its values at
+    the nodes, ``coef`` its monomial coefficients in ``x``, ``anti`` those of its
+    antiderivative vanishing at 0. Each root between two nodes of opposite sign is located by
+    Illinois' regula falsi on ``p`` (at most ``iters`` steps, to rounding), and ``int |p| =
+    sum |A(end) - A(start)|`` over the pieces between the roots and the ends (the same
+    operations, element by element, as ``energetics.run._abs_integrals`` in NumPy; SPEC 15:
+    positive and absolute work)."""
+    K = x.size
+    nc = coef.shape[1]
+    na = anti.shape[1]
+    for p in range(v.shape[0]):
+        acc = 0.0  # A(-1)
+        for j in range(na - 1, -1, -1):
+            acc = acc * -1.0 + anti[p, j]
+        prev = acc
+        total = 0.0
+        for g in range(K - 1):
+            fa, fb = v[p, g], v[p, g + 1]
+            if (fa >= 0.0) == (fb >= 0.0):
+                continue
+            a, b = x[g], x[g + 1]
+            root = a if fa == 0.0 else b
+            done = fa == 0.0 or fb == 0.0
+            it = 0
+            while not done and it < iters:  # bracket [a, b] (either order)
+                it += 1
+                xn = b - fb * (b - a) / (1.0 if fb == fa else fb - fa)
+                lo, hi = min(a, b), max(a, b)
+                if not (xn > lo and xn < hi):
+                    xn = 0.5 * (a + b)
+                fx = 0.0
+                for j in range(nc - 1, -1, -1):
+                    fx = fx * xn + coef[p, j]
+                flip = (fx >= 0.0) != (fb >= 0.0)
+                if flip:
+                    a = b
+                    fa = fb
+                else:
+                    fa = 0.5 * fa
+                b = xn
+                fb = fx
+                root = xn
+                done = fx == 0.0 or abs(b - a) <= 4e-16
+            acc = 0.0
+            for j in range(na - 1, -1, -1):
+                acc = acc * root + anti[p, j]
+            total += abs(acc - prev)
+            prev = acc
+        acc = 0.0  # A(1)
+        for j in range(na - 1, -1, -1):
+            acc = acc * 1.0 + anti[p, j]
+        out[p] = total + abs(acc - prev)
+
+
 def step_stats(calls, ncalls, buf, t0, t1, fs, ip, par, w, rec):
     """A step's statistics over its integration calls ``0..ncalls-1`` from ``t0`` to ``t1``
     [s] (as ``_impact_and_record``: the states at the integrator's nodes, the calls' ends and a
@@ -310,6 +367,7 @@ SIGNATURES = {
     "first_violation": f"({_A2}, {_A2}, {_I}, {_F}, {_F}, {_CTX}, {_I}, {_I})",
     "step_stats": f"({_A2}, {_I}, {_A2}, {_F}, {_F}, {_CTX}, {_A})",
     "energy_nodes": f"({_A2}, {_A}, {_A}, {_IA}, {_IA}, {_A2}, {_A}, {_CTX}, {_A3})",
+    "kink_integrals": f"({_A2}, {_A2}, {_A2}, {_A}, {_I}, {_A})",
 }
 # compiled without reference counting (model/jit.py): all but step_stats (it allocates the
 # arrays of the step's states)
