@@ -5,7 +5,11 @@ is untouched, bit for bit).
 Every integrator step of every integration piece of a step carries its 7th-order DOP853
 interpolant (the compiled kernel's rows, or SciPy's ``Dop853DenseOutput``); each is integrated
 by ``NODES``-point Gauss-Lobatto (exact to degree ``2 NODES - 3``) with the integrands of the
-closed loop at the interpolated states (the equations of ``ClosedLoop.details``):
+closed loop at the interpolated states (the equations of ``ClosedLoop.details``; for a
+compiled run, by the compiled kernel: ``step_stats.energy_nodes`` interpolates and evaluates
+the closed loop at every node, a step's first node shared with the end of the step before it
+in its piece, the same values as ``ClosedLoop.law`` to rounding; a SciPy run's through
+``ClosedLoop.law`` in NumPy):
 
     joint j, mechanical     u_j q_j'                                 [W]
     thruster k, on walker   F_k d_k . p_k' = F_k (B_F^T q')_k
@@ -36,10 +40,10 @@ from functools import lru_cache
 
 import numpy as np
 
+from .nodes import NODES, Dense, evaluate, evaluate_compiled, kernel_context, lobatto_rule
 from .orbit import OrbitEnergy
 from .power import input_power, missing_models
 
-NODES = 6  # Gauss-Lobatto nodes per integrator step (exact to degree 11)
 ROOT_ITERATIONS = 60
 
 
@@ -78,138 +82,6 @@ class RunStepEnergy(OrbitEnergy):
         out["push_energy"] = self.push_energy
         out.pop("quadrature_error_estimate", None)
         return out
-
-
-@lru_cache(maxsize=4)
-def lobatto_rule(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Lobatto nodes (ascending) and weights of ``[-1, 1]``, ``n`` points: the ends and
-    the roots of ``P'_{n-1}``, weights ``2 / (n (n - 1) P_{n-1}(x)^2)``."""
-    L = np.polynomial.legendre.Legendre.basis(n - 1)
-    x = np.concatenate([[-1.0], np.sort(L.deriv().roots().real), [1.0]])
-    w = 2.0 / (n * (n - 1) * L(x) ** 2)
-    return x, w
-
-
-# ----------------------------------------------------------------------------- dense output
-class _Dense:
-    """The integrator steps of several integration pieces as one table: ``lo``, ``hi`` (the
-    step clipped to its piece), ``seg`` and ``owner`` (the walking step's index) per row, and
-    the interpolant's evaluation at ``(row, t)`` for many points at once."""
-
-    def __init__(self, steps: list[tuple]):
-        pieces = [(i, piece) for i, ps in enumerate(steps) for piece in ps]
-        got = [_rows_of(piece[3]) for _, piece in pieces]
-        self.piece_owner: list[int] = [i for i, _ in pieces]
-        self.generic = any(R is None for _, _, R in got)
-        if self.generic:
-            self._generic(pieces, got)
-            return
-        # every piece has its rows: one table, the rows outside their piece dropped
-        count = np.array([R.shape[0] for _, _, R in got], int)
-        R = (np.concatenate([R for _, _, R in got]) if got
-             else np.zeros((0, 2)))
-        ta = np.repeat(np.array([pc[0] for _, pc in pieces], float), count)
-        tb = np.repeat(np.array([pc[1] for _, pc in pieces], float), count)
-        a = np.maximum(R[:, 0], ta)
-        b = np.minimum(R[:, 1], tb)
-        keep = b > a
-        self.lo, self.hi = a[keep], b[keep]
-        self.seg = np.repeat(np.array([pc[2] for _, pc in pieces], int), count)[keep]
-        self.owner = np.repeat(np.array(self.piece_owner, int), count)[keep]
-        bounds = np.r_[0, np.cumsum(count)]
-        cum = np.r_[0, np.cumsum(keep)]
-        kept = cum[bounds[1:]] - cum[bounds[:-1]]  # rows kept per piece
-        first = np.r_[0, np.cumsum(kept)[:-1]]
-        self.piece_rows = list(zip(first.tolist(), (first + kept - 1).tolist()))
-        self.call = []
-        R = R[keep]
-        n = (R.shape[1] - 2) // 8
-        self.n = n
-        self.t_old = R[:, 0]
-        self.h = R[:, 1] - R[:, 0]
-        self.y_old = R[:, 2:2 + n]
-        self.F = R[:, 2 + n:].reshape(-1, 7, n)
-
-    def _generic(self, pieces: list, got: list) -> None:
-        """The table of pieces of which some are evaluated through their solution."""
-        lo, hi, seg, owner, call = [], [], [], [], []
-        self.piece_rows = []
-        for (i, (ta, tb, sg, sol)), (t_old, t_new, _) in zip(pieces, got):
-            a = np.maximum(t_old, ta)
-            b = np.minimum(t_new, tb)
-            keep = b > a
-            first = len(lo)
-            lo.extend(a[keep].tolist())
-            hi.extend(b[keep].tolist())
-            seg.extend([sg] * int(keep.sum()))
-            owner.extend([i] * int(keep.sum()))
-            call.extend([sol] * int(keep.sum()))
-            self.piece_rows.append((first, len(lo) - 1))
-        self.lo, self.hi = np.array(lo), np.array(hi)
-        self.seg = np.array(seg, int)
-        self.owner = np.array(owner, int)
-        self.call = call
-
-    def at(self, row: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """The states (K, n) at times ``t`` on rows ``row`` (DOP853 dense output)."""
-        if self.generic:
-            out = None
-            for j in np.unique(row):
-                sel = row == j
-                y = np.asarray(self.call[j](t[sel]), float).T
-                if out is None:
-                    out = np.empty((t.size, y.shape[1]))
-                out[sel] = y
-            return out if out is not None else np.zeros((0, 0))
-        x = ((t - self.t_old[row]) / self.h[row])[:, None]
-        y = np.zeros((t.size, self.n))
-        F = self.F[row]
-        for i, j in enumerate(range(6, -1, -1)):
-            y += F[:, j]
-            y *= x if i % 2 == 0 else 1.0 - x
-        return y + self.y_old[row]
-
-    def at_nodes(self, t: np.ndarray) -> np.ndarray:
-        """:meth:`at` for times ``t`` (rows, K) on every row, K each: the states (rows * K,
-        n), row by row (the same arithmetic, without gathering the rows K times)."""
-        if self.generic:
-            return self.at(np.repeat(np.arange(t.shape[0]), t.shape[1]), t.ravel())
-        x = ((t - self.t_old[:, None]) / self.h[:, None])[..., None]
-        y = np.zeros(t.shape + (self.n,))
-        F = self.F
-        for i, j in enumerate(range(6, -1, -1)):
-            y += F[:, None, j]
-            y *= x if i % 2 == 0 else 1.0 - x
-        return (y + self.y_old[:, None]).reshape(-1, self.n)
-
-
-def _rows_of(sol) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """``(t_old, t_new, rows [t_old, t_new, y_old, F (7 n)])`` of a dense solution: the
-    compiled kernel's ``DenseSolution`` or SciPy's ``OdeSolution`` of DOP853; rows None for
-    another SciPy method (then evaluated through the solution itself)."""
-    if hasattr(sol, "rows") and hasattr(sol, "t_old"):
-        return sol.t_old, sol.t_new, sol.rows
-    interps = getattr(sol, "interpolants", None)
-    ts = np.asarray(sol.ts, float)
-    t_old = np.minimum(ts[:-1], ts[1:])
-    t_new = np.maximum(ts[:-1], ts[1:])
-    if interps and all(getattr(i, "F", None) is not None and np.ndim(i.F) == 2
-                       and np.shape(i.F)[0] == 7 for i in interps):
-        R = np.array([np.concatenate([[i.t_old, i.t_old + i.h], i.y_old, np.ravel(i.F)])
-                      for i in interps])
-        return R[:, 0], R[:, 1], R
-    return t_old, t_new, None
-
-
-# ----------------------------------------------------------------------------- integrands
-def _evaluate(cl, X: np.ndarray, seg: np.ndarray, force: np.ndarray | None = None) -> dict:
-    """The closed loop's torques ``u`` (K, N-1), ``q'``, thrust ``F`` (K, m), generalised force
-    ``T`` (K,) and ``d_k . p_k' = (B_F^T q')_k`` (K, m) at states ``X`` in segments ``seg``
-    (``ClosedLoop.law``, torque limits included; ``force``: the thrust per row instead)."""
-    w = cl.law(X, seg) if force is None else cl.law(X, seg, force)
-    dq, BF = w["dq"], w["B_F"]
-    bt = np.einsum("kn,knm->km", dq, BF) if BF is not None else np.zeros((len(dq), 0))
-    return {"u": w["u"], "dq": dq, "F": w["F"], "T": w["T"], "bt": bt}
 
 
 class _Integrands:
@@ -268,13 +140,16 @@ class _Integrands:
         return d["T"] * d["dq"][:, self.N - 1], pin, fuel
 
 
-def _abs_integrals(half: np.ndarray, vals: np.ndarray, net: np.ndarray) -> np.ndarray:
+def _abs_integrals(half: np.ndarray, vals: np.ndarray, net: np.ndarray,
+                   kernel=None) -> np.ndarray:
     """``int |p|`` per row (R, columns) of the kinked integrands with values ``vals`` (R,
     NODES, columns) at the Gauss-Lobatto nodes of rows of half-width ``half`` and integrals
     ``net`` (R, columns): ``|net|`` where ``p`` keeps its sign at the nodes; else ``p`` is
     its interpolating polynomial on the row (degree ``NODES - 1``, whose integral is the
     Lobatto sum), split at its roots between the nodes (Illinois' regula falsi to rounding)
-    and ``int |p| = sum |int p|`` over the pieces, from its antiderivative."""
+    and ``int |p| = sum |int p|`` over the pieces, from its antiderivative. ``kernel``: the
+    compiled kernel's module, whose ``kink_integrals`` does the root finding and the sums
+    (the same operations element by element; a compiled run's), else NumPy."""
     out = np.abs(net)
     sg = vals >= 0.0
     rr, cc = np.nonzero(np.any(sg[:, 1:, :] != sg[:, :-1, :], axis=1))
@@ -291,6 +166,11 @@ def _abs_integrals(half: np.ndarray, vals: np.ndarray, net: np.ndarray) -> np.nd
         return acc
 
     v = vals[rr, :, cc]  # (P, NODES)
+    if kernel is not None:
+        total = np.empty(len(rr))
+        kernel.kink_integrals(v, coef, anti, x, ROOT_ITERATIONS, total)
+        out[rr, cc] = total * half[rr]
+        return out
     s = v >= 0.0
     p, g = np.nonzero(s[:, 1:] != s[:, :-1])  # a root in (x_g, x_{g+1}) of polynomial p
     a, b = x[g], x[g + 1]
@@ -335,6 +215,17 @@ def _inverse_vandermonde(n: int) -> np.ndarray:
     return np.linalg.inv(np.vander(x, n, increasing=True))
 
 
+def _per_step(rowint: np.ndarray, owner: np.ndarray, ns: int) -> np.ndarray:
+    """The sums over each walking step's rows (``owner``: the step of every row, in
+    order) of ``rowint`` (rows, columns): (ns, columns)."""
+    starts = np.searchsorted(owner, np.arange(ns))
+    if ns and owner.size and np.all(np.diff(np.r_[starts, owner.size]) > 0):
+        return np.add.reduceat(rowint, starts, axis=0)
+    out = np.zeros((ns, rowint.shape[1]))  # a step without rows: 0
+    np.add.at(out, owner, rowint)
+    return out
+
+
 # ----------------------------------------------------------------------------- the run
 def run_energy(cl, steps: list[tuple], *, regenerate: bool = False,
                seg_force: list | None = None) -> list[RunStepEnergy]:
@@ -353,43 +244,54 @@ def run_energy(cl, steps: list[tuple], *, regenerate: bool = False,
     model, robot = cl.model, cl.model.robot
     N, nb, m = cl.N, cl.nb, cl.m
     ig = _Integrands(cl, regenerate)
-    dense = _Dense([s[1] for s in steps])
+    dense = Dense([s[1] for s in steps])
     ns = len(steps)
     x, w = lobatto_rule(NODES)
     half = 0.5 * (dense.hi - dense.lo)
     t = (0.5 * (dense.lo + dense.hi))[:, None] + half[:, None] * x[None]  # (R, NODES)
     R = t.shape[0]
     rows = np.repeat(np.arange(R), NODES)
-    X = dense.at_nodes(t)
-    force = None
+    table = None
     if seg_force is not None:  # every step's table, stacked: row -> (its step, its segment)
         nseg = len(cl.breaks) + 1
         table = np.concatenate([np.asarray(f, float).reshape(nseg, m) for f in seg_force])
-        force = table[nseg * dense.owner[rows] + dense.seg[rows]]
-    d = _evaluate(cl, X, dense.seg[rows], force)
-    W = (half[:, None] * w[None]).ravel()  # weights of every node (R * NODES)
-
-    def per_step(v):  # node values (R*NODES, ...) -> integrals per walking step
-        rowint = np.einsum("k...,k->k...", v, W).reshape((R, NODES) + v.shape[1:]).sum(1)
-        out = np.zeros((ns,) + v.shape[1:])
-        np.add.at(out, dense.owner, rowint)
-        return out, rowint
-
+    d = None
+    if dense.compiled:
+        d = evaluate_compiled(cl, dense, None if table is None
+                               else table[nseg * dense.owner + dense.seg])
+    if d is None:
+        X = dense.at_nodes(t)
+        force = None if table is None else table[nseg * dense.owner[rows] + dense.seg[rows]]
+        d = evaluate(cl, X, dense.seg[rows], force)
+    W = (half[:, None] * w[None])[..., None]  # weights of every node (R, NODES, 1)
+    # every integrand as one table (R, NODES, columns): the kinked ones first, then the
+    # generalised power, the thrusters' input power and fuel rate, the Joule losses
     kv = ig.kinked(d)
-    k_net_step, k_net_row = per_step(kv)
-    k_abs_row = _abs_integrals(half, kv.reshape(R, NODES, -1), k_net_row)
-    k_abs = np.zeros((ns, kv.shape[1]))
-    np.add.at(k_abs, dense.owner, k_abs_row)
     gen, pin, fuel = ig.smooth(d)
-    gen_s = per_step(gen)[0]
-    pin_s = per_step(np.nan_to_num(pin, nan=0.0))[0] if m else np.zeros((ns, 0))
+    cols = [kv, gen[:, None]]
+    if m:
+        cols += [np.nan_to_num(pin, nan=0.0), fuel]
+    if ig.el:
+        cols.append(ig.joule(d))
+    vals = np.concatenate(cols, axis=1).reshape(R, NODES, -1)
+    nk = kv.shape[1]
+    rowint = (vals * W).sum(1)  # Gauss-Lobatto on every row (R, columns)
+    k_abs_row = _abs_integrals(half, vals[..., :nk], rowint[:, :nk],
+                               kernel_context(cl)[0] if dense.compiled else None)
+    per_step = _per_step(np.concatenate([rowint, k_abs_row,
+                                         (dense.hi - dense.lo)[:, None]], axis=1),
+                         dense.owner, ns)
+    ne = len(ig.el)
+    k_net_step, gen_s = per_step[:, :nk], per_step[:, nk]
+    o = nk + 1
+    pin_s, fuel_s = per_step[:, o:o + m], per_step[:, o + m:o + 2 * m]
+    o += 2 * m
+    joule_s = per_step[:, o:o + ne]
+    k_abs = per_step[:, o + ne:o + ne + nk]
+    time_s = per_step[:, -1]
     pin_bad = np.zeros((ns, m), bool)
     if m:
         np.logical_or.at(pin_bad, dense.owner[rows], np.isnan(pin))
-    fuel_s = per_step(fuel)[0] if m else np.zeros((ns, 0))
-    joule_s = per_step(ig.joule(d))[0] if ig.el else np.zeros((ns, 0))
-    time_s = np.zeros(ns)
-    np.add.at(time_s, dense.owner, dense.hi - dense.lo)
     # energies at the pieces' ends (their jumps: a push), before and after the impact
     first = np.array([p[0] for p in dense.piece_rows])
     last = np.array([p[1] for p in dense.piece_rows])

@@ -102,6 +102,7 @@ I_NCONST, I_C0, I_NREG = T_PUSH + 1, T_PUSH + 2, T_PUSH + 3
 N_IP = T_PUSH + 4
 # what evaluate() computes (bit flags) and where its scalar results go (w[W_OUT + ...])
 E_ACCEL, E_U, E_FORCE, E_HEIGHT, E_FOOTVEL, E_ROOT, E_PRE = 1, 2, 4, 8, 16, 32, 64
+E_FIXF = 128  # the thrust given in w[W_F] (no generalised force): energies (step_stats)
 V_FH, V_FV, V_HEIGHT, V_FOOTVEL, V_ROOT, V_SAT, V_FNODE = 0, 1, 2, 3, 4, 5, 6
 # thrust commands: constant over the run (P_TGT) or piecewise in alpha (P_SEGF, P_SEGT)
 CMD_CONSTANT, CMD_PIECEWISE = 0, 1
@@ -242,8 +243,9 @@ def evaluate(x, seg, fs, ip, par, w, what):
     ``w[W_OUT + V_FH]``, ``w[W_OUT + V_FV]`` (on a slope: tangential and normal to it, the
     dynamics at the turned posture of :func:`tilted`); ``E_HEIGHT``/``E_FOOTVEL``: swing-foot height
     [m] and vertical velocity ``E_2,y q'`` [m/s]; ``E_ROOT``: height of the stance link's far
-    end [m]. Returns False if the decoupling matrix (or D, when torques saturate) is
-    singular."""
+    end [m]. ``E_FIXF``: the thrust is the one already in ``w[W_F]`` (the command and the
+    thruster states not read) and no generalised force (``ClosedLoop.law`` with ``force``).
+    Returns False if the decoupling matrix (or D, when torques saturate) is singular."""
     N, m = ip[I_N], ip[I_M]
     vo = ip[W_OUT]
     if what & E_HEIGHT:
@@ -266,7 +268,8 @@ def evaluate(x, seg, fs, ip, par, w, what):
     oD, oh, oBF, orhs, oF = u(ip[W_D]), u(ip[W_H]), u(ip[W_BF]), u(ip[W_RHS]), u(ip[W_F])
     oH, oby, oddq, ou = u(ip[W_GH]), u(ip[W_BY]), u(ip[W_DDQ]), u(ip[W_U])
     c0 = u(ip[P_C])
-    thrust_out(x, seg, ip, par, w)
+    if not what & E_FIXF:
+        thrust_out(x, seg, ip, par, w)
     # D, h, B_F (and with E_FORCE the ground-force rows) from the model's tape (already in
     # place with E_PRE)
     if not what & E_PRE:
@@ -284,7 +287,7 @@ def evaluate(x, seg, fs, ip, par, w, what):
             for k in range(um):
                 acc += w[oBF + i * um + k] * w[oF + k]
             w[orhs + i] += acc
-    if ip[I_CMD] == CMD_PIECEWISE:
+    if ip[I_CMD] == CMD_PIECEWISE and not what & E_FIXF:
         w[orhs + unb] += par[ip[P_SEGT] + seg]
     alpha = 0.0
     adot = 0.0

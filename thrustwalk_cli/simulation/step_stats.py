@@ -7,14 +7,24 @@ every integration call and on a uniform grid of the step, taken from the dense o
 force program of the model's tape on all of them at once; per state the vertical ground force,
 the friction ratio, the outputs and their rates and the torques (their extremes folded into
 ``w[W_ACC]``); and the first times the stance force left the contact cone it is timed against
-(``F_1^v <= eps``, ``|F_1^h| > mu F_1^v``), located by bisection on the dense output. Units SI.
+(``F_1^v <= eps``, ``|F_1^h| > mu F_1^v``), located by bisection on the dense output.
+
+Also here, called from Python after a run: :func:`energy_nodes`, the closed loop's torques,
+thrust and velocities at the Gauss-Lobatto nodes of every integrator step of a run's dense
+output, which the energies along the run integrate, and :func:`kink_integrals`, their
+absolute values' integrals where they change sign (SPEC 15,
+:mod:`thrustwalk_cli.energetics.nodes`; the same states and equations as its NumPy path, to
+rounding). Units SI.
 """
 
 import numpy as np
 
 # ---- Python only: names of the sources before this one in the compiled module
-from .integrator import EPS, W_XS, solution_at
+from .integrator import EPS, I_DIM, W_XS, dense_at, solution_at
 from .kernel import (
+    CMD_PIECEWISE,
+    E_ACCEL,
+    E_FIXF,
     E_FORCE,
     E_PRE,
     E_U,
@@ -24,12 +34,15 @@ from .kernel import (
     F_SLOPE,
     F_SPAN,
     I_C0,
+    I_CMD,
     I_GRID,
+    I_M,
     I_N,
     I_NCONST,
     I_NREG,
     I_NZ,
     N_FS,
+    P_SEGT,
     R_SLOW,
     R_TLOW,
     T_FORCE,
@@ -37,7 +50,9 @@ from .kernel import (
     V_FV,
     V_SAT,
     W_ACC,
+    W_BF,
     W_D,
+    W_F,
     W_GH,
     W_OUT,
     W_U,
@@ -148,6 +163,122 @@ def first_violation(buf, calls, ci, ta, tb, fs, ip, par, w, which, n):
     return b
 
 
+def energy_nodes(R, lo, hi, seg, start, force, xn, fs, ip, par, w, V):
+    """The closed loop's values that the energies along a run integrate
+    (:mod:`thrustwalk_cli.energetics.nodes`, SPEC 15), at the Gauss-Lobatto nodes ``xn`` of
+    ``[-1, 1]`` (ascending, both ends included) mapped onto every row ``r`` of a dense output
+    ``R`` (rows ``[t_old, t_new, y_old, F]``, :func:`dense_at`) clipped to ``[lo[r],
+    hi[r]]``, in segment ``seg[r]``: node ``t = (lo + hi) / 2 + x (hi - lo) / 2`` [s], the
+    state interpolated there as ``energetics.nodes.Dense.at_nodes`` does (the same arithmetic),
+    then by :func:`evaluate` (``ClosedLoop.law``'s equations, torque limits included) into
+    ``V[r, k]``: the torques ``u`` (N - 1) [N m], ``q'`` (N), the thrust ``F`` (m) [N], the
+    generalised force ``T`` [N m] and ``B_F^T q'`` (m) [m/s]. ``force`` (rows, m): the thrust
+    of each row instead of the closed loop's, T = 0 (no rows: the closed loop's own). A row
+    that continues the one before it within an integration piece (``start[r] == 0``: the same
+    segment and thrust, its start that row's end) takes that row's last node as its first:
+    the same state, to rounding. Returns -1, or the first row whose controller is singular
+    at a node (then ``V`` is incomplete)."""
+    N, m = ip[I_N], ip[I_M]
+    nb = N - 1
+    n = ip[I_DIM]
+    K = xn.size
+    nc = V.shape[2]
+    fixed = force.shape[0] > 0
+    what = E_ACCEL | E_U
+    if fixed:
+        what |= E_FIXF
+    piecewise = ip[I_CMD] == CMD_PIECEWISE
+    xs = w[ip[W_XS]:]  # the state at a node (integrator scratch, free between calls)
+    ou, oF, oBF = ip[W_U], ip[W_F], ip[W_BF]
+    for r in range(R.shape[0]):
+        a, b = lo[r], hi[r]
+        mid = 0.5 * (a + b)
+        half = 0.5 * (b - a)
+        sg = seg[r]
+        for k in range(K):
+            if k == 0 and r > 0 and start[r] == 0:
+                for j in range(nc):
+                    V[r, 0, j] = V[r - 1, K - 1, j]
+                continue
+            dense_at(R, r, mid + half * xn[k], n, xs)
+            if fixed:
+                for j in range(m):
+                    w[oF + j] = force[r, j]
+            if not evaluate(xs, sg, fs, ip, par, w, what):
+                return r
+            for j in range(nb):
+                V[r, k, j] = w[ou + j]
+            for j in range(N):
+                V[r, k, nb + j] = xs[N + j]
+            o = nb + N
+            for j in range(m):
+                V[r, k, o + j] = w[oF + j]
+            V[r, k, o + m] = par[ip[P_SEGT] + sg] if piecewise and not fixed else 0.0
+            o += m + 1
+            for j in range(m):
+                acc = 0.0
+                for i in range(N):
+                    acc += w[oBF + i * m + j] * xs[N + i]
+                V[r, k, o + j] = acc
+    return -1
+
+
+def kink_integrals(v, coef, anti, x, iters, out):
+    """``int |p| dx`` over ``[-1, 1]`` (into ``out``) of polynomials ``p`` that change sign
+    between some of the nodes ``x`` (ascending, with both ends): per row ``v`` its values at
+    the nodes, ``coef`` its monomial coefficients in ``x``, ``anti`` those of its
+    antiderivative vanishing at 0. Each root between two nodes of opposite sign is located by
+    Illinois' regula falsi on ``p`` (at most ``iters`` steps, to rounding), and ``int |p| =
+    sum |A(end) - A(start)|`` over the pieces between the roots and the ends (the same
+    operations, element by element, as ``energetics.run._abs_integrals`` in NumPy; SPEC 15:
+    positive and absolute work)."""
+    K = x.size
+    nc = coef.shape[1]
+    na = anti.shape[1]
+    for p in range(v.shape[0]):
+        acc = 0.0  # A(-1)
+        for j in range(na - 1, -1, -1):
+            acc = acc * -1.0 + anti[p, j]
+        prev = acc
+        total = 0.0
+        for g in range(K - 1):
+            fa, fb = v[p, g], v[p, g + 1]
+            if (fa >= 0.0) == (fb >= 0.0):
+                continue
+            a, b = x[g], x[g + 1]
+            root = a if fa == 0.0 else b
+            done = fa == 0.0 or fb == 0.0
+            it = 0
+            while not done and it < iters:  # bracket [a, b] (either order)
+                it += 1
+                xn = b - fb * (b - a) / (1.0 if fb == fa else fb - fa)
+                lo, hi = min(a, b), max(a, b)
+                if not (xn > lo and xn < hi):
+                    xn = 0.5 * (a + b)
+                fx = 0.0
+                for j in range(nc - 1, -1, -1):
+                    fx = fx * xn + coef[p, j]
+                flip = (fx >= 0.0) != (fb >= 0.0)
+                if flip:
+                    a = b
+                    fa = fb
+                else:
+                    fa = 0.5 * fa
+                b = xn
+                fb = fx
+                root = xn
+                done = fx == 0.0 or abs(b - a) <= 4e-16
+            acc = 0.0
+            for j in range(na - 1, -1, -1):
+                acc = acc * root + anti[p, j]
+            total += abs(acc - prev)
+            prev = acc
+        acc = 0.0  # A(1)
+        for j in range(na - 1, -1, -1):
+            acc = acc * 1.0 + anti[p, j]
+        out[p] = total + abs(acc - prev)
+
+
 def step_stats(calls, ncalls, buf, t0, t1, fs, ip, par, w, rec):
     """A step's statistics over its integration calls ``0..ncalls-1`` from ``t0`` to ``t1``
     [s] (as ``_impact_and_record``: the states at the integrator's nodes, the calls' ends and a
@@ -226,7 +357,7 @@ def step_stats(calls, ncalls, buf, t0, t1, fs, ip, par, w, rec):
 
 
 _F, _I, _B = "float64", "int64", "boolean"
-_A, _A2 = "float64[::1]", "float64[:, ::1]"
+_A, _A2, _A3 = "float64[::1]", "float64[:, ::1]", "float64[:, :, ::1]"
 _IA = "int64[::1]"
 _CTX = f"{_A}, {_IA}, {_A}, {_A}"  # fs, ip, par, w
 SIGNATURES = {
@@ -235,6 +366,8 @@ SIGNATURES = {
     "cone_violated": f"({_A}, {_I}, {_CTX}, {_I})",
     "first_violation": f"({_A2}, {_A2}, {_I}, {_F}, {_F}, {_CTX}, {_I}, {_I})",
     "step_stats": f"({_A2}, {_I}, {_A2}, {_F}, {_F}, {_CTX}, {_A})",
+    "energy_nodes": f"({_A2}, {_A}, {_A}, {_IA}, {_IA}, {_A2}, {_A}, {_CTX}, {_A3})",
+    "kink_integrals": f"({_A2}, {_A2}, {_A2}, {_A}, {_I}, {_A})",
 }
 # compiled without reference counting (model/jit.py): all but step_stats (it allocates the
 # arrays of the step's states)

@@ -345,6 +345,9 @@ class Stepper:
         self.model = cl.model
         self.packed = pack(cl, t_max)
         self.jm = kernel()
+        # kept with the closed loop: the energies of its runs evaluate it at their quadrature
+        # nodes through the kernel with these settings (energetics/nodes.py)
+        cl.__dict__.setdefault("_packed", self.packed)
         self.dense = dense
         N, m = self.model.n, self.model.n_thrusters
         self.n = 2 * N + self.packed.nz
