@@ -225,7 +225,7 @@ def _nodes(zd: ZeroDynamics, knots: np.ndarray, j: int, n: int) -> dict:
     phi = maps.Phi(alpha)  # (g, N)
     out = cache[key] = {
         "U0": st.U0.T[None], "U1": st.U1.T[None], "UT": st.UT.T[None],
-        "U2": st.U2.transpose(2, 1, 0).reshape(m, -1),
+        "U2": st.U2.transpose(2, 1, 0).reshape(m, (N - 1) * len(alpha)),  # m = 0: no thruster
         "pphi": (s * phi[:, :N - 1].T)[None],
         "bt": s * np.einsum("gnm,gn->mg", model.B_F(maps.q_Z(alpha)), phi),  # (m, g)
         "bg": s * phi[:, N - 1],
