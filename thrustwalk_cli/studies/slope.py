@@ -1,12 +1,8 @@
 """The ``slope`` study: the walkability map of a gait over slope x constant thrust (SPEC 14).
 
-For every pair (slope ``gamma`` [rad, positive uphill], constant thrust ``F`` [N] on one
-thruster): whether the zero-dynamics orbit exists (``zeta* > 0``), is stable
-(``delta_zero^2 < 1``), completes the step (``delta_zero^2 zeta* + min V_Z > 0``: alpha reaches
-``alpha_f``) and is contact-feasible at ``mu`` (SPEC 5 in the slope frame: ``F^v >= eps``,
-``|F^h| <= mu F^v`` along the step, an admissible impact, the trailing foot lifting off, the
-swing foot striking and staying above the ground), which condition fails first, and
-``zeta*``, the step time, the speed along the ground and the climb rate ``speed sin(gamma)``.
+For every pair (slope, constant thrust): whether the orbit exists, is stable, completes the
+step and is contact-feasible, which condition fails first, zeta*, the step time, the speed
+along the ground and the climb rate (the definitions: :mod:`thrustwalk_cli.contact.slope_map`).
 
 The mathematics (the map explicit in cos/sin of the slope and affine in the thrust, its
 Chebyshev series, the step times and the golden-section polish) is
