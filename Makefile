@@ -25,7 +25,7 @@ $(BIN)/python:
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
 # The package's bytecode is compiled once here: an editable install leaves it to the first
-# import, which cannot keep it where PYTHONDONTWRITEBYTECODE is set (as on CI machines), so every
+# import, which cannot keep it where PYTHONDONTWRITEBYTECODE is set (as on this build machine), so every
 # process (each command, test worker and sweep worker) would compile the package's ~45,000 lines
 # again (about 0.9 s of CPU each); pip compiles the dependencies' bytecode itself.
 PYC := $(BIN)/python -m compileall -q thrustwalk_cli tests
