@@ -35,13 +35,18 @@ $(BASE): pyproject.toml | $(BIN)/python
 	$(PYC)
 	touch $(BASE)
 
-# the kernel's own dependencies first; then, while pip installs the package and the test
-# dependencies, the simulation kernel compiles for the tests from the source tree (once per
-# checkout, into .pytest_cache/thrustwalk-kernel; tests/kernel_cache.py says so)
+# the kernel's own dependencies first (unpacked only: their bytecode is compiled on the other
+# core, the kernel's compile being the set-up's longest step); then, while pip installs the
+# package and the test dependencies, the simulation kernel compiles for the tests from the
+# source tree (once per checkout, into .pytest_cache/thrustwalk-kernel; tests/kernel_cache.py
+# says so)
+SITE = $$($(BIN)/python -c "import sysconfig; print(sysconfig.get_paths()['purelib'])")
+
 $(STAMP): pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet $(KERNEL_DEPS)
+	$(BIN)/python -m pip install --quiet --no-compile $(KERNEL_DEPS)
 	$(PYC)
 	PYTHONPATH=$(CURDIR) $(BIN)/python tests/kernel_cache.py & kernel=$$!; \
+	$(BIN)/python -m compileall -q -j 0 $(SITE) > /dev/null; \
 	$(BIN)/python -m pip install --quiet -e '.[test,mujoco]'; status=$$?; \
 	wait $$kernel; exit $$status
 	touch $(BASE) $(STAMP)
