@@ -31,7 +31,16 @@ from ..model.compiled import CompiledModel
 from ..model.slope import check_slope, slope_model
 from ..thrust.schedule import Schedule
 from ..walker import Walker, as_model, assemble_walker, check_walker
-from .documents import SCHEMA_VERSION, Table, climb_rate, col, result_repr, slope_record, units
+from .documents import (
+    SCHEMA_VERSION,
+    Table,
+    climb_rate,
+    col,
+    result_repr,
+    show_options,
+    slope_record,
+    units,
+)
 
 # ------------------------------------------------------------------------------ records
 OBJECTIVE_UNITS = {"effort": "N^2 m s", "peak": "N m", "cot": "1"}
@@ -437,17 +446,4 @@ def design_gait(robot_or_walker: Robot | CompiledModel | Walker | None = None,
     return DesignGaitResult(robot, res, cmp)
 
 
-def _show_settings(fn: Callable) -> Callable:
-    """``design_gait``'s signature with ``**settings`` shown as :class:`DesignSpec`'s fields
-    (keyword-only, with their defaults), for ``help()``, ``inspect`` and editors."""
-    import inspect
-
-    params = [p for p in inspect.signature(fn).parameters.values()
-              if p.kind is not inspect.Parameter.VAR_KEYWORD]
-    params += [inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=f.default,
-                                 annotation=f.type) for f in fields(DesignSpec)]
-    fn.__signature__ = inspect.signature(fn).replace(parameters=params)
-    return fn
-
-
-_show_settings(design_gait)
+show_options(design_gait, DesignSpec)

@@ -154,3 +154,21 @@ def climb_rate(speed: float | None, gamma: float) -> float | None:
     """``speed sin(gamma)`` [m/s]: the rate of climb of a walker at ``speed`` along a slope
     ``gamma`` [rad] (SPEC 14); None without a speed."""
     return None if speed is None else speed * math.sin(gamma)
+
+
+def show_options(run, source):
+    """Give ``run(..., **options)`` a signature with ``**options`` replaced by the parameters of
+    ``source`` (what it passes them to: a plan function, or a settings dataclass) as keyword-only
+    parameters with their defaults, so that ``help()``, ``inspect.signature`` and an editor show
+    every option; the call itself is unchanged. Returns ``run``."""
+    import inspect
+
+    sig = inspect.signature(run)
+    own = [p for p in sig.parameters.values() if p.kind is not inspect.Parameter.VAR_KEYWORD]
+    names = {p.name for p in own}
+    extra = [p.replace(kind=inspect.Parameter.KEYWORD_ONLY)
+             for p in inspect.signature(source).parameters.values()
+             if p.name not in names and p.kind not in (inspect.Parameter.VAR_POSITIONAL,
+                                                       inspect.Parameter.VAR_KEYWORD)]
+    run.__signature__ = sig.replace(parameters=own + extra)
+    return run

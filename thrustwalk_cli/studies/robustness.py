@@ -57,8 +57,8 @@ from ..sweep.points import draw
 from ..sweep.runner import RunCounts, run_tasks
 from ..sweep.tasks import PointTask, identity, task_key
 from ..walker import Walker, check_ground, check_walker
+from .documents import show_options
 from .robustness_result import DEFINITIONS, UNITS, RobustnessPlan, RobustnessResult
-from .sweep import with_plan_signature
 from .sweep_studies import STUDIES, run_point, run_points
 from .trial_studies import realized_strategy, trial_chunk
 
@@ -463,4 +463,4 @@ def robustness(walker: Walker, *, workers: int | None = None, scheduler: str | N
                           on_record=None if progress is None else (lambda r: progress(1)))
 
 
-with_plan_signature(robustness, plan_robustness)
+show_options(robustness, plan_robustness)

@@ -53,6 +53,7 @@ from ..resilience.strategy import Strategy
 from ..sweep.runner import RunCounts, chunk_size, run_tasks
 from ..sweep.tasks import PointTask, identity, task_key
 from ..walker import Walker, check_walker
+from .documents import show_options
 from .robustness import walker_strategies, walker_texts
 from .rough_ground_result import (  # noqa: F401 - DEFINITIONS, UNITS: named here too
     DEFINITIONS,
@@ -61,7 +62,6 @@ from .rough_ground_result import (  # noqa: F401 - DEFINITIONS, UNITS: named her
     RoughGroundPlan,
     RoughGroundResult,
 )
-from .sweep import with_plan_signature
 from .sweep_studies import STUDIES, run_point
 from .trial_studies import check_strategy, realized_strategy, rough_runner
 
@@ -336,4 +336,4 @@ def rough_ground(walker: Walker, *, sigma: Sequence[float], workers: int | None 
 # ------------------------------------------------------------------------------ the result
 
 
-with_plan_signature(rough_ground, plan_rough_ground)
+show_options(rough_ground, plan_rough_ground)

@@ -228,22 +228,6 @@ def sweep_executor(sweep: Sweep, workers: int | None = None, scheduler: str | No
 MAX_WORKERS = 1024  # local worker processes
 
 
-def with_plan_signature(run: Callable, plan: Callable) -> Callable:
-    """Give ``run(walker, *, workers, scheduler, progress, **options)`` the signature of
-    ``run`` with ``**options`` replaced by the keyword options of ``plan`` (what it passes them
-    to), so that ``help()``, ``inspect.signature`` and an editor show every option and its
-    default; the call itself is unchanged."""
-    import inspect
-
-    own = [p for p in inspect.signature(run).parameters.values()
-           if p.kind is not inspect.Parameter.VAR_KEYWORD]
-    names = {p.name for p in own}
-    extra = [p for p in inspect.signature(plan).parameters.values()
-             if p.kind is inspect.Parameter.KEYWORD_ONLY and p.name not in names]
-    run.__signature__ = inspect.signature(run).replace(parameters=own + extra)
-    return run
-
-
 def check_executor(workers: object = None, scheduler: object = None) -> None:
     """Where the points are to run, checked before anything is created: ``workers`` a whole
     number 1 ... :data:`MAX_WORKERS` (or None), ``scheduler`` a Dask scheduler address
