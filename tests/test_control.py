@@ -578,3 +578,26 @@ def test_cli_bad_options_exit_two(tmp_path, cli, args, message):
     lines = [ln for ln in res.output.splitlines() if ln.startswith("error:")]
     assert len(lines) == 1 and "Traceback" not in res.output
     assert not out.exists()
+
+
+def test_plant_scale_after_the_script_changes_folder(tmp_path, monkeypatch, _cache_dir):
+    """A walker loaded by a relative path, then the working folder changed (a script that
+    cd's into its output folder): plant_scale still reads the robot's own file. Independent:
+    the total mass of the plant is the walker's plus 10 % of walker5's torso (15 kg)."""
+    import shutil
+
+    from thrustwalk_cli.studies.control import _plant
+    from thrustwalk_cli.walker import load_walker
+
+    src = tmp_path / "robots"
+    src.mkdir()
+    for name in ("walker5.yaml", "walker5_walk.yaml"):
+        shutil.copy(DATA / name, src / name)
+    monkeypatch.chdir(tmp_path)
+    w = load_walker("robots/walker5.yaml", "robots/walker5_walk.yaml")
+    elsewhere = tmp_path / "out"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    zd, doc = _plant(w, {"mT": 1.1})
+    assert doc["parameters"]["mT"] == pytest.approx(16.5, rel=1e-12)
+    assert zd.model.robot.total_mass == pytest.approx(w.robot.total_mass + 1.5, rel=1e-12)

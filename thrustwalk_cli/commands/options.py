@@ -44,8 +44,8 @@ ThrustOpt = Annotated[
                                               "section, else 0:-50:-10).")
 ]
 ThrusterOpt = Annotated[
-    str | None, typer.Option("--thruster", help="Thruster driven by the thrust values "
-                                                "(default: the first).")
+    str | None, typer.Option("--thruster", metavar="NAME",
+                             help="Thruster driven by the thrust values (default: the first).")
 ]
 # the thruster models (thrust/dynamics.MODELS and piecewise): listed here without importing
 # numpy (help stays fast); tests/test_cli.py checks the list against the option table

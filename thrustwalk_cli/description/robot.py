@@ -151,6 +151,10 @@ class Robot:
     #: ``parameters``, a sweep's robot-parameter axis) [SI]: with the file, they rebuild this
     #: robot (a controller's plant with scaled parameters, ``files.robot_file.plant_robot``)
     overrides: tuple[tuple[str, float], ...] = field(default=(), compare=False, repr=False)
+    #: the file's absolute path when it was read ("" for a robot built in memory):
+    #: ``source_file`` is the path as given, which a script changing its working folder
+    #: afterwards no longer finds (the plant of ``plant_scale`` reads the file again)
+    source_path: str = field(default="", compare=False, repr=False)
 
     def line_of(self, path: str) -> int | None:
         """Line of a key path (e.g. ``"coordinates.unactuated"``) in the source file."""

@@ -6,6 +6,7 @@ first); the key tables of ``docs/files.md`` are generated from ``ROBOT_SCHEMA``.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -242,7 +243,8 @@ def plant_robot(robot: Robot, scale: Mapping[str, float]) -> Robot:
         raise InputError.param("plant_scale", f"robot {robot.name!r} was built in memory, "
                                               f"not read from a file: {how}")
     try:
-        path = resolve(robot.source_file, "robots")
+        path = (Path(robot.source_path) if robot.source_path
+                else resolve(robot.source_file, "robots"))  # the file it was read from
         doc = load_yaml(path, expect=kind_check("robot", ROBOT_SCHEMA))
         overrides = dict(robot.overrides)
         same = parse_robot(doc, path, overrides).canonical() == robot.canonical()
@@ -407,6 +409,7 @@ def parse_robot(doc: Document, path: Path, parameters: Mapping[str, float] | Non
         relabel_R=tuple(map(tuple, R.tolist())), relabel_b=tuple(b.tolist()),
         thrusters=tuple(thrusters), gravity=d["gravity"], description=d["description"],
         source_file=str(path), source_sha256=doc.sha256,
+        source_path=os.path.abspath(path),
         parameters=tuple(sorted(res.params.items())), key_lines=lines,
         overrides=tuple(sorted((k, float(v)) for k, v in (parameters or {}).items())),
     )
