@@ -559,3 +559,28 @@ def test_rough_ground_cli_on_a_slope(cli, tmp_path, monkeypatch, walker3):
     for t, want in zip(plan.tasks, ref.records):
         got = json.loads((tmp_path / "out" / "trials" / f"{t.key[:20]}.json").read_text())
         assert got["document"] == want["document"]
+
+
+def test_rough_ground_strategies_say_their_orbit_on_a_slope(walker5):
+    """The rough-ground document gives each strategy's orbit on the slope (walker5, a user's
+    robot, downhill): its step time is the full-order closed loop's, simulated from the
+    strategy's fixed point on the same slope with the same thrust (independent: the compiled
+    simulation, not the zero dynamics); speed = step length / step time along the ground and
+    the rate of climb speed sin(gamma), with their units."""
+    from thrustwalk_cli.studies.rough_ground import rough_ground
+    from thrustwalk_cli.studies.simulate import simulate
+
+    gamma = -0.02
+    res = rough_ground(walker5, sigma=[1e-9], strategy=["none", "constant:-10"], trials=1,
+                       cap=5, workers=1, mesh=4, terrain_samples=4, slope=gamma)
+    doc = res.document()
+    assert doc["units"]["climb_rate"] == "m/s" and doc["units"]["step_time"] == "s"
+    for k, (s, thrust) in enumerate(zip(doc["strategies"], (0.0, -10.0))):
+        o = s["orbit"]
+        assert o["exists"] and o["zeta_star"] == s["zeta_ref"]
+        sim = simulate(walker5, steps=3, thrust=[thrust], thrust_model="ideal", slope=gamma,
+                       zeta0=res.plan.realized[k].zeta_ref).document()
+        assert sim["steps"][-1]["step_time"] == pytest.approx(o["step_time"], rel=1e-8)
+        assert o["speed"] == pytest.approx(o["step_length"] / o["step_time"], rel=1e-12)
+        assert o["climb_rate"] == pytest.approx(o["speed"] * math.sin(gamma), rel=1e-12)
+    assert doc["strategies"][1]["orbit"]["speed"] > doc["strategies"][0]["orbit"]["speed"]

@@ -156,6 +156,23 @@ def climb_rate(speed: float | None, gamma: float) -> float | None:
     return None if speed is None else speed * math.sin(gamma)
 
 
+def orbit_record(cycle, zeta_ref: float | None, slope: float, what: str) -> dict:
+    """The ``orbit`` block of a strategy in the robustness and rough-ground documents: whether
+    the orbit the trials start on exists (else why), the fixed point ``zeta_ref`` [kg^2 m^4/s^2]
+    recoveries are measured against, the orbit's speed along the ground [m/s], step time [s]
+    and step length [m], on a slope ``slope`` [rad] its rate of climb ``speed sin(slope)``
+    [m/s] (SPEC 14), and ``what`` the orbit is."""
+    ok = bool(cycle.exists)
+
+    def num(v):
+        return float(v) if ok and v is not None else None
+    speed = num(cycle.speed)
+    return {"exists": ok, "reason": cycle.reason, "zeta_star": zeta_ref, "speed": speed,
+            "step_time": num(cycle.step_time), "step_length": num(cycle.step_length),
+            **({"climb_rate": climb_rate(speed, slope)} if slope != 0.0 else {}),
+            "what": what}
+
+
 def show_options(run, source):
     """Give ``run(..., **options)`` a signature with ``**options`` replaced by the parameters of
     ``source`` (what it passes them to: a plan function, or a settings dataclass) as keyword-only

@@ -30,9 +30,9 @@ from ..walker import Walker
 from .documents import (
     SCHEMA_VERSION,
     Table,
-    climb_rate,
     col,
     gait_record,
+    orbit_record,
     result_repr,
     robot_record,
     slope_record,
@@ -40,8 +40,9 @@ from .documents import (
 )
 from .trial_studies import ENERGY_FIELDS
 
-UNITS = units("impulse", "zeta", "speed", "force", "friction_ratio", "sigma_N", "output_rate",
-              "output_y", "step_time", "delta_zero_sq", "alpha", phase="1", duration="s")
+UNITS = units("impulse", "zeta", "speed", "step_length", "force", "friction_ratio", "sigma_N",
+              "output_rate", "output_y", "step_time", "delta_zero_sq", "alpha", phase="1",
+              duration="s")
 
 @dataclass(frozen=True)
 class RobustnessPlan:
@@ -189,14 +190,9 @@ class RobustnessResult:
         out = {
             "label": s.label, "kind": s.kind, "parameters": s.parameters(),
             "notes": list(real.notes),
-            "orbit": {"exists": bool(lc.exists), "reason": lc.reason,
-                      "zeta_star": real.zeta_ref,
-                      "speed": float(lc.speed) if lc.exists else None,
-                      **({"climb_rate": climb_rate(float(lc.speed) if lc.exists else None,
-                                                   p.walker.slope)}
-                         if p.walker.slope != 0.0 else {}),
-                      "what": "the controller's reference (the zero-thrust orbit)"
-                      if s.kind == "control" else "the strategy's own fixed point"},
+            "orbit": orbit_record(lc, real.zeta_ref, p.walker.slope,
+                                  "the controller's reference (the zero-thrust orbit)"
+                                  if s.kind == "control" else "the strategy's own fixed point"),
             "reduced_basin": real.basin.document(),
             "push": {"outcome_counts": outcome_counts(flat, OUTCOMES),
                      "recovered_fraction": _fraction(flat, ("recovered",)),

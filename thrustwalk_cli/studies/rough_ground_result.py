@@ -25,6 +25,7 @@ from .documents import (
     Table,
     col,
     gait_record,
+    orbit_record,
     result_repr,
     robot_record,
     slope_record,
@@ -33,7 +34,8 @@ from .documents import (
 
 TARGET = 1000.0  # [steps] the headline's MFPT
 
-UNITS = units("zeta", sigma="m", mfpt="steps", height="m", output_y="rad")
+UNITS = units("zeta", "speed", "step_time", "step_length", sigma="m", mfpt="steps",
+              height="m", output_y="rad")
 DEFINITIONS = {
     "mfpt": "mean first passage time: expected steps attempted up to and including the one "
             "that fails (completed steps + 1); 1/p for a per-step failure probability p",
@@ -187,6 +189,10 @@ class RoughGroundResult:
             rows.append({"sigma": sg, "monte_carlo": mc, "mesh": m,
                          "agreement": self.agreement(mc, m)})
         return {"label": s.label, "strategy": s.parameters(), "zeta_ref": real.zeta_ref,
+                "orbit": orbit_record(real.cycle, real.zeta_ref, p.walker.slope,
+                                      "the orbit the trials start on"
+                                      + (" (the controller's zero-thrust reference)"
+                                         if s.kind == "control" else "")),
                 "mesh": {kk: v for kk, v in mesh.items() if kk not in ("sigmas", "seconds")},
                 "sigmas": rows}
 
@@ -275,7 +281,8 @@ class RoughGroundResult:
         p, w = self.plan, self.plan.walker
         return {
             "schema_version": SCHEMA_VERSION,
-            "units": {**UNITS, "slope": "rad"} if w.slope != 0.0 else UNITS,
+            "units": ({**UNITS, "slope": "rad", "climb_rate": "m/s"} if w.slope != 0.0
+                      else UNITS),
             "success": self.success, "reason": self.reason, "warnings": self.warnings(),
             "robot": robot_record(w.zd), "gait": gait_record(w.zd),
             **({"slope": slope_record(w.slope)} if w.slope != 0.0 else {}),
