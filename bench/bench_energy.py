@@ -45,6 +45,9 @@ def main() -> None:
     t_en = median_time(lambda: limit_cycle(walker, thrust, energy=True), repeat=5)
     report("rabbit: limit-cycle without energy, 200 thrust values (baseline)", t_lc)
     report("rabbit: limit-cycle with energy, 200 thrust values (ratio)", t_en, t_lc)
+    import command_energy  # the energies' share of whole commands, in the same run
+
+    command_energy.main()
 
 
 if __name__ == "__main__":
