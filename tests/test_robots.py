@@ -253,3 +253,55 @@ def test_design_gait_for_a_robot_without_thrusters(tmp_path, cli):
     assert report["fixed_point"]["speed"] == pytest.approx(0.8, rel=1e-3)
     res = cli("limit-cycle", BARE, out, "-q", "--out", tmp_path / "lc")
     assert res.exit_code == 0, res.output
+
+
+TAILBOT = """
+name: tailbot
+links:
+  - {name: st_shank, parent: null, mass: 2, com: [0, 0.21], inertia: 0.03, end: [0, 0.42]}
+  - {name: st_thigh, parent: st_shank, joint: [0, 0.42], mass: 4, com: [0, 0.2], inertia: 0.05,
+     end: [0, 0.4]}
+  - {name: torso, parent: st_thigh, joint: [0, 0.4], mass: 10, com: [0.02, 0.25], inertia: 0.2,
+     end: [0, 0.5]}
+  - {name: sw_thigh, parent: torso, mass: 4, com: [0, -0.2], inertia: 0.05, end: [0, -0.4]}
+  - {name: sw_shank, parent: sw_thigh, joint: [0, -0.4], mass: 2, com: [0, -0.21],
+     inertia: 0.03, end: [0, -0.42]}
+  - {name: tail, parent: torso, joint: [0, 0.1], mass: 1.5, com: [-0.25, 0], inertia: 0.03,
+     end: [-0.5, 0], point_masses: [{mass: 1.0, at: [-0.5, 0]}]}
+coordinates:
+  actuated:
+    - {name: k_st, joint: st_thigh}
+    - {name: h_st, joint: torso}
+    - {name: h_sw, joint: sw_thigh}
+    - {name: k_sw, joint: sw_shank}
+    - {name: tail_a, joint: tail}
+  unactuated: {name: th_T, link: torso}
+feet:
+  stance: {link: st_shank, point: [0, 0]}
+  swing: {link: sw_shank, point: [0, -0.42]}
+relabel:
+  swap: [[st_shank, sw_shank], [st_thigh, sw_thigh]]
+"""
+
+
+def test_default_push_point_is_named_truthfully(tmp_path):
+    """The default push point is the end of the stance link: the hip only when the stance leg
+    is one link. On a kneed walker (rabbit, walker5, a 6-link walker with a tail) it is the
+    stance knee, and control.json / the help said "at the hip" (a user's 6-link robot)."""
+    import thrustwalk_cli as tw
+    from thrustwalk_cli.commands.options import PushOpt
+
+    (tmp_path / "tailbot.yaml").write_text(TAILBOT)
+    cases = {"three_link": ("stance_leg",), "rabbit": ("stance_tibia", "stance_femur"),
+             str(DATA / "walker5.yaml"): ("stance_shin", "stance_thigh"),
+             str(DATA / "kneed4.yaml"): ("st_shin", "st_thigh"),
+             str(tmp_path / "tailbot.yaml"): ("st_shank", "st_thigh")}
+    for name, leg in cases.items():
+        robot = tw.load_robot(name)
+        assert robot.stance_leg == leg, name
+        text = robot.stance_end_text()
+        if len(leg) == 1:
+            assert text.startswith("the hip"), text
+        else:
+            assert text.endswith("not the hip") and f"stance link {leg[0]}" in text, text
+    assert "at the hip at phase" not in PushOpt.__metadata__[0].help

@@ -410,7 +410,8 @@ def test_single_outcome_of_a_direction():
 # ---------------------------------------------------------------- the study and command
 @pytest.mark.slow
 def test_a_map_where_every_forward_push_lifts_says_so(cli, walker5, tmp_path, monkeypatch):
-    """Issue 8: on the user's knee walker every forward push at the hip (the default push)
+    """Issue 8: on the user's knee walker every forward push at the default point (the end of
+    the stance shin: the stance knee, not the hip)
     lifts the stance foot, whatever its size and the strategy (its impulsive reaction's
     vertical part, linear in the impulse, is negative at every phase: checked here from the
     reaction of a unit push); the command, run from another folder, says so in the warnings

@@ -301,3 +301,23 @@ def test_cli_slope_map_bad_input(args, cli, tmp_path, monkeypatch):
     lines = r.output.strip().splitlines()
     assert len(lines) == 1 and f"option {args[0]}" in lines[0], lines
     assert not out.exists()
+
+
+def test_map_steepest_on_one_side_of_level(walker5):
+    """Where every walkable slope of a thrust is uphill (walker5_thrust at -50 N), no downhill
+    slope walks: steepest_downhill is None, not the lowest uphill slope; the band is
+    lowest/highest. A lower end is the map's edge only at the map's first slope (the user
+    robot of a 6-link tail walker got "from 0.02 (the map's edge)" at the map's last slope)."""
+    from thrustwalk_cli.studies.slope import slope_map
+
+    r = slope_map(walker5, [-0.1, 0.0, 0.1], [0.0, -50.0])
+    w50 = r.slopes[r.walkable[:, 1]]
+    assert w50.size and w50.min() > 0.0  # the premise: only uphill slopes walk at -50 N
+    per = r.document()["per_thrust"][1]
+    assert per["steepest_downhill"] is None
+    assert per["steepest_uphill"] == per["highest"] == w50.max()
+    assert per["lowest"] == w50.min()
+    assert "with -50 N from 0.1 up to 0.1 (the map's edge) rad" in r.headline
+    up = slope_map(walker5, [0.05, 0.1], [-50.0])  # walkable only uphill in the whole map
+    assert up.success and up.steepest()["downhill"] is None
+    assert "downhill none" in up.headline

@@ -62,7 +62,8 @@ References: --reference speed [m/s] or zeta [kg^2 m^4/s^2] with --profile step:v
 or --ramp), or nominal (the zero-thrust orbit). A speed is tracked as a speed: its zeta^-
 reference is the controller's own steady state that walks at it, and the tracking error is the
 speed's. Disturbances: --push STEP:PHASE:PX[:PY] [N s] at
-the hip, --plant-scale NAME=FACTOR (robot parameters of the plant), --noise R (uniform relative
+the end of the stance link (the hip of a one-link stance leg, a kneed walker's stance knee),
+--plant-scale NAME=FACTOR (robot parameters of the plant), --noise R (uniform relative
 error of the measured zeta^-, --seed). Slow thrusters (--thrust-model first-order/second-order):
 the controller uses the thruster's linear response; the same plant under a controller that
 ignores the lag is run for comparison. Certificate: per step the predicted and realised margins;

@@ -85,8 +85,9 @@ def thrusters_opt(driven: str = "driven by --thrust"):
 ThrustersOpt = Annotated[list[str] | None, thrusters_opt()]
 PushOpt = Annotated[
     list[str] | None, typer.Option("--push", metavar="STEP:PHASE:PX[:PY]",
-                                   help="Impulse [N s] at the hip at phase s of a step "
-                                        "(repeatable).")
+                                   help="Impulse [N s] at the end of the stance link (the hip "
+                                        "of a one-link stance leg; a kneed walker's stance "
+                                        "knee) at phase s of a step (repeatable).")
 ]
 MuOpt = Annotated[
     float | None, typer.Option("--mu", help="Friction coefficient [-] (default: the gait's "

@@ -41,7 +41,8 @@ HELP = """How much do thrusters buy? Push trials, basins of attraction and param
 uncertainty of the full-order closed loop, one thrust strategy beside the other.
 
 Push trials: a push of --push-impulse [N s] (signed along --push-direction; default forward) at
-the hip (--push-link, --push-at) at phase s of the first step (--push-phase, 0..1), started on
+the end of the stance link (the hip of a one-link stance leg, a kneed walker's stance knee;
+--push-link, --push-at move it) at phase s of the first step (--push-phase, 0..1), started on
 the strategy's orbit; the closed loop walks --steps steps in all. Outcome: recovered (the last
 zeta^- within --recovery-tol of the orbit, outputs settled), unsettled (walking, not yet back),
 fell, slipped (friction cone), lifted (vertical force <= 0; also the push's impulsive ground
@@ -238,7 +239,8 @@ def register(app: typer.Typer) -> None:
             help="Direction of a positive impulse in the world frame (normalised).")] = "1,0",
         push_link: Annotated[str | None, typer.Option(
             "--push-link", help="Link pushed (default: the stance link; its end is the "
-                                "hip).")] = None,
+                                "hip of a one-link stance leg, a kneed walker's stance "
+                                "knee).")] = None,
         push_at: Annotated[float, typer.Option(
             "--push-at", help="Point of the link: (1 - at) joint + at end [1].")] = 1.0,
         push_duration: Annotated[float, typer.Option(

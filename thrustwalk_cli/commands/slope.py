@@ -45,8 +45,8 @@ under a second. The summary gives the headline: the slopes the gait walks withou
 with the largest thrust of the map. A map without a walkable pair is a valid answer (exit 0).
 
 Writes DIR/slope.json, DIR/slope.csv (one row per pair) and the figures DIR/slope_map
-(walkable region with speed contours) and DIR/steepest_slope (steepest walkable uphill and
-downhill slope against thrust), .png and .pdf.
+(walkable region with speed contours) and DIR/steepest_slope (highest and lowest walkable
+slope against thrust), .png and .pdf.
 """
 
 EPILOG = ("Example: thrustwalk slope three_link three_link_walk --slope -0.2:0.2:0.01 "

@@ -53,7 +53,8 @@ CONE_TOL = 1e-7  # realised cone: friction ratio [1], and F^v relative to the we
 
 @dataclass(frozen=True)
 class Push:
-    """An impulse ``(P_x, P_y)`` [N s] at the hip (the end of the stance link) at phase ``s``
+    """An impulse ``(P_x, P_y)`` [N s] at the end of the stance link (the hip of a
+    one-link stance leg, a kneed walker's stance knee) at phase ``s``
     of step ``step`` (SPEC 12)."""
 
     step: int

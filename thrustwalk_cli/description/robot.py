@@ -190,6 +190,29 @@ class Robot:
     def link_index(self, name: str) -> int:
         return self.link_names.index(name)
 
+    @property
+    def stance_leg(self) -> tuple[str, ...]:
+        """The stance leg's links from the root: the first half (rounded down, at least one)
+        of the link path from the stance foot's link to the swing foot's, the legs of a biped
+        mirroring each other about the hip (three_link: the root alone; a kneed walker:
+        shank and thigh)."""
+        parent = {lk.name: lk.parent for lk in self.links}
+        path = [self.swing_foot.link]
+        while parent[path[-1]] is not None:
+            path.append(parent[path[-1]])
+        path.reverse()
+        return tuple(path[:max(1, len(path) // 2)])
+
+    def stance_end_text(self) -> str:
+        """What the end of the stance link (the default push point, SPEC 12) is on this robot:
+        the hip when the stance leg is one link, else the joint to the next stance-leg link
+        (a kneed walker's stance knee), never called the hip then."""
+        leg = self.stance_leg
+        if len(leg) == 1:
+            return f"the hip (the end of the stance link {leg[0]})"
+        return (f"the end of the stance link {leg[0]}: its joint to {leg[1]} (the stance knee "
+                f"of a kneed walker), not the hip")
+
     def thruster_index(self, name: str | None, param: str = "thruster") -> int:
         """Index of the thruster ``name`` (default: the first). :class:`InputError` on the
         parameter ``thruster`` when the name is unknown, and on ``param`` (the parameter that

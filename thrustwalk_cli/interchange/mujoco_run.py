@@ -202,7 +202,8 @@ def rigid_prediction(zd: ZeroDynamics, thrust, x0: np.ndarray, steps: int):
 # ----------------------------------------------------------------------------- results
 @dataclass(frozen=True)
 class Push:
-    """An impulse ``(px, py)`` [N s] at the hip (the end of the stance link) at phase ``s`` of
+    """An impulse ``(px, py)`` [N s] at the end of the stance link (the hip of a
+    one-link stance leg, a kneed walker's stance knee) at phase ``s`` of
     step ``step`` (1-based)."""
 
     step: int

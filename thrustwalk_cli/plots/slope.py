@@ -62,16 +62,18 @@ def walkability_figure(slopes: np.ndarray, thrust: np.ndarray, first: np.ndarray
 
 def steepest_figure(thrust: np.ndarray, uphill: Sequence[float | None],
                     downhill: Sequence[float | None], *, thrust_label: str, title: str = ""):
-    """Steepest walkable uphill and downhill slope [rad] against thrust; a gap where no slope
-    of the map is walkable at that thrust."""
+    """Highest and lowest walkable slope [rad] against thrust (``uphill``, ``downhill``: the
+    steepest uphill and downhill slope where they lie on their side of level ground; both
+    may be uphill, or both downhill, so the lines are labelled highest and lowest); a gap
+    where no slope of the map is walkable at that thrust."""
     up = np.array([np.nan if v is None else v for v in uphill], float)
     down = np.array([np.nan if v is None else v for v in downhill], float)
     with style():
         fig = Figure(figsize=(COLUMN, 2.4))
         ax = fig.subplots()
         ms = 2 if len(thrust) <= 40 else 0  # markers only where they can be told apart
-        ax.plot(thrust, up, "-o", ms=ms, lw=0.9, color="C3", label="steepest uphill")
-        ax.plot(thrust, down, "-s", ms=ms, lw=0.9, color="C0", label="steepest downhill")
+        ax.plot(thrust, up, "-o", ms=ms, lw=0.9, color="C3", label="highest walkable slope")
+        ax.plot(thrust, down, "-s", ms=ms, lw=0.9, color="C0", label="lowest walkable slope")
         ax.fill_between(thrust, down, up, color="0.85", lw=0, label="walkable slopes")
         ax.axhline(0.0, color="0.4", lw=0.4, ls=":")
         ax.set_xlabel(thrust_label)

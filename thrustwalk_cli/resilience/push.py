@@ -61,7 +61,8 @@ def world_to_slope(P: np.ndarray, gamma: float) -> np.ndarray:
 
 def push_point(model: CompiledModel, link: str | None = None, at: float = 1.0,
                direction=(1.0, 0.0)) -> PushPoint:
-    """The push point (default: the end of the stance link, the hip of the bundled robots) and
+    """The push point (default: the end of the stance link: the hip of a one-link
+    stance leg, a kneed walker's stance knee, ``Robot.stance_end_text``) and
     the normalised direction of a positive impulse (default: forward, +x)."""
     robot = model.robot
     name = robot.root.name if link is None else link

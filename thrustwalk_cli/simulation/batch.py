@@ -46,7 +46,8 @@ def push_row(model, step: int, s: float, impulse: Sequence[float], link: str | N
              at: float = 1.0) -> np.ndarray:
     """A push for :func:`simulate_batch`: impulse ``(P_x, P_y)`` [N s] at phase ``s`` of step
     ``step`` (1-based), applied at the point ``(1 - at) * origin + at * end`` of ``link``
-    (default: the stance link's end, the hip of the bundled robots): ``q' += D^-1 J_p^T P``
+    (default: the stance link's end: the hip of a one-link stance leg, the stance knee of a
+    kneed walker): ``q' += D^-1 J_p^T P``
     with the stance foot pinned (SPEC 12). The impulse is in the world frame: on a slope
     (``model`` a slope-frame model, SPEC 14) it is turned into the slope frame by ``-gamma``."""
     names = model.robot.link_names

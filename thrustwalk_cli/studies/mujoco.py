@@ -375,8 +375,8 @@ def mujoco_run(walker: Walker, *, steps: int = 20, thrust_model: str | None = No
                 "f_ss": values or [], "wn": wn, "xi": xi, "tau": tau, "f0": f0,
                 "steps": steps, "perturb": perturb, "min_impact_s": min_impact_s,
                 "pushes": [{"step": p.step, "phase": p.s, "impulse": list(p.impulse),
-                            "at": "hip (end of the stance link), as the force P / timestep "
-                                  "during one MuJoCo step"} for p in pushes]}
+                            "at": f"{walker.robot.stance_end_text()}, as the force P / "
+                                  "timestep during one MuJoCo step"} for p in pushes]}
     return MujocoResult(walker, tuple(runs), ct, mu, settings, tuple(rigid), zeta_tol,
                         slip_tol, version)
 

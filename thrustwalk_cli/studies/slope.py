@@ -81,11 +81,23 @@ class SlopeMapResult:
         return bool(self.walkable.any())
 
     def walkable_range(self, k: int) -> tuple[float, float] | None:
-        """(steepest downhill, steepest uphill) walkable slope [rad] at thrust index ``k``."""
+        """(lowest, highest) walkable slope [rad] at thrust index ``k`` (None: none walks).
+        Both may lie on one side of level ground: the steepest downhill slope is the lowest
+        only when it is <= 0, the steepest uphill the highest only when it is >= 0
+        (:meth:`steepest_at`)."""
         w = self.walkable[:, k]
         if not w.any():
             return None
         return float(self.slopes[w].min()), float(self.slopes[w].max())
+
+    def steepest_at(self, k: int) -> tuple[float | None, float | None]:
+        """(steepest walkable downhill, steepest walkable uphill) slope [rad] at thrust index
+        ``k``: the lowest walkable slope if it is <= 0 (else None: no downhill or level slope
+        walks), the highest if it is >= 0 (else None: no uphill or level slope walks)."""
+        r = self.walkable_range(k)
+        if r is None:
+            return None, None
+        return (r[0] if r[0] <= 0.0 else None), (r[1] if r[1] >= 0.0 else None)
 
     @property
     def headline(self) -> str:
@@ -96,8 +108,9 @@ class SlopeMapResult:
         th = self.thrust
         lo, hi = float(self.slopes.min()), float(self.slopes.max())
 
-        def rad(x: float) -> str:
-            edge = " (the map's edge)" if x in (lo, hi) and self.slopes.size > 1 else ""
+        def rad(x: float, end: float) -> str:
+            # a lower end at the map's first slope, or an upper end at its last, is the edge
+            edge = " (the map's edge)" if x == end and self.slopes.size > 1 else ""
             return f"{0.0 if abs(x) < 1e-12 else x:.4g}{edge}"
 
         parts = []
@@ -105,32 +118,41 @@ class SlopeMapResult:
         if zero.size:
             r = self.walkable_range(int(zero[0]))
             parts.append("without thrust this gait walks no slope of the map" if r is None else
-                         f"without thrust this gait walks slopes from {rad(r[0])} to "
-                         f"{rad(r[1])} rad")
+                         f"without thrust this gait walks slopes from {rad(r[0], lo)} to "
+                         f"{rad(r[1], hi)} rad")
         else:
             parts.append("thrust 0 is not in the map")
         far = int(np.argmax(np.abs(th)))
         if th[far] != 0.0:
             r = self.walkable_range(far)
             parts.append(f"with {th[far]:g} N none" if r is None else
-                         f"with {th[far]:g} N from {rad(r[0])} up to {rad(r[1])} rad")
+                         f"with {th[far]:g} N from {rad(r[0], lo)} up to {rad(r[1], hi)} rad")
         up = self.steepest()
-        if up["uphill"] is not None:
-            parts.append(f"steepest walkable uphill {rad(up['uphill'])} rad at "
-                         f"{up['uphill_thrust']:g} N, downhill {rad(up['downhill'])} rad at "
-                         f"{up['downhill_thrust']:g} N")
+        if self.success:
+            parts.append(
+                ("steepest walkable uphill " + (f"{rad(up['uphill'], hi)} rad at "
+                 f"{up['uphill_thrust']:g} N" if up["uphill"] is not None else "none (no "
+                 "uphill or level slope walks)")) + ", downhill " +
+                (f"{rad(up['downhill'], lo)} rad at {up['downhill_thrust']:g} N"
+                 if up["downhill"] is not None else "none (no downhill or level slope walks)"))
         return "; ".join(parts)
 
     def steepest(self) -> dict:
+        """The steepest walkable uphill slope [rad] of the whole map and its thrust [N] (None
+        when no slope >= 0 walks), and the steepest downhill one (None when no slope <= 0
+        walks)."""
         w = self.walkable
+        out = {"uphill": None, "uphill_thrust": None, "downhill": None, "downhill_thrust": None}
         if not w.any():
-            return {"uphill": None, "uphill_thrust": None, "downhill": None,
-                    "downhill_thrust": None}
+            return out
         i, k = np.nonzero(w)
         up, down = np.argmax(self.slopes[i]), np.argmin(self.slopes[i])
-        return {"uphill": float(self.slopes[i[up]]), "uphill_thrust": float(self.thrust[k[up]]),
-                "downhill": float(self.slopes[i[down]]),
-                "downhill_thrust": float(self.thrust[k[down]])}
+        if self.slopes[i[up]] >= 0.0:
+            out.update(uphill=float(self.slopes[i[up]]), uphill_thrust=float(self.thrust[k[up]]))
+        if self.slopes[i[down]] <= 0.0:
+            out.update(downhill=float(self.slopes[i[down]]),
+                       downhill_thrust=float(self.thrust[k[down]]))
+        return out
 
     @property
     def reason(self) -> str:
@@ -149,8 +171,10 @@ class SlopeMapResult:
         per = []
         for k, f in enumerate(self.thrust):
             r = self.walkable_range(k)
-            per.append({"thrust": float(f), "steepest_downhill": None if r is None else r[0],
-                        "steepest_uphill": None if r is None else r[1]})
+            down, up = self.steepest_at(k)
+            per.append({"thrust": float(f), "steepest_downhill": down, "steepest_uphill": up,
+                        "lowest": None if r is None else r[0],
+                        "highest": None if r is None else r[1]})
         sw = {k: v for k, v in self.walker.swing.items() if k not in ("alpha", "height")}
         imp = self.impact
         return {
