@@ -104,8 +104,9 @@ def gait_yaml(gait, robot, res: OptimalSchedule, model: CompiledModel,
               robot_ref: str | None = None) -> str:
     """A gait file equal to ``gait`` (coefficients written out, ``invariance: given``) with the
     optimal schedule as its ``thrust:`` section (:func:`files.gait_file.gait_text`).
-    ``robot_ref``: its ``robot:`` (default :func:`~.gait_file.robot_reference` of the robot
-    alone: the bundled name or the robot file's absolute path)."""
+    ``robot_ref``: its ``robot:`` (default
+    :func:`~thrustwalk_cli.files.gait_file.robot_reference` of the robot alone: the bundled
+    name or the robot file's absolute path)."""
     p = res.problem
     key = model.robot.thruster_names[p.thruster] if p.mode == "force" else "T"
     if res.objective_name == "energy":
