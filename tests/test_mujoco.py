@@ -107,6 +107,25 @@ def test_infeasible_friction_slips_in_mujoco(mj, walker3):
     assert grip.rigid_contact[0]["feasible"] is True
 
 
+def test_an_orbit_the_rigid_model_calls_contact_infeasible_is_no_ok(mj, walker5):
+    """walker5's gait needs |F^h|/F^v = 0.46 in stance (SPEC 5, computed by feasibility, not
+    by the MuJoCo code). At mu = 0.4 MuJoCo's stance contact sits on the cone; zeta^- agrees
+    to a fraction of a percent in one step, yet the rigid prediction it is compared with
+    does not hold: the run is a warning that says why, never ok. At the gait's mu it is ok."""
+    import thrustwalk_cli as tw
+    from thrustwalk_cli.studies.mujoco import mujoco_run
+
+    need = tw.feasibility(walker5, thrust=[0.0], mu=0.7).cases[0].max_friction_ratio
+    assert 0.4 < need < 0.7
+    low, grip = mujoco_run(walker5, steps=1, mu=0.4), mujoco_run(walker5, steps=1, mu=0.7)
+    assert abs(low.step_entries()[0]["zeta_minus"]["relative"]) < low.zeta_tol
+    assert low.success and low.status == "warning", low.reason
+    run = low.run_entries()[0]
+    assert run["status"] == "warning" and run["rigid_contact"]["feasible"] is False
+    assert "not contact-feasible at mu = 0.4 (infeasible: friction ratio" in run["reason"]
+    assert grip.status == "ok" and grip.rigid_contact[0]["feasible"], grip.reason
+
+
 @pytest.mark.slow
 def test_thrust_speeds_the_walker_up_as_predicted(mj, walker5_thrust):
     """walker5 on its thrust gait, stiff contact: a constant -20 N on the torso thruster makes
@@ -171,8 +190,11 @@ def test_cli_writes_everything_from_another_folder(mj, cli, tmp_path, monkeypatc
     assert e["slip"]["rigid"] == 0.0 and e["penetration"]["rigid"] == 0.0
     assert doc["mujoco"]["contact"]["preset"] == "default"
     mj.MjModel.from_xml_path(str(out / "robot.xml"))
-    header = (out / "steps.csv").read_text().splitlines()
-    assert any("zeta_minus_rigid" in line for line in header)
+    header, *rows = (out / "steps.csv").read_text().splitlines()
+    assert "zeta_minus_rigid" in header
+    for row in rows:  # every cell a plain number, a boolean or empty (never 'np.float64(..)')
+        for cell in row.split(","):
+            assert cell in ("", "true", "false") or np.isfinite(float(cell)), row
 
 
 @pytest.mark.parametrize("args, message", [

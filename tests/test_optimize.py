@@ -259,3 +259,30 @@ def test_cli_bad_input_exits_two(walk3, tmp_path, args, message, cli):
     assert res.exit_code == 2, res.output
     assert message in res.output
     assert "Traceback" not in res.output
+
+
+def test_the_optimal_gait_names_its_robot_relative_to_its_folder(tmp_path, monkeypatch, cli):
+    """As design-gait's: `robot: ../walker5.yaml`, not the absolute path, so that the folder
+    can move (and a sweep file beside the robot may name the gait: it refuses absolute
+    paths). Run from another folder, the robot given by a relative path."""
+    import os
+    import shutil
+    from pathlib import Path
+
+    data = Path(__file__).parent / "data"
+    proj = tmp_path / "proj"
+    proj.mkdir()
+    for name in ("walker5.yaml", "walker5_walk.yaml"):
+        shutil.copy(data / name, proj / name)
+    monkeypatch.chdir(tmp_path)
+    res = cli("optimize", "proj/walker5.yaml", "proj/walker5_walk.yaml", "--knots", "0,0.5,1",
+              "--target-speed", "0.7", "--max-thrust", "30", "--out", "proj/o", "-q",
+              "--formats", "none")
+    assert res.exit_code == 0, res.output
+    text = (proj / "o" / "walker5_walk_optimal.yaml").read_text()
+    want = os.path.relpath(proj / "walker5.yaml", proj / "o")
+    assert f"\nrobot: {want}\n" in text and want == os.path.join("..", "walker5.yaml")
+    moved = tmp_path / "moved"
+    proj.rename(moved)
+    w = load_walker(None, str(moved / "o" / "walker5_walk_optimal.yaml"))
+    assert Path(w.robot.source_file).resolve() == (moved / "walker5.yaml").resolve()

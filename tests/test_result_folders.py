@@ -231,3 +231,18 @@ def test_report_on_a_folder_it_cannot_write(err, tmp_path, monkeypatch, cli):
     assert len(lines) == 1, res.stderr
     assert lines[0] == f"error: {folder / 'index.md'}: {os.strerror(code)}"
     assert sorted(p.name for p in folder.rglob("*")) == before
+
+
+def test_csv_cells_of_numpy_scalars_are_plain_numbers(tmp_path):
+    """A numpy scalar in a table row is written as the number it holds: np.float64 is a
+    float subclass whose repr is 'np.float64(0.25)' (mujoco's steps.csv held such cells)."""
+    import csv
+
+    import numpy as np
+
+    path = output.write_csv(tmp_path / "t.csv", ["a", "b", "c", "d"],
+                            [[np.float64(0.25), np.float32(1.5), np.int64(3), np.bool_(True)]])
+    rows = list(csv.reader(path.read_text().splitlines()))
+    assert rows[1] == ["0.25", "1.5", "3", "true"]
+    with pytest.raises(output.ComputationError, match="non-finite"):
+        output.write_csv(tmp_path / "n.csv", ["a"], [[np.float32("nan")]])

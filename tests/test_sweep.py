@@ -181,6 +181,31 @@ def test_points_are_grid_times_zip_times_random_in_order(tmp_path, _cache_dir):
     assert sweep.spec.count == 2 * 3 * 2 * 3
 
 
+def test_a_sweep_prints_as_one_short_line(tmp_path, _cache_dir):
+    """In a notebook ``sweep`` shows its name, study, files, points and axes on one line,
+    not the robot and gait files' text (the dataclass repr was 10 kB for an imported robot)."""
+    import shutil
+
+    import thrustwalk_cli as tw
+
+    data = Path(__file__).parent / "data"
+    for name in ("walker5.yaml", "walker5_walk.yaml"):
+        shutil.copy(data / name, tmp_path / name)
+    sweep = tw.load_sweep(sweep_file(tmp_path, """\
+        name: w5
+        study: limit-cycle
+        robot: walker5.yaml
+        gait: walker5_walk.yaml
+        grid:
+          thrust: {start: 0, stop: -20, step: -10}
+        collect: [speed]
+        """))
+    text = repr(sweep)
+    assert text.startswith("Sweep(name='w5', study='limit-cycle', ")
+    assert "points=3" in text and "axes=['thrust']" in text and "walker5_walk.yaml" in text
+    assert "\\n" not in text and len(text) < 300, text
+
+
 def test_continuation_neighbours_form_chains_along_the_last_grid_axis():
     from thrustwalk_cli.description.sweep import Axis, SweepSpec
     from thrustwalk_cli.sweep.points import neighbours

@@ -68,6 +68,9 @@ def run_optimize(robot: str | None, gait: str | None, *, knots: list[float | Non
                  formats: set[str] | None = None, titles: bool = False,
                  objective: str = "effort", slope: float = 0.0) -> dict:
     """Plain function behind the command; returns the JSON document it wrote."""
+    from dataclasses import replace
+
+    from ..files.gait_file import robot_reference
     from ..files.output import provenance
     from ..studies.optimize import optimize_schedule
 
@@ -78,6 +81,11 @@ def run_optimize(robot: str | None, gait: str | None, *, knots: list[float | Non
         max_thrust=max_thrust, mu=mu, min_vertical_force=min_vertical_force,
         zeta_min=zeta_min, thruster=thruster, mode=mode, weights=weights, objective=objective,
         slope=slope)
+    # the gait file names its robot relative to its own folder (as design-gait's do), so that
+    # it loads after the folder moves and from a sweep file beside the robot
+    given = robot if robot is not None else robot_reference(walker.robot)
+    result = replace(result, robot_ref=robot_reference(walker.robot, given,
+                                                       out / result.gait_file))
     doc = write_result(result, out, provenance(walker.robot, walker.gait), json=json,
                        formats=formats, titles=titles)
     if not quiet and json != "-":

@@ -275,10 +275,14 @@ def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) 
     """A CSV that ``pandas.read_csv(path)`` and ``numpy.genfromtxt(path, names=True,
     delimiter=",")`` load with no options: the header on the first line, no comment lines
     (units are in the column names, notes and provenance in the JSON beside it), no quoted
-    fields (commas and line breaks in text become ``;`` and spaces), empty = missing."""
+    fields (commas and line breaks in text become ``;`` and spaces), empty = missing. A numpy
+    scalar is written as the Python number it holds (``0.5``, ``true``, never
+    ``np.float64(0.5)``)."""
     def cell(v: Any) -> str:
         if v is None:
             return ""
+        if type(v).__module__ == "numpy" and hasattr(v, "item"):
+            v = v.item()  # a numpy scalar: repr(np.float64(x)) is 'np.float64(x)', not x
         if isinstance(v, bool):
             return "true" if v else "false"
         if isinstance(v, float):

@@ -75,10 +75,12 @@ class MujocoResult:
 
     ``success``: every run completed its steps. ``status``: ``ok`` (every run completed,
     its last zeta^- within ``zeta_tol`` of the rigid prediction and no step slipped more than
-    ``slip_tol``), ``warning`` (completed, but MuJoCo differs from the rigid model by more than
-    that: ``reason`` says where and by how much) or ``failed`` (a run stopped early or had no
-    orbit to start on). ``rigid_contact``: the feasibility verdict of each run's orbit at
-    ``mu`` (SPEC 5), for the slip it predicts."""
+    ``slip_tol``, and the rigid model's orbit contact-feasible at ``mu``), ``warning``
+    (completed, but MuJoCo differs from the rigid model by more than that, or the rigid
+    orbit's contact fails at ``mu`` (SPEC 5) so that it predicts nothing: ``reason`` says where
+    and by how much) or ``failed`` (a run stopped early or had no orbit to start on).
+    ``rigid_contact``: the feasibility verdict of each run's orbit at ``mu`` (SPEC 5), for
+    the slip it predicts."""
 
     __repr__ = result_repr
 
@@ -117,6 +119,14 @@ class MujocoResult:
                     notes.append(f"the stance foot slips more than {1e3 * self.slip_tol:g} mm "
                                  f"in {len(slips)} of {len(run.steps)} steps (worst "
                                  f"{1e3 * worst.slip_path:.3g} mm at step {worst.step})")
+                if rc.get("feasible") is False:  # agreeing with an invalid prediction is no ok
+                    ratios = [s.max_friction_ratio for s in run.steps
+                              if s.max_friction_ratio is not None]
+                    seen = (f"; MuJoCo's largest stance |f_t|/f_n {max(ratios):.3g}"
+                            if ratios else "")
+                    notes.append(f"the rigid model's orbit is not contact-feasible at mu = "
+                                 f"{rc['mu']:g} ({rc['reason']}), so its prediction does not "
+                                 f"hold for this run{seen}")
             status = "failed" if not run.success else ("warning" if notes else "ok")
             reason = run.reason + (": " + "; ".join(notes) if notes else "")
             cyc = run.cycle

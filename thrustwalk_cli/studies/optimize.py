@@ -100,9 +100,13 @@ def check_options(*, fractions: list[float], target_zeta: float | None,
         raise err("zeta_min", f"expected a value > 0 kg^2 m^4/s^2 (got {zeta_min:g})")
 
 
-def gait_yaml(gait, robot, res: OptimalSchedule, model: CompiledModel) -> str:
+def gait_yaml(gait, robot, res: OptimalSchedule, model: CompiledModel,
+              robot_ref: str | None = None) -> str:
     """A gait file equal to ``gait`` (coefficients written out, ``invariance: given``) with the
-    optimal schedule as its ``thrust:`` section (:func:`files.gait_file.gait_text`)."""
+    optimal schedule as its ``thrust:`` section (:func:`files.gait_file.gait_text`).
+    ``robot_ref``: its ``robot:`` (default
+    :func:`~thrustwalk_cli.files.gait_file.robot_reference` of the robot alone: the bundled
+    name or the robot file's absolute path)."""
     p = res.problem
     key = model.robot.thruster_names[p.thruster] if p.mode == "force" else "T"
     if res.objective_name == "energy":
@@ -126,7 +130,8 @@ def gait_yaml(gait, robot, res: OptimalSchedule, model: CompiledModel) -> str:
                          f"{climb_rate(res.cycle.speed, gamma)!r} m/s. Re-check: thrustwalk "
                          "limit-cycle with this file on that slope.")
     return gait_text(replace(gait, name=f"{gait.name}_optimal"), robot,
-                     robot_ref=robot_reference(robot), header=header, invariance="given",
+                     robot_ref=robot_ref or robot_reference(robot), header=header,
+                     invariance="given",
                      description=f"{gait.name} with {'an' if kind[0] == 'e' else 'a'} {kind} "
                                  "thrust schedule",
                      thrust=(p.mode, list(res.fractions), {key: list(res.values)},
@@ -153,6 +158,8 @@ class OptimizeResult:
     nominal: LimitCycle | None = None
     objective: str = "effort"
     energy: dict | None = None  # the energy objective's block (objective_details)
+    # the gait file's robot: (the command sets it relative to the folder it writes into)
+    robot_ref: str | None = None
 
     name = "optimal_schedule"
 
@@ -235,7 +242,8 @@ class OptimizeResult:
         if not self.success:
             return {}
         w = self.walker
-        return {self.gait_file: gait_yaml(w.gait, w.robot, self.schedule, w.model)}
+        return {self.gait_file: gait_yaml(w.gait, w.robot, self.schedule, w.model,
+                                          self.robot_ref)}
 
 
 def optimize_schedule(walker: Walker, *, knots: list[float] = (0.0, 0.25, 0.5, 0.75, 1.0),

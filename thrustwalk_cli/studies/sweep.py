@@ -64,6 +64,14 @@ class Sweep:
         """The axis values of every point, in order."""
         return [dict(t.values) for t in self.tasks]
 
+    def __repr__(self) -> str:
+        """One line: name, study, files, points and axes (the dataclass's own repr printed
+        the robot and gait files' whole text)."""
+        s = self.spec
+        return (f"Sweep(name={s.name!r}, study={s.study!r}, robot={s.robot!r}, "
+                f"gait={s.gait!r}, points={len(self.tasks)}, "
+                f"axes={[a.name for a in s.axes]!r}, collect={list(s.collect)!r})")
+
     def units(self) -> dict[str, str]:
         """Unit of every axis and collectable field."""
         return {**{a.name: a.unit for a in self.spec.axes},
