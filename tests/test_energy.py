@@ -544,3 +544,19 @@ def test_an_orbit_that_comes_to_rest_says_so_instead_of_zero_times(orbit5):
     assert all(v is None for v in rec["per_step"]["joint_electrical"])
     assert any("comes to rest" in m for m in rec["missing"])
     assert all(np.isfinite(v) for v in rec["per_step"]["joint_work"])
+
+
+def test_a_missing_orbit_says_so_once_everywhere(walker3):
+    """Thrust that leaves no orbit (pushing the 3-link backwards, zeta* <= 0, SPEC 3): the
+    case's verdict, its energy block and the energy study each say "no periodic orbit" once,
+    never "no periodic orbit: no periodic orbit"."""
+    import json
+
+    from thrustwalk_cli.studies.energy import energy
+    from thrustwalk_cli.studies.limit_cycle import limit_cycle
+
+    lc = limit_cycle(walker3, [40.0])
+    assert not lc.cycles[0].exists and lc.cycles[0].zeta_star is None
+    text = json.dumps(lc.document()) + json.dumps(energy(walker3, [0.0, 40.0]).document())
+    assert text.count("no periodic orbit") >= 3
+    assert "no periodic orbit: no periodic orbit" not in text

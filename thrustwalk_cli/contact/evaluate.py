@@ -240,8 +240,7 @@ def evaluate(model: CompiledModel, zd: ZeroDynamics, sched: Schedule, *, mu: flo
     cases = []
     for i, lc in enumerate(cycles):
         if not lc.exists:
-            why = lc.reason if lc.reason.startswith("no periodic orbit") else \
-                f"no periodic orbit: {lc.reason}"
+            why = lc.missing
             cases.append(CaseResult(labels[i], thrust[i], False, f"infeasible: {why}", lc,
                                     impact_friction_ratio=imp.friction_ratio))
             continue

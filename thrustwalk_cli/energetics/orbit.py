@@ -300,7 +300,7 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
     missing_t = tuple(missing)
     live = [i for i, lc in enumerate(cycles) if lc.exists]
     out: list[OrbitEnergy | None] = [
-        None if lc.exists else OrbitEnergy(False, f"no periodic orbit: {lc.reason}")
+        None if lc.exists else OrbitEnergy(False, lc.missing)
         for lc in cycles]
     if not live:
         return out

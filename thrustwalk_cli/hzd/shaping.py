@@ -167,7 +167,7 @@ def solve_target_zeta(zd: ZeroDynamics, knots: np.ndarray, zeta_target: float, m
     lc = limit_cycles(zd, Schedule.piecewise(knots, x[None, :], mode, m, thruster))[0]
     if not lc.exists:
         return TargetSolution(False, f"the minimum-norm thrust reaches zeta* = {zeta_target:.6g} "
-                              f"but there is no periodic orbit: {lc.reason}", "zeta",
+                              f"but there is {lc.missing}", "zeta",
                               zeta_target, values=x, evaluations=1)
     return TargetSolution(True, "target fixed point reached with minimum-norm thrust", "zeta",
                           zeta_target, x, lc.zeta_star, lc.speed, lc.zeta_star - zeta_target, 1)

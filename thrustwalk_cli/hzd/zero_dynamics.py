@@ -92,6 +92,14 @@ class LimitCycle:
     touchdown_velocity: float | None = None
     orbit: Mapping[str, np.ndarray] | None = field(default=None, repr=False)
 
+    @property
+    def missing(self) -> str:
+        """Why there is no orbit, starting "no periodic orbit" once ("" when it exists)."""
+        if self.exists:
+            return ""
+        r = self.reason
+        return r if r.startswith("no periodic orbit") else f"no periodic orbit: {r}"
+
 
 @dataclass
 class ZeroDynamics:

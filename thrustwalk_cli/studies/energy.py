@@ -165,8 +165,7 @@ def _cases(sweep: LimitCycleResult, labels: Sequence[str], **extra) -> list[Case
     for i, (lc, verdict, ok, e) in enumerate(zip(sweep.cycles, sweep.verdicts, sweep.walkable,
                                                  energies)):
         if not lc.exists:
-            why = (lc.reason if lc.reason.startswith("no periodic orbit")
-                   else f"no periodic orbit: {lc.reason}") + ": no energies"
+            why = lc.missing + ": no energies"
             e = None
         elif not lc.stable:
             why = (f"the periodic orbit is unstable (delta_zero^2 = "

@@ -136,8 +136,7 @@ class LimitCycleResult:
 
     def _verdict(self, lc: LimitCycle, contact: CaseResult) -> tuple[str, bool]:
         if not lc.exists:
-            return (lc.reason if lc.reason.startswith("no periodic orbit")
-                    else f"no periodic orbit: {lc.reason}"), False
+            return lc.missing, False
         if not lc.stable:
             return lc.reason, False
         sw = self.walker.swing
