@@ -534,3 +534,32 @@ def test_deviation_from_the_prediction_is_a_warning_with_reason(walker3, tmp_pat
     line = next(ln for ln in out.stderr.splitlines() if ln.startswith("warning: run 0"))
     assert line.startswith("warning: run 0 (F_ss = 0.0): warning: ")
     assert "zeta^- off the zero-dynamics prediction (worst" in line
+
+
+def test_a_run_with_no_orbit_to_start_on_says_so(cli, tmp_path, monkeypatch, _cache_dir):
+    """walker5 (a user's robot) 0.02 rad uphill: without thrust the zero dynamics has no orbit
+    (the walker stops within the step; SPEC 3, checked independently by limit_cycle), yet the
+    formula's zeta* is positive, so a run starts there. The run's warnings say there is no
+    orbit to predict and that its start is not an orbit; a second-order thruster aiming at
+    -40 N (whose orbit exists) starting from 0 N says the latter only; ideal -40 N says
+    neither. The console table shows "no orbit" instead of the formula's number."""
+    from thrustwalk_cli.studies.limit_cycle import limit_cycle
+    from thrustwalk_cli.studies.simulate import simulate
+    from thrustwalk_cli.walker import load_walker
+
+    robot, gait = str(DATA / "walker5.yaml"), str(DATA / "walker5_thrust.yaml")
+    w = load_walker(robot, gait)
+    none, pushed = limit_cycle(w, [0.0, -40.0], slope=0.02).cycles
+    assert not none.exists and none.zeta_star > 0 and pushed.exists  # the formula: > 0
+
+    def warnings(**kw):
+        return simulate(w, steps=2, slope=0.02, **kw).document()["runs"][0]["warnings"]
+    w0 = " ".join(warnings(thrust=[0.0], thrust_model="ideal"))
+    assert "no prediction to compare with" in w0 and "not an orbit" in w0
+    w2 = " ".join(warnings(thrust=[-40.0], thrust_model="second-order"))
+    assert "no prediction" not in w2 and "not an orbit (0 N: no periodic orbit" in w2
+    assert not any("orbit" in x for x in warnings(thrust=[-40.0], thrust_model="ideal"))
+    monkeypatch.chdir(tmp_path)
+    res = cli("simulate", robot, gait, "--slope", "0.02", "--thrust", "0", "--thrust-model",
+              "ideal", "--steps", "2", "--formats", "none", "--out", "o")
+    assert "no orbit" in res.stdout and "not an orbit" in res.output

@@ -150,7 +150,8 @@ def _table(doc: dict) -> None:
         return f"{r['failure']} ({r['reason'].split(':')[0]})"
 
     rows = [[fmt(r["f_ss"]), str(r["steps_completed"]), fmt(r["final_zeta_minus"]),
-             fmt(r["predicted"]["zeta_star"]), fmt(r["final_relative_error"], ".2e"),
+             fmt(r["predicted"]["zeta_star"]) if r["predicted"]["exists"] else "no orbit",
+             fmt(r["final_relative_error"], ".2e"),
              status(r)] for r in doc["runs"]]
     on = f", on the slope {doc['slope']['angle']:.4g} rad" if doc.get("slope") else ""
     show_table(f"simulate: {doc['robot']['name']} / {doc['gait']['name']}{on} "

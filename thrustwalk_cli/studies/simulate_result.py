@@ -19,7 +19,7 @@ from ..energetics.run import run_block, simulation_energy, step_block
 from ..errors import (
     InputError,
 )
-from ..hzd.zero_dynamics import ZeroDynamics, limit_cycles, paper_one_step_shift
+from ..hzd.zero_dynamics import LimitCycle, ZeroDynamics, limit_cycles, paper_one_step_shift
 from ..simulation.closed_loop import (
     predicted_cycle,
 )
@@ -137,6 +137,8 @@ def run_entries(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
                 if st.torque_saturated:
                     flags["torque saturated"].append(st.step)
                     warn.append(f"step {st.step}: joint torques saturated")
+        if primary is not None:
+            warn[:0] = _start_warnings(zd, sc, oc.thrust, lc)
         dev = deviations(oc, sc)
         sched = oc.thrust.schedule if oc.thrust.piecewise else Schedule.constant(
             zd, np.asarray(oc.thrust.target, float)[None, :])
@@ -185,6 +187,27 @@ def run_entries(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome],
             "energy": (None if full is None else run_block(simulation_energy(full))),
         })
     return runs
+
+
+def _start_warnings(zd: ZeroDynamics, sc: Scenario, thrust, lc: LimitCycle) -> list[str]:
+    """What a run that started must say about its orbits (SPEC 3): no predicted orbit for its
+    thrust (``lc``), and a start on the "predicted" fixed point of a constant thrust at t = 0
+    (the thrust itself, or a dynamic thruster's initial value) for which no orbit exists:
+    ``zeta* = V_Z(alpha_f)/(1 - delta_zero^2)`` is then a formula's value, not an orbit."""
+    st = sc.start
+    formula = (st.zeta_minus is None and st.q is None and st.orbit == "predicted"
+               and not thrust.piecewise)
+    started = ("the run started from the formula's zeta* = V_Z(alpha_f)/(1 - delta_zero^2) "
+               "of its thrust at t = 0, which is not an orbit")
+    out = [] if lc.exists else [f"{lc.missing}: no prediction to compare with" + (
+        f"; {started}" if formula and not thrust.time_dependent else "")]
+    if formula and thrust.time_dependent:
+        F0 = np.asarray(np.zeros(thrust.m) if thrust.initial is None else thrust.initial, float)
+        first = limit_cycles(zd, Schedule.constant(zd, F0[None, :]))[0]
+        if not first.exists:
+            at = ", ".join(f"{v:g}" for v in F0)
+            out.append(f"{started} ({at} N: {first.missing})")
+    return out
 
 
 def _speed(zd: ZeroDynamics, step) -> float | None:
