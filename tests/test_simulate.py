@@ -532,7 +532,7 @@ def test_deviation_from_the_prediction_is_a_warning_with_reason(walker3, tmp_pat
     assert out.exit_code == 0, out.output
     assert "ok" not in out.output.split("rel. error")[-1].split("wrote")[0]  # status column
     line = next(ln for ln in out.stderr.splitlines() if ln.startswith("warning: run 0"))
-    assert line.startswith("warning: run 0 (F_ss = 0.0): warning: ")
+    assert line.startswith("warning: run 0 (F_ss = 0.0): ") and ": warning: " not in line
     assert "zeta^- off the zero-dynamics prediction (worst" in line
 
 

@@ -136,7 +136,8 @@ def run_mujoco_command(robot: str, gait: str | None, *, steps: int, thrust_model
                        formats=formats, titles=titles, extra=extra)
     for r in doc["runs"]:
         if r["status"] != "ok":
-            warn([f"run {r['run']} (F_ss = {r['f_ss']}): {r['status']}: {r['reason']}"])
+            status = "" if r["status"] == "warning" else f"{r['status']}: "  # said once
+            warn([f"run {r['run']} (F_ss = {r['f_ss']}): {status}{r['reason']}"])
     if not quiet and json != "-":
         _table(doc)
         console().print(wrote_line(out), markup=False)

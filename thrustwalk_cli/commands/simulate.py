@@ -131,8 +131,9 @@ def run_simulate(robot: str | None, gait: str | None, *, steps: int, thrust_mode
                        formats=formats, titles=titles, extra=extra)
     for r in doc["runs"]:
         if r["status"] != "ok":
-            warn([f"run {r['run']} (F_ss = {r['f_ss']}): {r['status']}: {r['reason']}"] +
-                 [w for w in r["warnings"] if w not in r["deviations"]])
+            status = "" if r["status"] == "warning" else f"{r['status']}: "  # said once
+            warn([f"run {r['run']} (F_ss = {r['f_ss']}): {status}{r['reason']}"] +
+                 [f"run {r['run']}: {w}" for w in r["warnings"] if w not in r["deviations"]])
     if not quiet and json != "-":
         _table(doc)
         console().print(wrote_line(out), markup=False)
