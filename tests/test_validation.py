@@ -75,7 +75,7 @@ STUDIES = {
     "simulate": (lambda w, **kw: tw.simulate(**{"walker": w, **kw}), {
         "walker": WALKER, "steps": POS_COUNT, "thrust_model": CHOICE, "thrust": NUMBERS,
         "wn": POSITIVE + [1e6], "xi": POSITIVE, "tau": POSITIVE, "f0": NUMBER,
-        "thruster": [5, "back", [5]], "perturb": NUMBER + [-1.0], "zeta0": POSITIVE,
+        "thruster": [5, "", [5], ["back", ""]], "perturb": NUMBER + [-1.0], "zeta0": POSITIVE,
         "q0": NUMBERS, "dq0": NUMBERS, "start": CHOICE, "torque_limit": POSITIVE,
         "rtol": POSITIVE + [0.5], "atol": POSITIVE, "method": CHOICE, "integrator": TEXT,
         "samples": POS_COUNT + [1], "scuff_tol": NONNEG, "min_impact_s": NUMBER,
@@ -85,7 +85,7 @@ STUDIES = {
         "walker": WALKER, "reference": CHOICE,
         "profile": ["0:0.8", 5, [(0, NAN)], [(0,)], [("a", 1)]], "ramp": FLAG,
         "knots": NUMBERS, "steps": POS_COUNT, "thrust_model": CHOICE, "wn": POSITIVE,
-        "xi": POSITIVE, "tau": POSITIVE, "thruster": [5, "back", [5]],
+        "xi": POSITIVE, "tau": POSITIVE, "thruster": [5, "", [5], ["back", ""]],
         "push": ["2:0.5:10", 5, [(NAN, 0.5, 10)], [(2, 0.5, NAN)], [(2, 0.5, 1e300)],
                  [(2, 0.5, 1e6)], [(2.5, 0.5, 1)], [(2, 0.5)], [(2, "a", 1)]],
         "plant_scale": ["MT=1.1", {"MT": NAN}, {"MT": -1.0}, {"MT": "x"}, {5: 1.0}],
@@ -168,7 +168,7 @@ STUDIES = {
     "mujoco_run": (lambda w, **kw: tw.mujoco_run(**{"walker": w, **kw}), {
         "walker": WALKER, "steps": POS_COUNT + [10**6], "thrust_model": [5, "bogus"],
         "thrust": NUMBERS, "wn": POSITIVE, "xi": POSITIVE, "tau": POSITIVE, "f0": NUMBER,
-        "thruster": [5, "back", [5]], "push": ["2:0.5:10", 5, [(NAN, 0.5, 10)],
+        "thruster": [5, "", [5], ["back", ""]], "push": ["2:0.5:10", 5, [(NAN, 0.5, 10)],
                                             [(2, 0.5, 1e6)], [(2.5, 0.5, 1)], [(9, 0.5, 1)]],
         "mu": POSITIVE + [11.0], "contact": [5, "rubber"], "perturb": NUMBER + [-1.0],
         "min_impact_s": NUMBER, "zeta_tol": POSITIVE, "slip_tol": POSITIVE,
@@ -641,3 +641,16 @@ def test_bad_option(name, tmp_path, one_command, monkeypatch, _cache_dir):
     if CLI[name].argv[0] == "sweep":
         _with_walker5(tmp_path)
     check_case(name, CLI[name], tmp_path, one_command)
+
+
+def test_one_thruster_name_is_taken_as_a_list_of_one(walker5_thrust):
+    """``thruster="back"`` in simulate and control (which take several names) is
+    ``["back"]``, as limit_cycle and robustness take one name: the same runs, bit for bit."""
+    a = tw.simulate(walker5_thrust, steps=2, thrust=[-10.0], thrust_model="ideal",
+                    thruster="back").document()
+    b = tw.simulate(walker5_thrust, steps=2, thrust=[-10.0], thrust_model="ideal",
+                    thruster=["back"]).document()
+    assert a["runs"] == b["runs"]
+    # accepted with the other options (before: an InputError on `thruster`)
+    assert tw.control(walker5_thrust, reference="nominal", steps=2, thruster="back",
+                      check_only=True) is None

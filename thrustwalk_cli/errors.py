@@ -182,10 +182,13 @@ def check_text(name: str, value: object, *, optional: bool = False) -> str | Non
 
 def check_texts(name: str, values: object, *, optional: bool = False
                 ) -> tuple[str, ...] | None:
-    """A sequence of non-blank strings (not one string: its letters would be the items)."""
+    """A sequence of non-blank strings; one string is one name (``thruster="back"`` as
+    ``["back"]``, as the one-thruster functions take it), never its letters."""
     if values is None and optional:
         return None
-    if isinstance(values, (str, bytes, dict)) or not hasattr(values, "__iter__"):
+    if isinstance(values, str):
+        return (check_text(name, values),)
+    if isinstance(values, (bytes, dict)) or not hasattr(values, "__iter__"):
         raise InputError.param(name, f"must be a sequence of names, got {_shown(values)}")
     return tuple(check_text(name, v) for v in values)
 
