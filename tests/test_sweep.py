@@ -865,3 +865,30 @@ def test_push_trial_sweep_file_runs_in_chunks_with_the_same_records(counting):
 
     assert [strip(r) for r in got.records] == [strip(r) for r in ref.records]
     assert {r["fields"]["outcome"] for r in got.records} >= {"recovered", "lifted"}
+
+
+def test_a_point_whose_study_says_no_gives_its_reason(cli, tmp_path, monkeypatch):
+    """A limit-cycle sweep of walker5 (a user's robot, its files beside the sweep file, run
+    from that folder): the point at +60 N has no orbit and the one at -80 N leaves the
+    contact cone (independently: tw.limit_cycle on the same walker says so); both are
+    computed (`ok`), and results.csv's `reason` says why each is not walkable, where a
+    walkable point's is empty."""
+    import thrustwalk_cli as tw
+
+    data = Path(__file__).resolve().parent / "data"
+    for name in ("walker5.yaml", "walker5_thrust.yaml"):
+        (tmp_path / name).write_bytes((data / name).read_bytes())
+    (tmp_path / "s.yaml").write_text(
+        "name: s\nstudy: limit-cycle\nrobot: walker5.yaml\ngait: walker5_thrust.yaml\n"
+        "settings:\n  thruster: back\ngrid:\n  thrust: {values: [0, -80, 60]}\n"
+        "collect: [walkable]\n")
+    monkeypatch.chdir(tmp_path)
+    res = cli("sweep", "s.yaml", "--workers", "1", "--out", "o", "--formats", "csv", "-q")
+    assert res.exit_code == 0, res.output
+    rows = pd.read_csv(tmp_path / "o" / "results.csv").set_index("thrust_N")
+    ref = tw.limit_cycle(tw.load_walker("walker5.yaml", "walker5_thrust.yaml"),
+                         [0.0, -80.0, 60.0])
+    assert list(ref.walkable) == [True, False, False] and not ref.cycles[2].exists
+    assert (rows["status"] == "ok").all() and pd.isna(rows.loc[0.0, "reason"])
+    assert "contact infeasible" in rows.loc[-80.0, "reason"]
+    assert "no periodic orbit" in rows.loc[60.0, "reason"]

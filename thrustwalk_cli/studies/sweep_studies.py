@@ -473,6 +473,8 @@ def _record(task: PointTask, res: PointResult | None, reason: str, seconds: floa
             fields = jsonable({k: res.fields.get(k) for k in study.fields})
             extra, nxt = res.extra, jsonable(res.next_start)
             status = "ok"
+            if isinstance(doc, dict) and doc.get("success") is False:  # computed, and says no
+                reason = str(doc.get("reason") or "")  # (not walkable, fell, infeasible)
         except Exception as exc:  # noqa: BLE001
             doc, fields, extra, nxt = None, dict.fromkeys(study.fields), {}, task.start
             reason = _failure(exc)
