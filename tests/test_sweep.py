@@ -892,3 +892,26 @@ def test_a_point_whose_study_says_no_gives_its_reason(cli, tmp_path, monkeypatch
     assert (rows["status"] == "ok").all() and pd.isna(rows.loc[0.0, "reason"])
     assert "contact infeasible" in rows.loc[-80.0, "reason"]
     assert "no periodic orbit" in rows.loc[60.0, "reason"]
+
+
+def test_a_decimal_range_gives_its_decimal_values(cli, tmp_path, monkeypatch):
+    """``--slope``/``--thrust`` ranges and a sweep file's start/stop/step give the decimal
+    values they name (independent: Python's float of the decimal text), so that
+    ``-0.04:0.02:0.02`` contains a slope of exactly 0 (level ground, SPEC 14), not 3.5e-18,
+    and 0.02 rather than 0.019999999999999997; a step that is no short decimal keeps the sums."""
+    from thrustwalk_cli.commands.common import parse_values
+    from thrustwalk_cli.files.sweep_file import load_sweep_file
+
+    assert parse_values("-0.04:0.02:0.02", "--slope") == [-0.04, -0.02, 0.0, 0.02]
+    assert parse_values("0.1:0.35:0.1", "--thrust") == [0.1, 0.2, 0.3]
+    third = 1.0 / 3.0
+    assert parse_values(f"0:1:{third!r}", "--k") == [i * third for i in range(4)]
+    data = Path(__file__).resolve().parent / "data"
+    for name in ("walker5.yaml", "walker5_thrust.yaml"):
+        (tmp_path / name).write_bytes((data / name).read_bytes())
+    (tmp_path / "s.yaml").write_text(
+        "name: s\nstudy: limit-cycle\nrobot: walker5.yaml\ngait: walker5_thrust.yaml\n"
+        "grid:\n  slope: {start: -0.04, stop: 0.02, step: 0.02}\ncollect: [speed]\n")
+    spec, _ = load_sweep_file(tmp_path / "s.yaml")
+    (axis,) = spec.axes
+    assert list(axis.values) == [float(t) for t in ("-0.04", "-0.02", "0", "0.02")]

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import typer
 
-from ..description.sweep import range_count
+from ..description.sweep import range_count, range_values
 from ..errors import ComputationError, InputError, Problem
 
 _MENTION = re.compile(r"`([A-Za-z_][A-Za-z0-9_]*)`")
@@ -194,7 +194,7 @@ def parse_values(text: str, option: str, unit: str = "") -> list[float]:
             count = range_count(start, stop, step, MAX_VALUES)
             if isinstance(count, str):
                 raise bad(count)
-            return [start + i * step for i in range(count)]
+            return range_values(start, step, count)
         values = [float(p) for p in text.split(",") if p.strip()]
     except ValueError:
         raise bad("not a number, list or range") from None

@@ -101,6 +101,24 @@ class SweepSpec:
         return n
 
 
+def range_values(start: float, step: float, count: int) -> list[float]:
+    """The ``count`` values ``start + i step`` of a range, each the nearest float to its
+    decimal value when ``start`` and ``step`` are short decimals (``-0.04:0.02:0.02`` gives
+    ``0.0`` and ``0.02``, not ``3.5e-18`` and ``0.019999999999999997``: a slope of exactly 0
+    is level ground); the plain sums otherwise."""
+    def decimals(x: float) -> int | None:
+        text = repr(float(x))
+        if "e" in text or "inf" in text or "nan" in text:
+            return None
+        return len(text.split(".")[1].rstrip("0")) if "." in text else 0
+    d = [decimals(start), decimals(step)]
+    plain = [start + i * step for i in range(count)]
+    if None in d or max(d) > 12:  # not a short decimal: the sums as they are
+        return plain
+    nd = max(d)  # type: ignore[type-var]
+    return [round(v, nd) + 0.0 for v in plain]  # + 0.0: -0.0 -> 0.0
+
+
 def range_count(start: float, stop: float, step: float, limit: int) -> int | str:
     """The number of values of the range ``start:stop:step`` (stop included when a whole
     number of steps reaches it), or why there is no such range: a step of 0, against the

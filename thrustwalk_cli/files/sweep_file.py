@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ..description.sweep import DISTRIBUTIONS, Axis, SweepSpec, range_count
+from ..description.sweep import DISTRIBUTIONS, Axis, SweepSpec, range_count, range_values
 from ..errors import InputError, Problem, param_problem
 from ..thrust.dynamics import ALIASES, model_names
 from .bundled import EXPLICITLY, resolve, resolve_inside
@@ -389,7 +389,7 @@ def _range(a: dict, key: tuple, res: ValidationResult, problems: list[Problem]
                                     count if many or "resolution" in count else
                                     f"{count} (got {step:g})"))
         return None
-    return tuple(start + i * step for i in range(count))
+    return tuple(range_values(start, step, count))
 
 
 def _random_axis(name: str, a: dict, key: tuple, res: ValidationResult,
