@@ -49,6 +49,8 @@ class Strategy:
 
     @property
     def label(self) -> str:
+        """The label shown: ``name`` when given, else ``constant:F`` (F [N]), ``constant (gait)``
+        or the kind."""
         if self.name:
             return self.name
         if self.kind == "constant":
