@@ -585,3 +585,35 @@ def test_a_file_above_the_size_limit_is_refused_unread(cli, tmp_path):
         fh.truncate(int(MAX_FILE_MB * 1e6) + 1)  # sparse: no disk used
     _one_error(cli("sweep", big, "--out", tmp_path / "o", "-q"),
                f"error: {big}: larger than {MAX_FILE_MB} MB")
+
+
+def test_a_count_of_one_is_singular(tmp_path, _cache_dir):
+    """"expected 1 value", not "expected 1 values": the thrust of a robot with one thruster
+    (inspect), and a thrust schedule of one interval (a gait's thrust: section, a strategy's
+    schedule, a sweep's settings.schedule)."""
+    import thrustwalk_cli as tw
+    from thrustwalk_cli.resilience.strategy import Strategy, realize
+
+    data = Path(__file__).parent / "data"
+    w5 = tw.load_walker(str(data / "walker5.yaml"), str(data / "walker5_thrust.yaml"))
+    assert w5.robot.thruster_names == ["back"]
+    q = [0.1, 0.2, 0.3, -0.2, 0.1]
+    with pytest.raises(InputError, match=r"^thrust: expected 1 value \(back\), got 2$"):
+        tw.inspect_state(w5, q, thrust=[1.0, 2.0])
+    with pytest.raises(InputError, match=r"^thrust: expected 1 comma-separated number \(back\)"):
+        tw.inspect_state(w5, q, thrust="1,x")
+    one = r"expected 1 value \(one per interval between 2 knots\), got 2$"
+    with pytest.raises(InputError, match=one):
+        tw.WrittenSchedule((0.0, 1.0), (("back", (1.0, 2.0)),)).resolve(
+            w5.zd, w5.robot, "schedule", pad=True)
+    with pytest.raises(InputError, match=r"^schedule: expected 1 value \(one per interval\)"):
+        realize(w5.zd, Strategy("schedule", "back", schedule=((0.0, 1.0), (-5.0, -10.0),
+                                                                "force")), mu=1.0)
+    for name in ("walker5.yaml", "walker5_thrust.yaml"):
+        (tmp_path / name).write_bytes((data / name).read_bytes())
+    (tmp_path / "s.yaml").write_text(
+        "name: s\nstudy: limit-cycle\nrobot: walker5.yaml\ngait: walker5_thrust.yaml\n"
+        "settings:\n  schedule: {knots: [0, 1], values: [0, -10]}\n"
+        "grid:\n  schedule.1: {values: [0, -5]}\ncollect: [speed]\n")
+    with pytest.raises(InputError, match=r"settings\.schedule\.values: " + one):
+        tw.load_sweep(tmp_path / "s.yaml")

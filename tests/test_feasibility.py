@@ -288,7 +288,7 @@ def test_schedule_file_section_pads_and_validates(walk3):
     bad = WrittenSchedule((0.0, 1.0), (("nozzle", (1.0,)),), "force", True)
     with pytest.raises(InputError, match="unknown thruster"):
         bad.resolve(zd, zd.model.robot, "schedule", pad=True)
-    with pytest.raises(InputError, match="expected 1 values"):
+    with pytest.raises(InputError, match=r"expected 1 value \(one per interval"):
         WrittenSchedule((0.0, 1.0), (("hip_x", (1.0, 2.0)),)).resolve(zd, zd.model.robot,
                                                                       "schedule", pad=True)
     with pytest.raises(InputError, match="increase strictly"):

@@ -158,9 +158,13 @@ class Fits:
     tol: float | None
 
     def x(self, alpha: np.ndarray) -> np.ndarray:
+        """The Chebyshev variable ``x = 2 (alpha - alpha_i)/(alpha_f - alpha_i) - 1`` in [-1, 1]
+        of ``alpha`` [rad]."""
         return 2.0 * (np.asarray(alpha, float) - self.alpha_i) / (self.alpha_f - self.alpha_i) - 1
 
     def force_terms(self, alpha: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The fitted ``(Lambda_0, Lambda_1, Lambda_2, Lambda_T)`` at ``alpha`` [rad] (SPEC 5),
+        the samples first: [N], [N s^2/(kg^2 m^4)], [1], [1/m]."""
         x = self.x(np.atleast_1d(alpha))
         return tuple(self.fits[k](x) for k in ("L0", "L1", "L2", "LT"))
 
@@ -218,13 +222,19 @@ class ImpactData:
 
     @property
     def liftoff_per_sigma(self) -> float:
+        """Vertical velocity of the trailing foot just after impact per ``|sigma_N^-|`` [m/s per
+        kg m^2/s] (SPEC 5; > 0: it lifts off)."""
         return float(self.trailing_foot_velocity_per_sigma[1])
 
     def admissible(self, mu: float) -> bool:
+        """The impact is admissible at friction coefficient ``mu`` [1] (SPEC 5): ``F_2^v > 0``,
+        ``|F_2^h|/F_2^v <= mu``, the trailing foot lifts off and the swing foot strikes."""
         return (self.admissible_vertical and self.liftoff and self.strikes
                 and self.friction_ratio is not None and self.friction_ratio <= mu)
 
     def reasons(self, mu: float) -> list[str]:
+        """Why the impact is not admissible at ``mu`` [1], one phrase per failed condition of
+        :meth:`admissible` (empty: it is)."""
         out = []
         if not self.admissible_vertical:
             out.append("impact impulse pulls the swing foot down (F_2^v <= 0)")

@@ -56,6 +56,8 @@ class Rows:
     E: np.ndarray
 
     def zeta(self, x: float, u: np.ndarray, d2: float) -> np.ndarray:
+        """``zeta = d2 x + z0 + Zu u`` (g,) [kg^2 m^4/s^2] at ``x_k = x``, thrust values ``u``
+        and ``d2 = delta_zero^2`` (SPEC 11)."""
         return d2 * x + self.z0 + self.Zu @ u
 
     def force(self, x: float, u: np.ndarray) -> np.ndarray:
@@ -63,6 +65,7 @@ class Rows:
         return self.P0 + self.Px * x + np.einsum("gcv,v->gc", self.Pu, u)
 
     def thrust(self, u: np.ndarray) -> np.ndarray:
+        """The delivered thrust ``F = f0 + S u`` (g, m) [N] for thrust values ``u`` (SPEC 11)."""
         return self.f0 + np.einsum("gtv,v->gt", self.S, u)
 
     def concat(self, other: Rows) -> Rows:

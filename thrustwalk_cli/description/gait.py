@@ -38,10 +38,14 @@ class Gait:
 
     @property
     def order(self) -> int:
+        """The Bezier degree M of the virtual constraints (SPEC 2): coefficients per output less
+        one."""
         return len(self.A[0]) - 1
 
     @property
     def coefficients(self) -> np.ndarray:
+        """The Bezier coefficients ``A`` as a float array, one row of M + 1 per output [rad]
+        (SPEC 2)."""
         return np.array(self.A, dtype=float)
 
 

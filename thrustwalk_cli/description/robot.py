@@ -173,21 +173,26 @@ class Robot:
 
     @property
     def link_names(self) -> list[str]:
+        """The link names, in file order."""
         return [lk.name for lk in self.links]
 
     @property
     def coordinate_names(self) -> list[str]:
+        """The names of the coordinates, in the order of ``q`` (SPEC 1)."""
         return [c.name for c in self.coordinates]
 
     @property
     def thruster_names(self) -> list[str]:
+        """The thruster names, in the order of the columns of ``B_F`` (SPEC 1)."""
         return [t.name for t in self.thrusters]
 
     @property
     def root(self) -> Link:
+        """The root link (the one without a parent)."""
         return next(lk for lk in self.links if lk.parent is None)
 
     def link_index(self, name: str) -> int:
+        """The position of the link ``name`` in :attr:`link_names` (ValueError: no such link)."""
         return self.link_names.index(name)
 
     @property
@@ -251,6 +256,7 @@ class Robot:
 
     @property
     def total_mass(self) -> float:
+        """The sum of the link masses [kg]."""
         return float(sum(lk.mass for lk in self.links))
 
     def thrust_bound(self, j: int) -> float:
@@ -311,10 +317,12 @@ class Robot:
 
     @property
     def R(self) -> np.ndarray:
+        """The relabelling matrix ``R`` (N x N) of ``q^+ = R q^- + b`` (SPEC 1)."""
         return np.array(self.relabel_R, dtype=float)
 
     @property
     def b(self) -> np.ndarray:
+        """The relabelling offset ``b`` (N,) [rad] of ``q^+ = R q^- + b`` (SPEC 1)."""
         return np.array(self.relabel_b, dtype=float)
 
     def numbers(self) -> list[tuple[str, float]]:

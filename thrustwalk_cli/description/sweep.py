@@ -81,9 +81,11 @@ class SweepSpec:
     source_sha256: str = ""
 
     def axis(self, name: str) -> Axis:
+        """The axis named ``name`` (it must exist)."""
         return next(a for a in self.axes if a.name == name)
 
     def group(self, group: str) -> tuple[Axis, ...]:
+        """The axes of one group (``grid``, ``zip`` or ``random``), in file order."""
         return tuple(a for a in self.axes if a.group == group)
 
     @property

@@ -27,4 +27,5 @@ class Uncertainty:
 
     @property
     def parameters(self) -> list[str]:
+        """The robot parameter each axis draws (``MT`` for ``robot.MT``), in order."""
         return [a.parameter for a in self.axes]

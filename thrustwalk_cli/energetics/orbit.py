@@ -126,19 +126,27 @@ class OrbitEnergy:
 
     @property
     def legs_mechanical(self) -> float | None:
+        """The joint motors' positive mechanical work over the step [J] (SPEC 15); None without
+        an orbit."""
         return float(sum(self.joint_positive_work)) if self.exists else None
 
     @property
     def thrust_mechanical(self) -> float | None:
+        """The thrusters' positive mechanical work over the step [J] (SPEC 15); None without an
+        orbit."""
         return float(sum(self.thrust_positive_work)) if self.exists else None
 
     @property
     def legs_electrical(self) -> float | None:
+        """The joint motors' electrical energy over the step [J] (SPEC 15); None without an orbit
+        or a motor model for every joint."""
         vals = self.joint_electrical
         return None if not self.exists or any(v is None for v in vals) else float(sum(vals))
 
     @property
     def thrust_input(self) -> float | None:
+        """The thrusters' input energy over the step by their power models [J] (SPEC 15); None
+        without an orbit or a model for every thruster."""
         vals = self.thruster_input
         return None if not self.exists or any(v is None for v in vals) else float(sum(vals))
 

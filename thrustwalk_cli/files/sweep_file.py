@@ -439,9 +439,9 @@ def _settings_problems(settings: dict, res: ValidationResult) -> list[Problem]:
         out += _knot_problems(list(sched["knots"]), key + ("knots",), res)
         n = len(sched["knots"]) - 1
         if len(sched["values"]) != n:
-            out.append(res.problem(key + ("values",), f"expected {n} values (one per interval "
-                                                      f"between {n + 1} knots), got "
-                                                      f"{len(sched['values'])}"))
+            out.append(res.problem(key + ("values",), f"expected {n} value{'s' * (n != 1)} "
+                                                      f"(one per interval between {n + 1} "
+                                                      f"knots), got {len(sched['values'])}"))
     if settings.get("knots") is not None:
         out += _knot_problems(list(settings["knots"]), ("settings", "knots"), res)
     return out

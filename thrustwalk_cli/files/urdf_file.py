@@ -111,6 +111,7 @@ class UrdfJoint:
 
     @property
     def element(self) -> str:
+        """The joint as messages name it: ``<joint name="NAME">``."""
         return f'<joint name="{self.name}">'
 
 
@@ -128,6 +129,7 @@ class Urdf:
     meshes: int = 0  # mesh references seen (never loaded)
 
     def link(self, name: str) -> UrdfLink:
+        """The link named ``name`` (it must exist)."""
         return next(lk for lk in self.links if lk.name == name)
 
     def problem(self, line: int | None, element: str, message: str) -> Problem:

@@ -102,6 +102,7 @@ class Multiplier:
 
     @property
     def modulus(self) -> float:
+        """``|lambda|`` [1] (SPEC 13: below 1, a deviation along it decays from step to step)."""
         return abs(self.value)
 
     @property
@@ -111,6 +112,8 @@ class Multiplier:
 
     @property
     def agrees(self) -> bool:
+        """The variational and finite-difference values agree: ``difference <= tolerance`` (SPEC
+        13)."""
         return self.difference <= self.tolerance
 
 
@@ -152,6 +155,7 @@ class Floquet:
 
     @property
     def stable(self) -> bool:
+        """The verdict is ``stable`` (SPEC 13; ``verdict`` and ``reason`` say more)."""
         return self.verdict == "stable"
 
 

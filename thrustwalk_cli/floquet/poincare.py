@@ -43,6 +43,8 @@ class Setting:
     atol: float = 1e-12
 
     def config(self) -> SimConfig:
+        """The :class:`SimConfig` of a one-step run of this loop at its tolerances (the Poincare
+        map, SPEC 13)."""
         return SimConfig(steps=1, rtol=self.rtol, atol=self.atol, samples_per_step=2)
 
 

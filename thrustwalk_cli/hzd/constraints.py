@@ -76,9 +76,12 @@ class GaitMaps:
 
     @property
     def span(self) -> float:
+        """``alpha_f - alpha_i`` [rad] (negative when alpha decreases over the step)."""
         return self.alpha_f - self.alpha_i
 
     def s(self, alpha: np.ndarray) -> np.ndarray:
+        """The Bezier phase ``s = (alpha - alpha_i)/(alpha_f - alpha_i)`` [1] of ``alpha`` [rad]
+        (SPEC 2)."""
         return (np.asarray(alpha, float) - self.alpha_i) / self.span
 
     def q_Z(self, alpha: np.ndarray) -> np.ndarray:

@@ -47,6 +47,8 @@ class ChebSeries:
 
     @classmethod
     def from_values(cls, a: float, b: float, values: np.ndarray) -> ChebSeries:
+        """The series on ``[a, b]`` through ``values`` sampled at the ascending Lobatto nodes of
+        that interval (axis 0)."""
         return cls(a, b, coefficients(np.asarray(values, float)))
 
     def _x(self, t: np.ndarray) -> np.ndarray:

@@ -150,14 +150,18 @@ class ZeroDynamics:
 
     @property
     def alpha_i(self) -> float:
+        """alpha at the start of the step, at ``q^+`` [rad] (SPEC 2, 3)."""
         return self.maps.alpha_i
 
     @property
     def alpha_f(self) -> float:
+        """alpha at the end of the step, at ``q^-`` [rad] (SPEC 2, 3)."""
         return self.maps.alpha_f
 
     @property
     def delta_zero_sq(self) -> float:
+        """``delta_zero^2`` [1]: the impact maps ``zeta^-`` to ``zeta^+ = delta_zero^2 zeta^-``
+        (SPEC 3)."""
         return self.delta_zero**2
 
     @property

@@ -85,9 +85,12 @@ class ContactModel:
 
     @property
     def solref(self) -> tuple[float, float]:
+        """MuJoCo's ``solref``: ``(timeconst [s], dampratio [1])`` (SPEC 16)."""
         return (self.timeconst, self.dampratio)
 
     def validate(self) -> None:
+        """Raise :class:`InputError` naming every setting out of range (timestep, solref, solimp,
+        integrator, cone, impratio, foot_radius); return None when all are valid."""
         problems = []
         if not 1e-6 <= self.timestep <= 0.01:
             problems.append(("timestep", f"must lie in [1e-6, 0.01] s (got {self.timestep:g})"))

@@ -115,6 +115,13 @@ class CompiledModel:
         #: instructions of the robot's structure (shared), the constants of its numbers
         self.tape = Tape.from_data(module.TAPE, fns["_consts"])
 
+    def __repr__(self) -> str:
+        """One line: the robot, its number of links, its thrusters and the cache entry (a
+        model holds generated functions and tapes, which a notebook should not print)."""
+        entry = str(self.cache_path) if self.cache_path else "in memory"
+        return (f"CompiledModel(robot={self.robot.name!r}, links={len(self.robot.links)}, "
+                f"thrusters={self.robot.thruster_names!r}, cache={entry!r})")
+
     # -- derived quantities ----------------------------------------------------------------
     def energy(self, q: np.ndarray, dq: np.ndarray, D: np.ndarray | None = None
                ) -> np.ndarray:

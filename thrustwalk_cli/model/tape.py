@@ -89,6 +89,7 @@ class Tape:
                    int(data["n_inputs"]))
 
     def n_out(self, program: str) -> int:
+        """The number of outputs of the program named ``program``."""
         return int(self.code[self.programs[program] + 1])
 
     def instructions(self, program: str | None = None) -> int:

@@ -98,6 +98,7 @@ class LinearProblem:
 
     @property
     def n(self) -> int:
+        """The number of unknowns ``x`` (columns of ``A``; SPEC 6)."""
         return self.A.shape[1]
 
     def at(self, zeta_star: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:

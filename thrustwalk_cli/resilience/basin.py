@@ -63,6 +63,8 @@ class Bound:
     alpha: float | None = None
 
     def document(self) -> dict:
+        """The bound's JSON entry: ``zeta_minus`` [kg^2 m^4/s^2] (None: unbounded), ``family``,
+        ``alpha`` [rad]."""
         return {"zeta_minus": self.value, "family": self.family, "alpha": self.alpha}
 
 
@@ -102,6 +104,8 @@ class ReducedBasin:
                 None if self.upper.value is None else self.upper.value / zs)
 
     def document(self) -> dict:
+        """The basin's JSON entry (SPEC 12): exists, reason, method, both bounds, the bounds
+        relative to zeta*, zeta* [kg^2 m^4/s^2], delta_zero^2 [1], verified."""
         lo, hi = self.relative()
         return {"exists": self.exists, "reason": self.reason, "method": self.method,
                 "lower": self.lower.document(), "upper": self.upper.document(),

@@ -49,6 +49,8 @@ class Strategy:
 
     @property
     def label(self) -> str:
+        """The label shown: ``name`` when given, else ``constant:F`` (F [N]), ``constant (gait)``
+        or the kind."""
         if self.name:
             return self.name
         if self.kind == "constant":
@@ -196,7 +198,8 @@ def realize(zd: ZeroDynamics, s: Strategy, *, mu: float, eps: float = 0.0,
             raise InputError.param("schedule", "knots are fractions of the step, 0 first, 1 "
                                                "last, strictly increasing")
         if len(values) != len(fr_a) - 1:
-            raise InputError.param("schedule", f"expected {len(fr_a) - 1} values (one per "
+            n = len(fr_a) - 1
+            raise InputError.param("schedule", f"expected {n} value{'s' * (n != 1)} (one per "
                                                f"interval), got {len(values)}")
         if mode not in ("force", "generalized"):
             raise InputError.param("schedule", f"unknown mode {mode!r} (force, generalized)")

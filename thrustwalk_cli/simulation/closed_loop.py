@@ -146,6 +146,8 @@ class SimConfig:
     cone_eps: float = 0.0
 
     def validate(self) -> None:
+        """Raise :class:`InputError` naming every setting out of range (steps, tolerances,
+        method, integrator, samples, torque limit, guard, cone); return None when all are valid."""
         problems = []
         if not 1 <= self.steps <= MAX_STEPS:
             problems.append(param_problem("steps", f"must be 1..{MAX_STEPS} (got {self.steps})"))

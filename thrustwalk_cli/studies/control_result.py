@@ -69,10 +69,14 @@ class ControlResult:
 
     @property
     def success(self) -> bool:
+        """The controlled run completed its steps without failing (``status`` tells ``ok`` from
+        ``warning``)."""
         return self.controlled.success
 
     @property
     def energy_objective(self) -> bool:
+        """The plans minimised the thruster input energy (``objective="energy"``, SPEC 15), not
+        the effort."""
         return self.settings.get("objective") == "energy"
 
     def findings(self) -> dict[str, list[int]]:
@@ -103,12 +107,15 @@ class ControlResult:
 
     @property
     def status(self) -> str:
+        """``ok``, ``warning`` (completed, with steps in :meth:`findings`) or ``failed``."""
         if not self.success:
             return "failed"
         return "warning" if any(self.findings().values()) else "ok"
 
     @property
     def reason(self) -> str:
+        """Why the run is not ``ok`` (its failure, the steps of each finding, an inadmissible
+        impact), or what every step met."""
         parts = [] if self.success else [self.controlled.reason]
         for what, steps in self.findings().items():
             if steps:
@@ -180,6 +187,7 @@ class ControlResult:
         }
 
     def document(self) -> dict:
+        """The JSON body of ``control.json`` (SI units, see ``units``)."""
         zd = self.walker.zd
         sp = self.speed_refs
         steps = [self._step_entry(s, None if sp is None else float(sp[s.step - 1]))
@@ -242,6 +250,8 @@ class ControlResult:
                 "effort_plan_input_energy": total("effort_plan_energy")}
 
     def tables(self) -> dict[str, Table]:
+        """``control_steps``: one row per controlled step (reference, measured zeta^- and speed,
+        QP, contact margins)."""
         names = self.walker.robot.thruster_names
         header = ["step", col("t_start", "s"), col("reference_zeta", "kg^2 m^4/s^2"),
                   col("reference_speed", "m/s"), col("zeta_minus_measured", "kg^2 m^4/s^2"),
@@ -286,6 +296,8 @@ class ControlResult:
             "command_i: the QP's thrust values, interval-major per driven thruster"])}
 
     def figure_data(self) -> dict:
+        """The plain data the figures draw: per run (controlled, uncontrolled) speed, thrust and
+        contact force per step."""
         def series(run: Run | None) -> dict | None:
             if run is None:
                 return None
@@ -314,6 +326,8 @@ class ControlResult:
                 "pushes": [p["step"] for p in self.settings["pushes"]]}
 
     def figures(self, titles: bool = False) -> dict:
+        """``speed_tracking``, ``thrust_schedule`` and ``contact_margin`` (matplotlib figures by
+        stem)."""
         from ..plots.control import contact_margin, speed_tracking, thrust_schedule
 
         d = self.figure_data()

@@ -226,14 +226,17 @@ class DesignGaitResult:
 
     @property
     def robot(self) -> Robot:
+        """The robot the gait is designed for (``model.robot``)."""
         return self.model.robot
 
     @property
     def success(self) -> bool:
+        """The design is feasible: it meets every requirement of the spec."""
         return self.design.feasible
 
     @property
     def reason(self) -> str:
+        """The design's verdict in words: what it met, or why it is infeasible."""
         return self.design.reason
 
     def _thrust(self) -> np.ndarray:

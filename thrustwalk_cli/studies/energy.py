@@ -100,17 +100,23 @@ class Case:
 
     @property
     def word(self) -> str:
+        """The case's verdict in a word: walkable, no orbit, unstable, scuffs, lifts, slips,
+        impact or infeasible."""
         return _word(self.cycle, self.verdict, self.walkable)
 
     def cot(self) -> dict:
+        """Costs of transport [1] (SPEC 15), mechanical and total, legs and thrust; all None
+        without energies."""
         return self.energy.cot() if self.energy is not None else dict.fromkeys(COT_KEYS)
 
     def power(self) -> dict:
+        """Average power per part [W] (SPEC 15); all None without energies."""
         if self.energy is None:
             return dict.fromkeys(POWER_KEYS)
         return self.energy.record()["average_power"]
 
     def speed(self) -> float | None:
+        """The orbit's walking speed [m/s]; None without an orbit."""
         return _finite(self.cycle.speed) if self.cycle.exists else None
 
     def record(self) -> dict:
@@ -299,6 +305,7 @@ class EnergyResult:
     # -- verdicts ---------------------------------------------------------------------------
     @property
     def thruster_name(self) -> str | None:
+        """The thruster the constant thrust drives (None: the robot has none)."""
         return self.sweep.thruster_name
 
     @property
@@ -319,10 +326,12 @@ class EnergyResult:
 
     @property
     def success(self) -> bool:
+        """Some thrust value has energies (a stable periodic orbit)."""
         return any(c.energy is not None for c in self.cases)
 
     @property
     def reason(self) -> str:
+        """How many thrust values have energies and how many are walkable, and the headline."""
         n = sum(c.energy is not None for c in self.cases)
         if not n:
             return "no thrust value has a stable periodic orbit: no energies"
@@ -380,6 +389,8 @@ class EnergyResult:
 
     @property
     def library_headline(self) -> str | None:
+        """The gait library's Pareto headline (the cheapest way to each speed); None without a
+        library."""
         if self.library is None:
             return None
         return pareto_headline(self.pareto(), self.library, self.cases, self.basis,

@@ -126,23 +126,28 @@ class FeasibilityResult:
 
     @property
     def cases(self) -> list[CaseResult]:
+        """Per thrust case its contact verdict, worst points and margins (SPEC 5)."""
         return self.report.cases
 
     @property
     def impact(self) -> ImpactData:
+        """The impact on the orbit per unit momentum (SPEC 5): impulse, lift-off, friction ratio."""
         return self.report.impact
 
     @property
     def verdict(self) -> str:
+        """``feasible`` (every case), ``infeasible`` (none) or ``mixed``."""
         feas = [c.feasible for c in self.cases]
         return "feasible" if all(feas) else "infeasible" if not any(feas) else "mixed"
 
     @property
     def success(self) -> bool:
+        """Every case is feasible."""
         return self.verdict == "feasible"
 
     @property
     def reason(self) -> str:
+        """Each infeasible case and why, or ``every case is feasible``."""
         bad = [c for c in self.cases if not c.feasible]
         return "every case is feasible" if not bad else "; ".join(
             f"{c.label}: {c.reason}" for c in bad)
@@ -211,6 +216,7 @@ class FeasibilityResult:
         }
 
     def tables(self) -> dict:
+        """No CSV table (``{}``): the command writes ``feasibility.json`` and the figures."""
         return {}
 
     def figures(self, titles: bool = False) -> dict:

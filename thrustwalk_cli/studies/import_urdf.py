@@ -41,14 +41,18 @@ class ImportResult:
 
     @property
     def robot(self) -> Robot:
+        """The imported :class:`Robot` (SPEC 16)."""
         return self.imported.robot
 
     @property
     def yaml(self) -> str:
+        """The commented robot YAML, each number naming its URDF element and line (SPEC 16)."""
         return self.imported.yaml
 
     @property
     def notes(self) -> tuple[str, ...]:
+        """One line per remark of the import (merged fixed joints, out-of-plane parts dropped,
+        ...)."""
         return self.imported.notes
 
     def __repr__(self) -> str:
@@ -72,9 +76,11 @@ class ImportResult:
                 "units": {"mass": "kg", "total_mass": "kg"}}
 
     def tables(self) -> dict:
+        """No CSV table (``{}``)."""
         return {}
 
     def figures(self, titles: bool = False) -> dict:
+        """No figure (``{}``)."""
         return {}
 
 

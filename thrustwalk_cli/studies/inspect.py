@@ -76,12 +76,12 @@ def _vector(value: str | Sequence[float], param: str, n: int, names: list[str]) 
         try:
             vals = [float(v) for v in value.split(",")]
         except ValueError:
-            raise InputError.param(param, f"expected {n} comma-separated numbers "
+            raise InputError.param(param, f"expected {n} comma-separated number{'s' * (n != 1)} "
                                           f"({', '.join(names)}), got {value!r}") from None
     else:
         vals = list(check_numbers(param, value, min_len=0, largest=1e6))
     if len(vals) != n:
-        raise InputError.param(param, f"expected {n} values ({', '.join(names)}), "
+        raise InputError.param(param, f"expected {n} value{'s' * (n != 1)} ({', '.join(names)}), "
                                       f"got {len(vals)}")
     if not all(abs(v) <= 1e6 for v in vals):
         raise InputError.param(param, f"values must be finite and at most 1e+06 in size (got "

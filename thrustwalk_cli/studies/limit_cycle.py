@@ -132,6 +132,7 @@ class LimitCycleResult:
 
     @property
     def thruster_name(self) -> str | None:
+        """The thruster the constant thrust drives (None: the robot has none)."""
         return None if self.thruster is None else self.walker.robot.thruster_names[self.thruster]
 
     def _verdict(self, lc: LimitCycle, contact: CaseResult) -> tuple[str, bool]:
@@ -150,10 +151,12 @@ class LimitCycleResult:
 
     @property
     def walkable(self) -> tuple[bool, ...]:
+        """Per thrust case: a stable periodic orbit with admissible contact (SPEC 3, 5)."""
         return tuple(self._verdict(c, f)[1] for c, f in zip(self.cycles, self.contact))
 
     @property
     def verdicts(self) -> tuple[str, ...]:
+        """Per thrust case: ``walkable``, or why not in words."""
         return tuple(self._verdict(c, f)[0] for c, f in zip(self.cycles, self.contact))
 
     @property
@@ -162,10 +165,12 @@ class LimitCycleResult:
 
     @property
     def success(self) -> bool:
+        """Every thrust case is walkable."""
         return all(self.walkable)
 
     @property
     def reason(self) -> str:
+        """How many cases are walkable and the first verdict of one that is not."""
         n = sum(self.walkable)
         if n == len(self.cycles):
             return f"a walkable periodic orbit for every case ({n})"

@@ -98,6 +98,7 @@ class MujocoResult:
 
     @property
     def success(self) -> bool:
+        """Every MuJoCo run completed (``status`` tells ``ok`` from ``warning``)."""
         return all(r.success for r in self.runs)
 
     def run_entries(self) -> list[dict]:
@@ -144,6 +145,8 @@ class MujocoResult:
 
     @property
     def status(self) -> str:
+        """``failed`` when a run failed, ``warning`` when one is off the rigid model, else
+        ``ok``."""
         runs = self.run_entries()
         if any(r["status"] == "failed" for r in runs):
             return "failed"
@@ -151,6 +154,8 @@ class MujocoResult:
 
     @property
     def reason(self) -> str:
+        """Each run that is not ``ok`` and why, or that every run kept within ``zeta_tol`` of the
+        rigid model's zeta^-."""
         bad = [r for r in self.run_entries() if r["status"] != "ok"]
         if not bad:
             return (f"all runs completed within {100 * self.zeta_tol:g} % of the rigid "

@@ -165,14 +165,17 @@ class OptimizeResult:
 
     @property
     def success(self) -> bool:
+        """An optimal schedule was found (SPEC 6)."""
         return self.schedule.optimal
 
     @property
     def reason(self) -> str:
+        """The solver's verdict: the optimum found, or why no schedule exists."""
         return self.schedule.reason
 
     @property
     def gait_file(self) -> str:
+        """The name of the gait file written with the optimal schedule: ``GAIT_optimal.yaml``."""
         return f"{self.walker.gait.name}_optimal.yaml"
 
     @property
@@ -213,6 +216,7 @@ class OptimizeResult:
         return doc
 
     def tables(self) -> dict:
+        """No CSV table (``{}``)."""
         return {}
 
     def figures(self, titles: bool = False) -> dict:

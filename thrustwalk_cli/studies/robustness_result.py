@@ -69,6 +69,7 @@ class RobustnessPlan:
 
     @property
     def labels(self) -> list[str]:
+        """The label of each strategy, in order."""
         return [s.label for s in self.strategies]
 
 
@@ -153,6 +154,7 @@ class RobustnessResult:
         return out, conv
 
     def samples(self, k: int) -> list[dict | None]:
+        """Strategy ``k``'s record of each parameter sample (None: not run yet)."""
         return [r for _, r in self._by_kind("sample", k)]
 
     def _trial_records(self) -> list[tuple[str, dict | None]]:
@@ -160,10 +162,12 @@ class RobustnessResult:
 
     @property
     def errors(self) -> int:
+        """The number of trials that could not be computed (outcome ``error``)."""
         return sum(self._outcome(r) == "error" for _, r in self._trial_records())
 
     @property
     def missing(self) -> int:
+        """The number of trials and samples without a record (run again to resume)."""
         return sum(r is None for r in self.records)
 
     @property
@@ -173,6 +177,8 @@ class RobustnessResult:
 
     # -- summaries ---------------------------------------------------------------------
     def strategy_summary(self, k: int) -> dict:
+        """Strategy ``k``'s entry of ``robustness.json`` (SPEC 12): orbit, reduced basin, push
+        outcomes, survivable impulses [N s], energies [J]."""
         p = self.plan
         s, real = p.strategies[k], p.realized[k]
         grid = self.push_grid(k)
@@ -299,6 +305,8 @@ class RobustnessResult:
 
     @property
     def reason(self) -> str:
+        """What ran (trials, samples), what could not be computed or is missing, and each
+        strategy's survivable push [N s]."""
         p = self.plan
         n = sum(kd != "sample" for kd in p.kinds)
         parts = [f"{n} trials of {len(p.strategies)} strategies"]
@@ -373,6 +381,8 @@ class RobustnessResult:
         return notes
 
     def warnings(self) -> list[str]:
+        """The warnings of ``robustness.json``: the plan's, single-outcome push maps, trials that
+        could not be computed."""
         out = list(self.plan.warnings)
         out += [n["warning"] for n in self._single_outcomes()]
         bad = [r for kd, r in self._trial_records() if self._outcome(r) == "error"]
@@ -391,6 +401,7 @@ class RobustnessResult:
         return out
 
     def document(self) -> dict:
+        """The JSON body of ``robustness.json`` (SI units, see ``units``)."""
         p, w = self.plan, self.plan.walker
         n_trials = sum(kd != "sample" for kd in p.kinds)
         return {
@@ -412,6 +423,8 @@ class RobustnessResult:
         }
 
     def tables(self) -> dict[str, Table]:
+        """``trials`` (one row per trial) and, with parameter uncertainty, ``uncertainty`` (one
+        row per sample and strategy)."""
         p = self.plan
         header = ["trial", "key", "kind", "strategy", "push_phase", col("push_impulse", "N s"),
                   col("push_x", "N s"), col("push_y", "N s"), "start_sigma",
@@ -473,6 +486,8 @@ class RobustnessResult:
 
     # -- figures -----------------------------------------------------------------------
     def figure_data(self) -> dict:
+        """The plain data the figures draw: push outcomes, survivable impulses, energies, basins,
+        samples."""
         p = self.plan
         sums = [self.strategy_summary(k) for k in range(len(p.strategies))]
         # the total energy when every strategy has it (every model given), else mechanical
@@ -518,6 +533,8 @@ class RobustnessResult:
         return data
 
     def figures(self, titles: bool = False) -> dict:
+        """``push_map``, ``survivable_push``, ``push_energy``, ``basin`` and, with uncertainty,
+        ``uncertainty`` (matplotlib figures by stem)."""
         from ..plots import robustness as plots
 
         d = self.figure_data()

@@ -130,6 +130,7 @@ class RoughGroundResult:
 
     @property
     def missing(self) -> int:
+        """The number of Monte-Carlo trials without a record (run again to resume)."""
         return sum(r is None for r in self.records)
 
     def _outcome(self, rec: dict | None) -> str | None:
@@ -170,6 +171,8 @@ class RoughGroundResult:
 
     @staticmethod
     def agreement(mc: dict, mesh: dict | None) -> str:
+        """``agree`` when the mesh chain's MFPT from the fixed point lies in the Monte-Carlo
+        interval (SPEC 14), ``disagree``, or ``not compared``."""
         if mesh is None or mc["trials"] == 0:
             return "not compared"
         v, lo, hi = mesh.get("from_fixed_point"), mc["ci_lower"], mc["ci_upper"]
@@ -180,6 +183,8 @@ class RoughGroundResult:
         return "agree" if lo <= v <= (np.inf if hi is None else hi) else "disagree"
 
     def strategy_summary(self, k: int) -> dict:
+        """Strategy ``k``'s entry of ``rough_ground.json``: orbit, mesh, and per sigma [m] the
+        Monte-Carlo and mesh MFPT [steps] and their agreement."""
         p = self.plan
         s, real, mesh = p.strategies[k], p.realized[k], self.meshes[k]
         rows = []
@@ -197,6 +202,8 @@ class RoughGroundResult:
                 "sigmas": rows}
 
     def headline(self) -> dict:
+        """The sigma [m] each strategy tolerates at the target MFPT [steps] on the mesh chain's
+        curve, against no thrust (SPEC 14)."""
         p = self.plan
         target = p.settings["target_mfpt"]
         per = []
@@ -231,6 +238,8 @@ class RoughGroundResult:
                 "strategies": per, "text": lines}
 
     def warnings(self) -> list[str]:
+        """The warnings of ``rough_ground.json``: the plan's and the trials that could not be
+        computed."""
         out = list(self.plan.warnings)
         for k, s in enumerate(self.plan.strategies):
             summ = self.strategy_summary(k)
@@ -257,6 +266,8 @@ class RoughGroundResult:
 
     @property
     def success(self) -> bool:
+        """Every trial ran, every mesh was computed and no Monte-Carlo estimate disagrees with
+        the mesh."""
         return not self.missing and all(
             r["agreement"] != "disagree" for k in range(len(self.plan.strategies))
             for r in self.strategy_summary(k)["sigmas"]) and all(
@@ -264,6 +275,7 @@ class RoughGroundResult:
 
     @property
     def reason(self) -> str:
+        """What is missing, where the two estimates disagree, or the headline."""
         if self.missing:
             return f"{self.missing} of {len(self.records)} trials not run (run again to resume)"
         bad = [f"{self.plan.strategies[k].label} at sigma = {r['sigma']:g} m"
@@ -278,6 +290,7 @@ class RoughGroundResult:
                "both are computed"
 
     def document(self) -> dict:
+        """The JSON body of ``rough_ground.json`` (SI units, see ``units``)."""
         p, w = self.plan, self.plan.walker
         return {
             "schema_version": SCHEMA_VERSION,
@@ -299,6 +312,8 @@ class RoughGroundResult:
         }
 
     def tables(self) -> dict[str, Table]:
+        """``mfpt`` (one row per strategy and sigma) and ``trials`` (one row per Monte-Carlo
+        run)."""
         p = self.plan
         header = ["strategy", col("sigma", "m"), col("mc_mfpt", "steps"),
                   col("mc_ci_lower", "steps"), col("mc_ci_upper", "steps"), "failures",
@@ -337,6 +352,8 @@ class RoughGroundResult:
                                             "trials/KEY.json"])}
 
     def figure_data(self) -> dict:
+        """The plain data of the ``mfpt`` figure: per strategy the Monte-Carlo and mesh MFPT
+        [steps] against sigma [m]."""
         p = self.plan
         out = []
         for k in range(len(p.strategies)):
@@ -351,6 +368,8 @@ class RoughGroundResult:
                 "cap": p.settings["cap"]}
 
     def figures(self, titles: bool = False) -> dict:
+        """``mfpt``: the mean first passage time [steps] against sigma [m] per strategy (a
+        matplotlib figure)."""
         from ..plots import rough_ground as plots
 
         w = self.plan.walker

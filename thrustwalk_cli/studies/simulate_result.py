@@ -523,6 +523,7 @@ class SimulationResult:
 
     @property
     def success(self) -> bool:
+        """Every run completed without failing."""
         return all(oc.success for oc in self.outcomes)
 
     @property
@@ -534,10 +535,13 @@ class SimulationResult:
 
     @property
     def reason(self) -> str:
+        """The document's ``reason``: what failed or left the prediction, or that every run went
+        well."""
         return self.document()["reason"]
 
     @property
     def tool_failure(self) -> bool:
+        """Some run failed in the tool (integrator or controller), not as a walker."""
         return any(oc.primary is not None and oc.primary.failure in ("integrator", "controller")
                    for oc in self.outcomes)
 

@@ -68,10 +68,13 @@ class SlopeMapResult:
 
     @property
     def thruster_name(self) -> str | None:
+        """The thruster the constant thrust drives (None: the robot has none)."""
         return None if self.thruster is None else self.walker.robot.thruster_names[self.thruster]
 
     @property
     def walkable(self) -> np.ndarray:
+        """Per (slope, thrust) pair: no condition fails (SPEC 14), shape (len(slopes),
+        len(thrust))."""
         return self.cells["first"] == 0
 
     @property
@@ -156,6 +159,7 @@ class SlopeMapResult:
 
     @property
     def reason(self) -> str:
+        """How many pairs are walkable and the headline, or the most frequent failure."""
         n, total = int(self.walkable.sum()), self.walkable.size
         if not n:
             first = np.bincount(self.cells["first"].ravel(), minlength=len(FAILURES))

@@ -239,14 +239,18 @@ class StabilityResult:
 
     @property
     def success(self) -> bool:
+        """Every case has a verdict, ``stable`` or ``unstable`` (SPEC 13)."""
         return all(c.floquet.verdict in ("stable", "unstable") for c in self.cases)
 
     @property
     def verdict(self) -> str:
+        """``stable`` (every case), ``unstable`` (every case decided, some unstable) or
+        ``undetermined``."""
         return overall_verdict(self.cases)
 
     @property
     def reason(self) -> str:
+        """Each case that is not stable and why, or that every case is stable."""
         bad = [(i, c) for i, c in enumerate(self.cases) if c.floquet.verdict != "stable"]
         if not bad:
             return (f"every case is stable ({len(self.cases)} case"

@@ -57,6 +57,7 @@ class Sweep:
 
     @property
     def name(self) -> str:
+        """The sweep's name (its file's ``name:``)."""
         return self.spec.name
 
     @property
@@ -306,14 +307,17 @@ class SweepResult:
 
     @property
     def done(self) -> int:
+        """The number of points computed whose study succeeded (status ``ok``)."""
         return sum(r is not None and r["status"] == "ok" for r in self.records)
 
     @property
     def failed(self) -> int:
+        """The number of points computed whose study failed."""
         return sum(r is not None and r["status"] != "ok" for r in self.records)
 
     @property
     def missing(self) -> int:
+        """The number of points not run yet."""
         return sum(r is None for r in self.records)
 
     @property
@@ -323,6 +327,7 @@ class SweepResult:
 
     @property
     def reason(self) -> str:
+        """Points ok, failed and not run (and why points were lost)."""
         n = len(self.records)
         text = f"{self.done} of {n} points ok, {self.failed} failed"
         if self.missing:

@@ -111,6 +111,7 @@ class ThrustModel:
 
     @property
     def m(self) -> int:
+        """The number of thrusters commanded."""
         return int(np.asarray(self.target).size)
 
     @property
@@ -120,6 +121,7 @@ class ThrustModel:
 
     @property
     def n_states(self) -> int:
+        """The number of thruster states (0 for ideal thrusters; SPEC 7)."""
         return self.dynamics.n_states
 
     @property
@@ -128,6 +130,7 @@ class ThrustModel:
         return self.dynamics.n_states > 0
 
     def initial_states(self) -> list[float]:
+        """The thruster states at rest at the initial thrust ``initial`` [N] (zero when None)."""
         f0 = np.zeros(self.m) if self.initial is None else np.asarray(self.initial, float)
         return self.dynamics.rest(f0).tolist()
 

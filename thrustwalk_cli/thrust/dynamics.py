@@ -79,6 +79,7 @@ class Servo:
 
     @property
     def n(self) -> int:
+        """The number of states of this thruster."""
         return int(self.E.size)
 
     @property
@@ -188,6 +189,7 @@ class ThrusterDynamics:
 
     @property
     def m(self) -> int:
+        """The number of thrusters."""
         return len(self.servos)
 
     @property
@@ -209,6 +211,7 @@ class ThrusterDynamics:
 
     @property
     def n_states(self) -> int:
+        """The number of states of all thrusters, stacked in ``z`` (SPEC 7, 13)."""
         return sum(s.n for s in self.servos)
 
     def state_names(self, thrusters: Sequence[str]) -> list[str]:

@@ -187,8 +187,9 @@ class WrittenSchedule:
         for name, vals in self.values:
             key = ("thrust", "values", name)
             if len(vals) != J:
-                problems.append(locate(where, key, f"expected {J} values (one per interval "
-                                       f"between {J + 1} knots), got {len(vals)}"))
+                problems.append(locate(where, key, f"expected {J} value{'s' * (J != 1)} (one "
+                                       f"per interval between {J + 1} knots), got "
+                                       f"{len(vals)}"))
                 continue
             if self.mode == "generalized":
                 if name != "T":
