@@ -739,3 +739,22 @@ def test_batched_jacobian_designs_the_same_gait(three_link, monkeypatch):
     assert fast.gait.alpha_f == pytest.approx(ref.gait.alpha_f, abs=1e-9)
     zf, zr = fast.check["orbit"]["zeta_star"], ref.check["orbit"]["zeta_star"]
     assert zf == pytest.approx(zr, rel=1e-9)
+
+
+def test_a_speed_or_step_length_just_missed_shows_the_digits_of_the_miss():
+    """A design blocked by its speed or step-length target missed by 1e-5 relative (a start
+    stopped at its iteration limit) says so with the digits that show the miss (not "speed =
+    0.5 m/s violated: reached 0.5 m/s"): the target reads back as itself, the value reached
+    closer to the true one than the miss, on the side of the target the miss is."""
+    from types import SimpleNamespace
+
+    from thrustwalk_cli.design.solver import describe
+
+    for fam, key, target, got in (("speed", "speed", 0.5, 0.4999931),
+                                  ("step_length", "step_length", 0.37, 0.3700052)):
+        prob = SimpleNamespace(spec=SimpleNamespace(mu=0.7, **{key: target}))
+        ev = SimpleNamespace(ok=True, info={key: got})
+        text = describe(fam, ev, prob)
+        b, a = (float(part.split()[-2]) for part in text.split(" violated: "))
+        assert b == target and (a - b) * (got - target) > 0, text
+        assert abs(a - got) < abs(got - target), text

@@ -370,9 +370,11 @@ def describe(family: str, ev: Evaluation, prob: Problem) -> str:
         a, b = show(i["delta_zero_sq"], s.max_delta_sq - STABILITY_MARGIN)
         return f"delta_zero^2 <= {b} violated: delta_zero^2 = {a} > {b}"
     if family == "speed":
-        return f"speed = {s.speed:g} m/s violated: reached {i['speed']:.4g} m/s"
+        a, b = show(i["speed"], s.speed, "m/s")
+        return f"speed = {b} violated: reached {a}"
     if family == "step_length":
-        return f"step length = {s.step_length:g} m violated: got {i['step_length']:.4g} m"
+        a, b = show(i["step_length"], s.step_length, "m")
+        return f"step length = {b} violated: got {a}"
     if family == "foot_placement":
         return (f"swing foot on the ground at least {0.05 * prob.ell:.3g} m ahead of the stance "
                 f"foot at impact violated: step length {i['step_length']:.4g} m")
