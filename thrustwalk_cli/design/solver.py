@@ -337,7 +337,10 @@ def suggestion(family: str, prob: Problem, runs: list[StartResult]) -> str:
         "speed": thrust or "another `step_length`, or a higher `order`",
         "step_length": "another `speed` or `step_length`",
         "clearance": "a smaller `clearance`",
-        "scuffing": "a higher `order` or a larger `clearance`",
+        "scuffing": ("`clearance` 0 (the swing leg has no knee: its foot passes the stance "
+                     "foot at best touching the ground, whatever the `order`)"
+                     if s.clearance > 0 and _rigid_legs(robot)
+                     else "a higher `order` or a larger `clearance`"),
         "vertical_force": "a smaller `min_vertical_force` or a lower `speed`",
         "friction": "a larger `mu` or a lower `speed`",
         "impact": "a larger `mu`",
@@ -353,6 +356,21 @@ def suggestion(family: str, prob: Problem, runs: list[StartResult]) -> str:
         out.append(f"{stuck} of {len(runs)} start(s) stopped at the iteration limit "
                    f"(`max_iter` = {s.max_iter}): try a larger `max_iter`")
     return "; ".join(out)
+
+
+def _rigid_legs(robot) -> bool:
+    """Whether the swing foot is on a link jointed directly to the stance (root) link and
+    at least as far from that joint as the joint is from the stance foot (a compass walker):
+    then, with the stance foot pinned and the joint above the ground, the swing foot below
+    the joint is at height <= 0 where it passes the stance foot (|x| <= a: height
+    sqrt(a^2 - x^2) - sqrt(b^2 - x^2) <= 0 for b >= a), so no clearance > 0 is reachable."""
+    links = {ln.name: ln for ln in robot.links}
+    swing, stance = links.get(robot.swing_foot.link), links.get(robot.stance_foot.link)
+    if swing is None or stance is None or swing.parent != stance.name:
+        return False
+    a = np.hypot(*(np.subtract(swing.joint, robot.stance_foot.point)))
+    b = np.hypot(*robot.swing_foot.point)
+    return bool(b >= a * (1 - 1e-9))
 
 
 def describe(family: str, ev: Evaluation, prob: Problem) -> str:
