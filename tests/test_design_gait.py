@@ -739,3 +739,49 @@ def test_batched_jacobian_designs_the_same_gait(three_link, monkeypatch):
     assert fast.gait.alpha_f == pytest.approx(ref.gait.alpha_f, abs=1e-9)
     zf, zr = fast.check["orbit"]["zeta_star"], ref.check["orbit"]["zeta_star"]
     assert zf == pytest.approx(zr, rel=1e-9)
+
+
+def test_a_speed_or_step_length_just_missed_shows_the_digits_of_the_miss():
+    """A design blocked by its speed or step-length target missed by 1e-5 relative (a start
+    stopped at its iteration limit) says so with the digits that show the miss (not "speed =
+    0.5 m/s violated: reached 0.5 m/s"): the target reads back as itself, the value reached
+    closer to the true one than the miss, on the side of the target the miss is."""
+    from types import SimpleNamespace
+
+    from thrustwalk_cli.design.solver import describe
+
+    for fam, key, target, got in (("speed", "speed", 0.5, 0.4999931),
+                                  ("step_length", "step_length", 0.37, 0.3700052)):
+        prob = SimpleNamespace(spec=SimpleNamespace(mu=0.7, **{key: target}))
+        ev = SimpleNamespace(ok=True, info={key: got})
+        text = describe(fam, ev, prob)
+        b, a = (float(part.split()[-2]) for part in text.split(" violated: "))
+        assert b == target and (a - b) * (got - target) > 0, text
+        assert abs(a - got) < abs(got - target), text
+
+
+def test_a_scuffing_knee_less_walker_is_told_clearance_0():
+    """A compass walker (swing foot on a link jointed to the stance link, legs of equal
+    length) cannot lift its swing foot where it passes the stance foot: with hip angle
+    (stance leg theta_s, swing leg theta_w from the vertical) the swing foot is at
+    x = r (sin theta_w - sin theta_s), y = r (cos theta_s - cos theta_w), and y <= 0 wherever
+    x = 0 (checked on a grid). A design blocked by scuffing is told `clearance` 0, not "a
+    larger clearance" (which cannot help); a kneed walker (walker5) keeps the old hint, and so
+    does the compass walker at clearance 0 already."""
+    from thrustwalk_cli.design.solver import suggestion
+    from thrustwalk_cli.files.robot_file import load_robot
+    from thrustwalk_cli.model.compiler import load_model
+
+    ts = np.linspace(-0.6, 0.6, 241)
+    s_, w_ = np.meshgrid(ts, ts)
+    x, y = np.sin(w_) - np.sin(s_), np.cos(s_) - np.cos(w_)
+    assert y[np.abs(x) < 1e-9].max() <= 1e-12 and (np.abs(x) < 1e-9).sum() > 100
+
+    compass = load_model(load_robot(str(DATA / "compass.yaml")))
+    hint = suggestion("scuffing", Problem(compass, DesignSpec(speed=0.5, clearance=0.03)), [])
+    assert "`clearance` 0" in hint and "larger" not in hint, hint
+    hint = suggestion("scuffing", Problem(compass, DesignSpec(speed=0.5, clearance=0.0)), [])
+    assert "a higher `order` or a larger `clearance`" in hint, hint
+    kneed = load_model(load_robot(str(DATA / "walker5.yaml")))
+    hint = suggestion("scuffing", Problem(kneed, DesignSpec(speed=0.6, clearance=0.03)), [])
+    assert "a higher `order` or a larger `clearance`" in hint, hint

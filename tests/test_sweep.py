@@ -915,3 +915,44 @@ def test_a_decimal_range_gives_its_decimal_values(cli, tmp_path, monkeypatch):
     spec, _ = load_sweep_file(tmp_path / "s.yaml")
     (axis,) = spec.axes
     assert list(axis.values) == [float(t) for t in ("-0.04", "-0.02", "0", "0.02")]
+
+
+def test_an_infeasible_design_point_gives_its_reason(cli, tmp_path, monkeypatch):
+    """A design-gait sweep (a gait library) of the compass test robot on flat ground without
+    thrust, run from the robot's folder: no gait exists (the hip torque cannot replace the
+    energy each impact takes; independently, tw.design_gait with the same settings says
+    infeasible). The point is computed (`ok`) and results.csv's `reason` says why there is
+    no gait, not an empty cell."""
+    import thrustwalk_cli as tw
+
+    data = Path(__file__).resolve().parent / "data"
+    (tmp_path / "compass.yaml").write_bytes((data / "compass.yaml").read_bytes())
+    (tmp_path / "s.yaml").write_text(
+        "name: s\nstudy: design-gait\nrobot: compass.yaml\n"
+        "settings: {clearance: 0, starts: 1, max_iter: 20}\n"
+        "grid:\n  target_speed: {values: [0.5]}\ncollect: [feasible]\n")
+    monkeypatch.chdir(tmp_path)
+    ref = tw.design_gait(tw.load_robot("compass.yaml"), speed=0.5, clearance=0.0, starts=1,
+                         max_iter=20)
+    assert not ref.success
+    res = cli("sweep", "s.yaml", "--workers", "1", "--out", "o", "--formats", "csv", "-q")
+    assert res.exit_code == 0, res.output
+    row = pd.read_csv(tmp_path / "o" / "results.csv").iloc[0]
+    assert row["status"] == "ok" and not row["feasible"]
+    assert "no feasible gait" in row["reason"]
+
+
+def test_a_reduced_walk_point_that_does_not_walk_gives_its_reason():
+    """The verdict of a reduced-walk point is its document's `walks` (it has no `success`):
+    a point computed whose robot does not walk records the document's reason."""
+    from thrustwalk_cli.studies.sweep_points import PointResult
+    from thrustwalk_cli.studies.sweep_studies import _record
+
+    class Task:
+        key, index, study, values, start = "k", 0, "reduced-walk", {}, None
+
+    doc = {"walks": False, "reason": "no stable orbit: the basin is empty"}
+    rec = _record(Task(), PointResult(doc, {}), "", 0.0)
+    assert rec["status"] == "ok" and rec["reason"] == doc["reason"]
+    rec = _record(Task(), PointResult({**doc, "walks": True}, {}), "", 0.0)
+    assert rec["reason"] == ""

@@ -337,7 +337,10 @@ def suggestion(family: str, prob: Problem, runs: list[StartResult]) -> str:
         "speed": thrust or "another `step_length`, or a higher `order`",
         "step_length": "another `speed` or `step_length`",
         "clearance": "a smaller `clearance`",
-        "scuffing": "a higher `order` or a larger `clearance`",
+        "scuffing": ("`clearance` 0 (the swing leg has no knee: its foot passes the stance "
+                     "foot at best touching the ground, whatever the `order`)"
+                     if s.clearance > 0 and _rigid_legs(robot)
+                     else "a higher `order` or a larger `clearance`"),
         "vertical_force": "a smaller `min_vertical_force` or a lower `speed`",
         "friction": "a larger `mu` or a lower `speed`",
         "impact": "a larger `mu`",
@@ -355,6 +358,21 @@ def suggestion(family: str, prob: Problem, runs: list[StartResult]) -> str:
     return "; ".join(out)
 
 
+def _rigid_legs(robot) -> bool:
+    """Whether the swing foot is on a link jointed directly to the stance (root) link and
+    at least as far from that joint as the joint is from the stance foot (a compass walker):
+    then, with the stance foot pinned and the joint above the ground, the swing foot below
+    the joint is at height <= 0 where it passes the stance foot (|x| <= a: height
+    sqrt(a^2 - x^2) - sqrt(b^2 - x^2) <= 0 for b >= a), so no clearance > 0 is reachable."""
+    links = {ln.name: ln for ln in robot.links}
+    swing, stance = links.get(robot.swing_foot.link), links.get(robot.stance_foot.link)
+    if swing is None or stance is None or swing.parent != stance.name:
+        return False
+    a = np.hypot(*(np.subtract(swing.joint, robot.stance_foot.point)))
+    b = np.hypot(*robot.swing_foot.point)
+    return bool(b >= a * (1 - 1e-9))
+
+
 def describe(family: str, ev: Evaluation, prob: Problem) -> str:
     """The violated inequality of family ``family`` at the point ``ev``, with the numbers that
     show the violation (the solver's own bounds, safety margins included; enough digits to
@@ -370,9 +388,11 @@ def describe(family: str, ev: Evaluation, prob: Problem) -> str:
         a, b = show(i["delta_zero_sq"], s.max_delta_sq - STABILITY_MARGIN)
         return f"delta_zero^2 <= {b} violated: delta_zero^2 = {a} > {b}"
     if family == "speed":
-        return f"speed = {s.speed:g} m/s violated: reached {i['speed']:.4g} m/s"
+        a, b = show(i["speed"], s.speed, "m/s")
+        return f"speed = {b} violated: reached {a}"
     if family == "step_length":
-        return f"step length = {s.step_length:g} m violated: got {i['step_length']:.4g} m"
+        a, b = show(i["step_length"], s.step_length, "m")
+        return f"step length = {b} violated: got {a}"
     if family == "foot_placement":
         return (f"swing foot on the ground at least {0.05 * prob.ell:.3g} m ahead of the stance "
                 f"foot at impact violated: step length {i['step_length']:.4g} m")

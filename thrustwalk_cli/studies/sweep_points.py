@@ -47,7 +47,9 @@ class SweepStudy:
     worker); continuation: points start from their finished neighbour's result;
     finish(results): completes the :class:`PointResult` of several points of one task
     together (their ``pending`` parts, e.g. the push trials' energies batched), returning
-    them in order, each the same as if finished alone.
+    them in order, each the same as if finished alone; verdict: the boolean key of the
+    point's document that is false when the study's answer is no (not walkable, fell,
+    infeasible), whose document's ``reason`` then becomes the point's.
     """
 
     name: str
@@ -58,6 +60,7 @@ class SweepStudy:
     prepare: Callable[[object, dict], None] | None = None
     continuation: bool = False
     finish: Callable[[list[PointResult]], list[PointResult]] | None = None
+    verdict: str = "success"
 
 
 # ------------------------------------------------------------------------- worker side

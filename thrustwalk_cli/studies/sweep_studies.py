@@ -411,7 +411,7 @@ STUDIES: dict[str, SweepStudy] = {
                            prepare=_prepare_simulate),
     **TRIAL_STUDIES,
     "design-gait": SweepStudy("design-gait", _DG_FIELDS, _design_point, uses_gait=False,
-                              check=_check_design, continuation=True),
+                              check=_check_design, continuation=True, verdict="feasible"),
 }
 
 
@@ -473,7 +473,7 @@ def _record(task: PointTask, res: PointResult | None, reason: str, seconds: floa
             fields = jsonable({k: res.fields.get(k) for k in study.fields})
             extra, nxt = res.extra, jsonable(res.next_start)
             status = "ok"
-            if isinstance(doc, dict) and doc.get("success") is False:  # computed, and says no
+            if isinstance(doc, dict) and doc.get(study.verdict) is False:  # computed, says no
                 reason = str(doc.get("reason") or "")  # (not walkable, fell, infeasible)
         except Exception as exc:  # noqa: BLE001
             doc, fields, extra, nxt = None, dict.fromkeys(study.fields), {}, task.start

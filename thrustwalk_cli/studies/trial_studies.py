@@ -387,7 +387,7 @@ TRIAL_STUDIES: dict[str, SweepStudy] = {
     "rough-trial": SweepStudy("rough-trial", _RT_FIELDS, _rough_trial_point,
                               check=check_strategy, prepare=_prepare_trials),
     "reduced-walk": SweepStudy("reduced-walk", _RW_FIELDS, _reduced_walk_point,
-                               check=check_strategy),
+                               check=check_strategy, verdict="walks"),
 }
 
 
