@@ -252,3 +252,38 @@ def test_cli_energy_document(tmp_path, monkeypatch, cli):
 
     df = pd.read_csv(tmp_path / "out" / "control_steps.csv")
     assert "planned_input_energy_J" in df.columns
+
+
+def test_fuel_without_heating_value_plans_in_kg_and_says_so(tmp_path, monkeypatch, cli):
+    """A `fuel` model without `heating_value` minimises the fuel mass [kg]: the summary line,
+    `control_steps.csv`'s columns and `summary.planned_input_energy_unit` say kg (they said J).
+    Physical identity: with a heating value H the same plan's input energy is H times its
+    fuel mass (walker5's torso thruster given a fuel model, run from another folder)."""
+    H = 4.3e7  # [J/kg]
+    base = (DATA / "walker5.yaml").read_text()
+    old = "limits: [-100, 100]}"
+    assert old in base
+    for name, extra in (("mass", ""), ("heat", f", heating_value: {H}")):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "walker5.yaml").write_text(base.replace(
+            old, "limits: [-100, 100], power: {kind: fuel, tsfc: 3.0e-5" + extra + "}}"))
+        (tmp_path / name / "w.yaml").write_text((DATA / "walker5_thrust.yaml").read_text())
+    monkeypatch.chdir(tmp_path)
+    docs, outs = {}, {}
+    for name in ("mass", "heat"):
+        res = cli("control", f"{name}/walker5.yaml", f"{name}/w.yaml", "--reference", "zeta",
+                  "--profile", "0:380", "--knots", "0,0.5,1", "--steps", "3",
+                  "--objective", "energy", "--out", f"o_{name}", "--formats", "csv")
+        assert res.exit_code == 0, res.output
+        outs[name] = " ".join(res.output.split())  # the title may wrap
+        docs[name] = json.loads((tmp_path / f"o_{name}" / "control.json").read_text())
+    kg, joule = docs["mass"]["summary"], docs["heat"]["summary"]
+    assert kg["planned_input_energy_unit"] == "kg"
+    assert joule["planned_input_energy_unit"] == "J"
+    assert joule["planned_input_energy"] == pytest.approx(H * kg["planned_input_energy"],
+                                                          rel=1e-6)
+    head = (tmp_path / "o_mass" / "control_steps.csv").read_text().splitlines()[0].split(",")
+    assert "planned_input_energy_kg" in head and "effort_plan_input_energy_kg" in head
+    assert not any(c.endswith("energy_J") for c in head)
+    assert " kg planned" in outs["mass"] and " J planned" not in outs["mass"]
+    assert " J planned" in outs["heat"]

@@ -286,3 +286,25 @@ def test_the_optimal_gait_names_its_robot_relative_to_its_folder(tmp_path, monke
     proj.rename(moved)
     w = load_walker(None, str(moved / "o" / "walker5_walk_optimal.yaml"))
     assert Path(w.robot.source_file).resolve() == (moved / "walker5.yaml").resolve()
+
+
+@pytest.mark.parametrize("formats, figures", [("none", []), ("pdf", ["optimal_orbit.pdf"])])
+def test_files_and_the_wrote_line_name_only_the_files_written(tmp_path, monkeypatch, cli,
+                                                               formats, figures):
+    """`--formats none` writes no figure: optimal_schedule.json's `files` and the summary's
+    `wrote ...` line must not name optimal_orbit.png/.pdf (they used to, whatever --formats
+    said). Checked against the folder's listing; run from another folder (walker5)."""
+    from pathlib import Path
+
+    data = Path(__file__).parent / "data"
+    monkeypatch.chdir(tmp_path)
+    res = cli("optimize", str(data / "walker5.yaml"), str(data / "walker5_thrust.yaml"),
+              "--knots", "0,0.5,1", "--target-zeta", "370", "--out", "o",
+              "--formats", formats)
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "o" / "optimal_schedule.json").read_text())
+    on_disk = sorted(p.name for p in (tmp_path / "o").iterdir() if not p.name.startswith("."))
+    assert sorted(doc["files"]) == on_disk
+    assert on_disk == sorted(["optimal_schedule.json", "walker5_thrust_optimal.yaml"] + figures)
+    assert ".png" not in res.output
+    assert ("optimal_orbit.pdf" in res.output) == bool(figures)

@@ -478,3 +478,31 @@ def test_the_documented_slow_output_example_holds(walker3):
     outputs = [abs(m.value) for m in f.multipliers if m.kind == "outputs"]
     assert f.verdict == "unstable" and walker3.zd.delta_zero_sq < 1
     assert max(outputs) == pytest.approx(claimed, abs=0.005)
+
+
+@pytest.mark.slow
+def test_variational_equations_find_a_slow_touchdown_between_two_integrator_steps():
+    """A grazing touchdown (rabbit_grazing: the swing foot reaches the ground at -0.26 mm/s,
+    then rises again on the extrapolated constraints) dips below the ground between two
+    integrator steps, where no sign change of the foot height shows it. The variational
+    integration must stop there, as the simulation behind the finite differences does, not
+    at a later crossing (it used to fail, or on a kneed user robot at -0.05 m/s to run on to
+    s = 1.46 and report an outputs multiplier of 10 that the finite differences did not
+    have). Checked against the zero dynamics: the step time by quadrature (SPEC 3) and
+    delta_zero^2 from the angular momentum across the impact, one multiplier of the
+    Poincare map on the guard at the predicted fixed point (SPEC 13)."""
+    from thrustwalk_cli.floquet.poincare import predicted_state, section_basis
+    from thrustwalk_cli.floquet.variational import variational_jacobian
+
+    w = tw.load_walker(None, str(DATA / "rabbit_grazing.yaml"))
+    th = ThrustModel("ideal", np.zeros(w.model.n_thrusters))
+    setting = Setting(th, w.gait.kp, w.gait.kd)
+    x0, lc = predicted_state(w.zd, th)
+    var = variational_jacobian(w.zd, setting, x0, rtol=1e-8, atol=1e-8)  # quicker than 1e-11
+    assert var.ok, var.reason
+    assert var.T == pytest.approx(lc.step_time, rel=1e-5)
+    B = section_basis(w.zd, x0, 0)
+    mults = np.linalg.eigvals(B.T @ var.DP @ B)
+    d2 = delta_sq_from_momentum(w)
+    assert np.min(np.abs(mults - d2)) < 1e-4
+    assert np.max(np.abs(mults)) < 1.0  # stable: the outputs' multipliers are small

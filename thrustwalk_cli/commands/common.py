@@ -476,6 +476,11 @@ def write_result(result, out: Path, provenance: dict, *, json: str | None = None
             doc["tables"] = {f"{name}.csv": {"columns": t.header, "notes": t.comments}
                              for name, t in tables.items()}
         figures = result.figures(titles=titles) if figure_kinds else {}
+        if isinstance(doc.get("files"), list):
+            # a document that lists its files (optimize) names the figures of the kinds
+            # written, never one that --formats left out
+            doc["files"] = ([f for f in doc["files"] if f.rsplit(".", 1)[-1] not in FIGURE_KINDS]
+                            + [f"{n}.{k}" for n in figures for k in figure_kinds])
         if into is not None:
             doc["figures"] = sorted(figures)
         else:

@@ -191,7 +191,8 @@ def _table(doc: dict) -> None:
     obj = ""
     if doc["settings"].get("objective") == "energy":
         e = s["planned_input_energy"]
-        obj = ", least input energy" + (f": {e:.4g} J planned" if e is not None else "")
+        unit = s.get("planned_input_energy_unit", "J")
+        obj = ", least input energy" + (f": {e:.4g} {unit} planned" if e is not None else "")
     show_table(f"control: {doc['robot']['name']} / {doc['gait']['name']}{on} "
                f"({doc['settings']['reference']}, {doc['settings']['thrust_model']} thrust"
                f"{obj})",

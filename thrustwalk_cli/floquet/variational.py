@@ -38,6 +38,7 @@ from scipy.integrate import solve_ivp
 
 from ..hzd.zero_dynamics import ZeroDynamics
 from ..simulation.closed_loop import ClosedLoop
+from ..simulation.full_order import _dip
 from .poincare import Setting, guard_gradient
 
 # [rad] Richardson step for the q columns of f_x. Measured against the finite-difference
@@ -184,15 +185,34 @@ def variational_jacobian(zd: ZeroDynamics, setting: Setting, x_star: np.ndarray,
                 return float(zd.model.p_swing(y[:N])[1])
             guard.terminal, guard.direction = True, -1
             events.append(guard)
+
+            # the swing foot's lowest points (recorded, not terminal): a shallow dip below the
+            # ground between two integrator steps (a slow touchdown) changes no sign at the
+            # steps, so the guard event alone misses it and finds a later crossing; the
+            # simulation behind the finite differences looks for it the same way
+            def low(t, y, seg):
+                return cl.foot_velocity(y[:n])
+            low.terminal, low.direction = False, 1
+            events.append(low)
+        t_start = t
         sol = solve_ivp(aug, (t, t_max), y, method="DOP853", rtol=rtol, atol=atol,
-                        events=events, args=(seg,))
+                        events=events, args=(seg,), dense_output=armed)
+        dip = (_dip(cl, sol, sol.t_events[-1], seg, t_start, float(sol.t[-1]))
+               if armed else None)
+        if dip is not None:
+            if dip[0] != "guard":
+                return _failed(fail, f"the swing foot is below the ground when the guard is "
+                                     f"armed (t = {dip[1]:.6g} s)")
+            t = dip[1]
+            y = sol.sol(t)
+            break
         if sol.status != 1:
             return _failed(fail, f"the variational integration stopped at t = {sol.t[-1]:.6g} "
                                  f"s without reaching the guard ({sol.message})")
         t = float(sol.t[-1])
         y = sol.y[:, -1].copy()
-        hit = [i for i, te in enumerate(sol.t_events) if len(te)]
-        kind = "guard" if (armed and hit and hit[-1] == len(events) - 1) else "break"
+        # the terminal event that ended the segment (the guard is the last but one event)
+        kind = "guard" if (armed and len(sol.t_events[len(events) - 2])) else "break"
         if kind == "break":
             x = y[:n]
             f_minus = rhs(cl, x, seg)[0]

@@ -79,6 +79,18 @@ class ControlResult:
         the effort."""
         return self.settings.get("objective") == "energy"
 
+    @property
+    def energy_unit(self) -> str:
+        """Unit of the planned input energy: ``J``, or ``kg`` (fuel mass) when the driven
+        thrusters' ``fuel`` models give no heating value (SPEC 15; one kind and quantity for
+        all driven thrusters, checked before the run)."""
+        from ..optimize.min_energy import objective_quantity
+
+        by_name = {t.name: t for t in self.walker.robot.thrusters}
+        units = {objective_quantity(by_name[n].power)[1] for n in self.settings["thrusters"]
+                 if by_name[n].power is not None}
+        return "kg" if units == {"kg"} else "J"
+
     def findings(self) -> dict[str, list[int]]:
         """Steps that make the run less than ``ok``, by kind (with the energy objective also
         the steps whose plan is not a verified energy plan)."""
@@ -247,7 +259,8 @@ class ControlResult:
             v = [e[key] for e in es]
             return None if any(x is None for x in v) else float(sum(v))
         return {"objective": "energy", "planned_input_energy": total("energy"),
-                "effort_plan_input_energy": total("effort_plan_energy")}
+                "effort_plan_input_energy": total("effort_plan_energy"),
+                "planned_input_energy_unit": self.energy_unit}
 
     def tables(self) -> dict[str, Table]:
         """``control_steps``: one row per controlled step (reference, measured zeta^- and speed,
@@ -268,7 +281,8 @@ class ControlResult:
         terrain = "terrain" in self.settings
         header += [col("terrain_height", "m")] if terrain else []
         energy = self.energy_objective
-        header += [col("planned_input_energy", "J"), col("effort_plan_input_energy", "J"),
+        eu = self.energy_unit if energy else "J"
+        header += [col("planned_input_energy", eu), col("effort_plan_input_energy", eu),
                    "energy_status"] if energy else []
         rows = []
         for e, s in zip(self.document()["steps"], self.controlled.steps):
