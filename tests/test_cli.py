@@ -322,3 +322,27 @@ def test_the_thrust_model_option_lists_the_option_table(cli):
             if command == "control" and name == "piecewise":
                 continue
             assert name in text, (command, name)
+
+
+def test_a_gait_file_alone_walks_on_the_robot_it_names(cli, tmp_path, monkeypatch):
+    """A gait given alone where the robot goes (a user's gait file, naming its robot file
+    relative to itself; a bundled gait's name): the walker is that gait on that robot, the
+    same as giving both (independent: the two-argument load), from another folder; a robot
+    file alone keeps meaning its bundled gait or an error naming --gait."""
+    import thrustwalk_cli as tw
+
+    data = Path(__file__).resolve().parent / "data"
+    gait = str(data / "walker5_thrust.yaml")
+    monkeypatch.chdir(tmp_path)
+    alone, both = tw.load_walker(gait), tw.load_walker(str(data / "walker5.yaml"), gait)
+    assert alone.robot == both.robot and alone.gait == both.gait
+    assert tw.load_walker("rabbit_walk").robot.name == "rabbit"
+    res = cli("limit-cycle", gait, "--thrust", "-10", "--formats", "none", "--out", "a", "-q")
+    ref = cli("limit-cycle", str(data / "walker5.yaml"), gait, "--thrust", "-10",
+              "--formats", "none", "--out", "b", "-q")
+    assert res.exit_code == 0 and ref.exit_code == 0, res.output + ref.output
+    a = json.loads((tmp_path / "a" / "limit_cycles.json").read_text())
+    b = json.loads((tmp_path / "b" / "limit_cycles.json").read_text())
+    assert a["cycles"] == b["cycles"] and a["robot"]["name"] == "walker5"
+    res = cli("limit-cycle", str(data / "walker5.yaml"), "--out", "c")
+    assert res.exit_code == 2 and "--gait" in res.stderr

@@ -27,6 +27,7 @@ from .errors import InputError, Where, check_instance, check_number_map, check_p
 from .files.bundled import bundled_names, resolve
 from .files.gait_file import GaitSource, bind_gait, load_gait, same_robot_file
 from .files.robot_file import load_robot, plant_robot
+from .files.schema import WrongKind
 from .files.terrain_file import load_terrain
 from .hzd.constraints import apply_invariance, gait_maps
 from .hzd.zero_dynamics import ZeroDynamics, zero_dynamics
@@ -196,7 +197,9 @@ def load_walker(robot: str | None = None, gait: str | None = None, *,
     """Load a gait and its robot (``robot`` overrides the gait's own ``robot:``), check them
     against each other, compile (or load) the model, apply ``invariance: auto`` (SPEC 2) and
     precompute the zero dynamics (SPEC 3). ``robot`` and ``gait`` are bundled names or paths;
-    without a gait, the robot's bundled gait (or ``three_link_walk`` without a robot).
+    without a gait, the robot's bundled gait (or ``three_link_walk`` without a robot); a gait
+    given alone in ``robot``'s place (``load_walker("my_walk.yaml")``, a file or a bundled
+    gait's name) is that gait on the robot its ``robot:`` names.
     ``robot_parameters`` / ``gait_parameters``: numbers replacing the files' named
     ``parameters:`` (as if edited into the files; e.g. ``{"MT": 12.0}`` [kg]).
     ``progress(done, total, phase)`` hears about every step of a compile (none when the
@@ -210,7 +213,20 @@ def load_walker(robot: str | None = None, gait: str | None = None, *,
     gait = check_path("gait", gait, optional=True)
     robot_parameters = check_number_map("robot_parameters", robot_parameters, optional=True)
     gait_parameters = check_number_map("gait_parameters", gait_parameters, optional=True)
-    rob = load_robot(robot, robot_parameters) if robot else None
+    rob = None
+    if robot and gait is None:
+        try:  # one file given, and it is a gait (``load_walker("my_walk.yaml")``): its robot
+            rob = load_robot(robot, robot_parameters)
+        except WrongKind as exc:
+            if exc.found != "gait":
+                raise
+            robot, gait = None, robot
+        except InputError:
+            if robot not in bundled_names("gaits"):
+                raise
+            robot, gait = None, robot  # a bundled gait's name
+    elif robot:
+        rob = load_robot(robot, robot_parameters)
     if gait is None:
         gait = default_gait(rob)
     g, source = load_gait(gait, gait_parameters)

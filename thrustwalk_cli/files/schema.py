@@ -516,6 +516,15 @@ KIND_USE = {
 }
 
 
+class WrongKind(InputError):
+    """A thrustwalk file of another kind where one ``kind`` was expected (a gait file passed
+    as the robot): ``found`` is the file's kind and ``file`` its path."""
+
+    def __init__(self, problem: Problem, found: str, file: str):
+        super().__init__(problem)
+        self.found, self.file = found, file
+
+
 def expect_kind(doc: Document, kind: str, schema: Kind | None = None) -> None:
     """Refuse a file that is not a ``kind`` file with one line naming the file and the kind,
     never quoting its content (a file given in the wrong place, or any other file: its keys
@@ -534,9 +543,9 @@ def expect_kind(doc: Document, kind: str, schema: Kind | None = None) -> None:
         return
     for other, marks in KIND_KEYS.items():
         if other != kind and len(keys & set(marks)) >= 2:
-            raise InputError(Problem(doc.file, None, "", f"this is {_a(other)} file, not "
-                                     f"{_a(kind)} file (a {other} file belongs in "
-                                     f"{KIND_USE[other]})"))
+            raise WrongKind(Problem(doc.file, None, "", f"this is {_a(other)} file, not "
+                                    f"{_a(kind)} file (a {other} file belongs in "
+                                    f"{KIND_USE[other]})"), other, str(doc.file))
     if schema is None:
         return
     own = [f.key for f in schema.fields]
