@@ -578,21 +578,32 @@ def test_uncertified_optimum_is_said_everywhere(tmp_path, monkeypatch, cli, resu
 
 def test_unbounded_joints_named_with_the_keys_to_add():
     """walker5 gives ranges for its knees only and no torque limits: both are named (the
-    hips q_sh, q_wh unbounded; every torque); with every key added there is no warning."""
+    hips q_sh, q_wh unbounded; every torque), each name once, with the key to add; with every
+    key added there is no warning."""
+    import re
+
     from thrustwalk_cli.design.spec import unbounded_warnings
     from thrustwalk_cli.files.robot_file import load_robot, load_robot_text
+
+    def count(name: str, line: str) -> int:
+        return len(re.findall(rf"\b{name}\b", line))
 
     w = unbounded_warnings(load_robot(str(DATA / "walker5.yaml")))
     assert len(w) == 2, w
     assert "no torque limits" in w[0] and "q_sk, q_sh, q_wh, q_wk" in w[0]
-    assert "torque_limit" in w[0] and "coordinates.actuated" in w[0]
+    assert "add torque_limit: [N m] to q_sk, q_sh, q_wh, q_wk in coordinates.actuated" in w[0]
+    assert all(count(nm, w[0]) == 1 for nm in ("q_sk", "q_sh", "q_wh", "q_wk")), w[0]
     assert w[1].startswith("no joint ranges bound q_sh, q_wh:") and "range: [min, max]" in w[1]
+    assert all(count(nm, w[1]) == 1 for nm in ("q_sh", "q_wh")), w[1]
     text = (DATA / "walker5.yaml").read_text()
     for nm in ("q_sh", "q_wh"):
         text = text.replace(f"{{name: {nm}, joint:", f"{{name: {nm}, range: [-2, 2], joint:")
     text = text.replace("joint: swing_thigh}", "joint: swing_thigh, torque_limit: 80}")
     w = unbounded_warnings(load_robot_text(text, str(DATA / "walker5.yaml")))
-    assert len(w) == 1 and "for q_sk, q_sh, q_wk (" in w[0], w
+    assert len(w) == 1 and "3 of its 4 actuated coordinates" in w[0], w
+    assert "add torque_limit: [N m] to q_sk, q_sh, q_wk in coordinates.actuated" in w[0], w
+    assert all(count(nm, w[0]) == 1 for nm in ("q_sk", "q_sh", "q_wk")), w[0]
+    assert count("q_wh", w[0]) == 0, w[0]
     for nm in ("q_sk", "q_sh", "q_wk"):
         text = text.replace(f"{{name: {nm},", f"{{name: {nm}, torque_limit: 80,")
     assert unbounded_warnings(load_robot_text(text, str(DATA / "walker5.yaml"))) == []
