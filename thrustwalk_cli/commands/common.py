@@ -32,10 +32,14 @@ def number_column(table, header: str) -> None:
 def show_table(title: str, columns: list[tuple[str, bool]], rows: list[list]) -> None:
     """Print a summary table (``columns``: (header with its unit, numeric?)). Numeric columns
     never wrap; text columns fold. When the terminal is too narrow for the numeric columns,
-    the rows are printed as ``header: value`` lines instead, so no number is ever split."""
+    the rows are printed as ``header: value`` lines instead, so no number is ever split. A
+    None cell is shown as the missing mark of every table (``studies.documents.MISSING``)."""
     from rich.markup import escape
     from rich.table import Table
 
+    from ..studies.documents import MISSING
+
+    rows = [[MISSING if v is None else v for v in row] for row in rows]
     con = console()
     t = Table(title=escape(title))
     for header, numeric in columns:

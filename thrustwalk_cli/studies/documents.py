@@ -86,9 +86,15 @@ class Table:
         return pandas.DataFrame(self.to_dict(), columns=self.header)
 
 
+#: the one mark of a missing value in every console table and Markdown (JSON: null; CSV:
+#: an empty cell); the lines under a table say why a value is missing
+MISSING = "—"
+
+
 def fmt(v: Any, spec: str = ".4g") -> str:
-    """A number for a summary table or Markdown: ``format(v, spec)``, or an em dash for None."""
-    return "—" if v is None else format(v, spec)
+    """A number for a summary table or Markdown: ``format(v, spec)``, or :data:`MISSING` (an
+    em dash) for None."""
+    return MISSING if v is None else format(v, spec)
 
 
 def gait_record(zd: ZeroDynamics) -> dict:
