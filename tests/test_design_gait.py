@@ -796,3 +796,55 @@ def test_a_scuffing_knee_less_walker_is_told_clearance_0():
     kneed = load_model(load_robot(str(DATA / "walker5.yaml")))
     hint = suggestion("scuffing", Problem(kneed, DesignSpec(speed=0.6, clearance=0.03)), [])
     assert "a higher `order` or a larger `clearance`" in hint, hint
+
+
+def test_a_margin_within_the_tolerance_is_shown_as_0(capsys, monkeypatch):
+    """A margin the re-check passes within its tolerance (the 3-link design at clearance 0:
+    its swing foot dips 1.5e-8 m below the ground, the tolerance is 1e-6 m) is shown as 0 in
+    the summary table and the gait header, never as a negative number next to "feasible" or
+    as "-0.00"; a margin beyond the tolerance keeps its sign and digits. The report (the golden
+    document of that design, tests/golden/design_gait_three.json) keeps the numbers."""
+    import re
+    from types import SimpleNamespace
+
+    from thrustwalk_cli.commands.design_gait import _summary
+    from thrustwalk_cli.studies.design_gait import yaml_header
+
+    doc = json.loads((REPO / "tests" / "golden" / "design_gait_three.json").read_text())
+    m, sw = doc["margins"], doc["swing_foot"]
+    assert doc["feasible"] and -1e-6 < m["min_swing_height"] < 0  # the case the user saw
+    assert -1e-6 * 1000 < sw["min_height_window"] * 1000 < 0  # was "-0.00 mm"
+    monkeypatch.setenv("COLUMNS", "200")
+    _summary(doc, Path("g.yaml"), Path("g.report.json"), [Path("g.yaml")])
+    cells = {ln.split("│")[1].strip(): ln.split("│")[2].strip()
+             for ln in capsys.readouterr().out.splitlines() if ln.startswith("│")}
+    assert cells["margin min_swing_height"] == "0", cells
+    assert cells["margin clearance_mid_step"] == "0", cells  # 6.2e-8 m: within 1e-6 m too
+    assert cells["margin vertical_force"] == f"{m['vertical_force']:.5g}", cells
+    assert cells["margin friction"] == f"{m['friction']:.5g}", cells
+    assert not any(v.startswith("-") for k, v in cells.items() if k.startswith("margin")), cells
+
+    s = doc["spec"]
+    res = SimpleNamespace(
+        spec=DesignSpec(speed=s["speed"], clearance=s["clearance"], starts=s["starts"]),
+        check={"orbit": doc["fixed_point"], "margins": m, "contact": doc["contact"],
+               "swing": sw, "cost": doc["cost"]},
+        objective=doc["objective"]["value"], eps=s["min_vertical_force"], warnings=())
+    head = yaml_header(res, {"version": "0", "created_utc": "now", "command": "x"}, "g.json")
+    assert not any(re.search(r"-0\.0+(?![0-9])", ln) for ln in head), head  # no "-0.00"
+    swing = next(ln for ln in head if ln.startswith("Swing foot:"))
+    assert swing.startswith("Swing foot: 0.00 cm at mid-step (>= 0 cm), >= 0.00 mm for s in"), \
+        swing
+
+
+def test_the_margin_formatter_shows_0_within_the_tolerance_and_never_minus_0():
+    """fmt_margin: |x| <= tol is 0, a value rounding to zero at the shown precision is unsigned,
+    every other value keeps its sign and digits (Python's own format of it)."""
+    from thrustwalk_cli.studies.documents import fmt_margin
+
+    assert fmt_margin(-9e-8, ".5g", 1e-6) == "0" and fmt_margin(9e-8, ".5g", 1e-6) == "0"
+    assert fmt_margin(-2e-6, ".5g", 1e-6) == format(-2e-6, ".5g")
+    assert fmt_margin(-4e-3, ".2f") == "0.00" and fmt_margin(-0.0, ".3f") == "0.000"
+    assert fmt_margin(-1e-9, ".2e") == "-1.00e-09"  # not zero at that precision
+    assert fmt_margin(-0.006, ".2f") == "-0.01" and fmt_margin(0.25, ".3f") == "0.250"
+    assert fmt_margin(None) == "—"

@@ -97,6 +97,21 @@ def fmt(v: Any, spec: str = ".4g") -> str:
     return MISSING if v is None else format(v, spec)
 
 
+def fmt_margin(v: float | None, spec: str = ".4g", tol: float = 0.0) -> str:
+    """A margin (>= 0 when satisfied) for a table or a file's comment: ``format(v, spec)``,
+    with a value within the check's tolerance ``|v| <= tol`` (in the unit of ``v``) shown as
+    0, and a value that rounds to zero at the shown precision never signed ("0.00", not
+    "-0.00"); :data:`MISSING` for None. Only the shown text: documents keep the number."""
+    if v is None:
+        return MISSING
+    v = float(v)
+    text = format(0.0 if abs(v) <= tol else v, spec)
+    mantissa = text.lower().split("e")[0]
+    if text.startswith("-") and not any(ch in "123456789" for ch in mantissa):
+        text = text[1:]
+    return text
+
+
 def gait_record(zd: ZeroDynamics) -> dict:
     """Gait description for outputs: layout of the coefficients, sign and range of alpha."""
     g, r, mp = zd.gait, zd.model.robot, zd.maps
