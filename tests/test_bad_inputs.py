@@ -296,6 +296,13 @@ add("values-list-too-long", ["feasibility", "--thrust", ",".join(["0"] * 10001),
                              "{out}", "-q"], "error: option --thrust: 10001 values")
 add("formats-unknown", ["limit-cycle", "--formats", "jpg", "--out", "{out}", "-q"],
     "error: option --formats: unknown jpg")
+# a kind other commands write: the refusal says this command writes none and what it does
+add("formats-feasibility-csv", ["feasibility", "--formats", "csv,png", "--out", "{out}", "-q"],
+    r"error: option --formats: feasibility writes no csv file \(.*choose from png, pdf, md, "
+    r"or none")
+add("formats-optimize-md", ["optimize", "--target-speed", "1", "--formats", "md", "--out",
+                            "{out}", "-q"],
+    r"error: option --formats: optimize writes no md file \(.*choose from png, pdf, or none")
 add("shape-empty-pattern", ["shape", "--pattern", "", "--k", "0,1", "--out", "{out}", "-q"],
     "error: option --pattern: ")
 add("shape-pattern-code", ["shape", "--pattern", "__import__('os')", "--k", "0,1", "--out",

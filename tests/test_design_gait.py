@@ -578,21 +578,32 @@ def test_uncertified_optimum_is_said_everywhere(tmp_path, monkeypatch, cli, resu
 
 def test_unbounded_joints_named_with_the_keys_to_add():
     """walker5 gives ranges for its knees only and no torque limits: both are named (the
-    hips q_sh, q_wh unbounded; every torque); with every key added there is no warning."""
+    hips q_sh, q_wh unbounded; every torque), each name once, with the key to add; with every
+    key added there is no warning."""
+    import re
+
     from thrustwalk_cli.design.spec import unbounded_warnings
     from thrustwalk_cli.files.robot_file import load_robot, load_robot_text
+
+    def count(name: str, line: str) -> int:
+        return len(re.findall(rf"\b{name}\b", line))
 
     w = unbounded_warnings(load_robot(str(DATA / "walker5.yaml")))
     assert len(w) == 2, w
     assert "no torque limits" in w[0] and "q_sk, q_sh, q_wh, q_wk" in w[0]
-    assert "torque_limit" in w[0] and "coordinates.actuated" in w[0]
+    assert "add torque_limit: [N m] to q_sk, q_sh, q_wh, q_wk in coordinates.actuated" in w[0]
+    assert all(count(nm, w[0]) == 1 for nm in ("q_sk", "q_sh", "q_wh", "q_wk")), w[0]
     assert w[1].startswith("no joint ranges bound q_sh, q_wh:") and "range: [min, max]" in w[1]
+    assert all(count(nm, w[1]) == 1 for nm in ("q_sh", "q_wh")), w[1]
     text = (DATA / "walker5.yaml").read_text()
     for nm in ("q_sh", "q_wh"):
         text = text.replace(f"{{name: {nm}, joint:", f"{{name: {nm}, range: [-2, 2], joint:")
     text = text.replace("joint: swing_thigh}", "joint: swing_thigh, torque_limit: 80}")
     w = unbounded_warnings(load_robot_text(text, str(DATA / "walker5.yaml")))
-    assert len(w) == 1 and "for q_sk, q_sh, q_wk (" in w[0], w
+    assert len(w) == 1 and "3 of its 4 actuated coordinates" in w[0], w
+    assert "add torque_limit: [N m] to q_sk, q_sh, q_wk in coordinates.actuated" in w[0], w
+    assert all(count(nm, w[0]) == 1 for nm in ("q_sk", "q_sh", "q_wk")), w[0]
+    assert count("q_wh", w[0]) == 0, w[0]
     for nm in ("q_sk", "q_sh", "q_wk"):
         text = text.replace(f"{{name: {nm},", f"{{name: {nm}, torque_limit: 80,")
     assert unbounded_warnings(load_robot_text(text, str(DATA / "walker5.yaml"))) == []
@@ -785,3 +796,55 @@ def test_a_scuffing_knee_less_walker_is_told_clearance_0():
     kneed = load_model(load_robot(str(DATA / "walker5.yaml")))
     hint = suggestion("scuffing", Problem(kneed, DesignSpec(speed=0.6, clearance=0.03)), [])
     assert "a higher `order` or a larger `clearance`" in hint, hint
+
+
+def test_a_margin_within_the_tolerance_is_shown_as_0(capsys, monkeypatch):
+    """A margin the re-check passes within its tolerance (the 3-link design at clearance 0:
+    its swing foot dips 1.5e-8 m below the ground, the tolerance is 1e-6 m) is shown as 0 in
+    the summary table and the gait header, never as a negative number next to "feasible" or
+    as "-0.00"; a margin beyond the tolerance keeps its sign and digits. The report (the golden
+    document of that design, tests/golden/design_gait_three.json) keeps the numbers."""
+    import re
+    from types import SimpleNamespace
+
+    from thrustwalk_cli.commands.design_gait import _summary
+    from thrustwalk_cli.studies.design_gait import yaml_header
+
+    doc = json.loads((REPO / "tests" / "golden" / "design_gait_three.json").read_text())
+    m, sw = doc["margins"], doc["swing_foot"]
+    assert doc["feasible"] and -1e-6 < m["min_swing_height"] < 0  # the case the user saw
+    assert -1e-6 * 1000 < sw["min_height_window"] * 1000 < 0  # was "-0.00 mm"
+    monkeypatch.setenv("COLUMNS", "200")
+    _summary(doc, Path("g.yaml"), Path("g.report.json"), [Path("g.yaml")])
+    cells = {ln.split("│")[1].strip(): ln.split("│")[2].strip()
+             for ln in capsys.readouterr().out.splitlines() if ln.startswith("│")}
+    assert cells["margin min_swing_height"] == "0", cells
+    assert cells["margin clearance_mid_step"] == "0", cells  # 6.2e-8 m: within 1e-6 m too
+    assert cells["margin vertical_force"] == f"{m['vertical_force']:.5g}", cells
+    assert cells["margin friction"] == f"{m['friction']:.5g}", cells
+    assert not any(v.startswith("-") for k, v in cells.items() if k.startswith("margin")), cells
+
+    s = doc["spec"]
+    res = SimpleNamespace(
+        spec=DesignSpec(speed=s["speed"], clearance=s["clearance"], starts=s["starts"]),
+        check={"orbit": doc["fixed_point"], "margins": m, "contact": doc["contact"],
+               "swing": sw, "cost": doc["cost"]},
+        objective=doc["objective"]["value"], eps=s["min_vertical_force"], warnings=())
+    head = yaml_header(res, {"version": "0", "created_utc": "now", "command": "x"}, "g.json")
+    assert not any(re.search(r"-0\.0+(?![0-9])", ln) for ln in head), head  # no "-0.00"
+    swing = next(ln for ln in head if ln.startswith("Swing foot:"))
+    assert swing.startswith("Swing foot: 0.00 cm at mid-step (>= 0 cm), >= 0.00 mm for s in"), \
+        swing
+
+
+def test_the_margin_formatter_shows_0_within_the_tolerance_and_never_minus_0():
+    """fmt_margin: |x| <= tol is 0, a value rounding to zero at the shown precision is unsigned,
+    every other value keeps its sign and digits (Python's own format of it)."""
+    from thrustwalk_cli.studies.documents import fmt_margin
+
+    assert fmt_margin(-9e-8, ".5g", 1e-6) == "0" and fmt_margin(9e-8, ".5g", 1e-6) == "0"
+    assert fmt_margin(-2e-6, ".5g", 1e-6) == format(-2e-6, ".5g")
+    assert fmt_margin(-4e-3, ".2f") == "0.00" and fmt_margin(-0.0, ".3f") == "0.000"
+    assert fmt_margin(-1e-9, ".2e") == "-1.00e-09"  # not zero at that precision
+    assert fmt_margin(-0.006, ".2f") == "-0.01" and fmt_margin(0.25, ".3f") == "0.250"
+    assert fmt_margin(None) == "—"

@@ -471,6 +471,46 @@ def test_repr_of_a_walker_and_results_is_one_short_line(walker3):
     assert repr(lc) == f"LimitCycleResult(success=True, reason={lc.reason!r})"
 
 
+def test_repr_of_a_robot_and_a_gait_is_one_short_line():
+    """Robot and Gait print one line (name, links, coordinates, thrusters, file; name, robot,
+    file, alpha_f, order), checked against the YAML files read by PyYAML, not the hundreds of
+    characters of every link and Bezier coefficient; equality stays the dataclass's, field by
+    field, and the fields are intact."""
+    import dataclasses
+
+    import yaml
+
+    from thrustwalk_cli.walker import load_walker
+
+    data = Path(__file__).parent / "data"
+    for gait_file in ("walker5_walk.yaml", "walker5_thrust.yaml"):
+        w = load_walker(str(data / "walker5.yaml"), str(data / gait_file))
+        ry = yaml.safe_load((data / "walker5.yaml").read_text())
+        gy = yaml.safe_load((data / gait_file).read_text())
+        act = [c["name"] for c in ry["coordinates"]["actuated"]]
+        text = repr(w.robot)
+        assert "\n" not in text and len(text) < 200, text
+        assert text == (f"Robot(name={ry['name']!r}, links={len(ry['links'])}, actuated={act!r}, "
+                        f"unactuated={[ry['coordinates']['unactuated']['name']]!r}, "
+                        f"thrusters={[t['name'] for t in ry['thrusters']]!r}, "
+                        f"file={str(data / 'walker5.yaml')!r})"), text
+        text = repr(w.gait)
+        order = len(next(iter(gy["bezier"]["coefficients"].values()))) - 1
+        assert "\n" not in text and len(text) < 200, text
+        assert text.startswith(f"Gait(name={gy['name']!r}, robot='walker5', "
+                               f"file={str(data / gait_file)!r}, alpha_f="), text
+        assert text.endswith(f", order={order})"), text
+        af = float(re.search(r"alpha_f=([-0-9.e]+)", text).group(1))
+        assert af == pytest.approx(float(gy["parameters"]["af"]), rel=1e-5)
+        # equality and the fields: the dataclass's
+        again = load_walker(str(data / "walker5.yaml"), str(data / gait_file))
+        assert again.robot == w.robot and again.gait == w.gait
+        assert dataclasses.replace(w.gait, kp=1.0) != w.gait
+        assert dataclasses.replace(w.robot, gravity=9.0) != w.robot
+        assert len(dataclasses.fields(w.robot)) == 16 and w.robot.links[0].name == "stance_shin"
+        assert w.gait.A and w.gait.order == order
+
+
 def test_result_tables_convert_to_pandas_in_one_call(walker3):
     import pandas
 

@@ -32,10 +32,14 @@ def number_column(table, header: str) -> None:
 def show_table(title: str, columns: list[tuple[str, bool]], rows: list[list]) -> None:
     """Print a summary table (``columns``: (header with its unit, numeric?)). Numeric columns
     never wrap; text columns fold. When the terminal is too narrow for the numeric columns,
-    the rows are printed as ``header: value`` lines instead, so no number is ever split."""
+    the rows are printed as ``header: value`` lines instead, so no number is ever split. A
+    None cell is shown as the missing mark of every table (``studies.documents.MISSING``)."""
     from rich.markup import escape
     from rich.table import Table
 
+    from ..studies.documents import MISSING
+
+    rows = [[MISSING if v is None else v for v in row] for row in rows]
     con = console()
     t = Table(title=escape(title))
     for header, numeric in columns:
@@ -254,15 +258,27 @@ def parse_push(items: list[str] | None, option: str = "--push"
 def parse_formats(text: str, allowed: tuple[str, ...] = ("csv", "png", "pdf", "svg")
                   ) -> set[str]:
     """``--formats csv,png`` -> the set of file kinds to write besides the JSON; ``none``:
-    only the JSON (no figure is drawn and matplotlib is not imported)."""
+    only the JSON (no figure is drawn and matplotlib is not imported). A kind that another
+    command writes but this one does not (``csv`` for feasibility) is refused saying what
+    this command writes instead; an unknown word is refused as unknown."""
     kinds = {k.strip().lower() for k in text.split(",") if k.strip()}
     if kinds == {"none"}:
         return set()
     bad = sorted(kinds - set(allowed))
-    if bad:
-        raise InputError(f"option --formats: unknown {', '.join(bad)} (choose from "
-                         f"{', '.join(allowed)})")
-    return kinds
+    if not bad:
+        return kinds
+    choose = f"choose from {', '.join(allowed)}, or none: only the JSON"
+    unknown = [k for k in bad if k not in FORMAT_KINDS]
+    if unknown:
+        raise InputError(f"option --formats: unknown {', '.join(unknown)} ({choose})")
+    ctx = _CTX.get()
+    who = ctx.info_name if ctx is not None and ctx.info_name else "this command"
+    raise InputError(f"option --formats: {who} writes no {', '.join(bad)} file (its JSON "
+                     f"document holds every number; {choose})")
+
+
+#: every kind of file ``--formats`` names in some command (each command accepts a subset)
+FORMAT_KINDS = ("csv", "png", "pdf", "svg", "md")
 
 
 def warn(lines) -> None:

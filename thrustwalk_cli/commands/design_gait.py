@@ -322,6 +322,9 @@ def _summary(doc: dict, out: Path, report: Path, files: list[Path]) -> None:
     from rich.markup import escape
     from rich.table import Table
 
+    from ..design.verify import MARGIN_TOL
+    from ..studies.documents import fmt, fmt_margin
+
     o, m = doc.get("fixed_point") or {}, doc.get("margins") or {}
     t = Table(title=f"design-gait {doc['robot']['name']}: "
                     + ("feasible" if doc["feasible"] else "NO FEASIBLE GAIT"))
@@ -338,11 +341,13 @@ def _summary(doc: dict, out: Path, report: Path, files: list[Path]) -> None:
     cot = en.get("cot") or {}
     rows += [("CoT mechanical [1]", cot.get("mechanical")),
              ("CoT total [1]", cot.get("total"))]
+    texts = [(label, fmt(v, ".5g")) for label, v in rows]
     for key in ("clearance_mid_step", "min_swing_height", "vertical_force", "friction",
                 "impact_friction", "liftoff_velocity", "touchdown_velocity"):
-        rows.append((f"margin {key}", m.get(key)))
-    for label, v in rows:
-        t.add_row(escape(label), "—" if v is None else f"{v:.5g}")
+        # within the re-check's tolerance: 0 (a dip of -9e-8 m passes the 1e-6 m check)
+        texts.append((f"margin {key}", fmt_margin(m.get(key), ".5g", MARGIN_TOL.get(key, 0.0))))
+    for label, text in texts:
+        t.add_row(escape(label), text)
     console().print(t)
     if en and not en.get("exists"):
         console().print(f"energy: {en.get('reason')}", markup=False)

@@ -80,29 +80,34 @@ def run_energy(robot: str | None, gait: str | None, thrust: list[float] | None,
 
 
 def _cot(c: dict, key: str) -> str:
+    """A case's cost of transport (SPEC 15) for the table; the missing mark without energies
+    or where a power model is missing (the lines under the table say which)."""
+    from ..studies.documents import fmt
+
     e = c.get("energy")
-    if not e:
-        return "-"
-    v = e["cot"][key]
-    return "n/a" if v is None else f"{v:.3g}"
+    return fmt(e["cot"][key] if e else None, ".3g")
 
 
 def _split(c: dict, basis: str) -> str:
+    from ..studies.documents import MISSING
+
     e = c.get("energy")
     if not e or e["cot"][basis] is None:
-        return "-" if not e else "n/a"
+        return MISSING
     return f"{e['cot'][basis + '_legs']:.2g}+{e['cot'][basis + '_thrust']:.2g}"
 
 
 def _power(c: dict, basis: str) -> str:
+    from ..studies.documents import MISSING
+
     e = c.get("energy")
     if not e:
-        return "-"
+        return MISSING
     p = e["average_power"]
     keys = (("legs_electrical", "thrust_input") if basis == "total"
             else ("legs_mechanical", "thrust_mechanical"))
     if any(p[k] is None for k in keys):
-        return "n/a"
+        return MISSING
     return f"{p[keys[0]] + p[keys[1]]:.4g}"
 
 

@@ -127,13 +127,13 @@ def _table(doc: dict) -> None:
 
 
 def _cot(c: dict, key: str) -> str:
-    """A case's cost of transport (SPEC 15) for the table: '-' without an orbit, 'n/a' where
-    a power model is missing (the JSON's energy.missing says which)."""
+    """A case's cost of transport (SPEC 15) for the table; the missing mark (as every table's)
+    without an orbit (the verdict column says so) or where a power model is missing (the
+    JSON's energy.missing says which)."""
+    from ..studies.documents import fmt
+
     e = c.get("energy") or {}
-    if not e.get("exists"):
-        return "-"
-    v = e["cot"][key]
-    return "n/a" if v is None else f"{v:.3g}"
+    return fmt(e["cot"][key] if e.get("exists") else None, ".3g")
 
 
 def _word(c: dict, doc: dict) -> str:

@@ -31,8 +31,9 @@ JsonOpt = Annotated[
 ]
 FormatsOpt = Annotated[
     str, typer.Option("--formats", help="Files to write besides the JSON, a comma list of "
-                                        "csv, png, pdf, svg (and md where a command writes "
-                                        "one), or none (only the JSON; no figure is drawn).")
+                                        "the kinds this command writes (csv, png, pdf, svg; "
+                                        "feasibility: png, pdf, md, no csv; optimize: png, "
+                                        "pdf), or none (only the JSON; no figure is drawn).")
 ]
 TitlesOpt = Annotated[
     bool, typer.Option("--titles", help="Put a title (robot / gait: what) on every figure "

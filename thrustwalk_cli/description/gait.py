@@ -36,6 +36,16 @@ class Gait:
     source_sha256: str = ""
     given_A: tuple[tuple[float | None, ...], ...] = field(default=(), compare=False, repr=False)
 
+    def __repr__(self) -> str:
+        """One line: the name, the robot it was written for, the file, alpha at impact
+        ``alpha_f`` [rad] (alpha_i = c (R q^- + b) needs the robot: the zero dynamics' repr
+        shows both) and the Bezier order M (SPEC 2); the dataclass repr prints every
+        coefficient, which a notebook should not. Equality is the dataclass's, field by
+        field."""
+        thrust = "" if self.thrust is None else ", thrust=True"
+        return (f"Gait(name={self.name!r}, robot={self.robot!r}, file={self.source_file!r}, "
+                f"alpha_f={self.alpha_f:.6g}, order={self.order}{thrust})")
+
     @property
     def order(self) -> int:
         """The Bezier degree M of the virtual constraints (SPEC 2): coefficients per output less

@@ -156,6 +156,16 @@ class Robot:
     #: afterwards no longer finds (the plant of ``plant_scale`` reads the file again)
     source_path: str = field(default="", compare=False, repr=False)
 
+    def __repr__(self) -> str:
+        """One line: the name, the number of links, the actuated and unactuated coordinates,
+        the thrusters and the file (the dataclass repr prints every link and number, which a
+        notebook should not; equality is the dataclass's, field by field)."""
+        act = [c.name for c in self.coordinates if c.actuated]
+        unact = [c.name for c in self.coordinates if not c.actuated]
+        return (f"Robot(name={self.name!r}, links={len(self.links)}, actuated={act!r}, "
+                f"unactuated={unact!r}, thrusters={self.thruster_names!r}, "
+                f"file={self.source_file!r})")
+
     def line_of(self, path: str) -> int | None:
         """Line of a key path (e.g. ``"coordinates.unactuated"``) in the source file."""
         best = None

@@ -178,20 +178,21 @@ def unbounded_warnings(robot: Robot) -> list[str]:
     ``torque_limit`` [N m] (their torques are bounded by nothing but the objective: a fast
     target may give a deep crouch that needs large torques and is still "feasible") and
     without a ``range`` [rad] (any joint angle is accepted, a folded or hyperextended joint
-    included). One line each, naming the coordinates and the robot-file keys that bound them
-    (``coordinates.actuated[].torque_limit`` and ``.range``); empty when every actuated
+    included). One line each, naming each coordinate once and the robot-file keys that bound
+    them (``coordinates.actuated[].torque_limit`` and ``.range``); empty when every actuated
     coordinate has both."""
     act = [c for c in robot.coordinates if c.actuated]
     out = []
     no_torque = [c.name for c in act if not np.isfinite(c.torque_limit)]
     no_range = [c.name for c in act if not (np.isfinite(c.range[0]) and np.isfinite(c.range[1]))]
     if no_torque:
-        which = "any actuated coordinate" if len(no_torque) == len(act) else ", ".join(no_torque)
+        which = ("any actuated coordinate" if len(no_torque) == len(act)
+                 else f"{len(no_torque)} of its {len(act)} actuated coordinates")
         out.append(f"no torque limits bound the design: robot {robot.name} gives no "
-                   f"torque_limit for {which} ({', '.join(no_torque)}), so their torques are "
-                   "bounded only by the objective (a fast target may give a deep crouch that "
-                   "is still called feasible); add torque_limit: [N m] to those entries of "
-                   "coordinates.actuated in the robot file")
+                   f"torque_limit for {which}, so their torques are bounded only by the "
+                   "objective (a fast target may give a deep crouch that is still called "
+                   f"feasible); add torque_limit: [N m] to {', '.join(no_torque)} in "
+                   "coordinates.actuated of the robot file")
     if no_range:
         half = [c.name for c in act if c.name in no_range
                 and (np.isfinite(c.range[0]) or np.isfinite(c.range[1]))]

@@ -35,6 +35,14 @@ HEIGHT_TOL = 1e-6  # [m] swing-foot dips shallower than this count as touching (
 RANGE_TOL = 1e-6  # [rad] joint-range tolerance of the re-check
 
 
+LIFTOFF_TOL = 1e-6  # [m/s] lift-off velocity tolerance of the re-check
+
+#: the tolerance of the re-check on each margin (SI, the margin's unit): a margin down to
+#: minus this passes, and is shown as 0 (the others pass from 0 up)
+MARGIN_TOL = {"clearance_mid_step": HEIGHT_TOL, "min_swing_height": HEIGHT_TOL,
+              "liftoff_velocity": LIFTOFF_TOL, "joint_range": RANGE_TOL}
+
+
 # -------------------------------------------------------------------- independent re-check
 def orbit_cost(model: CompiledModel, zd, sched: Schedule, zeta_plus: float,
                thrust_weight: float = 0.0, nodes: int = 129) -> dict:
@@ -156,9 +164,9 @@ def verify(model: CompiledModel, gait: Gait, spec: DesignSpec, thrust: np.ndarra
         else:
             a, b = show(case.max_friction_ratio, spec.mu)
             fail("friction", f"max |F_1^h|/F_1^v = {a} > mu = {b}")
-    if not imp.admissible(spec.mu) or m["liftoff_velocity"] < -1e-6:
+    if not imp.admissible(spec.mu) or m["liftoff_velocity"] < -LIFTOFF_TOL:
         reasons = imp.reasons(spec.mu)
-        if m["liftoff_velocity"] < -1e-6:
+        if m["liftoff_velocity"] < -LIFTOFF_TOL:
             a, b = show(case.liftoff_velocity, spec.min_liftoff, "m/s")
             reasons.append(f"lift-off velocity {a} < {b}")
         fail("impact", "; ".join(reasons))
@@ -217,7 +225,7 @@ def _range_check(model: CompiledModel, zd, spec: DesignSpec, thrust: np.ndarray,
         failed.append("vertical_force")
     if any(f is None or f < 0 for f in fr):
         failed.append("friction")
-    if lift < -1e-6:
+    if lift < -LIFTOFF_TOL:
         failed.append("impact")
     reasons = [c.reason for c in cases if not c.feasible]
     if touch < 0:

@@ -16,7 +16,7 @@ from ..description.gait import Gait
 from ..description.robot import Robot
 from ..design.solver import DesignResult, WarmStart, solve_design
 from ..design.spec import DesignSpec
-from ..design.verify import check_gait
+from ..design.verify import HEIGHT_TOL, RANGE_TOL, check_gait
 from ..energetics.orbit import OrbitEnergy, orbit_energy
 from ..errors import (
     ComputationError,
@@ -36,6 +36,7 @@ from .documents import (
     Table,
     climb_rate,
     col,
+    fmt_margin,
     result_repr,
     show_options,
     slope_record,
@@ -159,8 +160,9 @@ def yaml_header(res: DesignResult, provenance: dict, report_name: str,
         f"Orbit: stable, delta_zero^2 = {o['delta_zero_sq']:.4f} (<= {s.max_delta_sq:g}), "
         f"{o['speed']:.4f} m/s, step {o['step_length']:.4f} m, step time "
         f"{o['step_time']:.4f} s, zeta* = {o['zeta_star']:.6g} kg^2 m^4/s^2.",
-        f"Swing foot: {sw['mid_step_height'] * 100:.2f} cm at mid-step (>= "
-        f"{s.clearance * 100:g} cm), >= {sw['min_height_window'] * 1000:.2f} mm for s in "
+        f"Swing foot: {fmt_margin(sw['mid_step_height'] * 100, '.2f', HEIGHT_TOL * 100)} cm "
+        f"at mid-step (>= {s.clearance * 100:g} cm), >= "
+        f"{fmt_margin(sw['min_height_window'] * 1000, '.2f', HEIGHT_TOL * 1000)} mm for s in "
         f"[0.05, 0.95], >= 0 over the step.",
         f"Stance: F_v >= {con['min_vertical_force']:.4g} N (>= {res.eps:.4g} N), |F_h|/F_v <= "
         f"{con['max_friction_ratio']:.3f} (mu = {s.mu:g}). Impact: |F_h|/F_v = "
@@ -172,10 +174,12 @@ def yaml_header(res: DesignResult, provenance: dict, report_name: str,
     if s.thrust_range is not None and tr:
         out.append(f"Also feasible on the orbit of every constant {s.thrust_range[0]} thrust in "
                    f"[{s.thrust_range[1]:g}, {s.thrust_range[2]:g}] N: F_v margin >= "
-                   f"{tr['vertical_force']:.4g} N, friction margin >= {tr['friction']:.3f}.")
+                   f"{fmt_margin(tr['vertical_force'], '.4g')} N, friction margin >= "
+                   f"{fmt_margin(tr['friction'], '.3f')}.")
     if rng:
         out.append("Joint-range margins [rad]: "
-                   + ", ".join(f"{k} {v:.3f}" for k, v in rng.items()) + ".")
+                   + ", ".join(f"{k} {fmt_margin(v, '.3f', RANGE_TOL)}" for k, v in rng.items())
+                   + ".")
     out.append(f"Every margin and the fixed point: {report_name}. Re-check: thrustwalk "
                "limit-cycle / feasibility with this file.")
     return out

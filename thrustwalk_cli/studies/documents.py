@@ -86,9 +86,30 @@ class Table:
         return pandas.DataFrame(self.to_dict(), columns=self.header)
 
 
+#: the one mark of a missing value in every console table and Markdown (JSON: null; CSV:
+#: an empty cell); the lines under a table say why a value is missing
+MISSING = "—"
+
+
 def fmt(v: Any, spec: str = ".4g") -> str:
-    """A number for a summary table or Markdown: ``format(v, spec)``, or an em dash for None."""
-    return "—" if v is None else format(v, spec)
+    """A number for a summary table or Markdown: ``format(v, spec)``, or :data:`MISSING` (an
+    em dash) for None."""
+    return MISSING if v is None else format(v, spec)
+
+
+def fmt_margin(v: float | None, spec: str = ".4g", tol: float = 0.0) -> str:
+    """A margin (>= 0 when satisfied) for a table or a file's comment: ``format(v, spec)``,
+    with a value within the check's tolerance ``|v| <= tol`` (in the unit of ``v``) shown as
+    0, and a value that rounds to zero at the shown precision never signed ("0.00", not
+    "-0.00"); :data:`MISSING` for None. Only the shown text: documents keep the number."""
+    if v is None:
+        return MISSING
+    v = float(v)
+    text = format(0.0 if abs(v) <= tol else v, spec)
+    mantissa = text.lower().split("e")[0]
+    if text.startswith("-") and not any(ch in "123456789" for ch in mantissa):
+        text = text[1:]
+    return text
 
 
 def gait_record(zd: ZeroDynamics) -> dict:
