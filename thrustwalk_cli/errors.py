@@ -53,6 +53,15 @@ class InputError(Exception):
         return cls(param_problem(params, message))
 
 
+class WrongKind(InputError):
+    """A thrustwalk file of another kind where one kind was expected (a gait file passed as
+    the robot): ``found`` is the file's kind and ``file`` its path."""
+
+    def __init__(self, problem: Problem, found: str, file: str):
+        super().__init__(problem)
+        self.found, self.file = found, file
+
+
 class ComputationError(Exception):
     """A numerical computation that failed (integrator, solver); never silently ignored."""
 

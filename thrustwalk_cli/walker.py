@@ -23,11 +23,10 @@ from .contact.terms import scuff_reason, swing_clearance
 from .description.gait import Gait
 from .description.robot import Robot
 from .description.terrain import Terrain
-from .errors import InputError, Where, check_instance, check_number_map, check_path
+from .errors import InputError, Where, WrongKind, check_instance, check_number_map, check_path
 from .files.bundled import bundled_names, resolve
 from .files.gait_file import GaitSource, bind_gait, load_gait, same_robot_file
 from .files.robot_file import load_robot, plant_robot
-from .files.schema import WrongKind
 from .files.terrain_file import load_terrain
 from .hzd.constraints import apply_invariance, gait_maps
 from .hzd.zero_dynamics import ZeroDynamics, zero_dynamics

@@ -30,7 +30,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
-from ..errors import InputError, Problem
+from ..errors import InputError, Problem, WrongKind
 from .expr import DEFAULT_CONSTANTS, DEFAULT_FUNCTIONS, Expr, ExprError
 from .expr import parse as parse_expr
 from .yamlio import Document, KeyPath, format_path
@@ -514,15 +514,6 @@ KIND_USE = {
     "URDF side": "the side file of thrustwalk import-urdf",
     "terrain": "the terrain of thrustwalk simulate",
 }
-
-
-class WrongKind(InputError):
-    """A thrustwalk file of another kind where one ``kind`` was expected (a gait file passed
-    as the robot): ``found`` is the file's kind and ``file`` its path."""
-
-    def __init__(self, problem: Problem, found: str, file: str):
-        super().__init__(problem)
-        self.found, self.file = found, file
 
 
 def expect_kind(doc: Document, kind: str, schema: Kind | None = None) -> None:
