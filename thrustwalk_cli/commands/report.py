@@ -13,7 +13,9 @@ from .options import QuietOpt
 
 HELP = """Write DIR/index.md: every figure below DIR with the command that made it (from the
 provenance of the JSON next to it) and its key numbers in SI units (thrust [N], speed [m/s],
-zeta* [kg^2 m^4/s^2]), each followed by the JSON path it comes from.
+zeta* [kg^2 m^4/s^2]), each followed by the JSON path it comes from; a number of a case or
+run that has a verdict (walkable, feasible, completed, stable, ...) is shown beside that
+verdict and its path.
 """
 EPILOG = "Example: thrustwalk report figures"
 
