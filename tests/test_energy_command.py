@@ -337,3 +337,21 @@ def test_pareto_says_where_thrust_pays_and_when_the_ranges_do_not_overlap():
     assert pareto_headline(rows, designed, apart, "total", "g") == (
         "no common speed: the designed gaits walk at 0.6-1 m/s, g with thrust at 1.2-1.4 m/s "
         "(the ranges do not overlap)")
+
+
+def test_the_headline_speaks_of_walkable_gaits_only(_cache_dir):
+    """walker5 (a user's robot): at -80 N its orbit lifts the stance foot (not walkable,
+    independently: limit_cycle's verdict), so the energy headline's extreme is -40 N, the
+    farthest walkable thrust, not -80 N; with no walkable value at all, the headline says the
+    orbits are no gaits."""
+    import thrustwalk_cli as tw
+
+    data = Path(__file__).resolve().parent / "data"
+    w = tw.load_walker(str(data / "walker5.yaml"), str(data / "walker5_thrust.yaml"))
+    assert list(tw.limit_cycle(w, [0.0, -40.0, -80.0]).walkable) == [True, True, False]
+    res = tw.energy(w, [0.0, -40.0, -80.0])
+    assert res.headline.startswith("thrust -40 N") and "-80" not in res.headline
+    assert "-80" not in res.reason
+    bad = tw.energy(w, [-80.0, -100.0])
+    assert not any(c.walkable for c in bad.cases)
+    assert "no thrust value is walkable" in bad.headline

@@ -341,8 +341,10 @@ class EnergyResult:
 
     def nominal_extreme(self) -> tuple[int | None, int | None]:
         """Indices of the nominal case (thrust 0, else the value nearest 0, with energies)
-        and the extreme one (the thrust farthest from it with energies)."""
+        and the extreme one (the thrust farthest from it with energies), among the walkable
+        cases (the stable ones when none is walkable: then the headline says so)."""
         live = [i for i, c in enumerate(self.cases) if c.energy is not None]
+        live = [i for i in live if self.cases[i].walkable] or live
         if not live:
             return None, None
         th = [abs(self.cases[i].thrust or 0.0) for i in live]
@@ -365,6 +367,8 @@ class EnergyResult:
         tail = ""
         if basis == "mechanical" and self.missing:
             tail = f"; total CoT not computed ({len(self.missing)} model(s) missing, see missing)"
+        if not a.walkable:  # no walkable case: the stable orbits, said to be no gaits
+            tail += "; no thrust value is walkable (see the verdicts): these orbits are no gaits"
         f0 = a.thrust or 0.0
         if nom == ext:
             return (f"only thrust {f0:g} N has a stable orbit: {a.speed():.3g} m/s at {basis} "
@@ -376,6 +380,9 @@ class EnergyResult:
         what = "the thruster input" if basis == "total" else "the thrust's work"
         dom = (f"{what} dominates" if thr > legs else "the legs still dominate")
         start = "" if f0 == 0.0 else f" (from {f0:g} N, the value nearest 0 with an orbit)"
+        if a.walkable:  # the extreme is the farthest walkable thrust
+            start += " (the farthest walkable value)" if any(
+                c.energy is not None and not c.walkable for c in self.cases) else ""
         return (f"thrust {b.thrust:g} N{start} {verb} speed from {va:.3g} to {vb:.3g} m/s at "
                 f"{basis} CoT {ca[basis]:.3g} -> {cb[basis]:.3g}: {dom} (legs {legs:.3g}, "
                 f"thrust {thr:.3g}){tail}")
