@@ -324,8 +324,8 @@ def test_outputs_of_a_sweep(cli, tmp_path, _cache_dir):
     doc = json.loads((out / "sweep.json").read_text())
     assert doc["schema_version"] == 1 and doc["units"]["thrust"] == "N"
     assert doc["units"]["robot.MT"] == "kg" and doc["units"]["zeta_star"] == "kg^2 m^4/s^2"
-    assert doc["counts"] == {"points": 6, "done": 6, "failed": 0, "skipped": 0, "computed": 6,
-                             "not_run": 0, "resubmitted": 0}
+    assert doc["counts"] == {"points": 6, "done": 6, "failed": 0, "answered_no": 0,
+                             "skipped": 0, "computed": 6, "not_run": 0, "resubmitted": 0}
     assert doc["executor"] == {"kind": "in-process", "workers": 1}
     assert doc["provenance"]["sweep"]["file"] == str(path)
     assert doc["wall_time"] > 0
@@ -892,6 +892,8 @@ def test_a_point_whose_study_says_no_gives_its_reason(cli, tmp_path, monkeypatch
     assert (rows["status"] == "ok").all() and pd.isna(rows.loc[0.0, "reason"])
     assert "contact infeasible" in rows.loc[-80.0, "reason"]
     assert "no periodic orbit" in rows.loc[60.0, "reason"]
+    doc = json.loads((tmp_path / "o" / "sweep.json").read_text())
+    assert doc["counts"]["answered_no"] == 2 and "2 answered no" in doc["reason"]
 
 
 def test_a_decimal_range_gives_its_decimal_values(cli, tmp_path, monkeypatch):

@@ -316,6 +316,12 @@ class SweepResult:
         return sum(r is not None and r["status"] != "ok" for r in self.records)
 
     @property
+    def answered_no(self) -> int:
+        """Points computed whose study's answer is no (not walkable, fell...): ``ok``, a reason."""
+        return sum(r is not None and r["status"] == "ok" and bool(r["reason"])
+                   for r in self.records)
+
+    @property
     def missing(self) -> int:
         """The number of points not run yet."""
         return sum(r is None for r in self.records)
@@ -329,7 +335,10 @@ class SweepResult:
     def reason(self) -> str:
         """Points ok, failed and not run (and why points were lost)."""
         n = len(self.records)
-        text = f"{self.done} of {n} points ok, {self.failed} failed"
+        no = self.answered_no
+        text = f"{self.done} of {n} points ok" + (
+            f" ({no} answered no: see `reason` in results.csv)" if no else "") + \
+            f", {self.failed} failed"
         if self.missing:
             lost = len(self.counts.lost)
             text += f", {self.missing} not run" + (
@@ -367,6 +376,7 @@ class SweepResult:
             "collect": list(spec.collect),
             "success": self.success, "reason": self.reason,
             "counts": {"points": len(self.records), "done": self.done, "failed": self.failed,
+                       "answered_no": self.answered_no,
                        "skipped": self.counts.skipped, "computed": self.counts.ok +
                        self.counts.failed, "not_run": self.missing,
                        "resubmitted": self.counts.resubmitted},
