@@ -524,7 +524,9 @@ def test_result_tables_convert_to_pandas_in_one_call(walker3):
 
 
 @pytest.mark.parametrize("args, line", [
-    (["limit-cycle", "{gait}", "--out", "{out}"], "this is a gait file, not a robot file"),
+    # (a gait alone walks on its own robot: tests/test_cli.py; beside a gait it is refused)
+    (["limit-cycle", "{gait}", "{gait}", "--out", "{out}"],
+     "this is a gait file, not a robot file"),
     (["limit-cycle", "three_link", "{robot}", "--out", "{out}"],
      "this is a robot file, not a gait file"),
     (["sweep", "{gait}", "--out", "{out}"], "this is a gait file, not a sweep file"),
