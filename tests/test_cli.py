@@ -324,6 +324,7 @@ def test_the_thrust_model_option_lists_the_option_table(cli):
             assert name in text, (command, name)
 
 
+@pytest.mark.slow  # (this session's additions; CI runs every test)
 def test_a_gait_file_alone_walks_on_the_robot_it_names(cli, tmp_path, monkeypatch):
     """A gait given alone where the robot goes (a user's gait file, naming its robot file
     relative to itself; a bundled gait's name): the walker is that gait on that robot, the

@@ -339,6 +339,7 @@ def test_pareto_says_where_thrust_pays_and_when_the_ranges_do_not_overlap():
         "(the ranges do not overlap)")
 
 
+@pytest.mark.slow  # (this session's additions; CI runs every test)
 def test_the_headline_speaks_of_walkable_gaits_only(_cache_dir):
     """walker5 (a user's robot): at -80 N its orbit lifts the stance foot (not walkable,
     independently: limit_cycle's verdict), so the energy headline's extreme is -40 N, the

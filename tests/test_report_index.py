@@ -12,6 +12,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # a folder of every kind of result (about 4 s); CI runs it
+
 DATA = Path(__file__).parent / "data"
 GOLDEN = Path(__file__).parent / "golden"
 ROBOT, GAIT = DATA / "walker5.yaml", DATA / "walker5_thrust.yaml"

@@ -536,6 +536,7 @@ def test_deviation_from_the_prediction_is_a_warning_with_reason(walker3, tmp_pat
     assert "zeta^- off the zero-dynamics prediction (worst" in line
 
 
+@pytest.mark.slow  # (this session's additions; CI runs every test)
 def test_a_run_with_no_orbit_to_start_on_says_so(cli, tmp_path, monkeypatch, _cache_dir):
     """walker5 (a user's robot) 0.02 rad uphill: without thrust the zero dynamics has no orbit
     (the walker stops within the step; SPEC 3, checked independently by limit_cycle), yet the

@@ -561,6 +561,7 @@ def test_rough_ground_cli_on_a_slope(cli, tmp_path, monkeypatch, walker3):
         assert got["document"] == want["document"]
 
 
+@pytest.mark.slow  # (this session's additions; CI runs every test)
 def test_rough_ground_strategies_say_their_orbit_on_a_slope(walker5):
     """The rough-ground document gives each strategy's orbit on the slope (walker5, a user's
     robot, downhill): its step time is the full-order closed loop's, simulated from the

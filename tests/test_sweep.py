@@ -867,6 +867,7 @@ def test_push_trial_sweep_file_runs_in_chunks_with_the_same_records(counting):
     assert {r["fields"]["outcome"] for r in got.records} >= {"recovered", "lifted"}
 
 
+@pytest.mark.slow  # (this session's additions; CI runs every test)
 def test_a_point_whose_study_says_no_gives_its_reason(cli, tmp_path, monkeypatch):
     """A limit-cycle sweep of walker5 (a user's robot, its files beside the sweep file, run
     from that folder): the point at +60 N has no orbit and the one at -80 N leaves the
@@ -919,6 +920,7 @@ def test_a_decimal_range_gives_its_decimal_values(cli, tmp_path, monkeypatch):
     assert list(axis.values) == [float(t) for t in ("-0.04", "-0.02", "0", "0.02")]
 
 
+@pytest.mark.slow  # (this session's additions; CI runs every test)
 def test_an_infeasible_design_point_gives_its_reason(cli, tmp_path, monkeypatch):
     """A design-gait sweep (a gait library) of the compass test robot on flat ground without
     thrust, run from the robot's folder: no gait exists (the hip torque cannot replace the

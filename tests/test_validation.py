@@ -643,6 +643,7 @@ def test_bad_option(name, tmp_path, one_command, monkeypatch, _cache_dir):
     check_case(name, CLI[name], tmp_path, one_command)
 
 
+@pytest.mark.slow  # (this session's additions; CI runs every test)
 def test_one_thruster_name_is_taken_as_a_list_of_one(walker5_thrust):
     """``thruster="back"`` in simulate and control (which take several names) is
     ``["back"]``, as limit_cycle and robustness take one name: the same runs, bit for bit."""
