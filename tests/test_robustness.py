@@ -179,6 +179,46 @@ def test_controlled_basin_ends_are_where_the_qp_stops_being_feasible(realized):
     assert b.verified["converged"] == b.verified["starts"] == 41
 
 
+def test_the_controlled_map_stops_at_its_fixed_point_with_the_full_iterations_verdict(
+        realized):
+    """The basin's check iterates the controlled map from 41 starts; it stops a start once
+    ``(x, u)`` maps to itself bit for bit. The same 60 steps written out here (the map
+    ``x' = delta_0^2 x + z0 + Gamma u``, the planner's QP each step) end every start at the
+    same ``x`` and give the same verdict, with far fewer QPs."""
+    from thrustwalk_cli.resilience import basin as B
+
+    r = realized["control"]
+    pl, b = r.planner, r.basin
+    d2, rw = pl.zd.delta_zero_sq, pl.grid_rows()
+    lo, hi = b.lower.value, b.upper.value
+    w = hi - lo
+    worst, ok = 0.0, 0
+    for x0 in np.linspace(lo + 1e-6 * w, hi - 1e-6 * w, B.VERIFY_STARTS):
+        x, u = float(x0), np.zeros(pl.nu)
+        for _ in range(B.VERIFY_STEPS):
+            plan = pl.plan(x, r.zeta_ref, u)
+            assert plan.status != "infeasible"
+            u = plan.u
+            x = float(d2 * x + rw.z0[-1] + rw.Zu[-1] @ u)
+        err = abs(x - r.zeta_ref) / r.zeta_ref
+        worst, ok = max(worst, err), ok + (err <= 1e-9)
+    calls = []
+    plan_of = pl.plan
+
+    def counted(*a, **k):
+        calls.append(1)
+        return plan_of(*a, **k)
+
+    pl.plan = counted
+    try:
+        got = B._iterate(pl, r.zeta_ref, b.lower, b.upper)
+    finally:
+        del pl.plan
+    assert got["converged"] == ok == B.VERIFY_STARTS
+    assert got["worst_relative_error"] == worst
+    assert len(calls) < B.VERIFY_STARTS * B.VERIFY_STEPS / 4
+
+
 # ------------------------------------------------------------------------------ pushes
 def test_push_reaction_conserves_linear_and_angular_momentum(walker3):
     """For a push P at the hip with the stance foot pinned: the robot's linear momentum

@@ -322,7 +322,9 @@ def controlled_basin(planner: Planner, x_ref: float) -> ReducedBasin:
 
 def _iterate(planner: Planner, x_ref: float, lower: Bound, upper: Bound) -> dict:
     """Iterate the controlled reduced map from ``VERIFY_STARTS`` starts across the interval
-    (its ends moved inside by 1e-6 of its width; an unbounded side capped at 10 zeta*)."""
+    (its ends moved inside by 1e-6 of its width; an unbounded side capped at 10 zeta*), each
+    for ``VERIFY_STEPS`` steps or until ``(x, u)`` maps to itself bit for bit (a step's plan is
+    a function of ``x`` and the previous ``u`` alone, so every later step would repeat it)."""
     d2 = planner.zd.delta_zero_sq
     lo = lower.value if lower.value is not None else 0.0
     hi = upper.value if upper.value is not None else 10.0 * x_ref
@@ -340,8 +342,10 @@ def _iterate(planner: Planner, x_ref: float, lower: Bound, upper: Bound) -> dict
             if plan.status == "infeasible":
                 good, first = False, first or f"infeasible QP at zeta^- = {x:.6g}"
                 break
-            u = plan.u
-            x = float(d2 * x + z0f + g @ u)
+            x_new = float(d2 * x + z0f + g @ plan.u)
+            if x_new == x and np.array_equal(plan.u, u):
+                break  # a fixed point of (x, u): every later step would repeat it
+            u, x = plan.u, x_new
         err = abs(x - x_ref) / x_ref
         worst = max(worst, err)
         if good and err <= 1e-9:
