@@ -5,6 +5,11 @@ energies (``energetics.run.simulation_energy``: 6-point Gauss-Lobatto on every i
 of the dense output, the closed loop at the nodes evaluated by the compiled kernel, computed
 when first read) and against the whole document (which includes them). CPU times of this
 process, medians. Prints the ratios energy / simulate and document / simulate.
+
+Measured 2026-11-26 (load 1-2): the step energies 35-38 % of simulate for RABBIT (34-35 ms),
+38-39 % for the 3-link (18-21 ms). ``bench/stage_quadrature.py`` measures the idea of
+integrating them with the integrator's own stages instead (accurate to 6e-11 of a step's
+absolute work, but at best about 24-27 %: docs/performance.md, issue 28).
 """
 
 from __future__ import annotations
