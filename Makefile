@@ -35,20 +35,25 @@ $(BASE): pyproject.toml | $(BIN)/python
 	$(PYC)
 	touch $(BASE)
 
-# the kernel's own dependencies first (unpacked only: their bytecode is compiled on the other
-# core, the kernel's compile being the set-up's longest step); then, while pip installs the
-# package and the test dependencies, the simulation kernel compiles for the tests from the
-# source tree (once per checkout, into .pytest_cache/thrustwalk-kernel; tests/kernel_cache.py
-# says so)
-SITE = $$($(BIN)/python -c "import sysconfig; print(sysconfig.get_paths()['purelib'])")
+# The test set-up installs without compiling the dependencies' bytecode (pip would compile all
+# of it, ~11,000 files and 40 s of CPU, their test suites included); the bytecode of what the
+# tests import is written as they import it, once (PYTHONDONTWRITEBYTECODE emptied for the set-up
+# and the test run, whatever the machine sets): here by the kernel's compile and by collecting
+# the tests (which imports every test module, rewritten by pytest, and what they import), the
+# rest by the first test process that imports it.
+WRITE_PYC := PYTHONDONTWRITEBYTECODE=
 
+# the kernel's own dependencies first; then, while pip installs the package and the test
+# dependencies and the tests are collected, the simulation kernel compiles for the tests from
+# the source tree (once per checkout, into .pytest_cache/thrustwalk-kernel; tests/kernel_cache.py
+# says so)
 $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet --no-compile $(KERNEL_DEPS)
 	$(PYC)
-	PYTHONPATH=$(CURDIR) $(BIN)/python tests/kernel_cache.py & kernel=$$!; \
-	$(BIN)/python -m compileall -q -j 0 $(SITE) > /dev/null; \
-	$(BIN)/python -m pip install --quiet -e '.[test,mujoco]'; status=$$?; \
-	wait $$kernel; exit $$status
+	$(WRITE_PYC) PYTHONPATH=$(CURDIR) $(BIN)/python tests/kernel_cache.py & kernel=$$!; \
+	$(BIN)/python -m pip install --quiet --no-compile -e '.[test,mujoco]' && \
+	$(WRITE_PYC) MPLBACKEND=Agg $(BIN)/python -m pytest -q --collect-only -p no:xdist > /dev/null; \
+	status=$$?; wait $$kernel; exit $$status
 	touch $(BASE) $(STAMP)
 
 # `thrustwalk compile` compiles the simulation kernel into the user's cache if this machine
@@ -61,7 +66,7 @@ demo: $(BASE)
 # module-scoped fixture stay in one worker (tests/conftest.py)
 test: $(STAMP)
 	$(PYC)
-	MPLBACKEND=Agg $(BIN)/python -m pytest -q -n $(TEST_WORKERS)
+	$(WRITE_PYC) MPLBACKEND=Agg $(BIN)/python -m pytest -q -n $(TEST_WORKERS)
 	$(BIN)/ruff check .
 
 bench: $(STAMP)

@@ -25,9 +25,12 @@ matplotlib.use("Agg")
 
 def pytest_sessionstart(session: pytest.Session) -> None:
     """Compile the shared kernel before any test (and before pytest-xdist starts workers),
-    saying so on the terminal when it is not compiled yet."""
+    saying so on the terminal when it is not compiled yet (not when only collecting: `make
+    test`'s set-up collects while the kernel compiles)."""
     if hasattr(session.config, "workerinput"):
         return  # an xdist worker: the controller did it (the fixture below checks again)
+    if session.config.option.collectonly:
+        return
     tr = session.config.pluginmanager.get_plugin("terminalreporter")
     shared_kernel(tr.write_line if tr is not None else None)
 
