@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -358,6 +359,17 @@ def test_cli_writes_a_commented_robot_that_compiles(cli, tmp_path, monkeypatch):
     assert "# Command: thrustwalk import-urdf" in text
     res = cli("compile", "rabbit.yaml", "--no-kernel", "-q")
     assert res.exit_code == 0, res.output
+    # numbers as the URDF gives them (the femur's 0.16 m centre of mass, not the frames'
+    # 0.16000000000000003), and the file is the imported robot to 1e-15
+    assert not re.search(r"\d\.\d{15,}", text), re.search(r"\S*\d\.\d{15,}\S*", text)
+    from thrustwalk_cli.files.robot_file import load_robot
+
+    res = _import(RABBIT, "left_foot:0,0,0", "right_foot:0,0,0", side=URDF / "rabbit_side.yaml")
+    written, imported = _model(load_robot("rabbit.yaml")), _model(res.robot)
+    q = np.random.default_rng(5).uniform(-1, 1, (6, 5))
+    for f in ("D", "G", "p_swing"):
+        a, b = getattr(written, f)(q), getattr(imported, f)(q)
+        assert np.abs(a - b).max() <= 1e-14 * max(np.abs(b).max(), 1.0), f
 
 
 def test_cli_help_has_examples(cli):

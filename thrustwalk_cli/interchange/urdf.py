@@ -163,9 +163,15 @@ def _snap(x: float) -> float:
     return 0.0 if abs(x) < SNAP else x
 
 
+DIGITS = 15  # significant digits of a written number
+
+
 def _num(x: float) -> str:
-    """A float as YAML reads it back exactly (repr; ``1e-05`` -> ``1.0e-05``)."""
-    s = repr(_snap(x))
+    """A float as YAML reads it back (repr; ``1e-05`` -> ``1.0e-05``), to ``DIGITS``
+    significant digits: the frames' arithmetic leaves rounding noise in the last of a
+    double's 17 (0.16000000000000003 for a URDF's 0.16), which the file does not repeat
+    (a change of at most 5e-16 relative)."""
+    s = repr(float(f"{_snap(x):.{DIGITS}g}"))
     if "e" in s:
         mant, exp = s.split("e")
         if "." not in mant:
