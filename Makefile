@@ -40,7 +40,8 @@ $(BASE): pyproject.toml | $(BIN)/python
 # tests import is written as they import it, once (PYTHONDONTWRITEBYTECODE emptied for the set-up
 # and the test run, whatever the machine sets): here by the kernel's compile and by collecting
 # the tests (which imports every test module, rewritten by pytest, and what they import), the
-# rest by the first test process that imports it.
+# rest by the first test process that imports it. `make bench` writes it too, so that the
+# processes it times import from bytecode as a user's do.
 WRITE_PYC := PYTHONDONTWRITEBYTECODE=
 
 # the kernel's own dependencies first; then, while pip installs the package and the test
@@ -71,7 +72,7 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python -m pip install --quiet -e '.[bench]' || echo "bench extra (pin) not installed: the Pinocchio comparison prints 'skipped'"
-	MPLBACKEND=Agg $(BIN)/python bench/run.py
+	$(WRITE_PYC) MPLBACKEND=Agg $(BIN)/python bench/run.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
