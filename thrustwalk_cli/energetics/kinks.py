@@ -20,6 +20,30 @@ SPLITS = 12  # halvings of a gap of the nodes to isolate the roots in it
 SMALL = 256  # at most this many points: Chebyshev series evaluated without a recurrence
 
 
+# node counts up to this take T_k and T_k' at the nodes by Clenshaw's recurrence (``chebval``:
+# O(n^3) for all k at once, 0.04 s at 257 nodes, 2.5 s each at 1,025); larger ones in closed
+# form (O(n^2); equal to rounding, see tests/test_energy.py)
+CLENSHAW_NODES = 257
+
+
+def _closed_form_tables(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``T_k'(x_i)`` (nodes, k < n) and ``T_j(x_i)`` (j < n - 2, nodes) at the ``n`` ascending
+    Lobatto nodes ``x_i = cos(theta_i)``, ``theta_i = pi (n - 1 - i) / (n - 1)``:
+    ``T_j = cos(j theta)``, ``T_k' = k sin(k theta) / sin(theta)``, at the ends ``T_k'(1) =
+    k^2``, ``T_k'(-1) = (-1)^(k+1) k^2``; the angles ``k theta_i`` reduced exactly, in integers
+    (``pi (k (n - 1 - i) mod 2 (n - 1)) / (n - 1)``), so that each value is good to rounding."""
+    m = n - 1
+    k = np.arange(n, dtype=float)
+    kt = np.pi * (np.outer(np.arange(m, -1, -1), np.arange(n)) % (2 * m)) / m
+    sin = np.sin(np.pi * np.arange(m, -1, -1) / m)
+    dT = np.empty((n, n))
+    dT[1:-1] = k * np.sin(kt[1:-1]) / sin[1:-1, None]
+    dT[0] = (-1.0) ** (k + 1.0) * k * k  # x = -1
+    dT[-1] = k * k  # x = 1
+    T2 = np.cos(kt[:, :n - 2]).T
+    return dT, T2
+
+
 @lru_cache(maxsize=16)
 def node_tables(n: int) -> tuple[np.ndarray, ...]:
     """For ``n`` ascending Lobatto nodes ``x_i`` of [-1, 1]: the nodes, the gaps ``h_i =
@@ -37,12 +61,15 @@ def node_tables(n: int) -> tuple[np.ndarray, ...]:
     s = np.minimum(sn[:-1], sn[1:])
     K = np.stack([k * k, k, k * k * (k * k - 1.0) / 3.0], axis=1)
     dct = _dct_matrix(n)
-    dT = C.chebval(x, C.chebder(np.eye(n))).T  # (nodes, k) T_k'(x_i)
+    if n <= CLENSHAW_NODES:  # (nodes, k) T_k'(x_i) and (j, nodes) T_j(x_i)
+        dT = C.chebval(x, C.chebder(np.eye(n))).T
+        T2 = C.chebval(x, np.eye(n - 2))
+    else:
+        dT, T2 = _closed_form_tables(n)
     d2 = C.chebder(np.eye(n), 2).T  # (k, j): T_k'' = sum_j d2[k, j] T_j
     k2 = k[:n - 2, None]
     with np.errstate(divide="ignore", invalid="ignore"):
         kd = np.where(s[None, :] > 0, np.minimum(k2 * k2, k2 / s[None, :]), k2 * k2)
-    T2 = C.chebval(x, np.eye(n - 2))  # (j, nodes) T_j(x_i)
     F1 = C.chebint(np.eye(n), lbnd=-1.0).sum(axis=0)  # (k,) int_{-1}^{1} T_k
     h = np.diff(x)
     with np.errstate(divide="ignore"):
