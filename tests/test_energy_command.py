@@ -213,7 +213,7 @@ def test_library_that_is_not_a_library_is_one_line_exit_2_nothing_written(cli, t
     monkeypatch.chdir(tmp_path)
     if kind == "result-folder":  # a command's result folder, not a sweep
         assert cli("limit-cycle", str(W5), str(W5T), "--thrust", "0", "--out", "lib",
-                   "-q").exit_code == 0
+                   "--formats", "csv", "-q").exit_code == 0  # (its figures play no part)
     elif kind == "other-sweep":
         for name in ("walker5.yaml", "walker5_thrust.yaml"):
             (tmp_path / name).write_bytes((DATA / name).read_bytes())

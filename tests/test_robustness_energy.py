@@ -88,7 +88,7 @@ def test_the_mean_per_recovered_push_is_that_of_trials_csv(cli, tmp_path, monkey
     cli("robustness", str(DATA / "walker5.yaml"), str(DATA / "walker5_thrust.yaml"),
         "--push-impulse=-4:4:2", "--push-phase", "0.3:0.6:0.3", "--strategy",
         "none,constant:-20", "--steps", "3", "--basin-grid", "0", "--workers", "1",
-        "-o", str(out))
+        "--formats", "csv,png", "-o", str(out))  # (the PDFs: test_robustness)
     doc = json.loads((out / "robustness.json").read_text())
     with open(out / "trials.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))

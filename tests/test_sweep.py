@@ -339,7 +339,7 @@ def test_outputs_of_a_sweep(cli, tmp_path, _cache_dir):
     assert (out / ".thrustwalk-sweep.json").is_file()
     # rerun: every point skipped, the same table
     before = (out / "results.csv").read_bytes()
-    res = cli("sweep", path, "--out", out, "-q")
+    res = cli("sweep", path, "--out", out, "-q", "--formats", "csv")  # figures: above
     assert res.exit_code == 0 and res.stdout == "", res.output
     assert (out / "results.csv").read_bytes() == before
     doc = json.loads((out / "sweep.json").read_text())
@@ -362,8 +362,8 @@ def test_a_failed_point_is_recorded_and_the_sweep_goes_on(cli, tmp_path, _cache_
     assert (table[table["robot_MT_kg"] == 8]["status"] == "ok").all()
     doc = json.loads((out / "sweep.json").read_text())
     assert doc["counts"]["failed"] == 3 and len(doc["failures"]) == 3
-    # a failed point is a result: the rerun does not compute it again
-    res = cli("sweep", path, "--out", out, "--workers", "1", "-q")
+    # a failed point is a result: the rerun (no figures: drawn above) does not compute it again
+    res = cli("sweep", path, "--out", out, "--workers", "1", "-q", "--formats", "csv")
     assert json.loads((out / "sweep.json").read_text())["counts"]["computed"] == 0
 
 
@@ -371,7 +371,8 @@ def test_a_failed_point_is_recorded_and_the_sweep_goes_on(cli, tmp_path, _cache_
 def test_the_sweep_folder_belongs_to_its_sweep(cli, tmp_path, _cache_dir):
     path = sweep_file(tmp_path, SMALL.replace("values: [8, 12]", "values: [8]"))
     out = tmp_path / "out"
-    assert cli("sweep", path, "--out", out, "-q", "--workers", "1").exit_code == 0
+    assert cli("sweep", path, "--out", out, "-q", "--workers", "1", "--formats",
+               "csv").exit_code == 0  # (a sweep's figures: test_outputs_of_a_sweep)
     other = sweep_file(tmp_path, SMALL.replace("values: [8, 12]", "values: [9]"), "o.yaml")
     res = cli("sweep", other, "--out", out, "-q")
     assert res.exit_code == 2
@@ -381,7 +382,8 @@ def test_the_sweep_folder_belongs_to_its_sweep(cli, tmp_path, _cache_dir):
     assert res.exit_code == 2 and "is a sweep's folder" in res.stderr, res.stderr
     assert (out / "results.csv").is_file() and not (out / "limit_cycles.json").exists()
     lc = tmp_path / "lc"
-    assert cli("limit-cycle", "--thrust", "0", "--out", lc, "-q").exit_code == 0
+    assert cli("limit-cycle", "--thrust", "0", "--out", lc, "-q", "--formats",
+               "csv").exit_code == 0
     res = cli("sweep", path, "--out", lc, "-q")
     assert res.exit_code == 2 and "is the result folder of a command" in res.stderr
     res = cli("sweep", path, "--out", tmp_path / "s.yaml", "-q")
@@ -424,7 +426,8 @@ def test_resume_verifies_every_point_file(cli, tmp_path, _cache_dir, monkeypatch
     monkeypatch.chdir(tmp_path)
     path = sweep_file(tmp_path, SMALL)
     out = tmp_path / "out"
-    assert cli("sweep", path, "--out", out, "--workers", "1", "-q").exit_code == 0
+    assert cli("sweep", path, "--out", out, "--workers", "1", "-q", "--formats",
+               "csv").exit_code == 0  # (a sweep's figures: test_outputs_of_a_sweep)
     table = pd.read_csv(out / "results.csv")
     keys = list(table["key"])
     first = {k: json.loads((out / "points" / f"{k}.json").read_text()) for k in keys}
@@ -435,7 +438,7 @@ def test_resume_verifies_every_point_file(cli, tmp_path, _cache_dir, monkeypatch
     rec = json.loads(edited.read_text())
     rec["fields"]["zeta_star"] *= 1.5  # same key, another value: a hand edit
     edited.write_text(json.dumps(rec, indent=2))
-    res = cli("sweep", path, "--out", out, "--workers", "1", "-q")
+    res = cli("sweep", path, "--out", out, "--workers", "1", "-q", "--formats", "csv")
     assert res.exit_code == 0, res.stderr
     lines = res.stderr.splitlines()
     assert len(lines) == 3, lines
