@@ -197,6 +197,10 @@ def multipliers(zd: ZeroDynamics, J: np.ndarray, J_fd: np.ndarray, B: np.ndarray
     full = B @ V
     full = full / np.linalg.norm(full, axis=0, keepdims=True)
     align = np.abs(vz @ full)
+    dom = [_dominant(lam, full, j, top) for j in range(k)]
+    for j, (_, _, basis) in enumerate(dom):
+        if basis is not None:  # a repeated multiplier: its eigenspace's alignment
+            align[j] = float(np.linalg.norm(basis.conj().T @ vz))
     walker = [j for j in range(k) if share[j] < 0.5]
     zd_index = max(walker, key=lambda j: align[j]) if walker else -1
     fdv = _match(lam, np.linalg.eigvals(J_fd))
@@ -204,8 +208,7 @@ def multipliers(zd: ZeroDynamics, J: np.ndarray, J_fd: np.ndarray, B: np.ndarray
            else np.full(k, np.nan))
     out = []
     for j in range(k):
-        comp = np.abs(full[:, j])
-        idx = np.argsort(-comp, kind="stable")[:top]
+        comp, idx, _ = dom[j]
         kind = ("zero dynamics" if j == zd_index else "thruster" if share[j] >= 0.5
                 else "outputs")
         e = float(err[j]) if np.isfinite(err[j]) else None
@@ -215,6 +218,29 @@ def multipliers(zd: ZeroDynamics, J: np.ndarray, J_fd: np.ndarray, B: np.ndarray
                               tuple((names[i], float(comp[i])) for i in idx),
                               float(share[j]), float(align[j]), complex(fdv[j]), e, tol))
     return out, zd_index
+
+
+REPEATED = 1e-6  # multipliers this close (relative to max(1, |lambda|)) share an eigenspace
+
+
+def _dominant(lam: np.ndarray, full: np.ndarray, j: int, top: int
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The components' weights of multiplier ``j``'s mode (``full``: the unit eigenvectors
+    in the state's coordinates, columns) and the ``top`` largest. A repeated multiplier (two
+    identical thrusters) has an eigenspace, in which any basis is an eigenvector basis: its
+    weights are those of the eigenspace, ``sqrt(P_ii)`` for ``P`` the orthogonal projector
+    onto it (the row norms of an orthonormal basis), the same for each multiplier of the
+    group and for every basis, ordered on 9 significant digits (ties in the order of the
+    state's components); also that orthonormal basis (None for a simple multiplier), whose
+    projection of a vector is the eigenspace's alignment with it."""
+    near = np.flatnonzero(np.abs(lam - lam[j]) <= REPEATED * max(1.0, abs(lam[j])))
+    if near.size == 1:
+        comp = np.abs(full[:, j])
+        return comp, np.argsort(-comp, kind="stable")[:top], None
+    q, _ = np.linalg.qr(full[:, near])
+    comp = np.sqrt(np.sum(np.abs(q) ** 2, axis=1))
+    key = np.array([float(f"{c:.9g}") for c in comp])
+    return comp, np.argsort(-key, kind="stable")[:top], q
 
 
 def output_reference(kp: float, kd: float, T: float) -> float:

@@ -1,8 +1,9 @@
 """The Jacobian of the Poincare map by the variational equations along the orbit, with the
 saltation matrices at the guard and at the thrust knots (SPEC 13).
 
-Along the stance phase ``x' = f(x)`` (the closed loop of SPEC 7, right-hand side from
-:class:`~thrustwalk_cli.simulation.closed_loop.ClosedLoop`), the state-transition matrix obeys
+Along the stance phase ``x' = f(x)`` (the closed loop of SPEC 7, right-hand side evaluated by
+the compiled kernel as :class:`~thrustwalk_cli.simulation.closed_loop.ClosedLoop` evaluates it
+in NumPy, :func:`rhs`), the state-transition matrix obeys
 ``Phi' = f_x(x(t)) Phi``, ``Phi(0) = I``, integrated together with the orbit from
 ``x^+ = Delta(x*)`` to the guard. The Jacobian of the Poincare map on the pre-impact surface is
 
@@ -57,9 +58,39 @@ def closed_loop(zd: ZeroDynamics, setting: Setting) -> ClosedLoop:
     return cl
 
 
+def _kernel(cl: ClosedLoop) -> tuple:
+    """The compiled kernel's module and its arrays ``(fs, ip, par, w)`` for ``cl`` (the
+    settings of a compiled run of ``cl``, ``stepper.pack``), made once per closed loop."""
+    ctx = cl.__dict__.get("_rhs_kernel")
+    if ctx is None:
+        from ..simulation import kernel as K
+        from ..simulation import stepper
+
+        p = stepper.pack(cl, 1.0)
+        w = np.zeros(int(p.ip[K.W_SIZE]))
+        c0, nc = int(p.ip[K.I_C0]), int(p.ip[K.I_NCONST])
+        w[c0:c0 + nc] = p.fs[K.N_FS:K.N_FS + nc]  # the tape's constants into their registers
+        ctx = (stepper.kernel().module, p.fs, p.ip, p.par, w)
+        cl.__dict__["_rhs_kernel"] = ctx
+    return ctx
+
+
 def rhs(cl: ClosedLoop, X: np.ndarray, seg: int) -> np.ndarray:
-    """``x' = [q'; q''; z']`` (SPEC 7) for a batch of states ``X`` (K, n) in segment ``seg``:
-    ``q''`` from the closed loop's vectorised NumPy path, ``z'`` from the thrust model."""
+    """``x' = [q'; q''; z']`` (SPEC 7) for a batch of states ``X`` (K, n) in segment ``seg``,
+    by the compiled kernel (``step_stats.rhs_rows``: the closed loop's and the thrust model's
+    equations, as :func:`rhs_numpy` evaluates them, to rounding); where its controller is
+    singular, by :func:`rhs_numpy` (which says how)."""
+    X = np.ascontiguousarray(np.atleast_2d(X), dtype=float)
+    mod, fs, ip, par, w = _kernel(cl)
+    out = np.empty_like(X)
+    if mod.rhs_rows(X, int(seg), fs, ip, par, w, out) < 0:
+        return out
+    return rhs_numpy(cl, X, seg)
+
+
+def rhs_numpy(cl: ClosedLoop, X: np.ndarray, seg: int) -> np.ndarray:
+    """:func:`rhs` through NumPy: ``q''`` from the closed loop's vectorised path
+    (``ClosedLoop.details``), ``z'`` from the thrust model."""
     X = np.atleast_2d(X)
     N = cl.N
     ddq = cl.details(X, np.full(len(X), seg))["ddq"]

@@ -59,6 +59,7 @@ from .kernel import (
     alpha_of,
     alpha_rate,
     evaluate,
+    rhs_eval,
     tape_batch,
 )
 
@@ -223,6 +224,19 @@ def energy_nodes(R, lo, hi, seg, start, force, xn, fs, ip, par, w, V):
     return -1
 
 
+def rhs_rows(X, seg, fs, ip, par, w, out):
+    """``x' = [q'; q''; z']`` (SPEC 7, :func:`rhs_eval`: the closed loop's equations, torque
+    limits and thruster dynamics included, as ``ClosedLoop.details`` and the thrust model
+    evaluate them in NumPy, to rounding) at every row of ``X`` (K, n) in segment ``seg``,
+    into ``out`` (K, n): the states of ``floquet.variational``'s finite differences (SPEC
+    13). Returns -1, or the first row whose controller is singular (then ``out`` is
+    incomplete)."""
+    for r in range(X.shape[0]):
+        if not rhs_eval(0.0, X[r], seg, fs, ip, par, w, out[r]):
+            return r
+    return -1
+
+
 def kink_integrals(v, coef, anti, x, iters, out):
     """``int |p| dx`` over ``[-1, 1]`` (into ``out``) of polynomials ``p`` that change sign
     between some of the nodes ``x`` (ascending, with both ends): per row ``v`` its values at
@@ -368,6 +382,7 @@ SIGNATURES = {
     "step_stats": f"({_A2}, {_I}, {_A2}, {_F}, {_F}, {_CTX}, {_A})",
     "energy_nodes": f"({_A2}, {_A}, {_A}, {_IA}, {_IA}, {_A2}, {_A}, {_CTX}, {_A3})",
     "kink_integrals": f"({_A2}, {_A2}, {_A2}, {_A}, {_I}, {_A})",
+    "rhs_rows": f"({_A2}, {_I}, {_CTX}, {_A2})",
 }
 # compiled without reference counting (model/jit.py): all but step_stats (it allocates the
 # arrays of the step's states)
