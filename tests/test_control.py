@@ -7,8 +7,10 @@ against the matrix exponential; the step map against ``ZeroDynamics.V_Z`` / ``po
 limit-cycle code path, not the planner's rows); a saturated step against the extreme of the
 affine map over the thrust box; the plant's mass from the robot file's parameters; the speed
 from the simulated step (step length of the gait over the step's impact times); the friction
-ratio of a plan from the exact stance terms on 20,001 points per knot interval refined by
-SciPy's bounded scalar minimiser; realised extremes against 20,001 samples of the dense output.
+ratio of a plan from the exact stance terms on 2,001 points per knot interval refined by
+SciPy's bounded scalar minimiser (the refined maximum must equal the reported one to 1e-10, so a
+grid that led the refinement to another local maximum would fail, not pass); realised extremes
+against 20,001 samples of the dense output.
 """
 
 from __future__ import annotations
@@ -236,16 +238,38 @@ def _exact_max_ratio(walker, knots, u, x, grid):
     return best
 
 
+@pytest.fixture(scope="module")
+def friction_limited(walker3):
+    """Issue item 5's friction-limited run (3-link, speed reference 0.8 then 3.2 m/s, out of
+    reach, mu = 0.7, 12 steps), run once for the two tests that read it, with the arguments
+    and result of every call of ``controller.loop.realised_extremes`` recorded (a spy that
+    returns what the function returns): (ControlResult, [(closed loop, pieces, extremes)])."""
+    import thrustwalk_cli.controller.loop as loop
+
+    seen = []
+    original = loop.realised_extremes
+
+    def spy(cl, pieces, t0, t1, eps, mu):
+        out = original(cl, pieces, t0, t1, eps, mu)
+        seen.append((cl, pieces, out))
+        return out
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(loop, "realised_extremes", spy)
+        res = control(walker3, reference="speed", profile=[(0, 0.8), (2, 3.2)], steps=12,
+                      mu=0.7, compare=False)
+    return res, seen
+
+
 @pytest.mark.slow
-def test_certificate_holds_between_grid_points(walker3):
+def test_certificate_holds_between_grid_points(walker3, friction_limited):
     """Issue item 5's friction-limited run (the speed reference is out of reach, the friction
     rows active from step 5): every step is certified (main: round-off at an active row,
     0.7000000000000003 > 0.7, uncertified steps 5, 6, 9, 10) and every certified plan's
     friction ratio, computed exactly between the grid points, is within mu + 1e-9 (main:
     0.7000103 between grid points)."""
     mu = 0.7
-    res = control(walker3, reference="speed", profile=[(0, 0.8), (2, 3.2)], steps=12, mu=mu,
-                  compare=False)
+    res, _ = friction_limited
     steps = res.controlled.steps
     assert res.success, res.reason
     assert sum("friction" in s.plan.active for s in steps) >= 4
@@ -255,7 +279,7 @@ def test_certificate_holds_between_grid_points(walker3):
     kn = res.planner.thrust.knots
     grid = []
     for j in range(len(kn) - 1):
-        a = np.linspace(kn[j], kn[j + 1], 20001)
+        a = np.linspace(kn[j], kn[j + 1], 2001)
         grid.append((a, stance_terms(walker3.model, walker3.zd.maps, a)))
     for s in steps:
         assert s.certificate["certified"], (s.step, s.predicted)
@@ -268,25 +292,17 @@ def test_certificate_holds_between_grid_points(walker3):
 
 
 @pytest.mark.slow
-def test_realised_extremes_are_polished(walker3, monkeypatch):
+def test_realised_extremes_are_polished(friction_limited):
     """The realised extremes of a step are its dense output's, not a grid's: against 20,001
     samples of the same dense output, never lower (for the ratio) by more than 1e-12, and at
-    least the kernel's own statistics."""
-    import thrustwalk_cli.controller.loop as loop
-
-    seen = []
-    original = loop.realised_extremes
-
-    def spy(cl, pieces, t0, t1, eps, mu):
-        out = original(cl, pieces, t0, t1, eps, mu)
-        seen.append((cl, pieces, out))
-        return out
-
-    monkeypatch.setattr(loop, "realised_extremes", spy)
-    res = control(walker3, reference="speed", profile=[(0, 2.4)], steps=2, mu=0.7,
-                  compare=False)
-    assert len(seen) == 2
-    for (cl, pieces, out), s in zip(seen, res.controlled.steps):
+    least the kernel's own statistics. Checked on the first two steps of the friction-limited
+    run whose plans have an active friction row (the ratio at its largest)."""
+    res, seen = friction_limited
+    assert len(seen) == len(res.controlled.steps) == 12  # one call per step
+    limited = [(call, s) for call, s in zip(seen, res.controlled.steps)
+               if "friction" in s.plan.active][:2]
+    assert len(limited) == 2
+    for (cl, pieces, out), s in limited:
         X, seg = [], []
         for ta, tb, sg, sol in pieces:
             t = np.linspace(ta, tb, 20001)

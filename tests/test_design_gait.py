@@ -26,6 +26,9 @@ from thrustwalk_cli.walker import load_walker
 
 REPO = Path(__file__).resolve().parents[1]
 SPEED = 0.8  # [m/s] 3-link design target (the shipped gait's speed)
+# STICK_PDF: a design-gait run below that is not about files draws its stick figure as PNG
+# only (--formats png); the default PNG + PDF is written by
+# tests/test_robots.py::test_design_gait_for_a_robot_without_thrusters
 
 
 def _thrust(model, gait) -> np.ndarray:
@@ -223,7 +226,7 @@ def test_thrust_codesign_written_and_reloaded(tmp_path, three_link, cli):
     out = tmp_path / "thr.yaml"
     res = cli("design-gait", "three_link", "--target-speed", str(SPEED), "--clearance",
               "0", "--starts", "1", "--design-thrust", "--out", str(tmp_path), "--name", "thr",
-              "-q")
+              "-q", "--formats", "png")  # the stick figure drawn, no PDF (STICK_PDF)
     assert res.exit_code == 0, res.output
     report = json.loads(out.with_name("thr.report.json").read_text())
     F = report["thrust"]
@@ -243,7 +246,8 @@ def test_thrust_range_feasible_for_every_thrust_in_it(tmp_path, three_link, cli)
     out = tmp_path / "robust.yaml"
     res = cli("design-gait", "three_link", "--target-speed", str(SPEED), "--clearance",
               "0", "--starts", "1", "--thrust-range", "hip_x:-50:0",
-              "--min-vertical-force", "40", "--out", str(tmp_path), "--name", "robust", "-q")
+              "--min-vertical-force", "40", "--out", str(tmp_path), "--name", "robust", "-q",
+              "--formats", "png")  # the stick figure drawn, no PDF (STICK_PDF)
     assert res.exit_code == 0, res.output
     gait, zd, _, lc = _orbit(three_link, out)
     assert lc.speed == pytest.approx(SPEED, rel=1e-6)
@@ -305,7 +309,7 @@ def test_designed_gait_meets_the_touchdown_velocity_bound(tmp_path, three_link, 
     out = tmp_path / "td.yaml"
     res = cli("design-gait", "three_link", "--target-speed", str(SPEED), "--clearance", "0",
               "--starts", "1", "--min-touchdown-velocity", "0.6", "--out", tmp_path, "--name",
-              "td", "-q")
+              "td", "-q", "--formats", "png")  # the stick figure drawn, no PDF (STICK_PDF)
     assert res.exit_code == 0, res.output
     report = json.loads(out.with_name("td.report.json").read_text())
     assert report["spec"]["min_touchdown_velocity"] == 0.6
@@ -365,7 +369,7 @@ def test_compass_walker_blocked_without_thrust_and_the_hint_helps(tmp_path, cli)
     assert "try --design-thrust" in line and "`" not in line, line
     report = json.loads((tmp_path / "c.report.json").read_text())
     assert set(report["failed_check_details"]) == set(report["failed_checks"]), report
-    assert cli(*args, "--design-thrust", "-q").exit_code == 0
+    assert cli(*args, "--design-thrust", "-q", "--formats", "png").exit_code == 0  # STICK_PDF
 
 
 def test_blocking_messages_state_the_violated_inequality():

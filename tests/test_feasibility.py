@@ -323,8 +323,8 @@ def test_cli_feasibility_writes_every_output(walk3, tmp_path, cli):
 @pytest.mark.slow
 def test_cli_infeasible_verdict_exits_zero(walk3, tmp_path, cli):
     out = tmp_path / "inf"
-    res = cli("feasibility", "--thrust", "0", "--mu", "0.05", "--out",
-                              str(out), "-q")
+    res = cli("feasibility", "--thrust", "0", "--mu", "0.05", "--out", str(out), "-q",
+              "--formats", "png,md")  # PDFs: test_cli_feasibility_writes_every_output
     assert res.exit_code == 0, res.output
     doc = json.loads((out / "feasibility.json").read_text())
     assert doc["verdict"] == "infeasible"
@@ -341,7 +341,8 @@ def test_cli_schedule_file(walk3, tmp_path, cli):
              "  values:\n    hip_x: [-3, 2]\n")
     src.write_text(text)
     out = tmp_path / "s"
-    res = cli("feasibility", "--schedule", str(src), "--out", str(out), "-q")
+    res = cli("feasibility", "--schedule", str(src), "--out", str(out), "-q",
+              "--formats", "png,md")  # PDFs: test_cli_feasibility_writes_every_output
     assert res.exit_code == 0, res.output
     doc = json.loads((out / "feasibility.json").read_text())
     assert doc["mode"] == "schedule"
@@ -426,7 +427,7 @@ def test_tangential_touchdown_is_not_a_strike(tmp_path, walker_rabbit, cli):
     assert not imp.strikes and not imp.admissible(10.0)
     assert any("not a strike" in r for r in imp.reasons(10.0))
     res = cli("feasibility", "rabbit", data / "rabbit_tangent.yaml", "--thrust", "0", "--mu",
-              "2", "-q", "--out", tmp_path)
+              "2", "-q", "--out", tmp_path, "--formats", "png,md")  # no PDF: drawn all the same
     assert res.exit_code == 0, res.output
     doc = json.loads((tmp_path / "feasibility.json").read_text())
     case = doc["cases"][0]

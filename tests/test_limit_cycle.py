@@ -283,14 +283,14 @@ def test_cli_reports_touchdown_velocity_and_warns_when_grazing(tmp_path, walker_
     on stderr; the bundled gait does not."""
     data = Path(__file__).resolve().parent / "data"
     res = cli("limit-cycle", "rabbit", data / "rabbit_tangent.yaml", "--thrust", "0",
-              "--out", tmp_path / "t")
+              "--out", tmp_path / "t", "--formats", "csv,png")  # figures drawn, no PDF
     assert res.exit_code == 0, res.output
     doc = json.loads((tmp_path / "t" / "limit_cycles.json").read_text())
     assert doc["cycles"][0]["touchdown_velocity"] == pytest.approx(0.0, abs=1e-12)
     assert len(doc["warnings"]) == 1 and "grazing touchdown" in doc["warnings"][0]
     assert "warning: thrust 0 N: grazing touchdown" in res.output
     res = cli("limit-cycle", "rabbit", "rabbit_walk", "--thrust", "0", "-q", "--out",
-              tmp_path / "w")
+              tmp_path / "w", "--formats", "csv")  # figures of this gait: tests/test_cli.py
     doc = json.loads((tmp_path / "w" / "limit_cycles.json").read_text())
     assert doc["warnings"] == [] and doc["cycles"][0]["touchdown_velocity"] < -0.3
 

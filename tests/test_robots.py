@@ -251,7 +251,12 @@ def test_design_gait_for_a_robot_without_thrusters(tmp_path, cli):
     report = _json(tmp_path / "bare.report.json")
     assert report["feasible"] and report["thrust"] == []
     assert report["fixed_point"]["speed"] == pytest.approx(0.8, rel=1e-3)
-    res = cli("limit-cycle", BARE, out, "-q", "--out", tmp_path / "lc")
+    # the stick figure in both default kinds (the other design-gait runs of the tests draw it
+    # as PNG only: tests/test_design_gait.py, STICK_PDF)
+    assert (tmp_path / "bare.stick.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (tmp_path / "bare.stick.pdf").read_bytes()[:5] == b"%PDF-"
+    # the reloaded gait's orbit (its figures: test_robot_without_thrusters_through_every_analysis)
+    res = cli("limit-cycle", BARE, out, "-q", "--formats", "csv", "--out", tmp_path / "lc")
     assert res.exit_code == 0, res.output
 
 

@@ -491,7 +491,8 @@ def test_cli_writes_every_output(tmp_path, cli):
 @pytest.mark.slow
 def test_cli_target_speed_force_mode(tmp_path, cli):
     res = cli("shape", "--target-speed", "1.2", "--mode", "force",
-                              "--knots", "0,0.5,1", "--out", str(tmp_path), "-q")
+                              "--knots", "0,0.5,1", "--out", str(tmp_path), "-q",
+                              "--formats", "csv,png")  # PDFs: test_cli_writes_every_output
     assert res.exit_code == 0, res.output
     doc = json.loads((tmp_path / "shape.json").read_text())
     assert doc["target"]["success"] and doc["thruster"] == "hip_x"

@@ -412,11 +412,16 @@ def test_cli_writes_every_output(tmp_path, cli):
     assert (out / "walker.gif").read_bytes()[:6] == b"GIF89a"
 
 
+# the CLI runs below draw every figure (PNG) but write no PDF: the PDFs are checked once, by
+# test_cli_writes_every_output (the same figures encoded again by another matplotlib backend)
+PNG_ONLY = "csv,png"
+
+
 @pytest.mark.slow
 def test_cli_falling_walker_exit_0_with_reason(tmp_path, cli):
     res = cli("simulate", "--thrust-model", "constant", "--thrust", "100",
                               "--start", "nominal", "--steps", "3", "--quiet", "--out",
-                              str(tmp_path))
+                              str(tmp_path), "--formats", PNG_ONLY)
     assert res.exit_code == 0, res.output
     doc = json.loads((tmp_path / "simulation.json").read_text())
     assert not doc["success"] and not doc["runs"][0]["success"]
@@ -427,7 +432,7 @@ def test_cli_falling_walker_exit_0_with_reason(tmp_path, cli):
 @pytest.mark.slow
 def test_cli_reduced_preview_and_npz(tmp_path, cli):
     res = cli("simulate", "--reduced", "--steps", "3", "--thrust", "0",
-              "--samples", "7001", "--quiet", "--out", str(tmp_path))
+              "--samples", "7001", "--quiet", "--out", str(tmp_path), "--formats", PNG_ONLY)
     assert res.exit_code == 0, res.output
     doc = json.loads((tmp_path / "simulation.json").read_text())
     assert doc["trajectory_file"] == "trajectory.npz" and doc["steps"][0]["model"] == "reduced"
@@ -442,7 +447,7 @@ def test_cli_integrator_failure_exit_1(tmp_path, monkeypatch, cli):
     monkeypatch.setattr(ClosedLoop, "rhs", lambda self, t, x, seg: (
         [np.nan] * len(x) if t > 0.2 else real(self, t, x, seg)))
     res = cli("simulate", "--steps", "1", "--thrust", "0", "--method", "scipy", "--quiet",
-              "--out", str(tmp_path))
+              "--out", str(tmp_path), "--formats", PNG_ONLY)
     assert res.exit_code == 1
     assert json.loads((tmp_path / "simulation.json").read_text())["runs"][0]["failure"] == \
         "integrator"
@@ -472,7 +477,8 @@ def test_cli_tangential_touchdown_is_a_physical_failure(tmp_path, walker_rabbit,
     0: there is no strike to find. The run ends as a physical ``no-impact`` failure naming
     the grazing touchdown (exit 0), not as an integrator failure of the tool (exit 1)."""
     res = cli("simulate", "rabbit", DATA / "rabbit_tangent.yaml", "--steps", "2",
-              "--thrust-model", "constant", "--thrust", "0", "--quiet", "--out", tmp_path)
+              "--thrust-model", "constant", "--thrust", "0", "--quiet", "--out", tmp_path,
+              "--formats", PNG_ONLY)
     assert res.exit_code == 0, res.output
     run = json.loads((tmp_path / "simulation.json").read_text())["runs"][0]
     assert not run["success"] and run["status"] == "failed", run
@@ -486,7 +492,7 @@ def test_cli_one_value_without_orbit_does_not_spoil_the_list(tmp_path, cli):
     """F_ss = 20 N pushes the 3-link walker backwards: no periodic orbit (zeta* < 0). The other
     value still runs; the bad one is a failed run ``no-orbit`` with its reason; exit 0."""
     res = cli("simulate", "--thrust-model", "constant", "--thrust", "0,20", "--steps", "2",
-              "--samples", "10", "--quiet", "--out", tmp_path)
+              "--samples", "10", "--quiet", "--out", tmp_path, "--formats", PNG_ONLY)
     assert res.exit_code == 0, res.output
     doc = json.loads((tmp_path / "simulation.json").read_text())
     ok, bad = doc["runs"]
@@ -528,7 +534,7 @@ def test_deviation_from_the_prediction_is_a_warning_with_reason(walker3, tmp_pat
     assert on_z["status"] == "ok" and on_z["runs"][0]["deviations"] == []
     out = cli("simulate", "--thrust-model", "constant", "--thrust", "0", "--steps", "2",
               "--q0", ",".join(map(str, q0)), "--dq0", ",".join(map(str, dq0)), "--out",
-              tmp_path)
+              tmp_path, "--formats", PNG_ONLY)
     assert out.exit_code == 0, out.output
     assert "ok" not in out.output.split("rel. error")[-1].split("wrote")[0]  # status column
     line = next(ln for ln in out.stderr.splitlines() if ln.startswith("warning: run 0"))

@@ -609,9 +609,8 @@ def test_slow_thruster_towards_a_stop_is_an_outcome_not_a_traceback(walker5_thru
     result whose every number is finite or None (on main: ValueError, NaN in the time map)."""
     import json
 
-    nominal = tw.control(walker5_thrust, reference="nominal", steps=1, knots=[0, 1],
-                         thrust_model="second-order", compare=False)
-    low = 0.08 * nominal.settings["nominal_zeta_star"]
+    # control's settings["nominal_zeta_star"]: the zero-thrust orbit's zeta* (controller.planner)
+    low = 0.08 * walker5_thrust.zd.nominal_cycle().zeta_star
     res = tw.control(walker5_thrust, reference="zeta", profile=[(0, low)], knots=[0, 1],
                      steps=4, thrust_model="second-order", compare=False)
     json.dumps(res.document(), allow_nan=False)  # no NaN anywhere
