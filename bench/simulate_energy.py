@@ -14,10 +14,9 @@ absolute work, but at best about 24-27 %: docs/performance.md, issue 28).
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
-import numpy as np
+from timing import median_cpu
 
 import thrustwalk_cli as tw
 from thrustwalk_cli.energetics.run import simulation_energy
@@ -26,12 +25,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def _cpu(fn, repeat: int = 7) -> float:
-    out = []
-    for _ in range(repeat):
-        t0 = time.process_time()
-        fn()
-        out.append(time.process_time() - t0)
-    return float(np.median(out))
+    return median_cpu(fn, repeat)
 
 
 def bench(robot: str, label: str) -> None:

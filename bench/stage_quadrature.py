@@ -34,11 +34,11 @@ docs/performance.md, not here.
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
 from scipy.integrate import DOP853
+from timing import median_cpu
 
 import thrustwalk_cli as tw
 from thrustwalk_cli.energetics import nodes as NODES
@@ -53,12 +53,7 @@ B_STAGES = np.nonzero(DOP853.B)[0]  # 0, 5, ..., 11
 
 
 def _cpu(fn, repeat: int = 9) -> float:
-    out = []
-    for _ in range(repeat):
-        t0 = time.process_time()
-        fn()
-        out.append(time.process_time() - t0)
-    return float(np.median(out))
+    return median_cpu(fn, repeat)
 
 
 def _steps(full) -> list[tuple]:

@@ -18,6 +18,16 @@ def median_time(fn: Callable[[], object], repeat: int = 7, number: int = 1) -> f
     return statistics.median(runs)
 
 
+def median_cpu(fn: Callable[[], object], repeat: int = 7) -> float:
+    """Median CPU time of this process [s] (``time.process_time``) over ``repeat`` calls."""
+    out = []
+    for _ in range(repeat):
+        t0 = time.process_time()
+        fn()
+        out.append(time.process_time() - t0)
+    return statistics.median(out)
+
+
 def report(label: str, seconds: float, baseline: float | None = None, unit: str = "s") -> None:
     scale = {"s": 1.0, "ms": 1e3, "us": 1e6}[unit]
     ratio = f"  ratio {seconds / baseline:8.3f}" if baseline else ""
