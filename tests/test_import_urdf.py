@@ -379,8 +379,8 @@ def test_cli_writes_a_commented_robot_that_compiles(cli, tmp_path, monkeypatch):
     res = cli("compile", "rabbit.yaml", "--no-kernel", "-q")
     assert res.exit_code == 0, res.output
     # numbers as the URDF gives them (the femur's 0.16 m centre of mass, not the frames'
-    # 0.16000000000000003), and the file is the imported robot to 1e-15
-    assert not re.search(r"\d\.\d{15,}", text), re.search(r"\S*\d\.\d{15,}\S*", text)
+    # 0.16000000000000003), and the file is the imported robot to 1e-12
+    assert not re.search(r"\d\.\d{13,}", text), re.search(r"\S*\d\.\d{13,}\S*", text)
     from thrustwalk_cli.files.robot_file import load_robot
 
     res = _import(RABBIT, "left_foot:0,0,0", "right_foot:0,0,0", side=URDF / "rabbit_side.yaml")
@@ -388,7 +388,14 @@ def test_cli_writes_a_commented_robot_that_compiles(cli, tmp_path, monkeypatch):
     q = np.random.default_rng(5).uniform(-1, 1, (6, 5))
     for f in ("D", "G", "p_swing"):
         a, b = getattr(written, f)(q), getattr(imported, f)(q)
-        assert np.abs(a - b).max() <= 1e-14 * max(np.abs(b).max(), 1.0), f
+        assert np.abs(a - b).max() <= 1e-12 * max(np.abs(b).max(), 1.0), f
+    # the walker with feet: the ankle 0.06 m above the sole's contact point, not
+    # 0.06000000000000005
+    res = cli("import-urdf", str(FOOTBOT), "--stance-foot", "left_foot:0,0,-0.06",
+              "--swing-foot", "right_foot:0,0,-0.06", "--out", "footbot.yaml", "-q")
+    assert res.exit_code == 0, res.output
+    feet = Path("footbot.yaml").read_text()
+    assert "joint: [0.0, 0.06]" in feet and not re.search(r"\d\.\d{13,}", feet)
 
 
 def test_cli_help_has_examples(cli):

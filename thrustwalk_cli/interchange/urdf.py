@@ -163,14 +163,15 @@ def _snap(x: float) -> float:
     return 0.0 if abs(x) < SNAP else x
 
 
-DIGITS = 15  # significant digits of a written number
+DIGITS = 14  # significant digits of a written number
 
 
 def _num(x: float) -> str:
     """A float as YAML reads it back (repr; ``1e-05`` -> ``1.0e-05``), to ``DIGITS``
-    significant digits: the frames' arithmetic leaves rounding noise in the last of a
-    double's 17 (0.16000000000000003 for a URDF's 0.16), which the file does not repeat
-    (a change of at most 5e-16 relative)."""
+    significant digits: the frames' arithmetic leaves rounding noise in the last digits of a
+    double (0.16000000000000003 for a URDF's 0.16, 0.06000000000000005 for its 0.06), which
+    the file does not repeat (a change of at most 5e-14 relative, far below what a URDF's
+    numbers say)."""
     s = repr(float(f"{_snap(x):.{DIGITS}g}"))
     if "e" in s:
         mant, exp = s.split("e")
