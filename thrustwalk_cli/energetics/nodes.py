@@ -161,18 +161,10 @@ def evaluate(cl, X: np.ndarray, seg: np.ndarray, force: np.ndarray | None = None
 
 def kernel_context(cl) -> tuple:
     """The compiled kernel and its parameters ``(fs, ip, par)`` for the closed loop ``cl``
-    (``stepper.pack``: the settings of a compiled run of ``cl``, its thrust before any
-    ``Stepper.set_thrust``), made once per closed loop."""
-    ctx = cl.__dict__.get("_energy_kernel")
-    if ctx is None:
-        from ..simulation import stepper
+    (``stepper.loop_context``)."""
+    from ..simulation import stepper
 
-        p = cl.__dict__.get("_packed")  # a compiled run's (Stepper), else made now
-        if p is None:
-            p = stepper.pack(cl, 1.0)
-        ctx = (stepper.kernel().module, p.fs, p.ip, p.par)
-        cl.__dict__["_energy_kernel"] = ctx
-    return ctx
+    return stepper.loop_context(cl)
 
 
 def evaluate_compiled(cl, dense: Dense, force: np.ndarray | None) -> dict | None:
@@ -182,13 +174,11 @@ def evaluate_compiled(cl, dense: Dense, force: np.ndarray | None) -> dict | None
     ``ClosedLoop.law`` do, the equations of SPEC 7, to rounding; a row's first node shared
     with the end of the row before it in its piece). ``force``: the thrust per row (rows, m).
     None if the controller is singular at a node (then the NumPy path says how)."""
-    from ..simulation import kernel as K
+    from ..simulation import stepper
 
     mod, fs, ip, par = kernel_context(cl)
     N, nb, m = cl.N, cl.nb, cl.m
-    w = np.zeros(int(ip[K.W_SIZE]))
-    c0, nc = int(ip[K.I_C0]), int(ip[K.I_NCONST])
-    w[c0:c0 + nc] = fs[K.N_FS:K.N_FS + nc]  # the tape's constants into their registers
+    w = stepper.work_array(fs, ip)
     R = dense.R.shape[0]
     cols = nb + N + 2 * m + 1
     V = np.empty((R, NODES, cols))

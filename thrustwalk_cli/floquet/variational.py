@@ -59,18 +59,14 @@ def closed_loop(zd: ZeroDynamics, setting: Setting) -> ClosedLoop:
 
 
 def _kernel(cl: ClosedLoop) -> tuple:
-    """The compiled kernel's module and its arrays ``(fs, ip, par, w)`` for ``cl`` (the
-    settings of a compiled run of ``cl``, ``stepper.pack``), made once per closed loop."""
+    """The compiled kernel's module, ``(fs, ip, par)`` for ``cl`` (``stepper.loop_context``)
+    and a work array of its own, made once per closed loop."""
     ctx = cl.__dict__.get("_rhs_kernel")
     if ctx is None:
-        from ..simulation import kernel as K
         from ..simulation import stepper
 
-        p = stepper.pack(cl, 1.0)
-        w = np.zeros(int(p.ip[K.W_SIZE]))
-        c0, nc = int(p.ip[K.I_C0]), int(p.ip[K.I_NCONST])
-        w[c0:c0 + nc] = p.fs[K.N_FS:K.N_FS + nc]  # the tape's constants into their registers
-        ctx = (stepper.kernel().module, p.fs, p.ip, p.par, w)
+        mod, fs, ip, par = stepper.loop_context(cl)
+        ctx = (mod, fs, ip, par, stepper.work_array(fs, ip))
         cl.__dict__["_rhs_kernel"] = ctx
     return ctx
 

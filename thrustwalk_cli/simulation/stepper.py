@@ -131,6 +131,30 @@ def kernel(rebuild: bool = False, on_wait: Callable[[str], None] | None = None
                     nrt_free=NRT_FREE, what="the simulation kernel", on_wait=on_wait)
 
 
+def loop_context(cl: ClosedLoop) -> tuple:
+    """The compiled kernel's module and its parameters ``(fs, ip, par)`` for the closed loop
+    ``cl`` (:func:`pack`: the settings of a compiled run of ``cl``, its thrust before any
+    ``Stepper.set_thrust``; a compiled run's own when it has one), made once per closed loop:
+    for evaluating ``cl`` in the kernel after or outside a run (the energies' nodes, the
+    variational equations' right-hand side)."""
+    ctx = cl.__dict__.get("_kernel_context")
+    if ctx is None:
+        p = cl.__dict__.get("_packed")  # a compiled run's (Stepper), else made now
+        if p is None:
+            p = pack(cl, 1.0)
+        ctx = (kernel().module, p.fs, p.ip, p.par)
+        cl.__dict__["_kernel_context"] = ctx
+    return ctx
+
+
+def work_array(fs: np.ndarray, ip: np.ndarray) -> np.ndarray:
+    """A kernel work array for ``(fs, ip)`` with the tape's constants in their registers."""
+    w = np.zeros(int(ip[K.W_SIZE]))
+    c0, nc = int(ip[K.I_C0]), int(ip[K.I_NCONST])
+    w[c0:c0 + nc] = fs[K.N_FS:K.N_FS + nc]
+    return w
+
+
 def kernel_status() -> dict:
     """Whether the compiled kernel is cached, without importing numba or SciPy."""
     return jit.status(TAG, _fingerprint(), _names(), NRT_FREE)
