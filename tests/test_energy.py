@@ -381,6 +381,46 @@ def test_chebyshev_evaluation_against_numpy():
         assert np.array_equal(chebyshev_at(np.ascontiguousarray(c), x), val)
 
 
+def test_midpoint_tables_against_numpy():
+    """The halvings' middles ``x_g + j h_g / 2^level`` (odd ``j``) and ``T_k``, ``T_k'`` there
+    from ``cos(k theta)``, ``k sin(k theta) / sin(theta)`` against numpy's chebval/chebder;
+    a series' values and slopes there through the table (up to ``TABLE_LEVELS``) and through
+    the general evaluation (beyond) agree."""
+    from numpy.polynomial import chebyshev as C
+
+    from thrustwalk_cli.energetics.kinks import (
+        TABLE_LEVELS,
+        chebyshev_at,
+        midpoint_table,
+        midpoint_values,
+        node_tables,
+    )
+
+    n = 65
+    xn, h = node_tables(n)[:2]
+    eye = np.eye(n)
+    for level in range(1, TABLE_LEVELS + 1):
+        x, T, dT = midpoint_table(n, level)
+        g = np.repeat(np.arange(n - 1), 2 ** (level - 1))
+        frac = (x - xn[g]) / h[g]
+        assert np.allclose(frac * 2 ** level, np.round(frac * 2 ** level), atol=1e-9)
+        assert np.all(np.round(frac * 2 ** level) % 2 == 1)  # odd: a middle, inside the gap
+        assert np.abs(T - C.chebval(x, eye)).max() <= 1e-13
+        want = C.chebval(x, C.chebder(eye))  # (n, points); |T_k'| <= k^2, the error's scale
+        k2 = np.maximum(np.arange(n, dtype=float) ** 2, 1.0)[:, None]
+        assert np.all(np.abs(dT - want) <= 1e-13 * k2)
+    rng = np.random.default_rng(3)
+    cT = rng.standard_normal((n, 9)) / (1.0 + np.arange(n)[:, None]) ** 2
+    r = np.array([0, 3, 8, 8])
+    for level in (1, TABLE_LEVELS, TABLE_LEVELS + 1):
+        g = np.array([0, 17, 40, 63])
+        j = np.array([1, 2 ** level - 1, 1, max(1, 2 ** (level - 1) - 1)])  # odd
+        p, d, x = midpoint_values(cT, r, n, level, g, j, xn, h)
+        pw, dw = chebyshev_at(np.ascontiguousarray(cT[:, r]), x, derivative=True)
+        assert np.allclose(x, xn[g] + j * h[g] / 2 ** level, rtol=0, atol=1e-15)
+        assert np.allclose(p, pw, rtol=0, atol=1e-13) and np.allclose(d, dw, rtol=0, atol=1e-12)
+
+
 def test_node_bound_bounds_the_second_derivative():
     """The node bound of the second derivative's size on each gap of the nodes (its size at
     the ends plus half a gap times a bound of the third derivative) is not below the size

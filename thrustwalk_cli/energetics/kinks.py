@@ -95,23 +95,33 @@ def second_derivative_bound(abs_coef_sums: np.ndarray, s: np.ndarray) -> np.ndar
 
 
 def node_bound(d: np.ndarray, gap: np.ndarray, h: np.ndarray, T2: np.ndarray,
-                kd: np.ndarray) -> np.ndarray:
+               kd: np.ndarray) -> np.ndarray:
     """A second bound of ``|p''|`` on gaps ``[x_i, x_{i+1}]`` of the nodes (``i = gap``,
     (G,)), for the Chebyshev coefficients ``d`` (G, n-2) of each one's ``p'' = sum_j d_j
-    T_j``, tight where the coefficients decay: with ``|T_j'| = |j sin(j theta) /
-    sin(theta)| <= min(j^2, j / s_i)`` on the gap (``s_i`` its least ``sin(theta)``; the
-    rows ``kd`` (n-1, n-2)),
+    T_j``: :func:`row_node_bounds` of each row, at its gap."""
+    return row_node_bounds(d, h, T2, kd)[np.arange(gap.size), gap]
+
+
+def row_node_bounds(d: np.ndarray, h: np.ndarray, T2: np.ndarray, kd: np.ndarray
+                    ) -> np.ndarray:
+    """A bound of ``|p''|`` on every gap ``[x_i, x_{i+1}]`` of the nodes (R, n-1) for rows of
+    Chebyshev coefficients ``d`` (R, n-2) of ``p'' = sum_j d_j T_j``, tight where the
+    coefficients decay: with ``|T_j'| = |j sin(j theta) / sin(theta)| <= min(j^2, j / s_i)``
+    on the gap (``s_i`` its least ``sin(theta)``; the rows ``kd`` (n-1, n-2)),
 
         max |p''| <= max(|p''(x_i)|, |p''(x_{i+1})|) + (h_i / 2) sum_j |d_j| min(j^2, j / s_i)
 
     (every point of the gap is within ``h_i / 2`` of one end); ``p''(x_i) = sum_j d_j
     T_j(x_i)`` (the rows ``T2`` (n, n-2)) with ``|T_j| <= 1``, so its rounding is below
-    ``1e-13 sum_j |d_j|``, added."""
+    ``1e-13 sum_j |d_j|``, added. All the gaps of a row at once, by matrix products."""
     ad = np.abs(d)
-    t = np.einsum("gj,gj->g", ad, kd[gap])
-    va = np.abs(np.einsum("gj,gj->g", d, T2[gap]))
-    vb = np.abs(np.einsum("gj,gj->g", d, T2[gap + 1]))
-    return (np.maximum(va, vb) + 0.5 * h[gap] * t + 1e-13 * ad.sum(axis=1)) * (1.0 + 1e-12)
+    va = np.abs(d @ T2.T)  # |p''| at the nodes (R, n)
+    t = ad @ kd.T  # (R, n-1)
+    t *= 0.5 * h
+    t += np.maximum(va[:, :-1], va[:, 1:])
+    t += 1e-13 * ad.sum(axis=1)[:, None]
+    t *= 1.0 + 1e-12
+    return t
 
 
 def clenshaw(c: np.ndarray, x: np.ndarray, derivative: bool = False):
@@ -158,36 +168,83 @@ def chebyshev_at(cT: np.ndarray, x: np.ndarray, derivative: bool = False):
     return val, d
 
 
+TABLE_LEVELS = 4  # halvings whose middles take T_k, T_k' from a table (64 2^level points)
+
+
+@lru_cache(maxsize=16)
+def midpoint_table(n: int, level: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The points ``x_g + j h_g / 2^level`` (odd ``j < 2^level``, every gap ``g`` of the ``n``
+    Lobatto nodes; index ``g 2^(level-1) + (j - 1) / 2``) and ``T_k``, ``T_k'`` there (n,
+    points): with ``x = cos(theta)``, ``T_k = cos(k theta)``, ``T_k' = k sin(k theta) /
+    sin(theta)`` (inner points: ``sin(theta) > 0``)."""
+    xn, h = node_tables(n)[:2]
+    half = 2 ** (level - 1)
+    g = np.repeat(np.arange(n - 1), half)
+    j = 2 * np.tile(np.arange(half), n - 1) + 1
+    x = _middles(xn, h, g, j, level)
+    theta = np.arccos(x)
+    kt = np.arange(n, dtype=float)[:, None] * theta[None, :]
+    T = np.cos(kt)
+    dT = np.arange(n, dtype=float)[:, None] * np.sin(kt) / np.sin(theta)[None, :]
+    for t in (x, T, dT):
+        t.setflags(write=False)
+    return x, T, dT
+
+
+def _middles(xn: np.ndarray, h: np.ndarray, g: np.ndarray, j: np.ndarray, level: int
+             ) -> np.ndarray:
+    """``x_g + j h_g / 2^level``: one rounding of ``j (h_g / 2^level)`` and one of the sum."""
+    return xn[g] + j * (h[g] * 0.5 ** level)
+
+
+def midpoint_values(cT: np.ndarray, r: np.ndarray, n: int, level: int, g: np.ndarray,
+                    j: np.ndarray, xn: np.ndarray, h: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``p``, ``p'`` of rows ``r`` (coefficient columns ``cT`` (n, P)) at the points
+    ``x_g + j h_g / 2^level`` (odd ``j``) and the points: from :func:`midpoint_table` up to
+    ``TABLE_LEVELS`` halvings (a dot product per point), else :func:`chebyshev_at`."""
+    c = np.take(cT, r, axis=1)
+    if level > TABLE_LEVELS:
+        x = _middles(xn, h, g, j, level)
+        p, d = chebyshev_at(c, x, derivative=True)
+        return p, d, x
+    x, T, dT = midpoint_table(n, level)
+    idx = g * 2 ** (level - 1) + (j - 1) // 2
+    p = np.einsum("kr,kr->r", c, np.take(T, idx, axis=1))
+    d = np.einsum("kr,kr->r", c, np.take(dT, idx, axis=1))
+    return p, d, x[idx]
+
+
 def hermite_root(fa: np.ndarray, fb: np.ndarray, da: np.ndarray, db: np.ndarray
                   ) -> np.ndarray:
     """A root ``t`` in [0, 1] of each cubic Hermite interpolant ``H`` with end values ``fa``,
     ``fb`` of opposite signs (``fa >= 0`` and ``fb < 0`` or the reverse) and end slopes
     ``da``, ``db`` (d/dt): Newton's method kept inside a bracket of ``H``'s sign change,
-    bisecting where a step would leave it, to ``1e-15``."""
+    bisecting where a step would leave it, to ``1e-15``. ``H(t) = fa + da t + c_2 t^2 +
+    c_3 t^3`` with ``c_2 = 3 (fb - fa) - 2 da - db``, ``c_3 = 2 (fa - fb) + da + db``; every
+    root iterated at once, each left where it converged."""
     lo, hi = np.zeros_like(fa), np.ones_like(fa)
     up = fa < 0.0  # H(lo) < 0 <= H(hi)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.clip(np.nan_to_num(fa / (fa - fb), nan=0.5), 0.0, 1.0)
-    act = np.arange(fa.size)
+    c2 = 3.0 * (fb - fa) - 2.0 * da - db
+    c3 = 2.0 * (fa - fb) + da + db
+    c2d, c3d = 2.0 * c2, 3.0 * c3
+    done = np.zeros(fa.shape, bool)
     for _ in range(60):
-        tt, a, b, ea, eb = t[act], fa[act], fb[act], da[act], db[act]
-        t2 = tt * tt
-        t3 = t2 * tt
-        H = (2 * t3 - 3 * t2 + 1) * a + (t3 - 2 * t2 + tt) * ea + (3 * t2 - 2 * t3) * b \
-            + (t3 - t2) * eb
-        dH = (6 * t2 - 6 * tt) * (a - b) + (3 * t2 - 4 * tt + 1) * ea + (3 * t2 - 2 * tt) * eb
-        below = (H < 0.0) == up[act]  # the root is above tt
-        lo[act] = np.where(below, tt, lo[act])
-        hi[act] = np.where(below, hi[act], tt)
+        H = ((c3 * t + c2) * t + da) * t + fa
+        dH = (c3d * t + c2d) * t + da
+        below = (H < 0.0) == up  # the root is above t
+        lo = np.where(below, t, lo)
+        hi = np.where(below, hi, t)
         with np.errstate(divide="ignore", invalid="ignore"):
-            new = tt - H / dH
-        mid = 0.5 * (lo[act] + hi[act])
-        new = np.where(np.isfinite(new) & (new >= lo[act]) & (new <= hi[act]), new, mid)
-        new = np.where(H == 0.0, tt, new)
-        t[act] = new
-        done = (np.abs(new - tt) <= 1e-15) | (hi[act] - lo[act] <= 1e-15) | (H == 0.0)
-        act = act[~done]
-        if not act.size:
+            new = t - H / dH
+        new = np.where(np.isfinite(new) & (new >= lo) & (new <= hi), new, 0.5 * (lo + hi))
+        zero = H == 0.0
+        new = np.where(zero | done, t, new)
+        done |= (np.abs(new - t) <= 1e-15) | (hi - lo <= 1e-15) | zero
+        t = new
+        if done.all():
             break
     return t
 
@@ -206,7 +263,7 @@ def abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.nd
     ``max|p''|`` bounded from the coefficients (:func:`second_derivative_bound`; on a gap
     that this leaves without a proof, the smaller of it and :func:`node_bound`); a gap
     still without a proof is halved (``p`` and ``p'`` at its middle,
-    :func:`chebyshev_at`) and the test repeated on the halves with the gap's bound, up to
+    :func:`midpoint_values`) and the test repeated on the halves with the gap's bound, up to
     ``SPLITS`` times (a piece where ``|p|`` stays below ``1e-15`` of the row's largest node
     value is negligible and left unsplit). Each root starts at the root of the cubic
     Hermite interpolant of its bracket's end values and slopes (:func:`hermite_root`) and
@@ -247,16 +304,18 @@ def abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.nd
     open_ = ch & ~one | ~ch & ~((am > 0.125 * hg * hg * m2) | (m2 == 0.0))
     if np.any(open_):  # the node bound too, where it is smaller
         rows_o, inv = np.unique(r[open_], return_inverse=True)
-        d = (np.take(cT, rows_o, axis=1).T @ d2)[inv]  # p'''s coefficients, per gap
-        m2[open_] = np.minimum(m2[open_], node_bound(d, gap[open_], h, T2, kd))
+        d = np.take(cT, rows_o, axis=1).T @ d2  # p'''s coefficients, per row
+        m2[open_] = np.minimum(m2[open_], row_node_bounds(d, h, T2, kd)[inv, gap[open_]])
         one = ch & mono & (sdv > hg * m2)
         open_ = ch & ~one | ~ch & ~((am > 0.125 * hg * hg * m2) | (m2 == 0.0))
     ro, go = r[one], gap[one]
     brackets = [(ro, xn[go], h[go], values[ro, go], values[ro, go + 1], ga[one], gb[one])]
     # the other gaps: halved until each piece provably holds no root or one
     r, gap = r[open_], gap[open_]
+    # a piece: its row, start, width, end values and slopes, bound, and its place: the gap
+    # ``g`` of the nodes and ``j``, the start being x_g + j h_g / 2^level
     piece = (r, xn[gap], h[gap], values[r, gap], values[r, gap + 1], ga[open_], gb[open_],
-             m2[open_])
+             m2[open_], gap, np.zeros(gap.size, np.int64))
     tiny = 1e-15 * np.max(av, axis=1)  # a piece below it is negligible in the integrals
     for level in range(SPLITS + 1):
         r = piece[0]
@@ -266,11 +325,13 @@ def abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.nd
             ch = (piece[3] >= 0.0) != (piece[4] >= 0.0)
             brackets.append(tuple(v[ch] for v in piece[:7]))
             break
-        r, a, w, fa, fb, ga, gb, m2 = piece
+        r, a, w, fa, fb, ga, gb, m2, g, j = piece
         w = 0.5 * w
-        pm, dm = chebyshev_at(np.take(cT, r, axis=1), a + w, derivative=True)
-        r, a, fa, fb, ga, gb, m2 = (np.concatenate(v) for v in (
-            (r, r), (a, a + w), (fa, pm), (pm, fb), (ga, dm), (dm, gb), (m2, m2)))
+        j = 2 * j + 1  # the middle: x_g + j h_g / 2^(level + 1)
+        pm, dm, xm = midpoint_values(cT, r, n, level + 1, g, j, xn, h)
+        r, a, fa, fb, ga, gb, m2, g, j = (np.concatenate(v) for v in (
+            (r, r), (a, xm), (fa, pm), (pm, fb), (ga, dm), (dm, gb), (m2, m2), (g, g),
+            (j - 1, j)))
         w = np.concatenate([w, w])
         ch = (fa >= 0.0) != (fb >= 0.0)
         e2 = 0.125 * w * w * m2
@@ -280,7 +341,8 @@ def abs_and_positive(values: np.ndarray, half: float) -> tuple[np.ndarray, np.nd
         one = ch & (((ga * gb > 0.0) & (np.abs(ga) + np.abs(gb) > w * m2)) | small)
         brackets.append((r[one], a[one], w[one], fa[one], fb[one], ga[one], gb[one]))
         keep = ~(none | one)
-        piece = (r[keep], a[keep], w[keep], fa[keep], fb[keep], ga[keep], gb[keep], m2[keep])
+        piece = (r[keep], a[keep], w[keep], fa[keep], fb[keep], ga[keep], gb[keep], m2[keep],
+                 g[keep], j[keep])
     rows, xa, hb, fa, fb, da, db = (np.concatenate(v) for v in zip(*brackets))
     F1 = coef @ F1_m  # F(1): T_k(1) = 1
     s0 = np.where(pos[:, 0], 1.0, -1.0)

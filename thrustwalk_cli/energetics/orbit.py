@@ -306,6 +306,7 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
     powers = [t.power for t in robot.thrusters]
     missing = missing_models(robot)
     missing_t = tuple(missing)
+    cycles = list(cycles)  # a batch's LimitCycles read once (each read checks its index)
     live = [i for i, lc in enumerate(cycles) if lc.exists]
     out: list[OrbitEnergy | None] = [
         None if lc.exists else OrbitEnergy(False, lc.missing)
