@@ -252,26 +252,32 @@ def _exact_abs_and_positive(f, F, roots, half):
     return np.abs(seg).sum() * half, np.maximum(seg, 0.0).sum() * half
 
 
-def test_large_node_tables_in_closed_form_equal_clenshaw():
-    """Above ``CLENSHAW_NODES`` the tables' ``T_k'`` and ``T_j`` at the Lobatto nodes come
-    from ``cos(k theta)`` and ``k sin(k theta) / sin(theta)`` (O(n^2)) instead of
-    ``chebval`` (O(n^3), seconds at 1,025 nodes: an orbit that comes to rest doubles its
-    nodes to there); NumPy's Clenshaw recurrence gives the same to rounding."""
+def test_node_tables_in_closed_form_equal_numpy():
+    """The tables' ``T_k'`` and ``T_j`` at the Lobatto nodes come from ``cos(k theta)`` and
+    ``k sin(k theta) / sin(theta)`` (O(n^2); numpy's chebval of all k at once is O(n^3),
+    seconds at the 1,025 nodes of an orbit that comes to rest): numpy's Clenshaw recurrence
+    gives the same to rounding, and numpy's chebder the derivative matrices (exact integers
+    here)."""
     from numpy.polynomial import chebyshev as Ch
 
     from thrustwalk_cli.energetics.kinks import (
-        CLENSHAW_NODES,
         _closed_form_tables,
+        derivative_matrix,
         node_tables,
     )
 
-    n = 2 * CLENSHAW_NODES - 1  # the first count above (a node count doubles as 2 n - 1)
-    x = -np.cos(np.pi * np.arange(n) / (n - 1))
-    dT, T2 = _closed_form_tables(n)
-    want_dT = Ch.chebval(x, Ch.chebder(np.eye(n))).T
-    assert np.abs(T2 - Ch.chebval(x, np.eye(n - 2))).max() <= 1e-11
-    assert np.abs(dT - want_dT).max() <= 1e-11 * np.abs(want_dT).max()
-    assert np.array_equal(node_tables(n)[6], T2.T)
+    for n in (33, 65, 513):
+        x = -np.cos(np.pi * np.arange(n) / (n - 1))
+        dT, T2 = _closed_form_tables(n)
+        want_dT = Ch.chebval(x, Ch.chebder(np.eye(n))).T
+        assert np.abs(T2 - Ch.chebval(x, np.eye(n - 2))).max() <= 1e-11
+        assert np.abs(dT - want_dT).max() <= 1e-11 * np.abs(want_dT).max()
+        assert np.array_equal(node_tables(n)[6], T2.T)
+        D = derivative_matrix(n)  # integers (numpy's chebder divides: rounding)
+        assert np.allclose(D[:, :n - 1], Ch.chebder(np.eye(n)).T, rtol=1e-14, atol=0)
+        d2 = node_tables(n)[5]
+        assert np.array_equal(d2, np.round(d2))
+        assert np.allclose(d2, Ch.chebder(np.eye(n), 2).T, rtol=1e-13, atol=0)
 
 
 def test_kinks_against_known_roots():

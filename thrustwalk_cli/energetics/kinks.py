@@ -20,12 +20,6 @@ SPLITS = 12  # halvings of a gap of the nodes to isolate the roots in it
 SMALL = 256  # at most this many points: Chebyshev series evaluated without a recurrence
 
 
-# node counts up to this take T_k and T_k' at the nodes by Clenshaw's recurrence (``chebval``:
-# O(n^3) for all k at once, 0.04 s at 257 nodes, 2.5 s each at 1,025); larger ones in closed
-# form (O(n^2); equal to rounding, see tests/test_energy.py)
-CLENSHAW_NODES = 257
-
-
 def _closed_form_tables(n: int) -> tuple[np.ndarray, np.ndarray]:
     """``T_k'(x_i)`` (nodes, k < n) and ``T_j(x_i)`` (j < n - 2, nodes) at the ``n`` ascending
     Lobatto nodes ``x_i = cos(theta_i)``, ``theta_i = pi (n - 1 - i) / (n - 1)``:
@@ -42,6 +36,16 @@ def _closed_form_tables(n: int) -> tuple[np.ndarray, np.ndarray]:
     dT[-1] = k * k  # x = 1
     T2 = np.cos(kt[:, :n - 2]).T
     return dT, T2
+
+
+def derivative_matrix(n: int) -> np.ndarray:
+    """``D`` (n, n) with ``T_k' = sum_j D[k, j] T_j``: ``2 k`` for ``j < k`` with ``k - j``
+    odd, ``k`` at ``j = 0`` (odd ``k``), else 0."""
+    k = np.arange(n)[:, None]
+    j = np.arange(n)[None, :]
+    D = np.where((j < k) & ((k - j) % 2 == 1), 2.0 * k, 0.0)
+    D[:, 0] *= 0.5
+    return D
 
 
 @lru_cache(maxsize=16)
@@ -61,20 +65,18 @@ def node_tables(n: int) -> tuple[np.ndarray, ...]:
     s = np.minimum(sn[:-1], sn[1:])
     K = np.stack([k * k, k, k * k * (k * k - 1.0) / 3.0], axis=1)
     dct = _dct_matrix(n)
-    if n <= CLENSHAW_NODES:  # (nodes, k) T_k'(x_i) and (j, nodes) T_j(x_i)
-        dT = C.chebval(x, C.chebder(np.eye(n))).T
-        T2 = C.chebval(x, np.eye(n - 2))
-    else:
-        dT, T2 = _closed_form_tables(n)
-    d2 = C.chebder(np.eye(n), 2).T  # (k, j): T_k'' = sum_j d2[k, j] T_j
+    dT, T2 = _closed_form_tables(n)  # (nodes, k) T_k'(x_i) and (j, nodes) T_j(x_i)
+    D = derivative_matrix(n)
+    d2 = (D @ D)[:, :n - 2]  # (k, j): T_k'' = sum_j d2[k, j] T_j (integers: exact)
     k2 = k[:n - 2, None]
     with np.errstate(divide="ignore", invalid="ignore"):
         kd = np.where(s[None, :] > 0, np.minimum(k2 * k2, k2 / s[None, :]), k2 * k2)
-    F1 = C.chebint(np.eye(n), lbnd=-1.0).sum(axis=0)  # (k,) int_{-1}^{1} T_k
+    integral = C.chebint(np.eye(n), lbnd=-1.0)  # (n+1, k): int_{-1}^x T_k's coefficients
+    F1 = integral.sum(axis=0)  # (k,) int_{-1}^{1} T_k
     h = np.diff(x)
     with np.errstate(divide="ignore"):
         e_abc = np.stack([h * h / (s * s), h * h / (s * s * s), h * h]) * (0.125 * (1.0 + 1e-12))
-    anti = C.chebint(np.eye(n), lbnd=-1.0) @ dct  # values -> F's coefficients (n+1, n)
+    anti = integral @ dct  # values -> F's coefficients (n+1, n)
     tables = (x, h, s, K.T.copy(), np.concatenate([dct, dT @ dct, anti]), d2, T2.T.copy(),
               kd.T.copy(), F1, e_abc)
     for t in tables:

@@ -61,6 +61,10 @@ from .power import input_power, joule_power, missing_models
 
 RTOL = 1e-10
 MAX_NODES = 1025
+# nodes at which a knot interval's integrands are first computed (where no call ended
+# before): the 33 of the first try are every other one of them (the same nodes, bit for
+# bit), and most orbits need the 65 (RABBIT's, the 3-link's, walker5's)
+FIRST_NODES = 65
 
 
 @dataclass(frozen=True)
@@ -297,8 +301,9 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
 
     What depends on alpha only is computed once per walker, knots and node count
     (:func:`_nodes`); the node count of a knot interval starts where the last call ended
-    (kept on ``zd``), and the smaller nested counts are tried first on subsets of those
-    nodes, so the result is the one the doubling from 33 nodes gives."""
+    (kept on ``zd``; ``FIRST_NODES`` on the first call), and the smaller nested counts are
+    tried first on subsets of those nodes, so the result is the one the doubling from 33
+    nodes gives."""
     model, maps = zd.model, zd.maps
     robot = model.robot
     N, m = model.n, model.n_thrusters
@@ -340,7 +345,7 @@ def orbit_energy(zd: ZeroDynamics, schedule: Schedule, cycles, *, regenerate: bo
         n, have, full = 33, 0, None
         while True:
             if have < n:  # the integrands at max(n, where the last call ended) nodes
-                have = max(n, start.get(skey, 33))
+                have = max(n, start.get(skey, FIRST_NODES))
                 full = _integrands(zd, sched, zp, j, have)
             step = (have - 1) // (n - 1)  # the n nodes are every step-th of them
             it = {key: v[..., ::step] for key, v in full.items()}
