@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import io
 import json
 import math
 import os
@@ -30,6 +29,8 @@ from collections.abc import Iterable, Iterator, Sequence
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from .._version import __version__
 from ..errors import ComputationError, InputError
@@ -277,7 +278,10 @@ def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) 
     (units are in the column names, notes and provenance in the JSON beside it), no quoted
     fields (commas and line breaks in text become ``;`` and spaces), empty = missing. A numpy
     scalar is written as the Python number it holds (``0.5``, ``true``, never
-    ``np.float64(0.5)``)."""
+    ``np.float64(0.5)``). Column by column: a column of floats (Python's or numpy's float64)
+    is checked finite at once and written by ``float.__repr__`` (the shortest repr that reads
+    back to the same number, as ``repr`` of the Python float); a column of text, flags,
+    integers and blanks writes each distinct value once; any other cell by cell."""
     def cell(v: Any) -> str:
         if v is None:
             return ""
@@ -292,11 +296,29 @@ def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) 
             return repr(v)
         return str(v).replace(",", ";").replace("\n", " ").replace("\r", " ").replace('"', "'")
 
-    buf = io.StringIO()
-    buf.write(",".join(cell(h) for h in header) + "\n")
-    for row in rows:
-        buf.write(",".join(cell(v) for v in row) + "\n")
-    return write_text_atomic(path, buf.getvalue())
+    def column(values: tuple) -> list[str]:
+        kinds = set(map(type, values))
+        if kinds <= _FLOATS and np.all(np.isfinite(np.array(values, float))):
+            return list(map(float.__repr__, values))
+        if kinds <= _REPEATED:  # text, flags, counts, missing: each value's cell once
+            memo: dict = {}
+            return [memo[k] if (k := (type(v), v)) in memo else memo.setdefault(k, cell(v))
+                    for v in values]
+        return [cell(v) for v in values]
+
+    rows = [tuple(r) for r in rows]
+    lines = [",".join(cell(h) for h in header)]
+    if rows:
+        width = max(map(len, rows))
+        if all(len(r) == width for r in rows):
+            lines += map(",".join, zip(*(column(c) for c in zip(*rows))))
+        else:  # ragged rows: cell by cell
+            lines += [",".join(cell(v) for v in r) for r in rows]
+    return write_text_atomic(path, "\n".join(lines) + "\n")
+
+
+_FLOATS = {float, np.float64}
+_REPEATED = {str, bool, int, type(None), np.bool_}
 
 
 def file_ref(path: str, sha256: str) -> dict[str, str]:
