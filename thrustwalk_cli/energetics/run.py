@@ -108,13 +108,16 @@ class _Integrands:
         return np.concatenate(cols, axis=1)
 
     def joule(self, d: dict) -> np.ndarray:
-        """``R (u / (G k_t))^2`` per motor (K, motors)."""
-        if not self.el:
-            return np.zeros((d["u"].shape[0], 0))
-        u = d["u"][:, self.el]
-        gk = np.array([self.motors[j].G * self.motors[j].k_t for j in self.el])
-        R = np.array([self.motors[j].R for j in self.el])
-        return R * (u / gk) ** 2
+        """``R (u / (G k_t))^2`` per motor (K, motors), kept in ``d`` (read twice)."""
+        if "joule" not in d:
+            if not self.el:
+                d["joule"] = np.zeros((d["u"].shape[0], 0))
+            else:
+                u = d["u"][:, self.el]
+                gk = np.array([self.motors[j].G * self.motors[j].k_t for j in self.el])
+                R = np.array([self.motors[j].R for j in self.el])
+                d["joule"] = R * (u / gk) ** 2
+        return d["joule"]
 
     def smooth(self, d: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Generalised power (K,), thruster input power (K, m; NaN where a table's range is
