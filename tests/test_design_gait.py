@@ -852,3 +852,79 @@ def test_the_margin_formatter_shows_0_within_the_tolerance_and_never_minus_0():
     assert fmt_margin(-1e-9, ".2e") == "-1.00e-09"  # not zero at that precision
     assert fmt_margin(-0.006, ".2f") == "-0.01" and fmt_margin(0.25, ".3f") == "0.250"
     assert fmt_margin(None) == "—"
+
+
+# ------------------------------------------------------- feasibility restoration (footbot)
+def _walker5_walk_point():
+    """The design problem of walker5 at 0.6 m/s and the decision vector of its gait
+    walker5_walk.yaml (designed by design-gait for that speed): q^- from the gait file's last
+    Bezier column and alpha_f, zeta^- the fixed point of its zero dynamics."""
+    w = load_walker(str(DATA / "walker5.yaml"), str(DATA / "walker5_walk.yaml"))
+    model, gait, zd = w.model, w.gait, w.zd
+    n = model.n
+    A = np.asarray(gait.coefficients, float)
+    H = np.vstack([np.hstack([np.eye(n - 1), np.zeros((n - 1, 1))]), [gait.c]])
+    q_minus = np.linalg.solve(H, np.append(A[:, -1], gait.alpha_f))
+    zs = limit_cycles(zd, Schedule.constant(zd, np.zeros((1, model.n_thrusters))))[0].zeta_star
+    spec = DesignSpec(speed=0.6, starts=1, max_iter=3)
+    prob = Problem(model, spec)
+    return model, spec, prob, prob.warm_start(q_minus, A, zs)
+
+
+def test_a_start_ending_near_feasible_is_restored_onto_the_constraints():
+    """When SLSQP stops a little off the constraints (here: 3 iterations from walker5_walk's
+    point moved by 0.01 in every variable, normalised violation ~0.1; on a footed walker SLSQP
+    ended 1e-5..1e-4 off after hundreds of iterations), solve_start projects its point onto the
+    constraints (min |x - x_end|^2 subject to all of them, no slacks) and keeps the projection:
+    the start is then feasible by the solver's tolerance, SLSQP's exit code (9, iteration
+    limit: no certified optimum) still stands, and the gait passes the independent re-check
+    (adaptive zero dynamics, limit_cycles, contact evaluation), whose speed from the orbit's
+    step length and time is the target 0.6 m/s, with the swing foot on the ground at impact
+    by the independent kinematics. The moved point itself fails that re-check."""
+    from independent import swing_foot
+
+    from thrustwalk_cli.design.solver import solve_start
+    from thrustwalk_cli.design.spec import FEAS_TOL
+    from thrustwalk_cli.design.verify import verify
+
+    model, spec, prob, x = _walker5_walk_point()
+    prob.fix_shapes(prob.evaluate(x))
+    assert prob.evaluate(x).max_violation <= FEAS_TOL  # the gait file's point is feasible
+    d = np.random.default_rng(1).normal(size=x.size)
+    x_end = x + 0.01 * d / np.abs(d).max()
+    assert prob.evaluate(x_end).max_violation > 1e3 * FEAS_TOL
+    assert not verify(model, prob.gait(prob.polish(x_end)), spec, prob.unpack(x_end)[2],
+                      prob.eps)["feasible"]
+    r = solve_start(prob, x_end, 0)
+    assert r.code == 9 and r.iterations == 3  # SLSQP alone stopped at its iteration limit
+    assert r.max_violation <= FEAS_TOL
+    assert r.restored and 0 < r.restoration <= 30
+    xp = prob.polish(r.x)
+    chk = verify(model, prob.gait(xp), spec, prob.unpack(xp)[2], prob.eps)
+    assert chk["feasible"], chk["failed"]
+    orbit = chk["orbit"]
+    assert orbit["step_length"] / orbit["step_time"] == pytest.approx(0.6, rel=1e-5)
+    q_minus = xp[:model.n]
+    assert swing_foot(model.robot, q_minus)[1] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_restoration_leaves_a_feasible_point_alone_and_keeps_slsqps_point_when_it_fails():
+    """restore() returns a point that already meets every constraint unchanged (0 iterations);
+    a start whose restoration does not reach the solver's tolerance keeps SLSQP's point and
+    says so (restored False)."""
+    import thrustwalk_cli.design.solver as solver
+    from thrustwalk_cli.design.solver import restore, solve_start
+
+    _, _, prob, x = _walker5_walk_point()
+    prob.fix_shapes(prob.evaluate(x))
+    xr, k = restore(prob, x)
+    assert k == 0 and np.array_equal(xr, x)
+    d = np.random.default_rng(1).normal(size=x.size)
+    x_end = x + 0.01 * d / np.abs(d).max()
+    slsqp_only = solve_start(prob, x_end, 0)
+    with pytest.MonkeyPatch.context() as mp:  # a restoration that gives up at once
+        mp.setattr(solver, "restore", lambda p, xe, cache=None: (xe, 0))
+        r = solver.solve_start(prob, x_end, 0)
+    assert not r.restored and r.restoration == 0
+    assert r.max_violation == prob.evaluate(r.x).max_violation > 1e-5
+    assert slsqp_only.restored and slsqp_only.max_violation < r.max_violation

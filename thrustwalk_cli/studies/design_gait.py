@@ -105,7 +105,9 @@ def report_record(res: DesignResult) -> dict:
         "starts": [{"index": t.index, "status": t.status, "slsqp_code": t.code,
                     "objective": _num(t.objective),
                     "max_violation": _num(t.max_violation), "iterations": t.iterations,
-                    "evaluations": t.evaluations, "seconds": t.seconds} for t in res.starts],
+                    "evaluations": t.evaluations, "seconds": t.seconds,
+                    "restoration_iterations": t.restoration, "restored": t.restored}
+                   for t in res.starts],
         "evaluations": res.evaluations, "seconds": res.seconds,
     }
 
@@ -332,13 +334,15 @@ class DesignGaitResult:
     def tables(self) -> dict[str, Table]:
         """``NAME.starts``: one row per solver start (its status, SLSQP exit code, objective
         and largest constraint violation in the objective's unit and the constraints' SI
-        units, iterations, evaluations, wall time [s]); the same values as the report's
+        units, iterations, evaluations, wall time [s], the feasibility restoration's
+        iterations and whether its point was kept); the same values as the report's
         ``starts`` (no number is NaN: a start without a value leaves the cell empty). The
         command writes the report and the gait, not this table."""
         head = ["start", "status", "slsqp_code", "objective", "max_violation", "iterations",
-                "evaluations", col("seconds", "s")]
+                "evaluations", col("seconds", "s"), "restoration_iterations", "restored"]
         rows = [[t.index, t.status, t.code, _num(t.objective), _num(t.max_violation),
-                 t.iterations, t.evaluations, t.seconds] for t in self.design.starts]
+                 t.iterations, t.evaluations, t.seconds, t.restoration, t.restored]
+                for t in self.design.starts]
         return {f"{self.design.gait.name}.starts": Table(
             head, rows, [f"solver starts of the design of {self.design.gait.name} "
                          f"({self.design.spec.objective} objective)"])}
