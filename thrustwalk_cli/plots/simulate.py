@@ -10,7 +10,7 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from .style import COLUMN, black_step, is_multiple, style
+from .style import COLUMN, black_step, is_multiple, layout, style
 
 
 def _sweep_colors(values: list[float | None], black_every: float | None):
@@ -77,7 +77,7 @@ def thrust_time(data: dict, *, black_every: float | None | str = "auto", title: 
                       else f"schedule $T$ [{unit}]")
         if title:
             ax.set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig
 
 
@@ -126,7 +126,7 @@ def phase_portrait(data: dict, *, black_every: float | None | str = "auto", titl
         ax.set_ylabel(r"$\dot\alpha$ [rad/s]")
         if title:
             ax.set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig
 
 

@@ -8,7 +8,7 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from .style import COLUMN, corner_note, style
+from .style import COLUMN, corner_note, layout, style
 
 MARKERS = {"zero dynamics": ("o", "k"), "outputs": ("s", "tab:blue"),
            "thruster": ("^", "tab:orange")}
@@ -72,7 +72,7 @@ def multiplier_plane(data: dict, *, title: str = ""):
         if title:
             ax.set_title(title)
         corner_note(ax, _note(cases))
-        fig.tight_layout()
+        layout(fig)
     return fig
 
 
@@ -111,5 +111,5 @@ def spectral_radius(data: dict, *, title: str = ""):
         if title:
             ax.set_title(title)
         corner_note(ax, _note(cases))
-        fig.tight_layout()
+        layout(fig)
     return fig
