@@ -32,7 +32,7 @@ COMMANDS = {
     "shape": ["shape", "three_link", "three_link_walk", "--knots", "0,?,?,1",
               "--pattern", "k*(j-2)", "--k", "0:50:0.5"],
     "simulate": ["simulate", "rabbit", "rabbit_walk", "--steps", "30", "--thrust-model",
-                 "second-order", "--thrust", "0:-50:-10", "--wn", "2", "--xi", "1"],
+                 "second-order", "--thrust", "0:-50:-2", "--wn", "2", "--xi", "1"],
     "stability": ["stability", "three_link", "three_link_walk", "--thrust-model",
                   "second-order", "--wn", "2", "--xi", "0.7", "--thrust", "-20",
                   "--vary", "wn=0.5:50:log20"],
@@ -45,7 +45,8 @@ COMMANDS = {
     "rough-ground": ["rough-ground", "three_link", "three_link_walk", "--sigma",
                      "0.002:0.005:0.001", "--strategy", "none,constant:-20", "--trials", "20",
                      "--cap", "200"],
-    "design-gait": ["design-gait", "three_link", "--target-speed", "0.6", "--name", "fig"],
+    "design-gait": ["design-gait", "tests/data/walker5.yaml", "--target-speed", "0.6",
+                    "--name", "fig"],
     "sweep": ["sweep", "sweeps/thrust_torso_mass.yaml"],
 }
 

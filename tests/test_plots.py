@@ -484,3 +484,50 @@ def test_no_module_of_the_package_draws_through_pyplot():
     for path in modules:
         hit = imports.search(path.read_text())
         assert hit is None, f"{path.relative_to(package)}: {hit.group(0).strip()}"
+
+
+def test_simulate_phase_portrait_families_are_collections_of_the_runs_curves():
+    """Three runs of five steps (one without a predicted orbit): the transient steps (faint),
+    the impacts into each of the last three steps, those steps and the predicted orbits are
+    four line collections, each holding exactly those curves in run order with the run's
+    colour (viridis over the sweep, computed here) at the family's opacity, stacked transient <
+    impacts < settled < predicted (on main: one Line2D per step and per impact)."""
+    import matplotlib
+
+    from thrustwalk_cli.plots.simulate import phase_portrait
+
+    def step(k, j):
+        a = np.linspace(-0.2, 0.2, 9)
+        return {"alpha": a, "alpha_dot": 1.0 + 0.1 * k + 0.01 * j + a ** 2}
+
+    runs = [{"value": v, "failed": False, "steps": [step(k, j) for j in range(5)],
+             "predicted": None if k == 1 else {"alpha": np.array([-0.2, 0.0, 0.2]),
+                                               "alpha_dot": np.array([2.0, 2.1, 2.2]) + k}}
+            for k, v in enumerate([0.0, -5.0, -10.0])]
+    fig = phase_portrait({"kind": "constant", "runs": runs}, black_every=None, settled=3)
+    ax = fig.axes[0]
+    assert not [ln for ln in ax.lines if len(ln.get_xdata())]
+    colls = {c.get_zorder(): c for c in ax.collections if isinstance(c, LineCollection)}
+    assert sorted(colls) == [1, 2, 3, 4]
+    viridis = matplotlib.colormaps["viridis"]
+    colour = [viridis((v + 10.0) / 10.0) for v in (0.0, -5.0, -10.0)]
+
+    def check(coll, curves, alpha):
+        segs = coll.get_segments()
+        assert len(segs) == len(curves)
+        for s, (want_xy, _) in zip(segs, curves):
+            assert np.allclose(s, want_xy)
+        want = [(*colour[k][:3], alpha) for _, k in curves]
+        assert np.allclose(coll.get_colors(), want)
+
+    xy = lambda st: np.column_stack([st["alpha"], st["alpha_dot"]])  # noqa: E731
+    check(colls[1], [(xy(r["steps"][j]), k) for k, r in enumerate(runs) for j in (0, 1)], 0.18)
+    check(colls[3], [(xy(r["steps"][j]), k) for k, r in enumerate(runs) for j in (2, 3, 4)], 1.0)
+    check(colls[2], [(np.array([[0.2, r["steps"][j - 1]["alpha_dot"][-1]],
+                                [-0.2, r["steps"][j]["alpha_dot"][0]]]), k)
+                     for k, r in enumerate(runs) for j in (2, 3, 4)], 0.6)
+    check(colls[4], [(np.column_stack([r["predicted"]["alpha"], r["predicted"]["alpha_dot"]]),
+                      k) for k, r in enumerate(runs) if r["predicted"] is not None], 1.0)
+    assert colls[1].get_linewidths()[0] < colls[3].get_linewidths()[0]
+    assert colls[4]._us_linestyles[0][1] is not None  # dashed
+    assert list(_legend(ax)) == ["transient", "last 3 steps", "zero-dynamics orbit"]
