@@ -531,3 +531,60 @@ def test_simulate_phase_portrait_families_are_collections_of_the_runs_curves():
     assert colls[1].get_linewidths()[0] < colls[3].get_linewidths()[0]
     assert colls[4]._us_linestyles[0][1] is not None  # dashed
     assert list(_legend(ax)) == ["transient", "last 3 steps", "zero-dynamics orbit"]
+
+
+def _stability_data() -> dict:
+    """Five cases over a log-spaced wn sweep, two kinds of multiplier each (a synthetic
+    figure input, see ``StabilityResult.figure_data``)."""
+    wn = [0.5, 1.58, 5.0, 15.8, 50.0]
+    cases = []
+    for k, v in enumerate(wn):
+        rho = 0.9 * np.exp(-0.3 * k)
+        cases.append({"value": v, "verdict": "stable", "spectral_radius": max(rho, 0.4),
+                      "re": [rho * np.cos(0.5), rho * np.cos(0.5), 0.4],
+                      "im": [rho * np.sin(0.5), -rho * np.sin(0.5), 0.0],
+                      "kind": ["thruster", "thruster", "zero dynamics"]})
+    return {"cases": cases, "delta_zero_sq": 0.4, "label": r"$\omega_n$ [rad/s]"}
+
+
+def test_stability_figures_draw_each_kind_of_multiplier_as_one_artist():
+    """Each kind of multiplier is one artist holding every case's multipliers of that kind in
+    case order: in the complex plane a scatter whose markers are coloured by the swept value
+    (viridis on a log scale: the sweep spans two decades; computed here), every marker
+    included, the legend's markers grey; against the swept value one marker line per kind
+    at the moduli (on main: one Line2D per multiplier, and the first marker of each kind grey,
+    recoloured through its legend handle)."""
+    import matplotlib
+    from matplotlib.collections import PathCollection
+
+    from thrustwalk_cli.plots.stability import multiplier_plane, spectral_radius
+
+    d = _stability_data()
+    fig = multiplier_plane(d)
+    ax = fig.axes[0]
+    viridis = matplotlib.colormaps["viridis"]
+    for kind in ("thruster", "zero dynamics"):
+        pts = [(re, im, c["value"]) for c in d["cases"]
+               for re, im, kd in zip(c["re"], c["im"], c["kind"]) if kd == kind]
+        match = [s for s in ax.collections if isinstance(s, PathCollection)
+                 and len(s.get_offsets()) == len(pts)
+                 and np.allclose(s.get_offsets(), [p[:2] for p in pts])]
+        assert len(match) == 1, kind
+        want = [viridis(np.log(v / 0.5) / np.log(100.0)) for *_, v in pts]
+        assert np.allclose(match[0].get_edgecolors(), want)
+        assert len(match[0].get_facecolors()) == 0 or np.allclose(
+            match[0].get_facecolors()[:, 3], 0.0)
+    legend = _legend(ax)
+    assert list(legend) == ["unit circle", r"$\delta_0^2$ (zero dynamics)", "thruster",
+                            "zero dynamics"]
+    assert to_rgba(legend["thruster"].get_markeredgecolor()) == to_rgba("0.3")
+    fig = spectral_radius(d)
+    ax = fig.axes[0]
+    for kind in ("thruster", "zero dynamics"):
+        want = [(c["value"], np.hypot(re, im)) for c in d["cases"]
+                for re, im, kd in zip(c["re"], c["im"], c["kind"]) if kd == kind]
+        match = [ln for ln in ax.lines if ln.get_label() == kind]
+        assert len(match) == 1
+        assert np.allclose(np.column_stack([match[0].get_xdata(), match[0].get_ydata()]),
+                           want)
+        assert match[0].get_linestyle() == "None"
