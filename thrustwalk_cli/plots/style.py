@@ -258,12 +258,20 @@ def layout(fig, **tight) -> None:
     for leg in legends:
         _set_loc(leg, 1)
     engine = fig.get_layout_engine()
-    if engine is not None and type(engine).__name__ == "ConstrainedLayoutEngine":
-        engine.execute(fig)
-        fig.set_layout_engine("none")
-    else:
-        fig.tight_layout(**tight)
-    place_legends(fig, legends)
+    dpi = fig.dpi
+    saved = matplotlib.rcParams["savefig.dpi"]
+    try:
+        # at the PNG's resolution: the text laid out (mathtext parsed) is then the text drawn
+        if isinstance(saved, (int, float)):
+            fig.set_dpi(saved)
+        if engine is not None and type(engine).__name__ == "ConstrainedLayoutEngine":
+            engine.execute(fig)
+            fig.set_layout_engine("none")
+        else:
+            fig.tight_layout(**tight)
+        place_legends(fig, legends)
+    finally:
+        fig.set_dpi(dpi)
 
 
 def place_legends(fig, legends: Sequence | None = None) -> None:
