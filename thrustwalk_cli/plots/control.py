@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from .style import COLUMN, corner_note, style
+from .style import COLUMN, corner_note, layout, style
 
 CTRL, FREE, NAIVE = "tab:blue", "0.55", "tab:orange"
 
@@ -51,7 +51,7 @@ def speed_tracking(d: dict, title: str = ""):
             corner_note(ax, "controlled run stopped: " + c["reason"][:60])
         if title:
             ax.set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig
 
 
@@ -85,7 +85,7 @@ def thrust_schedule(d: dict, title: str = ""):
         ax.legend(loc="best", fontsize=6)
         if title:
             ax.set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig
 
 
@@ -123,5 +123,5 @@ def contact_margin(d: dict, title: str = ""):
             corner_note(a2, f"outside the prediction's bound at {len(flagged)} step(s)")
         if title:
             a1.set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig

@@ -7,7 +7,7 @@ import numpy as np
 from matplotlib import colormaps
 from matplotlib.figure import Figure
 
-from .style import COLUMN, style
+from .style import COLUMN, layout, style
 
 ROLE_MAPS = {"stance": "Blues", "swing": "Reds", "body": "Greys"}
 ROLE_LABELS = {"stance": "stance leg", "swing": "swing leg", "body": "body"}
@@ -59,5 +59,5 @@ def stick_figure(frames: dict, *, title: str = ""):
         ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=6, borderaxespad=0)
         if title:
             ax.set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig

@@ -9,7 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from .style import COLUMN, corner_note, style
+from .style import COLUMN, corner_note, layout, style
 
 LEGS = "#9ecae1"  # legs' share
 THRUST = "#fdae6b"  # thrust's share
@@ -52,7 +52,7 @@ def cot_speed_figure(curves: dict, *, thruster: str, note_total: str = "", title
         axes[-1].set_xlabel(f"speed [m/s] (constant thrust on {thruster})")
         if title:
             axes[0].set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig
 
 
@@ -84,7 +84,7 @@ def power_step_figure(panels: Sequence[tuple[str, dict]], *, basis: str, title: 
         axes[-1].set_xlabel("time in the step [s]")
         if title:
             axes[0].set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig
 
 
@@ -122,5 +122,5 @@ def pareto_figure(designed: tuple, pushed: tuple, envelope: Sequence[tuple[float
             corner_note(ax, "one strategy has no walkable orbit")
         if title:
             ax.set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig

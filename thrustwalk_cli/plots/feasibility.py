@@ -12,7 +12,7 @@ from matplotlib import patheffects
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from .style import COLUMN, PAGE, corner_note, missing_note, style
+from .style import COLUMN, PAGE, corner_note, layout, missing_note, style
 
 MAX_LINES = 12
 
@@ -99,6 +99,7 @@ def grf_figure(profiles: Sequence[dict | None], values: Sequence[float] | None, 
         missing = [i for i in range(len(profiles)) if profiles[i] is None]
         if missing and values is not None:
             corner_note(a_f, missing_note([values[i] for i in missing]))
+        layout(fig)  # constrained, once: not again for every saved format
     return fig
 
 
@@ -304,5 +305,5 @@ def region_figure(region, *, scale_label: str, mu: float, eps: float,
                     ha="center", color="firebrick", fontsize=7, zorder=5)
         if title:
             ax.set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig

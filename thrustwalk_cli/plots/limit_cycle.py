@@ -9,7 +9,7 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from .style import COLUMN, corner_note, is_multiple, missing_note, style
+from .style import COLUMN, corner_note, curve_family, is_multiple, layout, missing_note, style
 
 ORBIT_LW = 0.6  # [pt] coloured orbits
 BLACK_LW = 0.9  # [pt] black orbits (round values of the sweep)
@@ -47,19 +47,24 @@ def phase_portrait(
         norm = matplotlib.colors.Normalize(vmin=lo, vmax=hi if hi > lo else lo + 1)
         cmap = matplotlib.colormaps["viridis"]
         missing = []
-        any_black = any_jump = False
+        black_curves, colour_curves, colours, jump_curves = [], [], [], []
         for v, orb, jump in zip(vals, orbits, jumps):
             if orb is None:
                 missing.append(v)
                 continue
-            black = black_every is not None and is_multiple(v, black_every)
-            any_black |= black
-            color = "k" if black else cmap(norm(v))
-            ax.plot(orb["alpha"], orb[y], color=color, lw=BLACK_LW if black else ORBIT_LW,
-                    zorder=3 if black else 2)
+            if black_every is not None and is_multiple(v, black_every):
+                black_curves.append((orb["alpha"], orb[y]))
+            else:
+                colour_curves.append((orb["alpha"], orb[y]))
+                colours.append(cmap(norm(v)))
             if jump is not None:
-                ax.plot([jump[0], jump[2]], [jump[1], jump[3]], **JUMP)
-                any_jump = True
+                jump_curves.append(([jump[0], jump[2]], [jump[1], jump[3]]))
+        # each family one artist: coloured orbits, black orbits above them, jumps behind
+        curve_family(ax, colour_curves, colours, lw=ORBIT_LW, zorder=2)
+        curve_family(ax, black_curves, ["k"] * len(black_curves), lw=BLACK_LW, zorder=3)
+        curve_family(ax, jump_curves, [JUMP["color"]] * len(jump_curves), lw=JUMP["lw"],
+                     ls=JUMP["ls"], zorder=JUMP["zorder"])
+        any_black, any_jump = bool(black_curves), bool(jump_curves)
         sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
         cb = fig.colorbar(sm, ax=ax, pad=0.02)
         cb.set_label(value_label)
@@ -84,7 +89,7 @@ def phase_portrait(
         if missing:
             text += ("\n" if text else "") + missing_note(missing, unit)
         corner_note(ax, text)
-        fig.tight_layout()
+        layout(fig)
     return fig
 
 
@@ -123,5 +128,5 @@ def fixed_point_shift(values: Sequence[float], zeta_star: Sequence[float | None]
         ax.legend(h1 + h2, l1 + l2, loc="best")
         if title:
             ax.set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig

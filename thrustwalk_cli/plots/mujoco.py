@@ -11,7 +11,7 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from .style import PAGE, style
+from .style import PAGE, layout, style
 
 
 def phase_portraits(data: dict, *, title: str = "", settled: int = 3):
@@ -49,7 +49,7 @@ def phase_portraits(data: dict, *, title: str = "", settled: int = 3):
         axes[1].legend(handles, labels, loc="best", fontsize=6)
         if title:
             fig.suptitle(title)
-        fig.tight_layout()
+        layout(fig)
     return fig
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from .style import style
+from .style import layout, style
 
 
 def optimal_figure(nominal: dict | None, optimal: dict, knots: np.ndarray, values: np.ndarray,
@@ -44,5 +44,5 @@ def optimal_figure(nominal: dict | None, optimal: dict, knots: np.ndarray, value
         a3.legend(loc="best")
         if title:
             fig.suptitle(title)
-        fig.tight_layout()
+        layout(fig)
     return fig

@@ -12,7 +12,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from .style import COLUMN, PAGE, corner_note, style
+from .style import COLUMN, PAGE, corner_note, layout, style
 
 OUTCOME_COLOURS = {
     "recovered": "#2ca02c", "unsettled": "#bcbd22", "fell": "#8c1c13", "slipped": "#ff7f0e",
@@ -70,7 +70,7 @@ def push_map(d: dict, title: str = ""):
         _legend(fig, present, names, ncol=min(len(present), 5))
         if title:
             fig.suptitle(title)
-        fig.tight_layout(rect=(0, 0.1, 1, 1))
+        layout(fig, rect=(0, 0.1, 1, 1))
     return fig
 
 
@@ -105,7 +105,7 @@ def push_energy(d: dict, title: str = ""):
         axes[0][0].set_ylabel("impulse [N s]")
         if title:
             fig.suptitle(title)
-        fig.tight_layout(rect=(0, 0, 0.88, 1))
+        layout(fig, rect=(0, 0, 0.88, 1))
         if mesh is not None:
             bar = fig.colorbar(mesh, cax=fig.add_axes((0.9, 0.2, 0.015, 0.65)))
             bar.set_label(f"{d['energy_kind']} energy per recovered push [J]")
@@ -150,7 +150,7 @@ def survivable_push(d: dict, title: str = ""):
                    frameon=False)
         if title:
             ax.set_title(title)
-        fig.tight_layout(rect=(0, 0.1, 1, 1))
+        layout(fig, rect=(0, 0.1, 1, 1))
     return fig
 
 
@@ -216,7 +216,7 @@ def basin(d: dict, title: str = ""):
                        loc="lower center", ncol=4, fontsize=6, frameon=False)
         if title:
             fig.suptitle(title)
-        fig.tight_layout(rect=(0, 0.06 if slices else 0, 1, 1))
+        layout(fig, rect=(0, 0.06 if slices else 0, 1, 1))
     return fig
 
 
@@ -259,5 +259,5 @@ def uncertainty(d: dict, title: str = ""):
         ax2.set_ylabel("fraction that walks [1]")
         if title:
             fig.suptitle(title)
-        fig.tight_layout()
+        layout(fig)
     return fig

@@ -9,7 +9,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from .style import COLUMN, corner_note, style
+from .style import COLUMN, corner_note, layout, style
 
 STRATEGY_COLOURS = ("k", "tab:blue", "tab:red", "tab:green", "tab:purple", "tab:orange",
                     "tab:brown", "tab:pink")
@@ -65,5 +65,5 @@ def mfpt(d: dict, title: str = ""):
             corner_note(ax, "mesh: no failure (infinite) for part of " + ", ".join(infinite))
         if title:
             ax.set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig

@@ -13,7 +13,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from .limit_cycle import phase_portrait
-from .style import PAGE, black_step, corner_note, missing_note, style
+from .style import PAGE, black_step, corner_note, layout, missing_note, place_legends, style
 
 YLABEL = {"alpha_dot": r"$\dot\alpha$ [rad/s]", "sigma": r"$\sigma_N$ [kg m$^2$/s]"}
 
@@ -59,6 +59,7 @@ def shape_portrait(values: Sequence[float] | None, labels: Sequence[str],
             old = ([] if leg is None else list(leg.legend_handles),
                    [] if leg is None else [t.get_text() for t in leg.get_texts()])
             ax.legend(old[0] + handles, old[1] + lbls, loc="best")
+            place_legends(fig)
         return fig
     with style():
         fig = Figure(figsize=(3.5, 2.7))
@@ -80,7 +81,7 @@ def shape_portrait(values: Sequence[float] | None, labels: Sequence[str],
         if missing:
             text += missing_note(missing)
         corner_note(ax, text)
-        fig.tight_layout()
+        layout(fig)
     return fig
 
 
@@ -138,5 +139,5 @@ def vector_field_figure(fields: dict, nominal: dict, shaped: dict, knots: Sequen
             fig.suptitle(title)
         if note:
             fig.text(0.01, 0.005, note, fontsize=6, color="firebrick", va="bottom")
-        fig.tight_layout(rect=(0, 0.06, 1, 1))
+        layout(fig, rect=(0, 0.06, 1, 1))
     return fig

@@ -8,9 +8,10 @@ import io
 
 import matplotlib
 import numpy as np
+from matplotlib.colors import to_rgba
 from matplotlib.figure import Figure
 
-from .style import COLUMN, black_step, is_multiple, style
+from .style import COLUMN, black_step, curve_family, is_multiple, layout, style
 
 
 def _sweep_colors(values: list[float | None], black_every: float | None):
@@ -77,7 +78,7 @@ def thrust_time(data: dict, *, black_every: float | None | str = "auto", title: 
                       else f"schedule $T$ [{unit}]")
         if title:
             ax.set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig
 
 
@@ -93,22 +94,32 @@ def phase_portrait(data: dict, *, black_every: float | None | str = "auto", titl
         fig = Figure(figsize=(COLUMN, 2.9))
         ax = fig.subplots()
         norm, cmap, colors = _sweep_colors([r["value"] for r in runs], black_every)
+        # four families, each one artist, in run order within it: the transient steps (faint,
+        # bottom), the impacts between settled steps, the settled steps, the predicted orbits
+        family = {name: ([], []) for name in ("transient", "impact", "settled", "predicted")}
+
+        def add(name, x, y, colour, alpha=1.0):
+            family[name][0].append((x, y))
+            family[name][1].append(to_rgba(colour, alpha))
+
         for r, col in zip(runs, colors):
             steps = r["steps"]
             n = len(steps)
             if r["predicted"] is not None:
-                ax.plot(r["predicted"]["alpha"], r["predicted"]["alpha_dot"], color=col,
-                        ls=(0, (3, 2)), lw=0.7, zorder=4)
+                add("predicted", r["predicted"]["alpha"], r["predicted"]["alpha_dot"], col)
             prev = None
             for k, st in enumerate(steps):
                 last = k >= n - settled
-                ax.plot(st["alpha"], st["alpha_dot"], color=col,
-                        lw=0.9 if last else 0.5, alpha=1.0 if last else 0.18,
-                        zorder=3 if last else 1)
+                add("settled" if last else "transient", st["alpha"], st["alpha_dot"], col,
+                    1.0 if last else 0.18)
                 if prev is not None and last:
-                    ax.plot([prev[0], st["alpha"][0]], [prev[1], st["alpha_dot"][0]],
-                            color=col, lw=0.4, alpha=0.6, zorder=2)
+                    add("impact", [prev[0], st["alpha"][0]], [prev[1], st["alpha_dot"][0]],
+                        col, 0.6)
                 prev = (st["alpha"][-1], st["alpha_dot"][-1])
+        for name, lw, zorder, ls in (("transient", 0.5, 1, "-"), ("impact", 0.4, 2, "-"),
+                                     ("settled", 0.9, 3, "-"),
+                                     ("predicted", 0.7, 4, (0, (3, 2)))):
+            curve_family(ax, *family[name], lw=lw, zorder=zorder, ls=ls)
         if data["kind"] != "piecewise":
             sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
             cb = fig.colorbar(sm, ax=ax, pad=0.02)
@@ -126,7 +137,7 @@ def phase_portrait(data: dict, *, black_every: float | None | str = "auto", titl
         ax.set_ylabel(r"$\dot\alpha$ [rad/s]")
         if title:
             ax.set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig
 
 

@@ -10,7 +10,7 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from .style import COLUMN, corner_note, style
+from .style import COLUMN, corner_note, layout, style
 
 # one colour per first failing condition ('' = walkable), light enough for contours on top
 FAILURE_COLOURS = {"": "#a6dba0", "invalid gait": "#636363", "no orbit": "#d9d9d9",
@@ -56,7 +56,7 @@ def walkability_figure(slopes: np.ndarray, thrust: np.ndarray, first: np.ndarray
         corner_note(ax, "contours: speed along the ground [m/s]")
         if title:
             ax.set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig
 
 
@@ -83,5 +83,5 @@ def steepest_figure(thrust: np.ndarray, uphill: Sequence[float | None],
             corner_note(ax, "no walkable slope in the map")
         if title:
             ax.set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig

@@ -8,7 +8,7 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from .style import COLUMN, corner_note, style
+from .style import COLUMN, corner_note, layout, style
 
 MARKERS = {"zero dynamics": ("o", "k"), "outputs": ("s", "tab:blue"),
            "thruster": ("^", "tab:orange")}
@@ -48,31 +48,38 @@ def multiplier_plane(data: dict, *, title: str = ""):
             lo, hi = np.nanmin(vals), np.nanmax(vals)
             norm = (matplotlib.colors.LogNorm(lo, hi) if _log_spaced(vals) else
                     matplotlib.colors.Normalize(lo, hi if hi > lo else lo + 1))
-        seen = set()
+        # the multipliers of one kind, every case, as one artist (markers coloured by the
+        # swept value: one scatter; without a sweep: one marker line in the kind's colour)
+        points: dict[str, list] = {}
         for c, v in zip(cases, vals):
             for re, im, kind in zip(c["re"], c["im"], c["kind"]):
-                mk, col = MARKERS[kind]
-                color = cmap(norm(v)) if sweep else col
-                lab = kind if kind not in seen else None
-                seen.add(kind)
-                ax.plot([re], [im], marker=mk, ms=3.2, ls="none", mfc="none" if sweep else
-                        color, mec=color, mew=0.7, label=lab)
+                points.setdefault(kind, []).append((re, im, v))
+        handles, labels = ax.get_legend_handles_labels()
+        for kind, pts in points.items():
+            mk, col = MARKERS[kind]
+            re, im, v = (np.array(x, float) for x in zip(*pts))
+            if sweep:
+                ax.scatter(re, im, s=3.2 ** 2, marker=mk, facecolors="none",
+                           edgecolors=cmap(norm(v)), linewidths=0.7, zorder=2)
+            else:
+                ax.plot(re, im, marker=mk, ms=3.2, ls="none", mfc=col, mec=col, mew=0.7)
+            handles.append(matplotlib.lines.Line2D(
+                [], [], marker=mk, ms=3.2, ls="none", mfc="none" if sweep else col,
+                mec="0.3" if sweep else col, mew=0.7))
+            labels.append(kind)
         if sweep:
             sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
             fig.colorbar(sm, ax=ax, pad=0.02).set_label(data["label"])
-            for h in ax.get_legend_handles_labels()[0]:
-                if h.get_marker() in ("o", "s", "^"):
-                    h.set_mec("0.3")
         ax.set_aspect("equal", adjustable="datalim")
         ax.axhline(0, color="0.8", lw=0.4, zorder=0)
         ax.axvline(0, color="0.8", lw=0.4, zorder=0)
         ax.set_xlabel(r"Re $\lambda$ [1]")
         ax.set_ylabel(r"Im $\lambda$ [1]")
-        ax.legend(loc="upper left", fontsize=6)
+        ax.legend(handles, labels, loc="upper left", fontsize=6)
         if title:
             ax.set_title(title)
         corner_note(ax, _note(cases))
-        fig.tight_layout()
+        layout(fig)
     return fig
 
 
@@ -86,14 +93,15 @@ def spectral_radius(data: dict, *, title: str = ""):
         fig = Figure(figsize=(COLUMN, 3.1))
         ax = fig.subplots()
         vals = np.array([c["value"] for c in cases], float)
-        seen = set()
+        points: dict[str, list] = {}  # the moduli of one kind, every case: one marker line
         for c, v in zip(cases, vals):
             mod = np.hypot(c["re"], c["im"])
             for r, kind in zip(mod, c["kind"]):
-                mk, col = MARKERS[kind]
-                ax.plot([v], [max(r, 1e-16)], marker=mk, ms=2.8, ls="none", mfc="none",
-                        mec=col, mew=0.7, label=kind if kind not in seen else None)
-                seen.add(kind)
+                points.setdefault(kind, []).append((v, max(r, 1e-16)))
+        for kind, pts in points.items():
+            mk, col = MARKERS[kind]
+            ax.plot(*zip(*pts), marker=mk, ms=2.8, ls="none", mfc="none", mec=col, mew=0.7,
+                    label=kind)
         ok = np.array([c["spectral_radius"] is not None for c in cases])
         if ok.any():
             ax.plot(vals[ok], [c["spectral_radius"] for c in cases if c["spectral_radius"]
@@ -111,5 +119,5 @@ def spectral_radius(data: dict, *, title: str = ""):
         if title:
             ax.set_title(title)
         corner_note(ax, _note(cases))
-        fig.tight_layout()
+        layout(fig)
     return fig

@@ -9,7 +9,7 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
-from .style import COLUMN, PAGE, corner_note, style
+from .style import COLUMN, PAGE, corner_note, layout, style
 
 
 def _edges(v: np.ndarray) -> np.ndarray:
@@ -52,7 +52,7 @@ def heat_map(xs: Sequence[float], ys: Sequence[float], values: Sequence[float | 
         ax.grid(False)
         if title:
             ax.set_title(title)
-        fig.tight_layout()
+        layout(fig)
     return fig
 
 
@@ -89,5 +89,5 @@ def atlas(data: dict, title: str = ""):
         axs[0].legend(loc="best")
         if title:
             fig.suptitle(title)
-        fig.tight_layout()
+        layout(fig)
     return fig
