@@ -97,6 +97,68 @@ class SimResult:
                 iv[sel] = s.interval
         return self.sim.details(X, iv)
 
+    def phase_curves(self, per_step: int, tol: float = 2e-3, levels: int = 8
+                     ) -> list[list[dict[str, np.ndarray]]]:
+        """The phase-plane curve ``(alpha, alpha')`` [rad, rad/s] of every simulated step, one
+        curve per integration piece of the step (a push's jump between them), for a phase
+        portrait: the dense output at the ``per_step`` uniform times of the step and the
+        integrator's own steps, then every gap halved where its chord misses the curve's
+        middle by more than ``tol`` of the piece's extent in either coordinate, up to
+        ``levels`` times, so that a fast stretch (alpha' rising steeply just before impact)
+        is drawn as the curve it is, not as a chord of uniform samples. ``alpha = c q`` and
+        ``alpha' = c q'`` are linear in the state (SPEC 2)."""
+        c = np.asarray(self.sim.c, float)
+        N = c.size
+        out = []
+        for k in sorted({s.step for s in self.segments}):  # as the trajectory's steps
+            segs = [s for s in self.segments if s.step == k]
+            uniform = np.linspace(segs[0].t0, segs[-1].t1, per_step)
+            curves = []
+            for s in segs:
+                nodes = np.asarray(s.sol.ts, float)
+                t = np.unique(np.concatenate([
+                    [s.t0, s.t1], uniform[(uniform > s.t0) & (uniform < s.t1)],
+                    nodes[(nodes > s.t0) & (nodes < s.t1)]]))
+
+                def ab(tt, s=s):
+                    X = np.asarray(s.sol(tt), float).T
+                    return X[:, :N] @ c, X[:, N:2 * N] @ c
+                a, d = ab(t)
+                for _ in range(levels):
+                    sa, sd = max(np.ptp(a), 1e-12), max(np.ptp(d), 1e-12)
+                    gaps = _bent(a / sa, d / sd, tol)  # the gaps whose chord may miss
+                    if not gaps.size:
+                        break
+                    tm = 0.5 * (t[gaps] + t[gaps + 1])
+                    am, dm = ab(tm)
+                    ea = np.abs(am - 0.5 * (a[gaps] + a[gaps + 1])) / sa
+                    ed = np.abs(dm - 0.5 * (d[gaps] + d[gaps + 1])) / sd
+                    bad = np.maximum(ea, ed) > tol
+                    if not bad.any():
+                        break
+                    tm, am, dm = tm[bad], am[bad], dm[bad]
+                    order = np.argsort(np.concatenate([t, tm]), kind="stable")
+                    t = np.concatenate([t, tm])[order]
+                    a = np.concatenate([a, am])[order]
+                    d = np.concatenate([d, dm])[order]
+                curves.append({"alpha": a, "alpha_dot": d})
+            out.append(curves)
+        return out
+
+
+def _bent(x: np.ndarray, y: np.ndarray, tol: float) -> np.ndarray:
+    """The gaps of the polyline ``(x, y)`` (scaled coordinates) whose chord may miss the curve
+    by more than ``tol``: a chord of length ``h`` across a curve that turns by ``theta`` over
+    it misses its middle by about ``theta h / 8``, and the turn is estimated by the angles
+    between the chord and its neighbours (a gap with no neighbour is always checked)."""
+    dx, dy = np.diff(x), np.diff(y)
+    h = np.hypot(dx, dy)
+    if h.size < 2:
+        return np.arange(h.size)
+    turn = np.abs(np.angle((dx[1:] + 1j * dy[1:]) * (dx[:-1] - 1j * dy[:-1])))  # at inner points
+    theta = np.maximum(np.r_[np.inf, turn], np.r_[turn, np.inf])  # each gap's larger neighbour
+    return np.flatnonzero(theta * h / 8.0 > 0.5 * tol)
+
 
 class _Stop(Exception):
     def __init__(self, failure: str, reason: str):

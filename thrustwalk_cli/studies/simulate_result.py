@@ -436,7 +436,12 @@ def figure_data(zd: ZeroDynamics, sc: Scenario, outcomes: list[Outcome]) -> dict
         lc = predicted_cycle(zd, oc.thrust)
         j = sc.thrusters[0] if sc.thrusters else None
         steps = []
-        if tr:
+        curves = getattr(oc.primary, "phase_curves", None)
+        if tr and curves is not None:  # the full-order run's dense output, fast parts refined
+            for pieces in curves(sc.config.samples_per_step):
+                steps.append({key: np.concatenate([p[key] for p in pieces])
+                              for key in ("alpha", "alpha_dot")})
+        elif tr:
             for k in np.unique(tr["step"]):
                 sel = tr["step"] == k
                 steps.append({"alpha": tr["alpha"][sel], "alpha_dot": tr["alpha_dot"][sel]})
