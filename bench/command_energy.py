@@ -22,13 +22,14 @@ from __future__ import annotations
 
 import json
 import os
-import resource
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from timing import run_cli_here
 
 DATA = Path(__file__).resolve().parents[1] / "tests" / "data"
 # the command line's BLAS setting (``cli.BLAS_THREADS``: one thread unless the environment
@@ -62,16 +63,8 @@ def _child(name: str, args: list[str]) -> None:
     """One command as a process of its own (``cli.main``), the energy function timed; prints
     ``{"energy": s, "cpu": s}`` (the process's user + system CPU at its end) on stderr."""
     spent = _wrap(name)
-    from thrustwalk_cli.cli import main
-
-    sys.argv = ["thrustwalk", *args]
-    try:
-        main()
-    except SystemExit as exc:
-        if exc.code:
-            raise
-    ru = resource.getrusage(resource.RUSAGE_SELF)
-    print(json.dumps({"energy": spent[0], "cpu": ru.ru_utime + ru.ru_stime}), file=sys.stderr)
+    cpu = run_cli_here(args)
+    print(json.dumps({"energy": spent[0], "cpu": cpu}), file=sys.stderr)
 
 
 def _process_share(name: str, args: list[str], runs: int = 4) -> tuple[float, float]:

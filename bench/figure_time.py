@@ -15,11 +15,12 @@ measure.
 from __future__ import annotations
 
 import json
-import resource
 import subprocess
 import sys
 import tempfile
 import time
+
+from timing import run_cli_here
 
 COMMANDS = {
     "limit-cycle": ["limit-cycle", "rabbit", "rabbit_walk", "--thrust", "0:-50:-0.25"],
@@ -105,17 +106,9 @@ def _wrap() -> dict:
 
 def _child(args: list[str]) -> None:
     rec = _wrap()
-    from thrustwalk_cli.cli import main
-
-    sys.argv = ["thrustwalk", *args]
-    try:
-        main()
-    except SystemExit as exc:
-        if exc.code:
-            raise
-    ru = resource.getrusage(resource.RUSAGE_SELF)
+    cpu = run_cli_here(args)
     rec.pop("names")
-    rec["cpu"] = ru.ru_utime + ru.ru_stime
+    rec["cpu"] = cpu
     print("FIGTIME " + json.dumps(rec), file=sys.stderr)
 
 

@@ -32,3 +32,22 @@ def report(label: str, seconds: float, baseline: float | None = None, unit: str 
     scale = {"s": 1.0, "ms": 1e3, "us": 1e6}[unit]
     ratio = f"  ratio {seconds / baseline:8.3f}" if baseline else ""
     print(f"{label:<58s} {seconds * scale:12.4g} {unit}{ratio}", flush=True)
+
+
+def run_cli_here(args: list[str]) -> float:
+    """Run ``thrustwalk ARGS`` in this process as its console script does (``cli.main``: its
+    environment settings, its exit) and return this process's user + system CPU [s] so far,
+    start-up included; a non-zero exit is raised."""
+    import resource
+    import sys
+
+    from thrustwalk_cli.cli import main
+
+    sys.argv = ["thrustwalk", *args]
+    try:
+        main()
+    except SystemExit as exc:
+        if exc.code:
+            raise
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    return ru.ru_utime + ru.ru_stime
