@@ -284,7 +284,8 @@ def test_walker5_designed_gait_is_stable_judged_on_the_multipliers(walker5_run):
         lam_fd = complex(m["finite_difference"]["re"], m["finite_difference"]["im"])
         assert abs(complex(m["re"], m["im"]) - lam_fd) == pytest.approx(m["difference"])
         assert m["difference"] <= m["tolerance"] and m["agrees"]
-        assert m["tolerance"] == pytest.approx(max(1e-6, 10 * m["fd_error_estimate"]))
+        E = doc["cases"][0]["jacobian"]["finite_differences"]["error_estimate"]
+        assert m["tolerance"] == pytest.approx(max(1e-6, 10 * m["fd_error_estimate"], E))
     assert doc["settings"]["agreement"]["judged_on"] == "multipliers"
     assert doc["settings"]["agreement_tol"] is None
 
@@ -506,3 +507,27 @@ def test_variational_equations_find_a_slow_touchdown_between_two_integrator_step
     d2 = delta_sq_from_momentum(w)
     assert np.min(np.abs(mults - d2)) < 1e-4
     assert np.max(np.abs(mults)) < 1.0  # stable: the outputs' multipliers are small
+
+
+def test_footed_walker_with_critically_damped_gains_is_stable():
+    """A user's footed 7-link walker (tests/data/footbot.yaml, imported from footbot.urdf; its
+    gait designed by design-gait at 0.5 m/s with a designed torso thrust) has critically
+    damped gains kp = 400, kd = 40: a double outputs multiplier near exp(-20 T), about 4e-6,
+    which the two methods put a few 1e-6 apart, within the finite-difference entries' own
+    error estimate E. Its radius is the zero-dynamics multiplier, delta_zero^2 computed here
+    from the angular momentum across the impact (not by the zero-dynamics code): stable,
+    each multiplier within max(1e-6, 10 e_j, E)."""
+    walker = tw.load_walker(str(DATA / "footbot.yaml"), str(DATA / "footbot_walk.yaml"))
+    res = tw.stability(walker)
+    f = res.cases[0].floquet
+    assert f.verdict == "stable" and res.verdict == "stable", f.reason
+    d2 = delta_sq_from_momentum(walker)
+    assert f.spectral_radius == pytest.approx(d2, abs=1e-6)
+    assert f.spectral_radius < 1 - 100 * f.radius_error
+    E = f.fd.error
+    for m in f.multipliers:
+        assert m.difference <= m.tolerance == pytest.approx(
+            max(1e-6, 10 * (m.fd_error or 0.0), E))
+    T = f.variational.T
+    small = [m for m in f.multipliers if m.kind == "outputs" and m.modulus < 1e-4]
+    assert small and all(m.modulus < 100 * np.exp(-20.0 * T) for m in small)

@@ -48,17 +48,17 @@ The Poincare map on the impact surface (state just before impact: q [rad], q' [r
 thruster states [N, N/s]) is the impact map followed by one closed-loop step of the compiled
 simulation. Its fixed point is found by Newton's method from the zero-dynamics prediction (the
 residual is reported). Its Jacobian on the guard's tangent space (dimension 2N - 1 + n_z; the
-trivial multiplier normal to the guard is dropped) is computed two ways, by central
-differences (the step chosen from a sweep, its convergence reported) and by the variational
-equations along the orbit with the saltation matrix at the guard, and their multipliers must
-agree: each within max(1e-6, 10 x the finite-difference error estimate carried to that
-multiplier), or within --agreement-tol when given (the Jacobians' entry difference is
-reported, not judged). The multipliers [1] are sorted by modulus with their eigenvectors'
-dominant components; the one of the zero dynamics is identified and compared with
-delta_zero^2; the spectral radius gives the verdict: stable, unstable, or undetermined (Newton
-did not converge, the multipliers disagree, or the radius is within its error bar of 1, the
-reason saying what to try), never better than the evidence; "no orbit" when the zero dynamics
-has no periodic orbit to start from.
+trivial multiplier normal to the guard is dropped) is computed two ways, by central differences
+(the step chosen from a sweep, its convergence reported) and by the variational equations along
+the orbit with the saltation matrix at the guard, and their multipliers must agree: each within
+max(1e-6, 10 x the finite-difference error estimate carried to that multiplier, the
+finite-difference entries' error estimate), or within --agreement-tol when given (the
+Jacobians' entry difference is reported, not judged). The multipliers [1] are sorted by modulus
+with their eigenvectors' dominant components; the one of the zero dynamics is identified and
+compared with delta_zero^2; the spectral radius gives the verdict: stable, unstable, or
+undetermined (Newton did not converge, the multipliers disagree, or the radius is within its
+error bar of 1, the reason saying what to try), never better than the evidence; "no orbit" when
+the zero dynamics has no periodic orbit to start from.
 
 --vary NAME=VALUES sweeps one parameter, one analysis per value: kp [1/s^2], kd [1/s] (the output
 gains y'' = -kp y - kd y'), wn [rad/s], xi [1] (second-order thruster), tau [s] (first-order
@@ -220,7 +220,8 @@ def register(app: typer.Typer) -> None:
             "--agreement-tol",
             help="Largest accepted difference [1] between the multipliers of the finite "
                  "differences and the variational equations (default: max(1e-6, 10 x the "
-                 "finite-difference error estimate of each multiplier)); the spectral radius "
+                 "finite-difference error estimate of each multiplier, the finite-difference "
+                 "entries' error estimate)); the spectral radius "
                  "must still clear 1 by more than the disagreement.")] = None,
         slope: SlopeOpt = 0.0,
         out: OutOpt = Path("out/stability"),

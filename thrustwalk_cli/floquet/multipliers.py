@@ -20,7 +20,7 @@ difference of the two Jacobians is reported beside it, not judged). Multiplier `
 variational Jacobian, ``lambda_j``, is matched with the nearest eigenvalue ``mu_j`` of the
 finite-difference Jacobian; their difference ``d_j = |lambda_j - mu_j|`` must be at most
 
-    tol_j = max(AGREEMENT_FLOOR, SAFETY * e_j),    AGREEMENT_FLOOR = 1e-6, SAFETY = 10,
+    tol_j = max(AGREEMENT_FLOOR, SAFETY * e_j, E),    AGREEMENT_FLOOR = 1e-6, SAFETY = 10,
 
 with ``e_j`` the finite-difference Jacobian's own error estimate carried to that multiplier:
 ``e_j = |mu_j - mu'_j|``, ``mu'_j`` the matching eigenvalue of the finite-difference Jacobian
@@ -28,7 +28,12 @@ at the neighbouring step that gave the entry-wise estimate (:class:`FDJacobian`)
 step-to-step test of the entries applied to the eigenvalues, so an ill-conditioned or
 defective multiplier (a critically damped thruster's double eigenvalue, whose perturbation
 grows like the square root of the entries') gets a wider band and a well-conditioned one a
-tight band, with no first-order condition number to fail. Without an estimate (too few
+tight band, with no first-order condition number to fail. ``E`` is the finite-difference
+Jacobian's own entry error estimate (:class:`FDJacobian` ``error``, the largest entry change to
+the neighbouring step): a multiplier is not asked to agree more closely than the entries it
+is computed from are known (a tiny, defective multiplier, such as the double ``exp(-20 T)`` of
+critically damped gains ``kp = 400``, ``kd = 40``, can move by about that much between the
+two methods while its own step-to-step change stays small). Without an estimate (too few
 successful steps) ``tol_j = AGREEMENT_FLOOR``; a given ``agreement_tol`` replaces every
 ``tol_j``. The spectral radius ``rho`` (of the variational Jacobian) is then known to within
 
@@ -72,10 +77,11 @@ from .variational import VariationalJacobian, variational_jacobian
 AGREEMENT_FLOOR = 1e-6  # [1] least tolerance on |lambda_var - lambda_fd| (module docstring)
 SAFETY = 10.0  # [1] factor on the finite-difference error estimate of a multiplier
 MARGIN = 1e-6  # [1] a spectral radius within max(this, its error bar) of 1 is undetermined
-AGREEMENT_RULE = ("per multiplier j: |lambda_var - lambda_fd| <= tol_j = max(1e-6, 10 e_j), "
-                  "e_j = |lambda_fd(h) - lambda_fd(h')| the change of the finite-difference "
+AGREEMENT_RULE = ("per multiplier j: |lambda_var - lambda_fd| <= tol_j = max(1e-6, 10 e_j, "
+                  "E), e_j = |lambda_fd(h) - lambda_fd(h')| the change of the finite-difference "
                   "multiplier between the chosen step h and the neighbouring step h' that gave "
-                  "the Jacobian's error estimate (tol_j = 1e-6 without an estimate; a given "
+                  "the Jacobian's error estimate E (its largest entry change; tol_j = 1e-6 "
+                  "without an estimate; a given "
                   "agreement_tol replaces every tol_j); spectral radius undetermined within "
                   "max(1e-6, max_j (d_j + 10 e_j)) of 1")
 
@@ -173,12 +179,13 @@ def _match(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def multipliers(zd: ZeroDynamics, J: np.ndarray, J_fd: np.ndarray, B: np.ndarray,
                 names: list[str], nz: int, top: int = 3, J_nb: np.ndarray | None = None,
-                agreement_tol: float | None = None) -> tuple[list[Multiplier], int]:
+                agreement_tol: float | None = None
+                ) -> tuple[list[Multiplier], int]:
     """Multipliers of ``J`` sorted by modulus (largest first), classified, each with its
     finite-difference match, that one's error estimate from ``J_nb`` (the finite-difference
-    Jacobian at the neighbouring step; None: no estimate) and its tolerance (module
-    docstring); returns them and the index of the zero-dynamics one (-1 if none is a walker
-    mode)."""
+    Jacobian at the neighbouring step; None: no estimate) and its tolerance ``max(1e-6, 10
+    e_j, E)`` with ``E = max |J_fd - J_nb|`` (module docstring); returns them and the index
+    of the zero-dynamics one (-1 if none is a walker mode)."""
     lam, V = np.linalg.eig(J)
     order = np.argsort(-np.abs(lam), kind="stable")
     lam, V = lam[order], V[:, order]
@@ -206,6 +213,7 @@ def multipliers(zd: ZeroDynamics, J: np.ndarray, J_fd: np.ndarray, B: np.ndarray
     fdv = _match(lam, np.linalg.eigvals(J_fd))
     err = (np.abs(fdv - _match(fdv, np.linalg.eigvals(J_nb))) if J_nb is not None
            else np.full(k, np.nan))
+    entries = float(np.max(np.abs(J_fd - J_nb))) if J_nb is not None else 0.0
     out = []
     for j in range(k):
         comp, idx, _ = dom[j]
@@ -213,7 +221,7 @@ def multipliers(zd: ZeroDynamics, J: np.ndarray, J_fd: np.ndarray, B: np.ndarray
                 else "outputs")
         e = float(err[j]) if np.isfinite(err[j]) else None
         tol = (float(agreement_tol) if agreement_tol is not None
-               else AGREEMENT_FLOOR if e is None else max(AGREEMENT_FLOOR, SAFETY * e))
+               else AGREEMENT_FLOOR if e is None else max(AGREEMENT_FLOOR, SAFETY * e, entries))
         out.append(Multiplier(complex(lam[j]), kind,
                               tuple((names[i], float(comp[i])) for i in idx),
                               float(share[j]), float(align[j]), complex(fdv[j]), e, tol))
@@ -277,8 +285,8 @@ def analyse(zd: ZeroDynamics, setting: Setting, *, newton_tol: float = 1e-9,
             agreement_tol: float | None = None, margin: float = MARGIN) -> Floquet:
     """Fixed point, Jacobians, multipliers and verdict of one setting (SPEC 13; module
     docstring). ``agreement_tol`` [1]: the largest accepted difference between matched
-    multipliers of the two methods (default None: ``max(1e-6, 10 e_j)`` per multiplier, from
-    the finite-difference error estimate); ``margin`` [1]: the least error bar of the spectral
+    multipliers of the two methods (default None: ``max(1e-6, 10 e_j, E)`` per multiplier,
+    from the finite-difference error estimates); ``margin`` [1]: the least error bar of the spectral
     radius. Raises :class:`InputError` for bad gains, tolerances or ``agreement_tol``; a
     failed step, a Newton that does not converge or methods that disagree come back in the
     verdict, whose reason then says what to try."""
@@ -335,7 +343,8 @@ def analyse(zd: ZeroDynamics, setting: Setting, *, newton_tol: float = 1e-9,
     worst = max(mults, key=lambda m: m.difference / m.tolerance)
     tol_text = (f"tolerance {worst.tolerance:.2g}, " + (
         "given" if source == "given" else
-        f"max(1e-6, 10 x its finite-difference error estimate {worst.fd_error:.2g})"
+        f"max(1e-6, 10 x its finite-difference error estimate {worst.fd_error:.2g}, the "
+        f"finite-difference entries' error estimate {fd.error:.2g})"
         if source == "scaled" else "1e-6: no finite-difference error estimate"))
     if not agree:
         verdict = "undetermined"

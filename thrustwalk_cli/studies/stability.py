@@ -162,9 +162,9 @@ def case_entry(i: int, case: Case) -> dict:
 
 
 TOLERANCE_SOURCE = {
-    "scaled": "max(1e-6, 10 e_j) per multiplier, e_j the finite-difference error estimate "
-              "carried to multiplier j (its change between the chosen step and the "
-              "neighbouring step)",
+    "scaled": "max(1e-6, 10 e_j, E) per multiplier, e_j the finite-difference error "
+              "estimate carried to multiplier j (its change between the chosen step and the "
+              "neighbouring step), E the finite-difference Jacobian's entry error estimate",
     "floor": "1e-6 for every multiplier: the finite differences gave no error estimate (too "
              "few successful steps)",
     "given": "agreement_tol, given, for every multiplier",
@@ -430,8 +430,8 @@ def stability(walker: Walker, *, thrust_model: str | ThrusterDynamics | None = N
     of ``kp``, ``kd``, ``wn``, ``xi``, ``tau``, ``thrust`` (one case per value). ``rtol``,
     ``atol``: tolerances of the compiled simulation (the finite differences need about 1e-12).
     ``agreement_tol`` [1]: the largest accepted difference between the multipliers of the two
-    methods (finite, > 0; default None: ``max(1e-6, 10 e_j)`` per multiplier, ``e_j`` the
-    finite-difference error estimate carried to it; see
+    methods (finite, > 0; default None: ``max(1e-6, 10 e_j, E)`` per multiplier, ``e_j`` the
+    finite-difference error estimate carried to it, ``E`` the entries'; see
     :mod:`thrustwalk_cli.floquet.multipliers`). ``progress(1)`` after each case. Bad
     parameters raise :class:`InputError` naming them. ``check_only``: check every argument,
     compute nothing and return None. ``slope`` [rad, positive uphill, |slope| < pi/2]: the
