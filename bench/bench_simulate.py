@@ -31,7 +31,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from timing import median_time, report
+from timing import median_cpu, median_time, report
 
 REPO = Path(__file__).resolve().parents[1]
 STEPS = 10
@@ -79,16 +79,6 @@ def _batch_part(args):
     return int(res.success.sum())
 
 
-def _cpu(fn, repeat: int) -> float:
-    """Median CPU time of ``fn`` [s]."""
-    runs = []
-    for _ in range(repeat):
-        t0 = time.process_time()
-        fn()
-        runs.append(time.process_time() - t0)
-    return statistics.median(runs)
-
-
 def whole() -> None:
     """simulate as a whole (issue 26; see the module docstring), both bundled robots."""
     import thrustwalk_cli as tw
@@ -101,8 +91,8 @@ def whole() -> None:
             tw.simulate(walker, method="scipy", **dict(kw, steps=1))
             pairs = []
             for _ in range(3 if model == "ideal" else 1):
-                ref = _cpu(lambda: tw.simulate(walker, method="scipy", **kw), 1)
-                cmp = _cpu(lambda: tw.simulate(walker, **kw), 7 if model == "ideal" else 3)
+                ref = median_cpu(lambda: tw.simulate(walker, method="scipy", **kw), 1)
+                cmp = median_cpu(lambda: tw.simulate(walker, **kw), 7 if model == "ideal" else 3)
                 pairs.append((ref, cmp))
             ref = statistics.median(p[0] for p in pairs)
             cmp = statistics.median(p[1] for p in pairs)
@@ -121,8 +111,8 @@ def whole() -> None:
                 res = tw.simulate(walker, **kw, **more)
                 for oc in res.outcomes:
                     dict(oc.full.trajectory)
-            ref_s = _cpu(lambda: sampled(method="scipy"), 1)
-            cmp_s = _cpu(sampled, 7)
+            ref_s = median_cpu(lambda: sampled(method="scipy"), 1)
+            cmp_s = median_cpu(sampled, 7)
             print(f"{tag + ', samples read: SciPy method (baseline)':<64s} {ref_s * 1e3:10.1f} ms",
                   flush=True)
             print(f"{tag + ', samples read: compiled':<64s} {cmp_s * 1e3:10.1f} ms  "
